@@ -1,0 +1,253 @@
+"""Structure descriptions shared by the simulator and the later stages.
+
+:class:`Structure` holds sparse mass ``M``, stiffness ``K``, optional viscous
+damping ``C`` and hysteretic (structural) damping ``D`` on labelled DOFs, and
+computes its exact FRFs.  The equation of motion is
+
+    M x'' + C x' + (K + iD) x = f            (D only meaningful in harmonic motion)
+
+so the receptance is ``H(ω) = (K + iD + iωC − ω²M)⁻¹``.
+
+:class:`ModalModel` is the pole–residue form of the same dynamics,
+
+    H(s) = Σ_k  r_k l_kᵀ / (s − λ_k)  +  Σ_r φ_r φ_rᵀ / s²,
+
+with every pole listed explicitly (no implied conjugates, so hysteretic damping
+is represented exactly for s = iω, ω > 0) and undamped rigid-body modes kept
+as the double pole at zero.  It is exact when all modes are kept: the modal
+damping matrices are diagonalised analytically when they are diagonal
+(proportional damping) and through the state-space eigenproblem in modal
+coordinates otherwise.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .dof import Dof, locate, parse_dofs
+from .errors import ModalabValueError, ShapeError
+from .frf import FRF
+from .units import QUANTITY_UNITS, check_quantity
+
+__all__ = ["Structure", "ModalModel"]
+
+_ORDER = {"receptance": 0, "mobility": 1, "accelerance": 2}
+
+
+def _as_sparse(A, name, n=None):
+    if A is None:
+        return None
+    S = sp.csr_matrix(A, dtype=float) if not np.iscomplexobj(A) else sp.csr_matrix(A)
+    if S.shape[0] != S.shape[1]:
+        raise ShapeError(f"{name} must be square; got {S.shape}")
+    if n is not None and S.shape[0] != n:
+        raise ShapeError(f"{name} is {S.shape[0]}x{S.shape[0]} but the model has {n} DOFs")
+    return S
+
+
+@dataclass
+class ModalModel:
+    """Pole–residue model: ``H(s) = Σ right[:,k] left[k,:]/(s−poles[k]) + rigid rigidᵀ/s²`` (receptance).
+
+    ``dofs`` labels the rows of ``right`` and the columns of ``left``.
+    ``hysteretic`` is True when the model contains structural damping: its
+    poles then reproduce H(iω) for ω > 0 only and have no causal impulse response.
+    """
+
+    poles: np.ndarray
+    right: np.ndarray
+    left: np.ndarray
+    rigid: np.ndarray
+    dofs: list
+    hysteretic: bool = False
+
+    @property
+    def n_dof(self) -> int:
+        return len(self.dofs)
+
+    def frf(self, freq_hz, responses=None, references=None, quantity: str = "accelerance",
+            chunk: int = 2048) -> FRF:
+        """Exact FRFs at ``freq_hz`` between the labelled DOFs (all DOFs by default)."""
+        q = check_quantity(quantity)
+        freq = np.asarray(freq_hz, dtype=float)
+        resp = self.dofs if responses is None else parse_dofs(responses)
+        refs = self.dofs if references is None else parse_dofs(references)
+        io, so = locate(self.dofs, resp, "response DOF")
+        ii, si = locate(self.dofs, refs, "reference DOF")
+        R = self.right[io] * np.asarray(so)[:, None]
+        L = self.left[:, ii] * np.asarray(si)[None, :]
+        G = self.rigid[io] * np.asarray(so)[:, None]
+        Gi = self.rigid[ii] * np.asarray(si)[:, None]
+        order = _ORDER[q]
+        H = np.empty((len(io), len(ii), freq.size), complex)
+        for a in range(0, freq.size, chunk):
+            s = 2j * np.pi * freq[a:a + chunk]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                w = s[None, :] ** order / (s[None, :] - self.poles[:, None])      # (m, f)
+                Hc = np.einsum("ok,ki,kf->oif", R, L, w, optimize=True)
+                if G.shape[1]:
+                    g = s ** (order - 2) if order < 2 else np.ones_like(s)
+                    Hc = Hc + np.einsum("or,ir,f->oif", G, Gi, g, optimize=True)
+            H[..., a:a + chunk] = Hc
+        return FRF(freq_hz=freq, H=H, responses=resp, references=refs, quantity=q,
+                   metadata={"estimator": "exact"})
+
+    def impulse_response(self, t, responses=None, references=None) -> np.ndarray:
+        """Receptance impulse responses h(t) (n_out, n_in, n_t), exact for viscous damping, t ≥ 0."""
+        if self.hysteretic:
+            raise ModalabValueError("a model with hysteretic damping has no causal impulse response; "
+                                    "synthesise in the frequency domain instead (ModalModel.frf)")
+        t = np.asarray(t, dtype=float)
+        resp = self.dofs if responses is None else parse_dofs(responses)
+        refs = self.dofs if references is None else parse_dofs(references)
+        io, so = locate(self.dofs, resp, "response DOF")
+        ii, si = locate(self.dofs, refs, "reference DOF")
+        R = self.right[io] * np.asarray(so)[:, None]
+        L = self.left[:, ii] * np.asarray(si)[None, :]
+        h = np.einsum("ok,ki,kt->oit", R, L, np.exp(self.poles[:, None] * t[None, :]), optimize=True).real
+        if self.rigid.shape[1]:
+            G = self.rigid[io] * np.asarray(so)[:, None]
+            Gi = self.rigid[ii] * np.asarray(si)[:, None]
+            h = h + np.einsum("or,ir,t->oit", G, Gi, t)
+        return h
+
+
+class Structure:
+    """Mass, stiffness and damping on labelled DOFs.
+
+    Parameters (keyword-only)
+    ----------
+    M, K : (n, n) symmetric matrices (dense or sparse) in kg and N/m (kg·m², N·m/rad for rotations).
+    dofs : n DOF labels, one per row (positive directions).
+    C : optional viscous damping matrix, N·s/m.
+    D : optional hysteretic damping matrix (imaginary stiffness), N/m.
+    coords : optional {node: (x, y, z)} in m, for plots and geometry export.
+    name : free text.
+    """
+
+    def __init__(self, *, M, K, dofs, C=None, D=None, coords: dict | None = None, name: str = ""):
+        self.dofs: list[Dof] = parse_dofs(dofs)
+        n = len(self.dofs)
+        self.M = _as_sparse(M, "M", n)
+        self.K = _as_sparse(K, "K", n)
+        self.C = _as_sparse(C, "C", n)
+        self.D = _as_sparse(D, "D", n)
+        for nm, A in (("M", self.M), ("K", self.K), ("C", self.C), ("D", self.D)):
+            if A is None:
+                continue
+            asym = abs(A - A.T).max() if A.nnz else 0.0
+            scale = abs(A).max() if A.nnz else 1.0
+            if asym > 1e-9 * max(scale, 1e-300):
+                raise ModalabValueError(f"{nm} is not symmetric (max |A-Aᵀ| = {asym:.3g}); "
+                                        "structural matrices must be symmetric")
+        self.coords = dict(coords or {})
+        self.name = name
+        self._modal = None
+
+    @property
+    def n_dof(self) -> int:
+        return len(self.dofs)
+
+    def __repr__(self) -> str:
+        damp = "+".join(x for x, A in (("C", self.C), ("D", self.D)) if A is not None) or "undamped"
+        return f"Structure({self.name or 'unnamed'}: {self.n_dof} DOFs, {damp})"
+
+    def index(self, dofs):
+        """Row indices and signs of the given labels."""
+        return locate(self.dofs, dofs)
+
+    # ----------------------------------------------------------------- modes
+    def normal_modes(self, n_modes: int | None = None):
+        """Undamped natural frequencies ω (rad/s) and mass-normalised shapes Φ (n, m), ascending."""
+        n = self.n_dof
+        if n_modes is None or n <= 2000:
+            Md, Kd = self.M.toarray(), self.K.toarray()
+            try:
+                w2, phi = sla.eigh(Kd, Md)
+            except np.linalg.LinAlgError as e:
+                raise ModalabValueError(f"the mass matrix is not positive definite ({e}); every DOF needs mass "
+                                        "(add rotary inertia or condense massless DOFs)") from None
+            if n_modes is not None:
+                w2, phi = w2[:n_modes], phi[:, :n_modes]
+        else:
+            sigma = -1.0 * max(abs(self.K.diagonal()).max() / max(abs(self.M.diagonal()).max(), 1e-300), 1.0) * 1e-6
+            w2, phi = spla.eigsh(self.K.tocsc(), k=n_modes, M=self.M.tocsc(), sigma=sigma, which="LM")
+            o = np.argsort(w2)
+            w2, phi = w2[o], phi[:, o]
+        w2 = np.where(w2 < 0, 0.0, w2)
+        return np.sqrt(w2), phi
+
+    def modal_model(self, n_modes: int | None = None, rigid_tol: float = 1e-6) -> ModalModel:
+        """Pole–residue model; exact with ``n_modes=None`` (all modes)."""
+        if n_modes is None and self._modal is not None:
+            return self._modal
+        omega, phi = self.normal_modes(n_modes)
+        m = omega.size
+        Cm = phi.T @ (self.C @ phi) if self.C is not None else np.zeros((m, m))
+        Dm = phi.T @ (self.D @ phi) if self.D is not None else np.zeros((m, m))
+        wmax = max(omega.max(), 1e-300) if m else 1.0
+        damp_row = np.abs(Cm).sum(1) * wmax + np.abs(Dm).sum(1)
+        rigid = (omega < rigid_tol * wmax) & (damp_row <= 1e-12 * max(wmax ** 2, 1e-300))
+        el = ~rigid
+        phi_e = phi[:, el]
+        K2 = np.diag(omega[el] ** 2) + 1j * Dm[np.ix_(el, el)]
+        C2 = Cm[np.ix_(el, el)]
+        me = int(el.sum())
+        offdiag = (np.abs(C2 - np.diag(np.diag(C2))).max(initial=0.0) * wmax
+                   + np.abs(Dm[np.ix_(el, el)] - np.diag(np.diag(Dm[np.ix_(el, el)]))).max(initial=0.0))
+        if offdiag <= 1e-10 * max(wmax ** 2, 1e-300):
+            c, k = np.diag(C2), np.diag(K2)
+            disc = np.sqrt(c.astype(complex) ** 2 - 4 * k)
+            s1 = (-c + disc) / 2
+            s2 = (-c - disc) / 2
+            gap = s1 - s2
+            gap = np.where(np.abs(gap) < 1e-12 * wmax, 1e-12 * wmax, gap)
+            poles = np.concatenate([s1, s2])
+            right = np.concatenate([phi_e / gap[None, :], -phi_e / gap[None, :]], axis=1)
+            left = np.concatenate([phi_e.T, phi_e.T], axis=0).astype(complex)
+        else:
+            A = np.zeros((2 * me, 2 * me), complex)
+            A[:me, me:] = np.eye(me)
+            A[me:, :me] = -K2
+            A[me:, me:] = -C2
+            lam, V = sla.eig(A)
+            Vinv = sla.inv(V)
+            poles = lam
+            right = phi_e @ V[:me, :]
+            left = Vinv[:, me:] @ phi_e.T
+        mm = ModalModel(poles=poles, right=right.astype(complex), left=left.astype(complex),
+                        rigid=phi[:, rigid], dofs=list(self.dofs), hysteretic=self.D is not None)
+        if n_modes is None:
+            self._modal = mm
+        return mm
+
+    # ------------------------------------------------------------------ FRFs
+    def frf(self, freq_hz, responses=None, references=None, quantity: str = "accelerance",
+            method: str = "modal") -> FRF:
+        """Exact FRFs: ``method='modal'`` (all modes, fast for many lines) or ``'direct'`` (a sparse solve per line)."""
+        if method == "modal":
+            return self.modal_model().frf(freq_hz, responses, references, quantity)
+        if method != "direct":
+            raise ModalabValueError(f"method {method!r}; expected 'modal' or 'direct'")
+        q = check_quantity(quantity)
+        freq = np.asarray(freq_hz, dtype=float)
+        resp = self.dofs if responses is None else parse_dofs(responses)
+        refs = self.dofs if references is None else parse_dofs(references)
+        io, so = locate(self.dofs, resp, "response DOF")
+        ii, si = locate(self.dofs, refs, "reference DOF")
+        n = self.n_dof
+        F = np.zeros((n, len(ii)), complex)
+        F[ii, np.arange(len(ii))] = si
+        Kc = self.K.astype(complex) + (1j * self.D if self.D is not None else 0)
+        H = np.empty((len(io), len(ii), freq.size), complex)
+        for k, f in enumerate(freq):
+            w = 2 * np.pi * f
+            Z = Kc - w ** 2 * self.M + (1j * w * self.C if self.C is not None else 0)
+            X = spla.splu(sp.csc_matrix(Z)).solve(F)
+            H[:, :, k] = X[io] * np.asarray(so)[:, None] * (1j * w) ** _ORDER[q]
+        return FRF(freq_hz=freq, H=H, responses=resp, references=refs, quantity=q,
+                   units=QUANTITY_UNITS[q], metadata={"estimator": "exact"})
