@@ -1,0 +1,99 @@
+"""Exact FRFs of structures: modal (pole-residue) form against a direct solve."""
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from hypothesis import given, settings, strategies as st
+
+from modalab.errors import ModalabValueError, ShapeError
+from modalab.structure import Structure
+
+
+def chain(n, k=1e4, m=1.0, ground=True):
+    K = np.zeros((n, n))
+    for i in range(n - 1):
+        K[i:i + 2, i:i + 2] += k * np.array([[1, -1], [-1, 1]])
+    if ground:
+        K[0, 0] += k
+    return K, np.eye(n) * m
+
+
+@pytest.mark.parametrize("ground", [True, False])
+@pytest.mark.parametrize("damping", ["none", "proportional", "local_viscous", "hysteretic", "both"])
+def test_modal_equals_direct(ground, damping):
+    K, M = chain(5, ground=ground)
+    C = D = None
+    if damping == "proportional":
+        C = 1e-4 * K + 0.1 * M
+    elif damping == "local_viscous":
+        C = np.zeros((5, 5)); C[2, 2] = 3.0
+    elif damping == "hysteretic":
+        D = 0.02 * K
+    elif damping == "both":
+        C = np.zeros((5, 5)); C[4, 4] = 2.0
+        D = np.zeros((5, 5)); D[1, 1] = 500.0
+    s = Structure(M=M, K=K, C=C, D=D, dofs=[f"{i + 1}+Z" for i in range(5)])
+    f = np.linspace(0.3, 40, 97)
+    for q in ("receptance", "accelerance"):
+        a, b = s.frf(f, quantity=q), s.frf(f, quantity=q, method="direct")
+        np.testing.assert_allclose(a.H, b.H, rtol=1e-9, atol=1e-12 * np.abs(b.H).max())
+
+
+def test_sdof_closed_form():
+    k, m, c = 4.0e4, 2.0, 8.0
+    s = Structure(M=[[m]], K=[[k]], C=[[c]], dofs=["1+X"])
+    f = np.linspace(1, 50, 50)
+    w = 2 * np.pi * f
+    exact = 1 / (k - m * w ** 2 + 1j * w * c)
+    np.testing.assert_allclose(s.frf(f, quantity="receptance").H[0, 0], exact, rtol=1e-12)
+
+
+def test_free_free_rigid_mode_accelerance_at_dc_is_finite():
+    K, M = chain(3, ground=False)
+    s = Structure(M=M, K=K, dofs=["1+X", "2+X", "3+X"])
+    a = s.frf([0.0, 1.0], quantity="accelerance")
+    # at DC the accelerance of a free body is 1/total mass for every pair
+    np.testing.assert_allclose(a.H[..., 0].real, np.full((3, 3), 1 / 3.0), rtol=1e-9)
+
+
+def test_reciprocity_of_symmetric_model():
+    K, M = chain(6)
+    C = np.zeros((6, 6)); C[3, 3] = 1.5
+    s = Structure(M=M, K=K, C=C, dofs=[f"{i + 1}+Z" for i in range(6)])
+    H = s.frf(np.linspace(1, 30, 40)).H
+    np.testing.assert_allclose(H, H.transpose(1, 0, 2), rtol=1e-9, atol=1e-14)
+
+
+def test_signed_selection():
+    K, M = chain(3)
+    s = Structure(M=M, K=K, dofs=["1+Z", "2+Z", "3+Z"])
+    f = [5.0]
+    np.testing.assert_allclose(s.frf(f, ["2-Z"], ["1+Z"]).H, -s.frf(f, ["2+Z"], ["1+Z"]).H)
+
+
+def test_bad_matrices():
+    with pytest.raises(ShapeError):
+        Structure(M=np.eye(2), K=np.eye(3), dofs=["1+X", "2+X"])
+    with pytest.raises(ModalabValueError, match="symmetric"):
+        Structure(M=np.eye(2), K=[[1, 2], [0, 1]], dofs=["1+X", "2+X"])
+
+
+def test_impulse_response_sdof():
+    k, m, c = 1e4, 1.0, 2.0
+    s = Structure(M=[[m]], K=[[k]], C=[[c]], dofs=["1+X"])
+    t = np.linspace(0, 1, 101)
+    wn = np.sqrt(k / m); z = c / (2 * np.sqrt(k * m)); wd = wn * np.sqrt(1 - z ** 2)
+    exact = np.exp(-z * wn * t) * np.sin(wd * t) / (m * wd)
+    np.testing.assert_allclose(s.modal_model().impulse_response(t)[0, 0], exact, atol=1e-12)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(2, 6), st.floats(1e-3, 5e-2), st.integers(0, 2**31 - 1))
+def test_random_spd_models_modal_matches_direct(n, eta, seed):
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(n, n)); K = A @ A.T + n * np.eye(n)
+    B = rng.normal(size=(n, n)); M = B @ B.T + n * np.eye(n)
+    Cd = rng.uniform(0, 0.5, size=n)
+    s = Structure(M=sp.csr_matrix(M), K=K, C=np.diag(Cd), D=eta * K, dofs=[f"{i + 1}+X" for i in range(n)])
+    f = np.linspace(0.01, 1.0, 23)
+    np.testing.assert_allclose(s.frf(f, quantity="receptance").H, s.frf(f, quantity="receptance", method="direct").H,
+                               rtol=1e-7, atol=1e-10)
