@@ -1,0 +1,274 @@
+"""The ``modalab`` command line.  ``main(args=None)`` parses, builds config and calls the public API.
+
+Subcommands (each has ``--help`` with units):
+
+  demo       simulate the demo structure's hammer test end to end into a folder
+  sim        simulate a roving-hammer test into a UFF file of raw hits
+  frf        raw hits (UFF 58 time records) -> H1 FRFs + coherence (UFF 58)
+  info       what a UFF file holds
+  acquire    run a test plan on NI hardware or the simulated lab
+  identify   poly-reference PolyMAX identification of FRFs
+  correlate  test modes against an FE model (MAC, pairing)
+  update     update an FE model to test modes or FRFs
+  diagnose   locate and name missing physics
+  run        the whole chain from a project file
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import sys
+from pathlib import Path
+
+from .errors import ModalabError
+
+log = logging.getLogger("modalab")
+
+
+# ----------------------------------------------------------------------------- helpers
+def _print(*a):
+    print(*a, flush=True)
+
+
+class _TerminalPrompter:
+    """A key per choice at the terminal (Enter after the key)."""
+
+    def __call__(self, prompt: str, choices: str) -> str:
+        while True:
+            try:
+                a = input(prompt + " ").strip().lower()[:1]
+            except EOFError:
+                return "q"
+            if a in choices:
+                return a
+            _print(f"  please answer one of: {', '.join(choices)}")
+
+
+class _ConsoleObserver:
+    """Prints per-hit checks and a progress bar; saves a preview figure per point."""
+
+    def __init__(self, out_dir: Path, live_plot: bool = False, quiet: bool = False):
+        self.out_dir = Path(out_dir)
+        self.quiet = quiet
+        self.live_plot = live_plot
+        self._progress = None
+        self._task = None
+        self._last = None
+
+    def _bar(self, n):
+        if self._progress is None and not self.quiet:
+            try:
+                from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+
+                self._progress = Progress(TextColumn("[bold]points"), BarColumn(), MofNCompleteColumn(),
+                                          TextColumn("{task.description}"), transient=False)
+                self._progress.start()
+                self._task = self._progress.add_task("", total=n)
+            except ImportError:  # pragma: no cover
+                self._progress = False
+
+    def point_started(self, index, point, n_points):
+        self._bar(n_points)
+        if self._progress:
+            self._progress.update(self._task, completed=index, description=f"at {point}")
+
+    def hit(self, index, point, rec, report, running):
+        self._last = (rec, running)
+        if not self.quiet:
+            peak = max(abs(rec.data[i]).max() for i in rec.force_channels)
+            flags = ", ".join(report.reasons) if report.reasons else "ok"
+            msg = f"  hit at {point}: peak force {peak:.1f} N, checks: {flags}"
+            (self._progress.console.print if self._progress else _print)(msg)
+
+    def decided(self, index, point, hit_id, decision, reasons):
+        pass
+
+    def point_finished(self, index, point, summary):
+        if self._last is not None:
+            rec, running = self._last
+            try:
+                from .plots import plot_frf, plot_hit
+
+                prev = self.out_dir / "preview"
+                plot_hit(rec, path=prev / f"point_{index:03d}_hit.png", title=f"last hit at {point}")
+                if running is not None:
+                    plot_frf(running, path=prev / f"point_{index:03d}_frf.png", title=f"running H1 at {point}")
+            except Exception as e:  # noqa: BLE001 - a preview must never stop acquisition
+                log.warning("preview figure failed: %s", e)
+        if self._progress:
+            self._progress.update(self._task, completed=index + 1)
+
+    def message(self, text):
+        if not self.quiet:
+            (self._progress.console.print if self._progress else _print)("  " + text)
+
+    def close(self):
+        if self._progress:
+            self._progress.stop()
+
+
+# ----------------------------------------------------------------------------- commands
+def cmd_sim(a):
+    from .pipeline import simulate_hits
+
+    out, recs, _ = simulate_hits(a.output, structure=a.structure, points=a.points, references=a.references,
+                                 hits=a.hits, seed=a.seed, force_n=a.force, double_hit_probability=a.double_hits,
+                                 sample_rate_hz=a.sample_rate, n_samples=a.samples,
+                                 plot_dir=None if a.no_plot else Path(a.output).parent)
+    _print(f"wrote {len(recs)} hits x {recs[0].n_channels} channels to {out}")
+    return 0
+
+
+def cmd_frf(a):
+    from .pipeline import frf_from_file
+
+    plot = None if a.no_plot else (a.plot or str(Path(a.output).with_suffix(".png")))
+    out, frf = frf_from_file(a.input, a.output, estimator=a.estimator, force_fraction=a.force_window,
+                             exp_end_level=a.exp_end, exp_beta=a.exp_beta, reciprocity=not a.no_reciprocity,
+                             plot_path=plot)
+    _print(f"wrote {frf.n_out} x {frf.n_in} {frf.metadata.get('estimator', a.estimator)} FRFs "
+           f"({frf.n_freq} lines, {frf.freq_hz[0]:g}-{frf.freq_hz[-1]:g} Hz) with coherence to {out}")
+    if plot:
+        _print(f"plot: {plot}")
+    return 0
+
+
+def cmd_info(a):
+    from .pipeline import file_info
+
+    info = file_info(a.file)
+    if a.json:
+        _print(json.dumps(info, indent=1, default=str))
+    else:
+        for k, v in info.items():
+            if isinstance(v, (list, tuple)) and len(v) > 12:
+                v = f"{list(v[:12])} ... ({len(v)} in all)"
+            _print(f"{k:>18}: {v}")
+    return 0
+
+
+def cmd_acquire(a):
+    from .pipeline import acquire
+
+    out = Path(a.output)
+    obs = _ConsoleObserver(out, quiet=a.quiet)
+    prompter = None if a.auto else _TerminalPrompter()
+    try:
+        sess, summary, exported = acquire(a.plan, out, backend=a.backend, auto=a.auto, resume=a.resume,
+                                          prompter=prompter, observer=obs, seed=a.seed)
+    finally:
+        obs.close()
+    _print(summary.table())
+    for name, s in summary.range_suggestions.items():
+        _print(f"range suggestion: {name}: peak {s['peak']:g}, range {s['range']:g} -> {s['suggested']:g}")
+    if exported:
+        _print(f"session complete: {exported}")
+    else:
+        _print(f"session incomplete; continue with: modalab acquire {a.plan} --backend {a.backend} "
+               f"{'--auto ' if a.auto else ''}--resume -o {out}")
+    return 0 if summary.complete else 3
+
+
+def cmd_demo(a):
+    from .pipeline import demo
+
+    result = demo(a.output, quick=a.quick)
+    for k, v in result.items():
+        _print(f"{k:>14}: {v}")
+    return 0
+
+
+# ----------------------------------------------------------------------------- parser
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="modalab", description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter,
+                                epilog="Units: SI inside; frequencies in Hz, forces in N, accelerations in m/s^2.")
+    p.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv for debug)")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+
+    s = sub.add_parser("demo", help="simulate the demo structure's hammer test end to end (no hardware)")
+    s.add_argument("-o", "--output", default="modalab-demo", help="output folder (default: modalab-demo)")
+    s.add_argument("--quick", action="store_true", help="fewer points and hits (a smoke test)")
+    s.set_defaults(func=cmd_demo)
+
+    s = sub.add_parser("sim", help="simulate a roving-hammer test into a UFF of raw hits")
+    s.add_argument("-o", "--output", required=True, help="UFF file to write (raw hits, dataset 58 time records)")
+    s.add_argument("--structure", default="demo", help="'demo' or a Nastran bulk-data file (default: demo)")
+    s.add_argument("--points", nargs="+", help="DOFs to hit, e.g. 1+Z 3+Z (default: the demo's points)")
+    s.add_argument("--references", nargs="+", help="accelerometer DOFs (default: the demo's three)")
+    s.add_argument("--hits", type=int, default=3, help="hits per point (default 3)")
+    s.add_argument("--force", type=float, help="nominal peak force in N (default: the hammer's)")
+    s.add_argument("--double-hits", type=float, default=0.0, help="probability of a double hit, 0..1")
+    s.add_argument("--sample-rate", type=float, help="sampling rate in Hz (default 2048)")
+    s.add_argument("--samples", type=int, help="samples per record (default 8192)")
+    s.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    s.add_argument("--no-plot", action="store_true", help="do not write the hit figure")
+    s.set_defaults(func=cmd_sim)
+
+    s = sub.add_parser("frf", help="raw hits -> H1 FRFs and coherence")
+    s.add_argument("input", help="UFF with raw hits (dataset 58 time records)")
+    s.add_argument("-o", "--output", required=True, help="UFF to write (FRFs func type 4, coherence func type 6)")
+    s.add_argument("--estimator", default="H1", choices=["H1", "H2", "Hv"], help="FRF estimator (default H1)")
+    s.add_argument("--force-window", type=float, default=0.05,
+                   help="force window length as a fraction of the record after the trigger (default 0.05; 0 = off)")
+    s.add_argument("--exp-end", type=float, help="exponential window: level at the record end, e.g. 0.01 (1 %%)")
+    s.add_argument("--exp-beta", type=float, help="exponential window decay rate beta in 1/s (instead of --exp-end)")
+    s.add_argument("--no-reciprocity", action="store_true",
+                   help="keep hit points as references (default: accelerometers become references)")
+    s.add_argument("--plot", help="figure path (default: OUTPUT with .png)")
+    s.add_argument("--no-plot", action="store_true", help="no figure")
+    s.set_defaults(func=cmd_frf)
+
+    s = sub.add_parser("info", help="what a UFF file holds: datasets, DOFs, units, frequency range")
+    s.add_argument("file", help="a universal file (.uff/.unv)")
+    s.add_argument("--json", action="store_true", help="print JSON")
+    s.set_defaults(func=cmd_info)
+
+    s = sub.add_parser("acquire", help="run a test plan (impact test) on NI hardware or the simulated lab")
+    s.add_argument("plan", help="test plan (TOML; see the README)")
+    s.add_argument("--backend", default="sim", choices=["sim", "nidaqmx"], help="DAQ backend (default sim)")
+    s.add_argument("--auto", action="store_true", help="accept automatically: best N of M hits by coherence")
+    s.add_argument("--resume", action="store_true", help="continue an interrupted session in OUTPUT")
+    s.add_argument("-o", "--output", required=True, help="session folder")
+    s.add_argument("--seed", type=int, help="simulated lab seed (sim backend)")
+    s.add_argument("--quiet", action="store_true", help="no per-hit output")
+    s.set_defaults(func=cmd_acquire)
+
+    _add_later_stages(sub)
+    return p
+
+
+def _add_later_stages(sub):
+    """Stages whose commands live in their own modules (registered when importable)."""
+    for mod in ("identify", "correlate", "update", "diagnose", "run"):
+        try:
+            m = __import__(f"modalab._cli_{mod}", fromlist=["register"])
+        except ImportError:
+            continue
+        m.register(sub)
+
+
+def main(args=None) -> int:
+    parser = build_parser()
+    a = parser.parse_args(args)
+    level = logging.WARNING - 10 * min(a.verbose, 2)
+    if not logging.getLogger().handlers:
+        logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
+    if not getattr(a, "func", None):
+        parser.print_help()
+        return 2
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    try:
+        return int(a.func(a) or 0)
+    except ModalabError as e:
+        print(f"modalab {a.command}: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"modalab {a.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
