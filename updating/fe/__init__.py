@@ -1,0 +1,82 @@
+"""Sparse finite-element models for correlation and updating.
+
+Laid out like an FE code: element types (one per module in
+:mod:`updating.fe.elements`), properties, the model container, assembly,
+constraints, solvers, parameters and damping.  SI units throughout.
+
+Building a model (Python code or the Nastran bulk-data reader)
+---------------------------------------------------------------
+``m = FEModel(name, coupled_mass=True, global_ge=0.0, rayleigh=None, modal_damping=None)``
+    ``coupled_mass`` False = Nastran lumped mass (PARAM COUPMASS ≤ 0, Nastran's default);
+    ``global_ge`` = PARAM G (D += G·K); ``rayleigh=(α, β)`` adds C = αM + βK;
+    ``modal_damping`` = :class:`ModalDampingTable` (TABDMP1) for modal FRFs.
+``m.add_node(nid, xyz, cd=None)``
+    ``cd``: 3×3 rotation, columns = displacement (CD) axes in basic; node DOFs are in CD.
+``m.add_material(Material(mid, E, nu=0.3, rho=0.0, G=None, ge=0.0))``           MAT1
+``m.add_property(BeamProperty(pid, mid, section, nsm=0.0, name="", ge=None))``  PBAR/PBEAM(L)
+    sections: ``GeneralSection(A, Iy, Iz, J, ky=None, kz=None)`` (Iz = Nastran I1, Iy = I2),
+    ``RectangularSection(b, h)`` (b along local y, h along local z), ``TubeSection(do, di)``,
+    ``CircularSection(d)``.
+``m.add_property(RodProperty(pid, mid, A, J=0.0, nsm=0.0))``                     PROD
+``m.add_element(Beam3D(eid, n1, n2, pid, orientation=(vx, vy, vz) or G0 node id))``  CBAR
+``m.add_element(Timoshenko3D(eid, n1, n2, pid, orientation))``                  CBEAM-like, shear + rotary inertia
+``m.add_element(Beam2D(eid, n1, n2, pid, plane="xy"|"xz", axial=False))``       planar beam (w, θ)
+``m.add_element(Rod(eid, n1, n2, pid))``                                         CROD
+``m.add_element(Spring(eid, a=(node, comp), b=(node, comp) or None, k, ge=0.0, group=""))``   CELAS1/2
+``m.add_element(Damper(eid, a=(node, comp), b=(node, comp) or None, c, group=""))``           CDAMP1/2
+``m.add_element(LumpedMass(eid, node, mass, inertia=3×3 tensor|3 values, offset=(dx,dy,dz), axes=None, group=""))``
+    CONM2; pass the inertia *tensor* (Nastran's I21 enters as −I21).
+``m.add_rbe2(eid, independent, dependents, components="123456")``              RBE2 (by transformation)
+``m.add_spc(node, components="123456")``                                        SPC/SPC1
+
+Using a model
+-------------
+``m.dofs`` → list of :class:`~modalab.dof.Dof` (sorted node, axis; before constraints)
+``m.assemble()`` → :class:`Matrices` (K, M, C, D sparse CSR on ``m.dofs``)
+``m.reduction()`` → :class:`Reduction` (``T``, ``dofs`` = independent DOFs, ``expand(x) = T x``)
+``m.system()`` → :class:`FESystem` (constrained K, M, C, D, ``dofs``, ``reduction``, ``.structure()``)
+``m.structure()`` → :class:`~modalab.structure.Structure` on the constrained DOFs
+``m.modes(n_modes=None, full=True, method="auto", shift=None, solver="auto")`` → :class:`~modalab.modes.ModeSet`
+
+Solvers (:mod:`updating.fe.solvers`)
+------------------------------------
+``eigen_dense(K, M, n_modes=None)``, ``eigen_sparse(K, M, n_modes, shift=None, shift_hz=None,
+solver="auto"|"splu"|"cholmod", permc_spec="MMD_AT_PLUS_A", info=None)``,
+``normal_modes(K, M, n_modes, method="auto")`` → (ω rad/s, mass-normalised Φ);
+``modes_of(system, n_modes, full=True, modal_damping=None)`` → ModeSet;
+``frf_direct(system, freq_hz, responses, references, quantity)`` and
+``frf_modal(system, freq_hz, responses, references, n_modes=, residual=True, modal_damping=None)`` → FRF.
+
+Damping (:mod:`updating.fe.damping`)
+------------------------------------
+``ModalDampingTable(freq_hz, values, kind="CRIT"|"G"|"Q").zeta(f)``, ``rayleigh_coefficients(f1, z1, f2, z2)``,
+``rayleigh(M, K, α, β)``, ``modal_damping_matrix(M, Φ, ω, ζ)``.
+
+Parameters (:mod:`updating.fe.parameters`)
+------------------------------------------
+``Parameter(name, field, materials=(), properties=(pid or group name, ...), elements=(), groups=(),
+mode="factor"|"value")`` — factor: p multiplies the nominal (p0 = 1); value: p is the SI value.
+``ParametricFEModel(model, parameters, p0=None)`` implements
+:class:`updating.parametric.ParametricModel`: ``dofs``, ``parameter_names``, ``p0``,
+``structure(p)``, ``derivatives(p)`` (exact, complex-step, on the constrained DOFs),
+plus ``model_at(p)`` and ``system(p)``.
+"""
+from .assembly import Matrices, assemble
+from .constraints import RBE2, SPC, Reduction, build_reduction
+from .damping import ModalDampingTable, modal_damping_matrix, rayleigh, rayleigh_coefficients
+from .elements import (Beam2D, Beam3D, Damper, Element, ElementMatrices, LumpedMass, Rod, Spring,
+                       Timoshenko3D)
+from .model import FEModel, FESystem, Node
+from .parameters import Parameter, ParametricFEModel
+from .properties import (BeamProperty, CircularSection, GeneralSection, Material, RectangularSection,
+                         RodProperty, TubeSection)
+from .solvers import eigen_dense, eigen_sparse, frf_direct, frf_modal, modes_of, normal_modes
+
+__all__ = [
+    "FEModel", "FESystem", "Node", "Matrices", "assemble", "RBE2", "SPC", "Reduction", "build_reduction",
+    "Material", "GeneralSection", "RectangularSection", "TubeSection", "CircularSection", "BeamProperty",
+    "RodProperty", "Element", "ElementMatrices", "Beam3D", "Timoshenko3D", "Beam2D", "Rod", "Spring", "Damper",
+    "LumpedMass", "eigen_dense", "eigen_sparse", "normal_modes", "modes_of", "frf_direct", "frf_modal",
+    "ModalDampingTable", "rayleigh", "rayleigh_coefficients", "modal_damping_matrix", "Parameter",
+    "ParametricFEModel",
+]

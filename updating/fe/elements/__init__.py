@@ -1,0 +1,23 @@
+"""Element library, one element type per module.
+
+=================  ==============================================================
+:class:`Beam3D`     3-D Euler–Bernoulli frame (CBAR-like), orientation vector, consistent/lumped mass
+:class:`Timoshenko3D` 3-D shear-deformable frame with rotary inertia
+:class:`Beam2D`     planar beam, (w, θ) or (u, w, θ) per node, plane 'xy' or 'xz'
+:class:`Rod`        axial + torsion rod (CROD)
+:class:`Spring`     scalar spring between two node components or to ground (CELAS)
+:class:`Damper`     scalar viscous damper (CDAMP)
+:class:`LumpedMass` point mass with rotary inertia and offset (CONM2)
+=================  ==============================================================
+"""
+from .base import AssemblyContext, Element, ElementMatrices
+from .beam2d import Beam2D
+from .beam3d import Beam3D
+from .damper import Damper
+from .mass import LumpedMass
+from .rod import Rod
+from .spring import Spring
+from .timoshenko3d import Timoshenko3D
+
+__all__ = ["Element", "ElementMatrices", "AssemblyContext", "Beam3D", "Timoshenko3D", "Beam2D", "Rod",
+           "Spring", "Damper", "LumpedMass"]

@@ -1,0 +1,22 @@
+"""3-D Timoshenko frame element: shear deformation and rotary inertia.
+
+Same nodes, DOFs and orientation as :class:`~updating.fe.elements.beam3d.Beam3D`;
+bending uses the interdependent-interpolation element of Friedman & Kosmatka
+(1993) with φ = 12 E I / (κ G A L²) per plane, whose consistent mass includes
+rotary inertia ρI.  A section without shear factors (``ky``/``kz`` None)
+behaves as shear-rigid in that plane (rotary inertia is still included).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .beam3d import Beam3D
+
+__all__ = ["Timoshenko3D"]
+
+
+@dataclass
+class Timoshenko3D(Beam3D):
+    """Shear-deformable 3-D beam (see :class:`Beam3D` for the arguments)."""
+
+    _shear = True
