@@ -81,6 +81,8 @@ class FEModel:
         self.global_ge = global_ge
         self.rayleigh = rayleigh
         self.modal_damping = modal_damping
+        #: free-form information (named nodes, source file ...), copied with the model
+        self.metadata: dict = {}
         self._dofs = None
 
     # ------------------------------------------------------------- building
@@ -194,6 +196,7 @@ class FEModel:
         new.elements = dict(self.elements)
         new.rbe2s = dict(self.rbe2s)
         new.spcs = list(self.spcs)
+        new.metadata = dict(self.metadata)
         return new
 
     def __repr__(self) -> str:
