@@ -61,6 +61,7 @@ def scan(raw: bytes, path) -> list[Block]:
     blocks: list[Block] = []
     n = len(raw)
     pos = 0
+    counted, lines_before = 0, 0   # newlines in raw[:counted] (incremental: linear in the file size)
     while True:
         # skip blank lines between datasets
         while pos < n:
@@ -71,7 +72,9 @@ def scan(raw: bytes, path) -> list[Block]:
             pos = end + 1
         if pos >= n:
             break
-        line_no = raw.count(b"\n", 0, pos) + 1
+        lines_before += raw.count(b"\n", counted, pos)
+        counted = pos
+        line_no = lines_before + 1
         eol = raw.find(b"\n", pos)
         end = n if eol < 0 else eol
         first = raw[pos:end]
@@ -162,7 +165,7 @@ def _scan_binary(raw: bytes, pos: int, number: int, rest: bytes, path, id_line_n
             if length != n_bytes:
                 log.debug("%s: dataset %sb at line %d declares %d bytes but holds %d (writer bug); using %d",
                           path, number, id_line_no, n_bytes, length, length)
-            block.payload = raw[pos:end]
+            block.payload = memoryview(raw)[pos:end]
             return block, (n if eol < 0 else eol + 1)
     exp = candidates[0]
     have = n - pos
@@ -380,8 +383,16 @@ def _axis(block: Block, k: int) -> Axis:
                           "data type and three unit exponents", k) from None
 
 
-def parse_58(block: Block, header_only: bool = False) -> Fn58:
-    """Decode one dataset 58/58b block."""
+def parse_58(block: Block, header_only: bool = False, header: Fn58 | None = None) -> Fn58:
+    """Decode one dataset 58/58b block (``header``: its already decoded header, to skip re-parsing)."""
+    if header is None:
+        header = _parse_58_header(block)
+    if header_only:
+        return header
+    return _parse_58_data(block, header)
+
+
+def _parse_58_header(block: Block) -> Fn58:
     if len(block.lines) < 11:
         raise block.error(f"dataset 58 needs 11 header records after the dataset number; found {len(block.lines)}. "
                           "The dataset is truncated", len(block.lines))
@@ -411,8 +422,12 @@ def parse_58(block: Block, header_only: bool = False) -> Fn58:
             log.warning("%s: dataset 58 at line %d: ID line abscissa x0=%s dx=%s disagrees with record 7 "
                         "(%g, %g); using record 7", block.path, block.line, fn.tags.get("x0"), fn.tags.get("dx"),
                         x0, dx)
-    if header_only:
-        return fn
+    return fn
+
+
+def _parse_58_data(block: Block, head: Fn58) -> Fn58:
+    fn = Fn58(**{k: getattr(head, k) for k in head.__dataclass_fields__})
+    n, ord_type = fn.n, fn.ord_type
     k = _VALS_PER_POINT[(fn.is_complex, not fn.even)]
     need = n * k
     if block.binary:
@@ -428,7 +443,7 @@ def parse_58(block: Block, header_only: bool = False) -> Fn58:
             raise block.error(_count_message(block, values.size, need, n), 11)
     if fn.even:
         fn.x = fn.x0 + np.arange(n) * fn.dx
-        fn.y = values[0::2] + 1j * values[1::2] if fn.is_complex else values
+        fn.y = np.ascontiguousarray(values).view(np.complex128) if fn.is_complex else values
     else:
         fn.x = values[0::k].copy()
         fn.y = values[1::3] + 1j * values[2::3] if fn.is_complex else values[1::2].copy()

@@ -332,7 +332,7 @@ def _functions(blocks, cur, func_types, header_only=False) -> list[Fn58]:
         cur.block = b
         fn = parse_58(b, header_only=True)
         if fn.func_type in func_types:
-            out.append(parse_58(b) if not header_only else fn)
+            out.append(fn if header_only else parse_58(b, header=fn))
     cur.block = None
     return out
 
@@ -406,7 +406,8 @@ def read_frf(path, *, quantity: str | None = None, responses=None, references=No
             seen[i, j] = f.line
             sign = (1 if f.rsp_dir * rows[rkeys[i]].direction >= 0 else -1) * \
                    (1 if f.ref_dir * cols[ckeys[j]].direction >= 0 else -1)
-            H[i, j] = f.y * (sign * _frf_scale(f, lf, ff))
+            fac = sign * _frf_scale(f, lf, ff)
+            H[i, j] = f.y if fac == 1 else f.y * fac
         if not np.all(np.isfinite(first.x)) or (first.n > 1 and np.any(np.diff(first.x) <= 0)):
             raise UffError(f"the frequency axis ({first.x0!r} + k*{first.dx!r}) does not increase strictly",
                            path=path, dataset=58, line=first.line + 7)
