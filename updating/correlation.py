@@ -1,0 +1,599 @@
+"""Test–analysis correlation — thesis section 2.2.
+
+Mode-shape criteria (shapes are ``(n_dof, n_modes)`` arrays or
+:class:`~modalab.modes.ModeSet` objects on the same DOFs):
+
+* :func:`mac` — Modal Assurance Criterion, eq. 2.63 (complex-aware, optional weighting);
+  :func:`automac` — MAC of a set with itself; :func:`macx` — the complex MAC (MACX).
+* :func:`msf` — Modal Scale Factor, eq. 2.62.
+* :func:`comac` — Coordinate MAC, eq. 2.64; :func:`ecomac` — enhanced COMAC.
+* :func:`cross_orthogonality`, :func:`mixed_orthogonality` — eqs. 2.65, 2.66.
+* :func:`frequency_table` — direct comparison of paired frequencies (section 2.2.1).
+
+Pairing: :func:`pair_modes` — Hungarian assignment on a MAC (and optional
+frequency) cost with a MAC threshold; reports unpaired test and analysis modes
+and pairs whose order differs between the models (the thesis' scaled aircraft,
+Table 10, had test modes 3–5 paired with FE modes 5, 3, 4 and 9–10 with 10, 9).
+
+FRF criteria: :func:`frac` (FRF assurance criterion per FRF over frequency),
+:func:`csac` and :func:`csf` (cross-signature assurance and scale factor per
+frequency line), :func:`frf_correlation` for labelled FRFs or a Structure.
+
+High level: :func:`correlate` maps the analysis modes onto the test DOFs,
+computes the MAC matrix, pairs the modes and returns a :class:`CorrelationResult`
+with frequency errors, MSF, COMAC and ECOMAC, ``to_dict()`` for JSON and
+``table()`` for text.  Mode numbers in ``to_dict()`` and ``table()`` are 1-based;
+indices in Python attributes are 0-based.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.optimize import linear_sum_assignment
+
+from modalab.dof import parse_dofs
+from modalab.errors import ModalabValueError, ShapeError
+from modalab.frf import FRF
+from modalab.modes import ModeSet
+from modalab.structure import Structure
+
+from .dofmap import as_dofmap
+
+__all__ = ["mac", "automac", "macx", "msf", "comac", "ecomac", "cross_orthogonality", "mixed_orthogonality",
+           "frequency_table", "Pairing", "pair_modes", "frac", "csac", "csf", "FrfCorrelation",
+           "frf_correlation", "CorrelationResult", "correlate"]
+
+log = logging.getLogger(__name__)
+
+_TINY = 1e-300
+
+
+# ------------------------------------------------------------------------ inputs
+def _shapes(x, name: str) -> np.ndarray:
+    if isinstance(x, ModeSet):
+        return np.asarray(x.shapes)
+    try:
+        a = np.asarray(x)
+    except (TypeError, ValueError):
+        raise ModalabValueError(f"{name}: got {type(x).__name__}; expected an (n_dof, n_modes) array or a ModeSet") \
+            from None
+    if a.dtype == object or not np.issubdtype(a.dtype, np.number):
+        raise ModalabValueError(f"{name}: got an array of {a.dtype}; expected numbers, shape (n_dof, n_modes)")
+    if a.ndim == 1:
+        a = a[:, None]
+    if a.ndim != 2:
+        raise ShapeError(f"{name} has shape {a.shape}; expected (n_dof, n_modes)")
+    if not np.all(np.isfinite(a)):
+        raise ModalabValueError(f"{name} contains NaN or inf; remove or fill the missing shape values first")
+    return a
+
+
+def _pair_shapes(a, x, na="analysis shapes", nx="test shapes", same_modes=False):
+    A, X = _shapes(a, na), _shapes(x, nx)
+    if A.shape[0] != X.shape[0]:
+        raise ShapeError(f"{na} have {A.shape[0]} DOFs but {nx} have {X.shape[0]}; map both onto the same DOFs "
+                         "first (updating.dofmap.DofMap.apply or correlate(..., dofmap=...))")
+    if same_modes and A.shape[1] != X.shape[1]:
+        raise ShapeError(f"{na} have {A.shape[1]} modes but {nx} have {X.shape[1]}; pass paired modes column by "
+                         "column (e.g. from pair_modes)")
+    if isinstance(a, ModeSet) and isinstance(x, ModeSet):
+        if [(d.node, d.axis) for d in a.dofs] != [(d.node, d.axis) for d in x.dofs]:
+            raise ShapeError("the two mode sets are on different DOF labels; select common DOFs first "
+                             "(ModeSet.select_dofs) or use correlate(..., dofmap=...)")
+        sg = np.array([da.sign * dx.sign for da, dx in zip(a.dofs, x.dofs)], float)
+        X = X * sg[:, None]
+    return A, X
+
+
+def _weight(W, n):
+    if W is None:
+        return None
+    if sp.issparse(W):
+        W = sp.csr_matrix(W)
+    else:
+        W = np.asarray(W)
+    if W.shape != (n, n):
+        raise ShapeError(f"weighting matrix has shape {W.shape}; expected ({n}, {n}) on the shape DOFs")
+    return W
+
+
+def _inner(A, B, W=None):
+    """A^H W B."""
+    return A.conj().T @ (B if W is None else np.asarray(W @ B))
+
+
+# ------------------------------------------------------------------ mode criteria
+def mac(phi_a, phi_x, *, weight=None) -> np.ndarray:
+    """Modal Assurance Criterion matrix, eq. 2.63.
+
+    ``MAC_ij = |φ_aiᴴ W φ_xj|² / ((φ_aiᴴ W φ_ai)(φ_xjᴴ W φ_xj))`` with ``W = I`` by
+    default (a mass matrix gives the mass-weighted MAC).  Complex shapes use the
+    conjugate transpose.  Shape (n_analysis_modes, n_test_modes), values in [0, 1];
+    a zero vector gives 0.
+    """
+    A, X = _pair_shapes(phi_a, phi_x)
+    W = _weight(weight, A.shape[0])
+    num = np.abs(_inner(A, X, W)) ** 2
+    da = np.real(np.einsum("ij,ij->j", A.conj(), A if W is None else np.asarray(W @ A)))
+    dx = np.real(np.einsum("ij,ij->j", X.conj(), X if W is None else np.asarray(W @ X)))
+    den = np.outer(da, dx)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = np.where(den > _TINY, num / np.where(den > _TINY, den, 1.0), 0.0)
+    return np.clip(out, 0.0, 1.0)
+
+
+def automac(phi, *, weight=None) -> np.ndarray:
+    """AutoMAC: the MAC of a mode set with itself (symmetric, unit diagonal for non-zero shapes).
+
+    Off-diagonal values near 1 show modes the sensor set cannot tell apart (spatial aliasing).
+    """
+    P = _shapes(phi, "shapes")
+    M = mac(P, P, weight=weight)
+    return 0.5 * (M + M.T)
+
+
+def macx(phi_a, phi_x) -> np.ndarray:
+    """Complex MAC (MACX of Vacher, Jacquier & Bucharles 2010) for complex modes.
+
+    ``MACX = (|aᴴx| + |aᵀx|)² / ((aᴴa + |aᵀa|)(xᴴx + |xᵀx|))``.  It equals the MAC
+    (eq. 2.63) for real shapes and, unlike the MAC, is insensitive to the
+    distinction between a complex mode and its conjugate.
+    """
+    A, X = _pair_shapes(phi_a, phi_x)
+    num = (np.abs(A.conj().T @ X) + np.abs(A.T @ X)) ** 2
+    da = np.real(np.einsum("ij,ij->j", A.conj(), A)) + np.abs(np.einsum("ij,ij->j", A, A))
+    dx = np.real(np.einsum("ij,ij->j", X.conj(), X)) + np.abs(np.einsum("ij,ij->j", X, X))
+    den = np.outer(da, dx)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = np.where(den > _TINY, num / np.where(den > _TINY, den, 1.0), 0.0)
+    return np.clip(out, 0.0, 1.0)
+
+
+def msf(phi_x, phi_a) -> np.ndarray:
+    """Modal Scale Factor of paired columns, eq. 2.62: the factor that scales ``φ_a`` onto ``φ_x``.
+
+    ``MSF = φ_aᴴ φ_x / φ_aᴴ φ_a`` (least squares), so ``φ_a * MSF ≈ φ_x``; its modulus is
+    eq. 2.62 and its sign (phase for complex shapes) tells whether the shapes are
+    inverted.  Shape (n_pairs,); 0 where ``φ_a`` is zero.
+    """
+    X, A = _pair_shapes(phi_x, phi_a, "shapes phi_x", "shapes phi_a", same_modes=True)
+    num = np.einsum("ij,ij->j", A.conj(), X)
+    den = np.real(np.einsum("ij,ij->j", A.conj(), A))
+    out = np.where(den > _TINY, num / np.where(den > _TINY, den, 1.0), 0.0)
+    return out.real if not np.iscomplexobj(out) or np.all(out.imag == 0) else out
+
+
+def _unit(P):
+    n = np.linalg.norm(P, axis=0)
+    return P / np.where(n > _TINY, n, 1.0)[None, :]
+
+
+def comac(phi_a, phi_x, *, normalize: bool = True) -> np.ndarray:
+    """Coordinate MAC per DOF over L paired modes (columns in pair order), eq. 2.64.
+
+    ``COMAC_i = (Σ_r |φ_a,ir φ_x,ir|)² / (Σ_r |φ_a,ir|² Σ_r |φ_x,ir|²)`` (Lieven & Ewins; the
+    printed eq. 2.64 omits the square of the numerator, without which the value would not
+    be bounded by 1).  ``normalize=True`` scales every mode vector to unit length first, so
+    each pair counts equally whatever the test scaling.  Values in [0, 1]; 1 = correlated.
+    """
+    A, X = _pair_shapes(phi_a, phi_x, same_modes=True)
+    if normalize:
+        A, X = _unit(A), _unit(X)
+    num = np.sum(np.abs(A * X), axis=1) ** 2
+    den = np.sum(np.abs(A) ** 2, axis=1) * np.sum(np.abs(X) ** 2, axis=1)
+    out = np.where(den > _TINY, num / np.where(den > _TINY, den, 1.0), 0.0)
+    return np.clip(out, 0.0, 1.0)
+
+
+def ecomac(phi_a, phi_x) -> np.ndarray:
+    """Enhanced COMAC per DOF (Hunt 1992): ``ECOMAC_i = Σ_r |φ_a,ir - φ̃_x,ir| / (2L)``.
+
+    Each analysis mode is scaled to a largest entry of 1 and each test mode is
+    scaled onto it with its MSF (eq. 2.62), so the value measures the remaining
+    shape difference: 0 for perfect correlation, larger for worse.
+    """
+    A, X = _pair_shapes(phi_a, phi_x, same_modes=True)
+    L = A.shape[1]
+    if L == 0:
+        return np.zeros(A.shape[0])
+    k = np.argmax(np.abs(A), axis=0)
+    peak = A[k, np.arange(L)]
+    A = A / np.where(np.abs(peak) > _TINY, peak, 1.0)[None, :]
+    s = msf(A, X)                                   # scales X onto A
+    Xs = X * s[None, :]
+    return np.sum(np.abs(A - Xs), axis=1) / (2 * L)
+
+
+def _ortho(A, M, B):
+    Mm = sp.csr_matrix(M) if sp.issparse(M) else np.asarray(M)
+    if Mm.shape != (A.shape[0], A.shape[0]):
+        raise ShapeError(f"mass matrix has shape {Mm.shape}; expected ({A.shape[0]}, {A.shape[0]}) on the shape "
+                         "DOFs (a reduced mass on the test DOFs, or the full mass with expanded test modes)")
+    return A.T @ np.asarray(Mm @ B), Mm
+
+
+def cross_orthogonality(phi_a, phi_x, M, *, normalize: bool = False) -> np.ndarray:
+    """Cross orthogonality (Targoff), eq. 2.65: ``COM = Φ_Aᵀ M_A Φ_X``.
+
+    ``M`` is the analytical mass on the shape DOFs (reduced to the test DOFs, or
+    the full mass with expanded test shapes).  Identity for well-correlated,
+    mass-normalised modes.  ``normalize=True`` divides by
+    ``sqrt(|diag(Φ_AᵀMΦ_A)| |diag(Φ_XᵀMΦ_X)|)`` so differently scaled sets compare.
+    """
+    A, X = _pair_shapes(phi_a, phi_x)
+    O, Mm = _ortho(A, M, X)
+    if normalize:
+        da = np.sqrt(np.abs(np.einsum("ij,ij->j", A, np.asarray(Mm @ A))))
+        dx = np.sqrt(np.abs(np.einsum("ij,ij->j", X, np.asarray(Mm @ X))))
+        O = O / np.outer(np.where(da > _TINY, da, 1.0), np.where(dx > _TINY, dx, 1.0))
+    return O
+
+
+def mixed_orthogonality(phi_x, M, *, normalize: bool = False) -> np.ndarray:
+    """Mixed orthogonality, eq. 2.66: ``MOC = Φ_Xᵀ M_A Φ_X`` (test modes with the analytical mass).
+
+    Identity for mass-normalised modes of a correct model; ``normalize=True``
+    divides by ``sqrt(|d_i d_j|)`` with ``d = diag(MOC)`` (unit diagonal).
+    """
+    X = _shapes(phi_x, "test shapes")
+    O, _ = _ortho(X, M, X)
+    if normalize:
+        d = np.sqrt(np.abs(np.diag(O)))
+        d = np.where(d > _TINY, d, 1.0)
+        O = O / np.outer(d, d)
+    return O
+
+
+def frequency_table(freq_a_hz, freq_x_hz, pairs) -> list[dict]:
+    """Paired frequencies and relative errors ``(f_a - f_x)/f_x`` in %, one dict per pair (0-based indices)."""
+    fa, fx = np.asarray(freq_a_hz, float), np.asarray(freq_x_hz, float)
+    rows = []
+    for ia, jx in pairs:
+        err = (fa[ia] - fx[jx]) / fx[jx] * 100 if fx[jx] != 0 else (0.0 if fa[ia] == 0 else np.inf)
+        rows.append({"analysis": int(ia), "test": int(jx), "analysis_freq_hz": float(fa[ia]),
+                     "test_freq_hz": float(fx[jx]), "freq_error_pct": float(err)})
+    return rows
+
+
+# ----------------------------------------------------------------------- pairing
+@dataclass
+class Pairing:
+    """Result of :func:`pair_modes` (0-based indices).
+
+    pairs : (analysis, test) index pairs, sorted by test mode.
+    mac : MAC value of each pair.
+    unpaired_test, unpaired_analysis : modes without a partner.
+    out_of_order : pairs whose order differs between the models (crossing another pair).
+    """
+
+    pairs: list
+    mac: np.ndarray
+    unpaired_test: list
+    unpaired_analysis: list
+    out_of_order: list = field(default_factory=list)
+
+    @property
+    def analysis_index(self) -> np.ndarray:
+        return np.array([a for a, _ in self.pairs], int)
+
+    @property
+    def test_index(self) -> np.ndarray:
+        return np.array([x for _, x in self.pairs], int)
+
+
+def pair_modes(mac_matrix, freq_a_hz=None, freq_x_hz=None, *, mac_min: float = 0.5, freq_weight: float = 0.0,
+               max_freq_error: float | None = None) -> Pairing:
+    """Pair analysis modes (rows) with test modes (columns) by optimal assignment.
+
+    The Hungarian algorithm (:func:`scipy.optimize.linear_sum_assignment`) minimises
+    the total cost ``Σ (1 - MAC) + freq_weight · |f_a - f_x| / f_x`` over one-to-one
+    pairings, so swapped modes are paired by shape, not by order.  Candidates with
+    ``MAC < mac_min`` (or a relative frequency error above ``max_freq_error``)
+    are not allowed; test modes left without an allowed partner are reported as
+    unpaired (a missing or spurious mode), like the analysis modes nobody chose.
+
+    Parameters
+    ----------
+    mac_matrix : (n_analysis, n_test) MAC values.
+    freq_a_hz, freq_x_hz : natural frequencies, needed when ``freq_weight`` or ``max_freq_error`` is used.
+    mac_min : smallest MAC of an acceptable pair, in [0, 1].
+    freq_weight : weight of the relative frequency error in the cost (0: MAC only).
+    max_freq_error : largest acceptable relative frequency error (0.2 = 20 %), or None.
+    """
+    Mc = np.asarray(mac_matrix, dtype=float)
+    if Mc.ndim != 2:
+        raise ShapeError(f"MAC matrix has shape {Mc.shape}; expected (n_analysis, n_test)")
+    if not np.all(np.isfinite(Mc)):
+        raise ModalabValueError("the MAC matrix contains NaN or inf; check the mode shapes")
+    if not 0.0 <= mac_min <= 1.0:
+        raise ModalabValueError(f"mac_min {mac_min}; expected a value in [0, 1] such as 0.5")
+    if freq_weight < 0:
+        raise ModalabValueError(f"freq_weight {freq_weight}; expected >= 0")
+    na, nx = Mc.shape
+    rel = np.zeros_like(Mc)
+    if freq_weight > 0 or max_freq_error is not None:
+        if freq_a_hz is None or freq_x_hz is None:
+            raise ModalabValueError("freq_weight/max_freq_error need freq_a_hz and freq_x_hz")
+        fa, fx = np.asarray(freq_a_hz, float), np.asarray(freq_x_hz, float)
+        if fa.shape != (na,) or fx.shape != (nx,):
+            raise ShapeError(f"frequencies have shapes {fa.shape}, {fx.shape}; expected ({na},), ({nx},) like the MAC")
+        den = np.maximum(np.abs(fx)[None, :], 1e-12 * max(np.abs(fx).max(initial=0), np.abs(fa).max(initial=0), 1))
+        rel = np.abs(fa[:, None] - fx[None, :]) / den
+    allowed = Mc >= mac_min
+    if max_freq_error is not None:
+        allowed &= rel <= max_freq_error
+    cost = (1.0 - Mc) + freq_weight * np.minimum(rel, 1e6)
+    big = 1e3 * (1.0 + np.abs(cost[allowed]).max(initial=0.0))
+    cost = np.where(allowed, cost, big)
+    pairs, vals = [], []
+    if na and nx:
+        r, c = linear_sum_assignment(cost)
+        for i, j in zip(r, c):
+            if allowed[i, j]:
+                pairs.append((int(i), int(j)))
+        pairs.sort(key=lambda p: p[1])
+        vals = [Mc[i, j] for i, j in pairs]
+    used_a = {a for a, _ in pairs}
+    used_x = {x for _, x in pairs}
+    ooo = [p for p in pairs if any((q[1] - p[1]) * (q[0] - p[0]) < 0 for q in pairs)]
+    res = Pairing(pairs=pairs, mac=np.asarray(vals, float), unpaired_test=[j for j in range(nx) if j not in used_x],
+                  unpaired_analysis=[i for i in range(na) if i not in used_a], out_of_order=ooo)
+    if res.unpaired_test:
+        log.info("test modes without an analysis partner (MAC < %.2f): %s", mac_min,
+                 [j + 1 for j in res.unpaired_test])
+    return res
+
+
+# ------------------------------------------------------------------ FRF criteria
+def _frf_arrays(a, x):
+    Ha = a.H if isinstance(a, FRF) else np.asarray(a)
+    Hx = x.H if isinstance(x, FRF) else np.asarray(x)
+    if Ha.shape != Hx.shape:
+        raise ShapeError(f"FRF arrays have shapes {Ha.shape} and {Hx.shape}; expected equal shapes "
+                         "(n_out, n_in, n_freq). Align them with frf_correlation")
+    if Ha.ndim == 1:
+        Ha, Hx = Ha[None, None], Hx[None, None]
+    elif Ha.ndim == 2:
+        Ha, Hx = Ha[:, None], Hx[:, None]
+    if Ha.ndim != 3:
+        raise ShapeError(f"FRF arrays have {Ha.ndim} dimensions; expected (n_out, n_in, n_freq)")
+    return Ha, Hx
+
+
+def frac(analysis, test) -> np.ndarray:
+    """Frequency Response Assurance Criterion per FRF, over the frequency lines.
+
+    ``FRAC_ij = |Σ_ω H_x,ij H_a,ij*|² / (Σ_ω |H_x,ij|² Σ_ω |H_a,ij|²)`` — shape
+    (n_out, n_in), values in [0, 1], 1 when the two FRFs are proportional.
+    """
+    Ha, Hx = _frf_arrays(analysis, test)
+    num = np.abs(np.sum(Hx * Ha.conj(), axis=2)) ** 2
+    den = np.sum(np.abs(Hx) ** 2, axis=2) * np.sum(np.abs(Ha) ** 2, axis=2)
+    return np.clip(np.where(den > _TINY, num / np.where(den > _TINY, den, 1.0), 0.0), 0, 1)
+
+
+def csac(analysis, test) -> np.ndarray:
+    """Cross-Signature Assurance Criterion per frequency line (a MAC between the response vectors).
+
+    ``CSAC(ω) = |H_x(ω)ᴴ H_a(ω)|² / ((H_xᴴH_x)(H_aᴴH_a))`` with all FRFs at ω
+    stacked into one vector; shape (n_freq,), values in [0, 1].
+    """
+    Ha, Hx = _frf_arrays(analysis, test)
+    a = Ha.reshape(-1, Ha.shape[2])
+    x = Hx.reshape(-1, Hx.shape[2])
+    num = np.abs(np.sum(x.conj() * a, axis=0)) ** 2
+    den = np.sum(np.abs(x) ** 2, axis=0) * np.sum(np.abs(a) ** 2, axis=0)
+    return np.clip(np.where(den > _TINY, num / np.where(den > _TINY, den, 1.0), 0.0), 0, 1)
+
+
+def csf(analysis, test) -> np.ndarray:
+    """Cross-Signature Scale Factor per frequency line: ``2|H_xᴴH_a| / (H_xᴴH_x + H_aᴴH_a)``.
+
+    Sensitive to amplitude as well as shape; 1 only when the FRFs are equal in modulus and shape.
+    """
+    Ha, Hx = _frf_arrays(analysis, test)
+    a = Ha.reshape(-1, Ha.shape[2])
+    x = Hx.reshape(-1, Hx.shape[2])
+    num = 2 * np.abs(np.sum(x.conj() * a, axis=0))
+    den = np.sum(np.abs(x) ** 2, axis=0) + np.sum(np.abs(a) ** 2, axis=0)
+    return np.clip(np.where(den > _TINY, num / np.where(den > _TINY, den, 1.0), 0.0), 0, 1)
+
+
+@dataclass
+class FrfCorrelation:
+    """FRF correlation on the test labels: aligned FRFs, FRAC per FRF, CSAC and CSF per line."""
+
+    analysis: FRF
+    test: FRF
+    frac: np.ndarray
+    csac: np.ndarray
+    csf: np.ndarray
+
+    def to_dict(self) -> dict:
+        return {"responses": [str(d) for d in self.test.responses],
+                "references": [str(d) for d in self.test.references],
+                "frac": self.frac.tolist(), "freq_hz": self.test.freq_hz.tolist(),
+                "csac": self.csac.tolist(), "csf": self.csf.tolist(),
+                "mean_frac": float(np.mean(self.frac)) if self.frac.size else None}
+
+
+def frf_correlation(analysis, test: FRF, *, dofmap=None, rtol: float = 1e-9) -> FrfCorrelation:
+    """Correlate analytical FRFs with measured ones on the test labels.
+
+    Parameters
+    ----------
+    analysis : :class:`~modalab.frf.FRF` on model labels (same frequency lines as the test),
+        or a :class:`~modalab.structure.Structure` whose exact FRFs are synthesised at the test lines.
+    test : measured FRF.
+    dofmap : maps test labels onto model DOFs (oblique sensors allowed: ``H_t = C_o H_a C_iᵀ``).
+    """
+    if not isinstance(test, FRF):
+        raise ModalabValueError(f"test: got {type(test).__name__}; expected a modalab.frf.FRF")
+    dm = as_dofmap(dofmap)
+    if isinstance(analysis, Structure):
+        Co_full = dm.matrix(test.responses, analysis.dofs)
+        Ci_full = dm.matrix(test.references, analysis.dofs)
+        ro = np.unique(sp.csr_matrix(Co_full).indices)
+        ri = np.unique(sp.csr_matrix(Ci_full).indices)
+        analysis = analysis.frf(test.freq_hz, responses=[analysis.dofs[i] for i in ro],
+                                references=[analysis.dofs[i] for i in ri], quantity=test.quantity)
+    if not isinstance(analysis, FRF):
+        raise ModalabValueError(f"analysis: got {type(analysis).__name__}; expected an FRF or a Structure")
+    if analysis.freq_hz.shape != test.freq_hz.shape or not np.allclose(analysis.freq_hz, test.freq_hz, rtol=rtol,
+                                                                        atol=0):
+        raise ShapeError(f"the analysis FRF has {analysis.n_freq} lines ({analysis.freq_hz[:1]}..) but the test "
+                         f"has {test.n_freq}; synthesise the analysis at the test lines "
+                         "(Structure.frf(test.freq_hz, ...)) or pass the Structure itself")
+    if analysis.quantity != test.quantity:
+        analysis = analysis.to(test.quantity)
+    Co = sp.csr_matrix(dm.matrix(test.responses, analysis.responses))
+    Ci = sp.csr_matrix(dm.matrix(test.references, analysis.references))
+    H = np.einsum("oa,abf,ib->oif", Co.toarray(), analysis.H, Ci.toarray(), optimize=True)
+    aligned = FRF(freq_hz=test.freq_hz, H=H, responses=test.responses, references=test.references,
+                  quantity=test.quantity, metadata={"source": "analysis on test DOFs"})
+    return FrfCorrelation(analysis=aligned, test=test, frac=frac(aligned, test), csac=csac(aligned, test),
+                          csf=csf(aligned, test))
+
+
+# -------------------------------------------------------------------- high level
+def _enc(v):
+    v = complex(v)
+    return v.real if v.imag == 0 else {"re": v.real, "im": v.imag}
+
+
+@dataclass
+class CorrelationResult:
+    """Everything :func:`correlate` found (0-based indices in attributes).
+
+    analysis : analysis modes observed at the test DOFs.
+    test : test modes.
+    mac : (n_analysis, n_test) MAC matrix.
+    pairing : :class:`Pairing`.
+    freq_error_pct : (n_pairs,) ``(f_a - f_x)/f_x`` in %.
+    msf : (n_pairs,) factor scaling each analysis mode onto its test mode (eq. 2.62).
+    comac, ecomac : (n_test_dofs,) per test DOF over the pairs.
+    mac_min : threshold used.
+    """
+
+    analysis: ModeSet
+    test: ModeSet
+    mac: np.ndarray
+    pairing: Pairing
+    freq_error_pct: np.ndarray
+    msf: np.ndarray
+    comac: np.ndarray
+    ecomac: np.ndarray
+    mac_min: float
+
+    @property
+    def pairs(self) -> list:
+        return self.pairing.pairs
+
+    @property
+    def dofs(self) -> list:
+        return self.test.dofs
+
+    def paired(self) -> tuple[ModeSet, ModeSet]:
+        """(analysis, test) mode sets restricted to the pairs, in pair order."""
+        return (self.analysis.select_modes(self.pairing.analysis_index),
+                self.test.select_modes(self.pairing.test_index))
+
+    def summary(self) -> dict:
+        fe = np.abs(self.freq_error_pct)
+        return {"n_pairs": len(self.pairs), "n_test_modes": self.test.n_modes,
+                "n_analysis_modes": self.analysis.n_modes,
+                "mean_abs_freq_error_pct": float(fe.mean()) if fe.size else None,
+                "max_abs_freq_error_pct": float(fe.max()) if fe.size else None,
+                "min_pair_mac": float(self.pairing.mac.min()) if self.pairs else None,
+                "mean_pair_mac": float(self.pairing.mac.mean()) if self.pairs else None}
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict; mode numbers are 1-based."""
+        fa, fx = self.analysis.freq_hz, self.test.freq_hz
+        ooo = set(self.pairing.out_of_order)
+        pairs = []
+        for k, (ia, jx) in enumerate(self.pairs):
+            pairs.append({"test_mode": jx + 1, "analysis_mode": ia + 1, "test_freq_hz": float(fx[jx]),
+                          "analysis_freq_hz": float(fa[ia]), "freq_error_pct": float(self.freq_error_pct[k]),
+                          "mac": float(self.pairing.mac[k]), "msf": _enc(self.msf[k]),
+                          "out_of_order": (ia, jx) in ooo})
+        return {
+            "test_dofs": [str(d) for d in self.test.dofs],
+            "test_freq_hz": fx.tolist(), "analysis_freq_hz": fa.tolist(),
+            "mac_min": self.mac_min, "mac": self.mac.tolist(), "pairs": pairs,
+            "unpaired_test_modes": [j + 1 for j in self.pairing.unpaired_test],
+            "unpaired_analysis_modes": [i + 1 for i in self.pairing.unpaired_analysis],
+            "comac": {str(d): float(v) for d, v in zip(self.test.dofs, self.comac)},
+            "ecomac": {str(d): float(v) for d, v in zip(self.test.dofs, self.ecomac)},
+            "summary": self.summary(),
+        }
+
+    def table(self) -> str:
+        """Plain-text frequency and MAC comparison (1-based mode numbers)."""
+        fa, fx = self.analysis.freq_hz, self.test.freq_hz
+        ooo = set(self.pairing.out_of_order)
+        lines = [f"{'test':>4} {'f_test [Hz]':>12} {'FE':>4} {'f_FE [Hz]':>12} {'df [%]':>8} {'MAC':>6} "
+                 f"{'|MSF|':>9}  note"]
+        by_test = {jx: (k, ia) for k, (ia, jx) in enumerate(self.pairs)}
+        for jx in range(self.test.n_modes):
+            if jx in by_test:
+                k, ia = by_test[jx]
+                note = "out of order" if (ia, jx) in ooo else ""
+                lines.append(f"{jx + 1:>4} {fx[jx]:>12.4f} {ia + 1:>4} {fa[ia]:>12.4f} "
+                             f"{self.freq_error_pct[k]:>+8.2f} {self.pairing.mac[k]:>6.3f} "
+                             f"{abs(self.msf[k]):>9.4g}  {note}")
+            else:
+                best = int(np.argmax(self.mac[:, jx])) if self.mac.shape[0] else -1
+                hint = f"best MAC {self.mac[best, jx]:.3f} with FE {best + 1}" if best >= 0 else ""
+                lines.append(f"{jx + 1:>4} {fx[jx]:>12.4f} {'-':>4} {'-':>12} {'-':>8} {'-':>6} {'-':>9}  "
+                             f"unpaired ({hint} < {self.mac_min:g})")
+        if len(fx):
+            band = [i for i in self.pairing.unpaired_analysis if fa[i] <= fx.max() * 1.1]
+            if band:
+                lines.append("analysis modes in the test band without a test partner: "
+                             + ", ".join(f"{i + 1} ({fa[i]:.4g} Hz)" for i in band))
+        s = self.summary()
+        if s["n_pairs"]:
+            lines.append(f"{s['n_pairs']} pairs; mean |df| {s['mean_abs_freq_error_pct']:.2f} %, "
+                         f"min MAC {s['min_pair_mac']:.3f}")
+        else:
+            lines.append(f"no pairs with MAC >= {self.mac_min:g}")
+        return "\n".join(lines)
+
+
+def correlate(analysis: ModeSet, test: ModeSet, *, dofmap=None, mac_min: float = 0.5, freq_weight: float = 0.0,
+              max_freq_error: float | None = None) -> CorrelationResult:
+    """Correlate analysis modes with test modes on the test DOFs.
+
+    The analysis modes are observed at the test DOFs through ``dofmap``
+    (:class:`~updating.dofmap.DofMap`, dict, TOML/CSV path, or None for the same
+    node numbers; unmapped test DOFs raise :class:`~modalab.errors.DofError`).
+    Then: MAC matrix (eq. 2.63), optimal pairing (:func:`pair_modes`), frequency
+    errors (section 2.2.1), MSF (eq. 2.62), COMAC (eq. 2.64) and ECOMAC over the
+    pairs.  Complex test shapes are used as they are (the MAC is complex-aware).
+    """
+    for name, ms in (("analysis", analysis), ("test", test)):
+        if not isinstance(ms, ModeSet):
+            raise ModalabValueError(f"{name}: got {type(ms).__name__}; expected a modalab.modes.ModeSet")
+    if test.n_dof == 0:
+        raise ModalabValueError("the test mode set has no DOFs; nothing to correlate")
+    ana = as_dofmap(dofmap).apply(analysis, test.dofs)
+    X = np.asarray(test.shapes)
+    A = np.asarray(ana.shapes)
+    M = mac(A, X)
+    pairing = pair_modes(M, ana.freq_hz, test.freq_hz, mac_min=mac_min, freq_weight=freq_weight,
+                         max_freq_error=max_freq_error)
+    ia, jx = pairing.analysis_index, pairing.test_index
+    rows = frequency_table(ana.freq_hz, test.freq_hz, pairing.pairs)
+    ferr = np.array([r["freq_error_pct"] for r in rows], float)
+    if len(ia):
+        Ap, Xp = A[:, ia], X[:, jx]
+        s = msf(Xp, Ap)
+        cm, ec = comac(Ap, Xp), ecomac(Ap, Xp)
+    else:
+        s, cm, ec = np.zeros(0), np.zeros(test.n_dof), np.zeros(test.n_dof)
+    return CorrelationResult(analysis=ana, test=test, mac=M, pairing=pairing, freq_error_pct=ferr, msf=np.asarray(s),
+                             comac=cm, ecomac=ec, mac_min=float(mac_min))

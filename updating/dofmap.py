@@ -1,0 +1,346 @@
+"""Map measured (test) DOF labels onto model DOFs.
+
+Correlation (thesis section 2.2) and expansion (section 2.1.2) compare a test
+mode shape measured at ``n`` sensor DOFs with an analytical shape on the ``N``
+model DOFs.  Both are related by a linear observation matrix ``C`` (n × N),
+
+    x_test = C x_model,
+
+which :class:`DofMap` builds from labels.  A row of ``C`` is
+
+* a signed selection when the test DOF sits on a model DOF (same node number,
+  or a node or DOF given in the map; ``"101+Z" -> "12-Z"`` flips the sign);
+* a linear combination of the translational (or rotational) model DOFs of one
+  node when the sensor axis is oblique: either given explicitly
+  (``{"14+X": 0.7071, "14+Y": 0.7071}``) or as a direction vector, or because
+  the test node or the model node has its own coordinate system.
+
+Coordinate systems are rotation matrices ``R`` with ``v_global = R @ v_local``
+(the columns of ``R`` are the local axes written in global components).  A
+sensor along local axis ``a`` of test node ``t`` (sign ``s``) reads the global
+direction ``g = s R_t[:, a]``; a model node ``n`` whose displacement system
+is ``R_n`` (Nastran's CD) carries ``u_global = R_n u_local``, so the sensor
+reads ``gᵀ R_n u_local``: the row of ``C`` is ``R_nᵀ g`` over the node's X, Y, Z
+(or RX, RY, RZ) DOFs.
+
+Files (:meth:`DofMap.from_file`)
+--------------------------------
+TOML::
+
+    same_nodes = true           # unmapped test DOFs use the same node number (default)
+    [nodes]                     # test node -> model node, all directions
+    "101" = 12
+    [dofs]                      # test DOF -> model DOF, with signs
+    "102+Z" = "13-Z"
+    "103+X" = { "14+X" = 0.7071, "14+Y" = 0.7071 }         # linear combination
+    "104+Z" = { node = 15, direction = [0.0, 0.6, 0.8] }   # oblique sensor, global direction
+    [test_frames]               # rotation matrices of test nodes (v_global = R @ v_local)
+    "105" = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
+    [model_frames]              # displacement coordinate systems of model nodes
+    "16" = [[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]
+
+CSV, one row per term (repeat a test DOF for a linear combination; factor 1
+when omitted; ``#`` starts a comment; an optional header row is skipped)::
+
+    test_dof,model_dof,factor
+    101+Z,12+Z
+    102+Z,13-Z
+    103+X,14+X,0.7071
+    103+X,14+Y,0.7071
+"""
+from __future__ import annotations
+
+import csv
+import logging
+import tomllib
+from pathlib import Path
+from typing import Iterable, Mapping, Sequence
+
+import numpy as np
+import scipy.sparse as sp
+
+from modalab.dof import Dof, parse_dofs
+from modalab.errors import DofError, ModalabValueError, ShapeError
+from modalab.modes import ModeSet
+
+__all__ = ["DofMap", "as_dofmap", "observation_matrix"]
+
+log = logging.getLogger(__name__)
+
+_ZERO = 1e-12
+
+
+def _rotation(value, what: str) -> np.ndarray:
+    try:
+        R = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ModalabValueError(f"{what}: got {value!r}; expected a 3x3 rotation matrix of numbers. "
+                                "Give it as [[r11, r12, r13], [r21, r22, r23], [r31, r32, r33]]") from None
+    if R.shape != (3, 3):
+        raise ShapeError(f"{what}: got an array of shape {R.shape}; expected a 3x3 rotation matrix. "
+                         "Give three rows of three numbers")
+    err = np.abs(R.T @ R - np.eye(3)).max()
+    if not np.isfinite(err) or err > 1e-6:
+        raise ModalabValueError(f"{what}: the matrix is not orthonormal (max |RᵀR - I| = {err:.3g}); expected a "
+                                "rotation matrix whose columns are the local axes in global components. "
+                                "Normalise the axes or check the matrix")
+    return R
+
+
+def _parse_term_dict(test: Dof, spec: Mapping) -> tuple:
+    if "node" in spec or "direction" in spec:
+        if set(spec) - {"node", "direction", "rotation"} or "node" not in spec or "direction" not in spec:
+            raise ModalabValueError(
+                f"DOF map entry for {test}: got keys {sorted(spec)}; expected 'node' and 'direction' "
+                "(and optionally 'rotation = true'). Write e.g. {{ node = 15, direction = [0, 0.6, 0.8] }}")
+        try:
+            v = np.asarray(spec["direction"], dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            v = np.zeros(0)
+        nv = np.linalg.norm(v) if v.size == 3 else 0.0
+        if v.size != 3 or not np.isfinite(nv) or nv == 0:
+            raise ModalabValueError(f"DOF map entry for {test}: direction {spec['direction']!r}; expected a "
+                                    "non-zero 3-vector in global components such as [0, 0.6, 0.8]")
+        try:
+            node = int(spec["node"])
+        except (TypeError, ValueError):
+            raise ModalabValueError(f"DOF map entry for {test}: node {spec['node']!r} is not an integer node id") \
+                from None
+        return ("vector", node, v / nv, bool(spec.get("rotation", False)))
+    terms = []
+    for k, c in spec.items():
+        try:
+            coef = float(c)
+        except (TypeError, ValueError):
+            raise ModalabValueError(f"DOF map entry for {test}: coefficient {c!r} of {k!r} is not a number; "
+                                    "write e.g. {{ \"14+X\" = 0.7071 }}") from None
+        d = Dof.parse(k)
+        terms.append((d.positive, coef * d.sign))
+    if not terms:
+        raise ModalabValueError(f"DOF map entry for {test} is empty; give a model DOF such as '12+Z'")
+    return ("terms", tuple(terms))
+
+
+class DofMap:
+    """Mapping of test DOF labels to (combinations of) model DOFs.
+
+    Parameters (keyword-only)
+    ----------
+    dofs : {test label: spec}; spec is a model label (``"12-Z"``), a dict
+        ``{model label: coefficient}`` or ``{"node": n, "direction": [x, y, z]}``
+        (a sensor along a global direction at model node ``n``; add
+        ``"rotation": True`` for a rotational sensor).
+    nodes : {test node: model node} used for every direction of that node.
+    same_nodes : when True (default), a test DOF that is in neither ``dofs`` nor
+        ``nodes`` maps onto the model node with the same number.
+    test_frames, model_frames : {node: 3x3 rotation matrix}, ``v_global = R @ v_local``.
+    """
+
+    def __init__(self, *, dofs: Mapping | None = None, nodes: Mapping | None = None, same_nodes: bool = True,
+                 test_frames: Mapping | None = None, model_frames: Mapping | None = None, name: str = ""):
+        self._entries: dict[tuple[int, int], tuple] = {}
+        for k, spec in (dofs or {}).items():
+            t = Dof.parse(k)
+            if t.axis == 0:
+                raise DofError(f"test DOF {k!r} has no direction; expected a label such as '101+Z'")
+            key = (t.node, t.axis)
+            if key in self._entries:
+                raise ModalabValueError(f"test DOF {t} appears twice in the DOF map; keep one entry per DOF "
+                                        "(use a dict of coefficients for a linear combination)")
+            if isinstance(spec, (str, Dof, tuple)):
+                m = Dof.parse(spec)
+                entry = ("terms", ((m.positive, float(m.sign)),))
+            elif isinstance(spec, Mapping):
+                entry = _parse_term_dict(t, spec)
+            else:
+                raise ModalabValueError(f"DOF map entry for {t}: got {spec!r}; expected a model DOF label, a dict "
+                                        "of model DOF coefficients or {'node': n, 'direction': [x, y, z]}")
+            # store relative to the positive test direction
+            if t.sign < 0:
+                entry = _negate(entry)
+            self._entries[key] = entry
+        self.nodes = {int(a): int(b) for a, b in (nodes or {}).items()}
+        self.same_nodes = bool(same_nodes)
+        self.test_frames = {int(n): _rotation(R, f"coordinate system of test node {n}")
+                            for n, R in (test_frames or {}).items()}
+        self.model_frames = {int(n): _rotation(R, f"coordinate system of model node {n}")
+                             for n, R in (model_frames or {}).items()}
+        self.name = name
+
+    def __repr__(self) -> str:
+        return (f"DofMap({self.name or 'unnamed'}: {len(self._entries)} DOF entries, {len(self.nodes)} node entries, "
+                f"same_nodes={self.same_nodes}, {len(self.test_frames)}+{len(self.model_frames)} frames)")
+
+    # ------------------------------------------------------------ construction
+    @classmethod
+    def from_dict(cls, data: Mapping) -> "DofMap":
+        """Build from the dict layout of the TOML file (keys ``dofs``, ``nodes``, ``same_nodes``, frames)."""
+        known = {"dofs", "nodes", "same_nodes", "test_frames", "model_frames", "name"}
+        extra = set(data) - known
+        if extra:
+            raise ModalabValueError(f"DOF map: unknown keys {sorted(extra)}; expected some of {sorted(known)}")
+        return cls(dofs=data.get("dofs"), nodes=data.get("nodes"), same_nodes=data.get("same_nodes", True),
+                   test_frames=data.get("test_frames"), model_frames=data.get("model_frames"),
+                   name=data.get("name", ""))
+
+    @classmethod
+    def from_file(cls, path) -> "DofMap":
+        """Read a TOML (``.toml``) or CSV (any other suffix) DOF map; see the module docstring for the layouts."""
+        p = Path(path)
+        if not p.is_file():
+            raise ModalabValueError(f"DOF map file {str(p)!r} does not exist; give the path of a .toml or .csv map")
+        if p.suffix.lower() == ".toml":
+            try:
+                with open(p, "rb") as fh:
+                    data = tomllib.load(fh)
+            except tomllib.TOMLDecodeError as e:
+                raise ModalabValueError(f"DOF map file {str(p)!r} is not valid TOML ({e}); fix the syntax") from None
+            out = cls.from_dict(data)
+        else:
+            out = cls._from_csv(p)
+        out.name = out.name or p.name
+        return out
+
+    @classmethod
+    def _from_csv(cls, p: Path) -> "DofMap":
+        rows: dict[str, dict[str, float]] = {}
+        with open(p, newline="") as fh:
+            for lineno, row in enumerate(csv.reader(fh), start=1):
+                cells = [c.strip() for c in row]
+                if not cells or not cells[0] or cells[0].startswith("#"):
+                    continue
+                if lineno == 1 and cells[0].lower().replace(" ", "_") in ("test_dof", "test", "test_dofs"):
+                    continue
+                if len(cells) < 2 or len(cells) > 3 or not cells[1]:
+                    raise ModalabValueError(f"DOF map {str(p)!r} line {lineno}: got {row!r}; expected "
+                                            "'test_dof,model_dof[,factor]' such as '101+Z,12-Z'")
+                try:
+                    t, m = Dof.parse(cells[0]), Dof.parse(cells[1])
+                except DofError as e:
+                    raise DofError(f"DOF map {str(p)!r} line {lineno}: {e}") from None
+                try:
+                    f = float(cells[2]) if len(cells) == 3 and cells[2] else 1.0
+                except ValueError:
+                    raise ModalabValueError(f"DOF map {str(p)!r} line {lineno}: factor {cells[2]!r} is not a "
+                                            "number") from None
+                terms = rows.setdefault(str(t), {})
+                key = str(m.positive)
+                terms[key] = terms.get(key, 0.0) + f * m.sign
+        return cls(dofs=rows)
+
+    # ------------------------------------------------------------------ lookup
+    def terms(self, test_dof) -> list[tuple[Dof, float]]:
+        """Model DOFs (positive directions) and coefficients that one test DOF reads."""
+        t = Dof.parse(test_dof)
+        if t.axis == 0:
+            raise DofError(f"test DOF {t} has no direction; expected a label such as '101+Z'")
+        entry = self._entries.get((t.node, t.axis))
+        if entry is None:
+            if t.node in self.nodes:
+                model_node = self.nodes[t.node]
+            elif self.same_nodes:
+                model_node = t.node
+            else:
+                raise DofError(f"test DOF {t} is not in the DOF map and same_nodes is off; add it under [dofs] "
+                               f"(e.g. \"{t.positive}\" = \"12+Z\") or its node under [nodes]")
+            rot = t.axis > 3
+            local = np.zeros(3)
+            local[(t.axis - 1) % 3] = 1.0
+            R_t = self.test_frames.get(t.node, np.eye(3))
+            entry = ("vector", model_node, R_t @ local, rot)
+        kind = entry[0]
+        if kind == "terms":
+            out = list(entry[1])
+        else:
+            _, node, g, rot = entry
+            c = self.model_frames.get(node, np.eye(3)).T @ g
+            base = 4 if rot else 1
+            out = [(Dof(node, base + k), float(c[k])) for k in range(3) if abs(c[k]) > _ZERO]
+        return [(d, c * t.sign) for d, c in out]
+
+    def matrix(self, test_dofs, model_dofs) -> sp.csr_matrix:
+        """Observation matrix ``C`` (n_test × n_model) with ``x_test = C x_model``.
+
+        Raises :class:`~modalab.errors.DofError` naming every test DOF whose model DOFs are missing.
+        """
+        tl = parse_dofs(test_dofs)
+        ml = parse_dofs(model_dofs)
+        table = {}
+        for j, d in enumerate(ml):
+            table.setdefault((d.node, d.axis), (j, d.sign))
+        rows, cols, vals, missing = [], [], [], []
+        for i, t in enumerate(tl):
+            terms = self.terms(t)
+            absent = [d for d, _ in terms if (d.node, d.axis) not in table]
+            if absent:
+                missing.append(f"{t} -> {', '.join(str(d) for d in absent)}")
+                continue
+            for d, c in terms:
+                j, s = table[(d.node, d.axis)]
+                rows.append(i)
+                cols.append(j)
+                vals.append(c * s)
+        if missing:
+            avail = ", ".join(str(d) for d in ml[:10]) + (" ..." if len(ml) > 10 else "")
+            raise DofError(f"{len(missing)} test DOF(s) have no model counterpart: {'; '.join(missing[:10])}"
+                           f"{' ...' if len(missing) > 10 else ''}. The model has {len(ml)} DOFs ({avail}). "
+                           "Add the test DOFs to the DOF map (--map) or remove them from the test data")
+        C = sp.csr_matrix((vals, (rows, cols)), shape=(len(tl), len(ml)))
+        C.sum_duplicates()
+        return C
+
+    def selection(self, test_dofs, model_dofs) -> tuple[np.ndarray, np.ndarray]:
+        """Model row index and factor of each test DOF when each reads exactly one model DOF.
+
+        Raises :class:`~modalab.errors.ModalabValueError` for oblique test DOFs (a combination of model DOFs).
+        """
+        C = self.matrix(test_dofs, model_dofs).tocsr()
+        tl = parse_dofs(test_dofs)
+        idx, fac = np.empty(len(tl), int), np.empty(len(tl))
+        for i in range(len(tl)):
+            a, b = C.indptr[i], C.indptr[i + 1]
+            nz = [k for k in range(a, b) if abs(C.data[k]) > _ZERO]
+            if len(nz) != 1:
+                raise ModalabValueError(
+                    f"test DOF {tl[i]} reads {len(nz)} model DOFs (an oblique sensor); this method needs each test "
+                    "DOF on a single model DOF. Use SEREP or analytical-mode expansion, which accept oblique "
+                    "sensors, or map the DOF onto one model DOF")
+            idx[i], fac[i] = C.indices[nz[0]], C.data[nz[0]]
+        return idx, fac
+
+    def apply(self, modes: ModeSet, test_dofs) -> ModeSet:
+        """Model modes observed at the test DOFs: ``shapes = C @ modes.shapes`` on the test labels."""
+        tl = parse_dofs(test_dofs)
+        C = self.matrix(tl, modes.dofs)
+        out = modes.copy()
+        out.shapes = np.asarray(C @ modes.shapes)
+        out.dofs = tl
+        if out.scaling == "unit_max":
+            out.scaling = "arbitrary"
+        return out
+
+
+def _negate(entry: tuple) -> tuple:
+    if entry[0] == "terms":
+        return ("terms", tuple((d, -c) for d, c in entry[1]))
+    _, node, g, rot = entry
+    return ("vector", node, -g, rot)
+
+
+def as_dofmap(value) -> DofMap:
+    """Accept None (same node numbers), a :class:`DofMap`, a dict (TOML layout) or a file path."""
+    if value is None:
+        return DofMap()
+    if isinstance(value, DofMap):
+        return value
+    if isinstance(value, Mapping):
+        return DofMap.from_dict(value)
+    if isinstance(value, (str, Path)):
+        return DofMap.from_file(value)
+    raise ModalabValueError(f"DOF map: got {type(value).__name__}; expected None, a DofMap, a dict or the path "
+                            "of a .toml/.csv file")
+
+
+def observation_matrix(test_dofs, model_dofs, dofmap=None) -> sp.csr_matrix:
+    """``C`` with ``x_test = C x_model`` for the given labels (see :meth:`DofMap.matrix`)."""
+    return as_dofmap(dofmap).matrix(test_dofs, model_dofs)
