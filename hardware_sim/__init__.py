@@ -21,7 +21,8 @@ Configuration (frozen dataclasses)
     double hits, manual or automatic.
 Signal chain (pure functions, :mod:`hardware_sim.signal_chain`)
     :func:`half_sine`, :func:`half_sine_spectrum`, :func:`iepe_highpass`,
-    :func:`antialias_response`, :func:`quantization_step`, :func:`quantize`.
+    :func:`antialias_response`, :func:`quantization_step`, :func:`quantize`,
+    :func:`synthesis_taper`.
 Demo structure (:mod:`hardware_sim.demo`)
     :func:`demo_structure` — aluminium aeroplane cross on bungees, 45 DOFs;
     :func:`demo_channels`, :func:`demo_setup`, :func:`demo_lab`, ``DEMO_POINTS``;
@@ -41,9 +42,10 @@ from .demo import DEMO_POINTS, DEMO_REFERENCES, BeamSection, demo_channels, demo
 from .hammer import TIP_STIFFNESS_N_PER_M, Hammer, Pulse, contact_time_s
 from .lab import SimulatedLab, simulate_roving_test
 from .setup import AcquisitionSetup, ChannelSetup, FaultConfig
-from .signal_chain import antialias_response, half_sine, half_sine_spectrum, iepe_highpass, quantization_step, quantize
+from .signal_chain import (antialias_response, half_sine, half_sine_spectrum, iepe_highpass, quantization_step, quantize,
+                           synthesis_taper)
 
 __all__ = ["SimulatedLab", "simulate_roving_test", "ChannelSetup", "AcquisitionSetup", "FaultConfig", "Hammer",
            "Pulse", "TIP_STIFFNESS_N_PER_M", "contact_time_s", "half_sine", "half_sine_spectrum", "iepe_highpass",
-           "antialias_response", "quantization_step", "quantize", "demo_structure", "demo_channels", "demo_setup",
+           "antialias_response", "quantization_step", "quantize", "synthesis_taper", "demo_structure", "demo_channels", "demo_setup",
            "demo_lab", "grillage", "BeamSection", "DEMO_POINTS", "DEMO_REFERENCES"]

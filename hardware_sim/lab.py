@@ -20,7 +20,8 @@ How a hit is synthesised (exact for a linear structure)
    is no wrap-around beyond ``tail_tolerance`` (≈ the 24-bit step).
 3. Per channel: sensitivity (V/unit), IEPE AC-coupling high-pass, anti-alias
    filter; the oversampled signal is decimated to fs (content between fs/2 and
-   ``oversample·fs/2`` aliases as it would; above that is neglected).
+   ``0.8·oversample·fs/2`` aliases as it would; the simulated front end's analog
+   bandwidth rolls off above that, :func:`synthesis_taper`).
 4. Noise (sensor + converter), optional overload-storm transients, clipping to
    the ADC range (overload flag; the analog input before the anti-alias filter
    is checked too, as a delta-sigma modulator overloads on it), 24-bit
@@ -55,7 +56,8 @@ from modalab.structure import ModalModel, Structure
 
 from .hammer import Hammer
 from .setup import AcquisitionSetup, ChannelSetup, FaultConfig
-from .signal_chain import antialias_response, half_sine_spectrum, iepe_highpass, quantization_step, quantize
+from .signal_chain import (antialias_response, half_sine_spectrum, iepe_highpass, quantization_step, quantize,
+                           synthesis_taper)
 
 __all__ = ["SimulatedLab", "simulate_roving_test"]
 
@@ -79,7 +81,8 @@ class SimulatedLab:
     hammer : :class:`Hammer` (default: 0.16 kg, medium tip, manual, 200 N).
     faults : :class:`FaultConfig` (default: none).
     rng : ``numpy.random.Generator`` or an int seed (None: fresh OS entropy).
-    oversample : synthesis rate as a multiple of fs (≥ 1); 2 lets content up to fs alias.
+    oversample : synthesis rate as a multiple of fs; None picks 2 behind the delta-sigma filter (it leaves
+        nothing above 0.55 fs) and 4 otherwise, so content up to 0.8 × oversample × fs/2 aliases as it would.
     tail_tolerance : relative amplitude the slowest decay must reach before the synthesis grid wraps.
     max_synthesis_s : cap on the synthesis grid length (s) for nearly undamped structures.
     sleep : optional callable ``sleep(seconds)`` to make ``wait`` take real time (e.g. ``time.sleep``);
@@ -87,7 +90,7 @@ class SimulatedLab:
     """
 
     def __init__(self, structure, channels: Sequence | None = None, setup=None, *, hammer: Hammer | None = None,
-                 faults: FaultConfig | None = None, rng=None, oversample: int = 2, tail_tolerance: float = 1e-7,
+                 faults: FaultConfig | None = None, rng=None, oversample: int | None = None, tail_tolerance: float = 1e-7,
                  max_synthesis_s: float = 300.0, sleep: Callable[[float], None] | None = None):
         if isinstance(structure, Structure):
             self.structure = structure
@@ -100,13 +103,13 @@ class SimulatedLab:
         else:
             raise ModalabValueError(f"structure {type(structure).__name__!r} is neither a modalab Structure nor a "
                                     "ModalModel; build one with modalab.structure.Structure(M=..., K=..., dofs=...)")
-        if int(oversample) < 1:
-            raise ModalabValueError(f"oversample={oversample!r} must be an integer >= 1")
+        if oversample is not None and int(oversample) < 1:
+            raise ModalabValueError(f"oversample={oversample!r} must be an integer >= 1 (or None for automatic)")
         if not 0 < tail_tolerance < 1:
             raise ModalabValueError(f"tail_tolerance={tail_tolerance!r} must lie in (0, 1)")
         self.hammer = hammer if hammer is not None else Hammer()
         self.faults = faults if faults is not None else FaultConfig()
-        self.oversample = int(oversample)
+        self.oversample = None if oversample is None else int(oversample)
         self.tail_tolerance = float(tail_tolerance)
         self.max_synthesis_s = float(max_synthesis_s)
         self._rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
@@ -165,16 +168,26 @@ class SimulatedLab:
             log.warning("the slowest decay (%.3g 1/s) needs %.3g s of synthesis; capped at %.3g s, so the "
                         "response wraps around above the %.1e tolerance", sigma, tail_s, need / fs,
                         self.tail_tolerance)
+        os_ = self.oversample_used
         ns = sfft.next_fast_len(need, real=True)
         self._ns = ns
-        self._nos = ns * self.oversample
-        self._fs_os = fs * self.oversample
+        self._nos = ns * os_
+        self._fs_os = fs * os_
         self._freq = sfft.rfftfreq(self._nos, 1.0 / self._fs_os)
         aa = antialias_response(self._freq, fs, acq.aa_filter, acq.aa_cutoff, acq.aa_order)
-        self._pre_chain = [c.sensitivity * iepe_highpass(self._freq, c.coupling_corner_hz) for c in self.channels]
+        taper = synthesis_taper(self._freq, self._fs_os / 2)
+        self._pre_chain = [c.sensitivity * taper * iepe_highpass(self._freq, c.coupling_corner_hz)
+                           for c in self.channels]
         self._chain = [p * aa for p in self._pre_chain]
         log.debug("synthesis grid: %d samples at %g Hz (%.3g s, slowest decay %.3g 1/s)",
                   self._nos, self._fs_os, self._nos / self._fs_os, sigma)
+
+    @property
+    def oversample_used(self) -> int:
+        """Synthesis rate / fs: ``oversample`` if given, else 2 behind a delta-sigma filter and 4 otherwise."""
+        if self.oversample is not None:
+            return self.oversample
+        return 2 if self.setup is not None and self.setup.aa_filter == "delta-sigma" else 4
 
     @property
     def synthesis_duration_s(self) -> float:
@@ -400,7 +413,7 @@ class SimulatedLab:
     def _synthesise(self, p: dict) -> TimeRecord | None:
         acq = self.setup
         h = p["hit"]
-        fs, os_ = acq.sample_rate_hz, self.oversample
+        fs, os_ = acq.sample_rate_hz, self.oversample_used
         n, pre, W = acq.n_samples, acq.pretrigger_samples, self._window
         t0 = (self._lead + h["u_sub"]) / fs
         F = np.zeros(self._freq.size, complex)

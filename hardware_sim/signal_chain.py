@@ -16,6 +16,8 @@ iepe_highpass           first-order AC-coupling high-pass ``s/(s+ω_c)``.
 antialias_response      delta-sigma (linear phase, brick-wall) or analog Butterworth anti-alias filter.
 quantization_step       ADC step ``range/2**(bits-1)``.
 quantize                clip to the ADC range and round to the ADC step; returns overload flags.
+synthesis_taper         the analog bandwidth of the simulation: a raised-cosine roll-off to zero
+                        at the Nyquist frequency of the synthesis grid (no Gibbs ringing).
 """
 from __future__ import annotations
 
@@ -24,7 +26,7 @@ import numpy as np
 from modalab.errors import ModalabValueError
 
 __all__ = ["half_sine", "half_sine_spectrum", "iepe_highpass", "antialias_response", "AA_FILTERS",
-           "quantization_step", "quantize"]
+           "quantization_step", "quantize", "synthesis_taper"]
 
 AA_FILTERS = ("delta-sigma", "butterworth", "none")
 
@@ -75,8 +77,8 @@ def antialias_response(freq_hz, sample_rate_hz: float, kind: str = "delta-sigma"
 
     kind='delta-sigma'
         The decimation filter of a delta-sigma DSA card after its delay has been
-        compensated: zero phase, flat to ``cutoff·fs`` (pass edge), falling with a
-        raised-cosine in dB to ``−stop_db`` at ``(1−cutoff)·fs`` (stop edge) and
+        compensated: zero phase, flat to ``cutoff·fs`` (pass edge), falling smoothly
+        (a C² step in dB) to ``−stop_db`` at ``(1−cutoff)·fs`` (stop edge) and
         staying there.  This is how NI 4431/9234-class inputs behave.
     kind='butterworth'
         An analog Butterworth low-pass of ``order`` with its −3 dB point at
@@ -97,7 +99,7 @@ def antialias_response(freq_hz, sample_rate_hz: float, kind: str = "delta-sigma"
     if kind == "delta-sigma":
         fp, fst = cutoff * fs, (1 - cutoff) * fs
         x = np.clip((fa - fp) / (fst - fp), 0.0, 1.0)
-        att_db = stop_db * 0.5 * (1 - np.cos(np.pi * x))
+        att_db = stop_db * x ** 3 * (10 - 15 * x + 6 * x * x)      # C² 'smootherstep' in dB
         return (10 ** (-att_db / 20)).astype(complex)
     from scipy import signal
 
@@ -131,3 +133,15 @@ def quantize(volts, range_v: float, bits: int = 24, axis: int = -1):
     over = np.any(np.abs(v) >= range_v, axis=axis)
     codes = np.clip(np.round(v / step), -full, full - 1)
     return codes * step, over
+
+
+def synthesis_taper(freq_hz, nyquist_hz: float, start: float = 0.8) -> np.ndarray:
+    """Raised-cosine roll-off from ``start·nyquist_hz`` to zero at ``nyquist_hz`` (real, zero phase).
+
+    The simulated lab multiplies every signal by it: the front end's analog
+    bandwidth ends at ``start`` × the synthesis Nyquist frequency, so truncating
+    the spectrum there causes no Gibbs ringing.
+    """
+    fa = np.abs(np.asarray(freq_hz, dtype=float))
+    x = np.clip((fa - start * nyquist_hz) / ((1 - start) * nyquist_hz), 0.0, 1.0)
+    return 0.5 * (1 + np.cos(np.pi * x))
