@@ -10,7 +10,10 @@ double hit
     ``double_hit_level`` × peak.  *Spectral heuristic*: a single pulse has a smooth,
     monotonically falling force spectrum over its main lobe; a double hit modulates it with
     notches spaced 1/Δt apart.  The depth of the deepest notch within the main lobe (down to
-    ``lobe_db`` below the low-frequency level) is reported and flagged above ``dip_db``.
+    ``lobe_db`` below the low-frequency level) of the force from the pulse start over
+    ``spectral_window_s`` (or 20 pulse widths) is reported and flagged above ``dip_db``.  It sees a
+    second pulse whose delay puts a notch inside the main lobe; one that merges with the first
+    pulse (delay shorter than about one pulse width) is beyond both checks.
 overload
     The device's flags (``record.overload``), samples within ``rail_fraction`` of the channel's
     range (``ranges=`` or ``record.metadata['range']``: ±value or (lo, hi) per channel, in
@@ -58,6 +61,7 @@ class HitCheckConfig:
     pulse_end_level: float = 0.05        #: the pulse has ended when |force| falls below this × peak
     dip_db: float = 6.0                  #: notch depth in the force spectrum's main lobe that flags, dB
     lobe_db: float = 20.0                #: the main lobe extends down to this far below its low-frequency level, dB
+    spectral_window_s: float = 0.02      #: force analysed for notches: from the pulse start, max(this, 20 pulse widths)
     rail_fraction: float = 0.98          #: |x| >= rail_fraction × range counts as at the rail
     rail_samples: int = 1                #: samples at the rail needed to flag an overload
     flat_top_samples: int = 3            #: consecutive samples at the extreme value that flag a clipped top
@@ -73,7 +77,7 @@ class HitCheckConfig:
             v = getattr(self, name)
             if not (0 < v < 1):
                 raise ModalabValueError(f"HitCheckConfig.{name}={v!r} must lie in (0, 1)")
-        for name in ("dip_db", "lobe_db", "min_peak_force_n", "min_peak_snr"):
+        for name in ("dip_db", "lobe_db", "min_peak_force_n", "min_peak_snr", "spectral_window_s"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 raise ModalabValueError(f"HitCheckConfig.{name}={v!r} must be >= 0")
@@ -114,7 +118,7 @@ def _ranges_for(record: TimeRecord, ranges):
     r = ranges if ranges is not None else record.metadata.get("range")
     if r is None:
         return [None] * record.n_channels
-    r = list(r) if np.ndim(r) else [r] * record.n_channels
+    r = list(r) if isinstance(r, (list, tuple, np.ndarray)) else [r] * record.n_channels
     if len(r) != record.n_channels:
         raise ModalabValueError(f"{len(r)} channel ranges for {record.n_channels} channels; give one range "
                                 "(±value or (lo, hi) in engineering units) per channel")
@@ -253,8 +257,9 @@ def check_hit(record: TimeRecord, config: HitCheckConfig | None = None, *, range
             if dh_ratio > cfg.double_hit_level and "missing_trigger" not in flags:
                 flag("double_hit", f"second force pulse of {100 * dh_ratio:.0f} % of the peak "
                                    f"{1e3 * dh_delay:.3g} ms after the first; repeat the hit")
-        # spectral heuristic on the force from pulse start to the record end (force window-like)
-        seg = g[start:]
+        # spectral heuristic on the force from the pulse start over a force-window-like span
+        span = max(int(round(cfg.spectral_window_s * fs)), 20 * (end - start))
+        seg = g[start:start + span]
         if "missing_trigger" not in flags:
             dip = _spectral_dip_db(seg, fs, cfg.lobe_db)
             if dip > cfg.dip_db:
@@ -271,9 +276,7 @@ def check_hit(record: TimeRecord, config: HitCheckConfig | None = None, *, range
     end_ratio, pre_resp = [], []
     m_end = max(1, int(round(cfg.end_fraction * n)))
     for i in record.response_channels:
-        y = record.data[i]
-        base = float(np.median(y[:ti])) if ti >= 8 else 0.0
-        yc = y - base
+        yc = record.data[i]          # responses are AC-coupled: no baseline removed (motion before the trigger is data)
         pk = float(np.abs(yc).max())
         er = float(np.sqrt(np.mean(yc[-m_end:] ** 2)) / pk) if pk > 0 else 0.0
         end_ratio.append(er)
