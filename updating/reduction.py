@@ -25,6 +25,7 @@ also reduces its damping matrices.
 from __future__ import annotations
 
 import logging
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -122,7 +123,8 @@ class _Factor:
                 self._lu = spla.splu(sp.csc_matrix(A))
                 self._solve = self._lu.solve
             else:
-                with np.errstate(all="ignore"):
+                with np.errstate(all="ignore"), warnings.catch_warnings():
+                    warnings.simplefilter("ignore", sla.LinAlgWarning)
                     lu = sla.lu_factor(np.asarray(A), check_finite=True)
                 d = np.abs(np.diag(lu[0]))
                 if d.size and (d.min() <= 1e-13 * max(d.max(), 1e-300)):
