@@ -3,8 +3,9 @@
 Normal modes solve ``K φ = ω² M φ`` (thesis eq. 2.1 and following):
 
 * :func:`eigen_dense` — all (or the lowest) modes of a small model with
-  LAPACK; DOFs without mass (lumped-mass rotations) are statically condensed
-  first, which is exact for massless DOFs.
+  LAPACK, in the same shift-inverted form as the sparse solver so that
+  rigid-body modes are accurate; DOFs without mass (lumped-mass rotations)
+  drop out exactly (their static condensation).
 * :func:`eigen_sparse` — the lowest modes of a large model by shift-invert
   Lanczos (ARPACK through :func:`scipy.sparse.linalg.eigsh`) about a
   *negative* shift σ: ``K − σM`` is positive definite even for free-free
@@ -43,11 +44,13 @@ from modalab.units import QUANTITY_UNITS, check_quantity
 
 log = logging.getLogger(__name__)
 
-__all__ = ["DEFAULT_SHIFT_HZ", "eigen_dense", "eigen_sparse", "normal_modes", "modes_of", "factorize",
+__all__ = ["DEFAULT_SHIFT_HZ", "RIGID_HZ", "eigen_dense", "eigen_sparse", "normal_modes", "modes_of", "factorize",
            "shift_invert_operator", "frf_direct", "frf_modal", "cholmod_available"]
 
 #: default negative shift: σ = −(2π · DEFAULT_SHIFT_HZ)²
 DEFAULT_SHIFT_HZ = 1.0
+#: modes below this frequency are rigid-body modes (no modal damping, 1/s² term)
+RIGID_HZ = 1e-3
 _ORDER = {"receptance": 0, "mobility": 1, "accelerance": 2}
 
 
@@ -84,44 +87,44 @@ def _normalise(phi, M):
 
 
 # --------------------------------------------------------------------- dense
-def eigen_dense(K, M, n_modes: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Lowest ``n_modes`` (all by default) natural frequencies ω (rad/s) and mass-normalised shapes."""
+def eigen_dense(K, M, n_modes: int | None = None, *, shift: float | None = None,
+                shift_hz: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Lowest ``n_modes`` (all by default) natural frequencies ω (rad/s) and mass-normalised shapes.
+
+    Solved in shift-inverted form, ``M φ = μ (K − σM) φ`` with λ = σ + 1/μ and the
+    negative shift σ of :func:`eigen_sparse`: ``K − σM`` is positive definite for
+    free-free models, the error of each λ is relative to |λ − σ| rather than to
+    the largest eigenvalue (so rigid-body modes come out ≈ 0 to rounding), and
+    DOFs without mass (lumped-mass rotations) simply give μ = 0 — they are
+    dropped, which equals their exact static condensation.
+    """
     Kd = K.toarray() if sp.issparse(K) else np.asarray(K, float)
     Md = M.toarray() if sp.issparse(M) else np.asarray(M, float)
     n = Kd.shape[0]
     scale = np.abs(np.diag(Md)).max(initial=0.0)
     if scale <= 0:
         raise ModalabValueError("the mass matrix is zero; give the elements density or add lumped masses")
-    massless = np.all(np.abs(Md) <= 1e-13 * scale, axis=1)
-    if massless.any():
-        s, m = np.flatnonzero(massless), np.flatnonzero(~massless)
-        Kss = Kd[np.ix_(s, s)]
-        try:
-            X = -np.linalg.solve(Kss, Kd[np.ix_(s, m)])
-            if not np.all(np.isfinite(X)):
-                raise np.linalg.LinAlgError
-        except np.linalg.LinAlgError:
-            raise ModalabValueError(f"{s.size} DOFs have no mass and their stiffness is singular; constrain them "
-                                    "(SPC) or give them rotary inertia") from None
-        Kc = Kd[np.ix_(m, m)] + Kd[np.ix_(m, s)] @ X
-        Kc = (Kc + Kc.T) / 2
-        w2, pm = _eigh(Kc, Md[np.ix_(m, m)], n_modes)
-        phi = np.zeros((n, pm.shape[1]))
-        phi[m] = pm
-        phi[s] = X @ pm
-    else:
-        w2, phi = _eigh(Kd, Md, n_modes)
-    phi = _normalise(phi, Md)
-    return np.sqrt(np.clip(w2, 0, None)), phi
-
-
-def _eigh(K, M, n_modes):
-    sub = None if n_modes is None or n_modes >= K.shape[0] else (0, n_modes - 1)
+    n_finite = n - int(np.all(np.abs(Md) <= 1e-13 * scale, axis=1).sum())
+    k = n_finite if n_modes is None else min(int(n_modes), n_finite)
+    if k < 1:
+        raise ModalabValueError(f"n_modes = {n_modes}; expected at least 1")
+    sigma = _shift(shift, shift_hz)
+    A = Kd - sigma * Md
+    A = (A + A.T) / 2
     try:
-        return sla.eigh(K, M, subset_by_index=sub)
+        mu, phi = sla.eigh((Md + Md.T) / 2, A, subset_by_index=(n - k, n - 1))
     except np.linalg.LinAlgError as e:
-        raise ModalabValueError(f"the mass matrix is not positive definite ({e}); every DOF with stiffness "
-                                "needs mass, or must be massless and condensable") from None
+        raise ModalabValueError(f"K - shift*M is not positive definite ({e}): some DOFs have neither mass nor "
+                                "stiffness, or the stiffness matrix is indefinite. Constrain unconnected DOFs "
+                                "(SPC) or give massless DOFs stiffness") from None
+    if mu.min() <= 0:
+        raise ModalabValueError("the mass matrix is singular beyond its massless rows; check for DOFs with "
+                                "no mass of their own that the condensation cannot remove")
+    lam = sigma + 1.0 / mu
+    o = np.argsort(lam)
+    lam, phi = lam[o], phi[:, o]
+    phi = _normalise(phi, Md)
+    return np.sqrt(np.clip(lam, 0, None)), phi
 
 
 # -------------------------------------------------------------------- sparse
@@ -214,7 +217,7 @@ def normal_modes(K, M, n_modes: int | None = None, *, method: str = "auto", dens
     if method == "auto":
         method = "dense" if (n <= dense_limit or n_modes is None or n_modes >= n - 1) else "sparse"
     if method == "dense":
-        return eigen_dense(K, M, n_modes)
+        return eigen_dense(K, M, n_modes, shift=kw.get("shift"), shift_hz=kw.get("shift_hz"))
     if method == "sparse":
         if n_modes is None:
             raise ModalabValueError("the sparse solver needs n_modes; give the number of modes wanted")
@@ -225,7 +228,7 @@ def normal_modes(K, M, n_modes: int | None = None, *, method: str = "auto", dens
 def _modal_damping(phi, omega, C, D, table):
     """Per-mode viscous ζ: from a table, else from the diagonal of ΦᵀCΦ and ΦᵀDΦ."""
     z = np.zeros(omega.size)
-    el = omega > 1e-8 * max(omega.max(initial=0.0), 1e-300)
+    el = omega > 2 * np.pi * RIGID_HZ
     if table is not None:
         z[el] = table.zeta(omega[el] / (2 * np.pi))
         return z
@@ -312,10 +315,10 @@ def frf_modal(system, freq_hz, responses=None, references=None, *, n_modes: int 
     sigma = _shift(shift, shift_hz)
     if modes is None:
         omega, phi = normal_modes(system.K, system.M, n_modes, shift=sigma) if system.n_dof > 2000 \
-            else eigen_dense(system.K, system.M, n_modes)
+            else eigen_dense(system.K, system.M, n_modes, shift=sigma)
     else:
         omega, phi = modes
-    el = omega > 1e-6 * max(omega.max(initial=0.0), 1e-300)
+    el = omega > 2 * np.pi * RIGID_HZ
     if modal_damping is not None:
         cr = np.where(el, 2 * modal_damping.zeta(omega / (2 * np.pi)) * omega, 0.0)
         dr = np.zeros_like(omega)

@@ -1,0 +1,159 @@
+"""Eigen-solvers and FRF synthesis (updating.fe.solvers, updating.fe.damping)."""
+import numpy as np
+import pytest
+
+from modalab.errors import ModalabValueError
+from updating.fe import (Damper, LumpedMass, ModalDampingTable, eigen_dense, eigen_sparse, frf_direct, frf_modal,
+                         modes_of, rayleigh_coefficients)
+from updating.fe.solvers import cholmod_available, normal_modes
+from updating.models.beams import beam_model
+from updating.models.garteur import garteur_model
+
+
+@pytest.fixture(scope="module")
+def garteur():
+    return garteur_model(6)
+
+
+class TestEigen:
+    def test_negative_shift_returns_rigid_modes_of_free_free_model(self, garteur):
+        s = garteur.system()
+        info = {}
+        w, phi = eigen_sparse(s.K, s.M, 14, info=info, solver="splu")
+        wd, pd = eigen_dense(s.K, s.M, 14)
+        assert np.all(wd[:6] / (2 * np.pi) < 1e-3)
+        assert info["shift"] < 0 and info["n_solves"] > 0
+        assert np.all(w[:6] / (2 * np.pi) < 1e-3)          # six rigid-body modes ≈ 0 Hz
+        assert w[6] / (2 * np.pi) > 4.0
+        np.testing.assert_allclose(w[6:], wd[6:], rtol=1e-8)
+        for W, P in ((w, phi), (wd, pd)):
+            res = np.linalg.norm(s.K @ P - (s.M @ P) * W ** 2, axis=0) / np.linalg.norm(s.K @ P, axis=0)
+            assert res[6:].max() < 1e-7
+        # mass-normalised, M-orthogonal
+        np.testing.assert_allclose(phi.T @ (s.M @ phi), np.eye(14), atol=1e-8)
+        # the rigid modes are in the null space of K
+        assert np.abs(s.K @ phi[:, :6]).max() < 1e-6 * abs(s.K).max()
+
+    def test_positive_shift_is_refused(self, garteur):
+        s = garteur.system()
+        with pytest.raises(ModalabValueError, match="negative shift"):
+            eigen_sparse(s.K, s.M, 5, shift=10.0)
+
+    def test_auto_method_switches_to_lanczos_for_big_models(self):
+        m = beam_model(100, kind="beam3d", length=10.0)        # 606 DOFs
+        s = m.system()
+        info = {}
+        w, _ = normal_modes(s.K, s.M, 10, dense_limit=500, info=info)
+        assert info["n_solves"] > 0                           # Lanczos was used
+        wd, _ = normal_modes(s.K, s.M, 10, method="dense")
+        np.testing.assert_allclose(w[6:], wd[6:], rtol=1e-7)
+
+    def test_lumped_mass_massless_rotations_dense_and_sparse_agree(self):
+        # cantilever: a free-free 3-D beam with lumped mass has a massless, stiffness-free
+        # rigid torsion — a genuinely singular problem that the solvers report
+        m = beam_model(30, kind="beam3d", coupled_mass=False, bc="cantilever")
+        s = m.system()
+        assert np.any(s.M.diagonal() == 0)
+        wd, pd = eigen_dense(s.K, s.M, 12)
+        ws, ps = eigen_sparse(s.K, s.M, 12)
+        np.testing.assert_allclose(ws, wd, rtol=1e-8)
+        # condensed shapes satisfy the full eigenproblem
+        r = s.K @ pd[:, 8] - wd[8] ** 2 * (s.M @ pd[:, 8])
+        assert np.abs(r).max() < 1e-6 * np.abs(s.K @ pd[:, 8]).max()
+
+    @pytest.mark.skipif(not cholmod_available(), reason="scikit-sparse not installed")
+    def test_cholmod_path(self, garteur):
+        s = garteur.system()
+        w1, _ = eigen_sparse(s.K, s.M, 10, solver="cholmod")
+        w2, _ = eigen_sparse(s.K, s.M, 10, solver="splu")
+        np.testing.assert_allclose(w1[6:], w2[6:], rtol=1e-9)
+
+    def test_modes_mapped_back_to_dependent_dofs(self, garteur):
+        md = garteur.modes(10)
+        pts = garteur.metadata["points"]
+        red = garteur.reduction()
+        dep = [d for d in red.dependent if d.node == pts["wing_centre"]]
+        assert len(dep) == 6
+        # the wing centre moves rigidly with the fuselage node: u_w = u_f + θ_f × r
+        sel = md.select_dofs([f"{pts['wing_centre']}+{c}" for c in ("X", "Y", "Z")]).shapes
+        f = md.select_dofs([f"{pts['fuselage_wing']}+{c}" for c in ("X", "Y", "Z", "RX", "RY", "RZ")]).shapes
+        r = garteur.node_xyz(pts["wing_centre"]) - garteur.node_xyz(pts["fuselage_wing"])
+        expect = f[:3] + np.cross(f[3:].T, r).T
+        np.testing.assert_allclose(sel, expect, atol=1e-12)
+        assert md.scaling == "unit_modal_mass"
+
+
+class TestFRF:
+    @pytest.fixture(scope="class")
+    def damped(self):
+        m = beam_model(16, kind="beam3d")
+        m.global_ge = 0.02
+        return m
+
+    def test_direct_frf_matches_core_structure(self, damped):
+        s = damped.system()
+        f = np.array([30.0, 55.0, 140.0])
+        a = frf_direct(s, f, ["5+Z", "9+Y"], ["1+Z"], quantity="receptance")
+        b = s.structure().frf(f, ["5+Z", "9+Y"], ["1+Z"], quantity="receptance", method="direct")
+        np.testing.assert_allclose(a.H, b.H, rtol=1e-10)
+
+    def test_modal_with_residual_matches_direct(self, damped):
+        s = damped.system()
+        f = np.linspace(5, 400, 80)          # up to ~2 elastic bending modes per plane
+        resp, ref = ["17+Z", "9+Z", "5+Y", "3+RZ"], ["17+Z", "5+Y"]
+        direct = frf_direct(s, f, resp, ref, quantity="accelerance")
+        with_res = frf_modal(s, f, resp, ref, n_modes=16, residual=True)
+        without = frf_modal(s, f, resp, ref, n_modes=16, residual=False)
+        err_res = np.abs(with_res.H - direct.H).max() / np.abs(direct.H).max()
+        err_no = np.abs(without.H - direct.H).max() / np.abs(direct.H).max()
+        assert err_res < 2e-3
+        assert err_res < err_no / 10
+        # with every mode kept the synthesis is exact, residual or not
+        n = s.n_dof
+        full = frf_modal(s, f, resp, ref, n_modes=n, residual=False)
+        np.testing.assert_allclose(full.H, direct.H, rtol=1e-7, atol=1e-9 * np.abs(direct.H).max())
+
+    def test_modal_damping_table_gives_peak_height(self):
+        # a single-DOF oscillator: m = 2 kg, k = 8e4 N/m; ζ = 2 % from a table
+        from updating.fe import FEModel, Spring
+        m = FEModel()
+        m.add_node(1, (0, 0, 0))
+        m.add_element(LumpedMass(1, 1, 2.0))
+        for c in (2, 3):
+            m.add_element(Spring(10 + c, (1, c), None, 8e4))
+        m.add_element(Spring(11, (1, 1), None, 8e4))
+        for c in (4, 5, 6):
+            m.add_element(Spring(20 + c, (1, c), None, 1.0))
+        m.add_element(LumpedMass(2, 1, 0.0, inertia=[1e-3] * 3))
+        fn = np.sqrt(8e4 / 2) / (2 * np.pi)
+        tab = ModalDampingTable((0.0, 1000.0), (0.02, 0.02))
+        s = m.system()
+        h = frf_modal(s, [fn], ["1+X"], ["1+X"], modal_damping=tab, residual=False, quantity="receptance")
+        assert abs(h.H[0, 0, 0]) == pytest.approx(1 / (2 * 0.02 * 8e4), rel=1e-9)
+        # a viscous damper of the same ζ gives the same peak with the direct solver
+        for c in (1, 2, 3):
+            m.add_element(Damper(30 + c, (1, c), None, 2 * 0.02 * np.sqrt(8e4 * 2)))
+        hd = frf_direct(m.system(), [fn], ["1+X"], ["1+X"], quantity="receptance")
+        np.testing.assert_allclose(hd.H, h.H, rtol=1e-9)
+
+    def test_modes_report_modal_damping(self, damped):
+        md = modes_of(damped.system(), 10)
+        el = md.freq_hz > 1
+        np.testing.assert_allclose(md.damping[el], 0.01, rtol=1e-8)   # ζ = G/2
+        assert np.all(md.damping[~el] == 0)
+
+
+class TestDampingHelpers:
+    def test_table_kinds(self):
+        t = ModalDampingTable((10.0, 20.0), (0.02, 0.04), kind="G")
+        np.testing.assert_allclose(t.zeta([5.0, 15.0, 30.0]), [0.01, 0.015, 0.02])
+        q = ModalDampingTable((0.0,), (25.0,), kind="Q")
+        assert q.zeta(3.0) == pytest.approx(0.02)
+        with pytest.raises(ValueError, match="ascend"):
+            ModalDampingTable((2.0, 1.0), (0.1, 0.1))
+
+    def test_rayleigh_coefficients_hit_both_points(self):
+        a, b = rayleigh_coefficients(10.0, 0.01, 100.0, 0.03)
+        for f, z in ((10.0, 0.01), (100.0, 0.03)):
+            w = 2 * np.pi * f
+            assert a / (2 * w) + b * w / 2 == pytest.approx(z)
