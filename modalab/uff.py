@@ -192,7 +192,14 @@ def _even_axis(x: np.ndarray):
     k = np.arange(n)
     tol = 4 * np.finfo(float).eps * float(np.max(np.abs(x)))
     best = None
-    for dx in ((x[-1] - x[0]) / (n - 1), x[1] - x[0]):
+    cands = []
+    for d0 in ((x[-1] - x[0]) / (n - 1), x[1] - x[0]):
+        cands.append(d0)
+        up = dn = d0
+        for _ in range(3):
+            up, dn = np.nextafter(up, np.inf), np.nextafter(dn, -np.inf)
+            cands += [up, dn]
+    for dx in cands:
         err = float(np.max(np.abs(x[0] + k * dx - x)))
         if err == 0.0:
             return True, float(x[0]), float(dx)
@@ -223,11 +230,11 @@ def _json_lines(meta: dict, what: str) -> tuple[str, str]:
         trial = dict(keep)
         try:
             trial[k] = clean(meta[k])
-            s = json.dumps(trial, separators=(",", ":"), allow_nan=True)
+            s = _compact_json(trial)
         except (TypeError, ValueError):
             dropped.append(k)
             continue
-        if len(s) <= 70 + 69 and " " not in s:
+        if len(s) <= 70 + 69:
             keep = trial
         else:
             dropped.append(k)
@@ -236,9 +243,14 @@ def _json_lines(meta: dict, what: str) -> tuple[str, str]:
                     "keep them in a side file if needed", what, dropped)
     if not keep:
         return "NONE", "NONE"
-    s = json.dumps(keep, separators=(",", ":"), allow_nan=True)
+    s = _compact_json(keep)
     a, b = s[:70], s[70:]
     return "modalab m=" + a, ("modalab m+=" + b) if b else "NONE"
+
+
+def _compact_json(obj) -> str:
+    """JSON without blanks (blanks inside strings escaped as \\u0020) so it survives blank-splitting."""
+    return json.dumps(obj, separators=(",", ":"), allow_nan=True).replace(" ", "\\u0020")
 
 
 def _json_meta(tags: dict) -> dict:
@@ -490,8 +502,8 @@ def write_records(path, records, *, binary: bool = True, append: bool = False) -
             meta_line = "NONE"
             if rec.metadata:
                 try:
-                    s = "modalab m=" + json.dumps(rec.metadata, separators=(",", ":"))
-                    if len(s) <= 80 and " " not in s[len("modalab "):]:
+                    s = "modalab m=" + _compact_json(rec.metadata)
+                    if len(s) <= 80:
                         meta_line = s
                     else:
                         log.warning("hit %d metadata too long for an ID line; not written", rec.hit_id)
@@ -653,6 +665,8 @@ def _parse_nodes(b: Block) -> dict[int, tuple]:
             vals = parse_floats(body[k + 1])
             if vals.size != 3 or tokens_exact(body[k + 1]) is None:
                 raise b.error(f"node {ints[0]}: expected three coordinates, found {body[k + 1].strip()!r}", k + 1)
+            if ints[0] in out:
+                raise b.error(f"node {ints[0]} is listed twice in one dataset", k)
             out[ints[0]] = tuple(float(v) for v in vals)
     else:
         for k, ln in enumerate(body):
@@ -663,6 +677,8 @@ def _parse_nodes(b: Block) -> dict[int, tuple]:
             node = float(toks[0])
             if node != int(node):
                 raise b.error(f"node id {toks[0]!r} is not an integer", k)
+            if int(node) in out:
+                raise b.error(f"node {int(node)} is listed twice in one dataset", k)
             out[int(node)] = tuple(float(t) for t in toks[4:7])
     for node, xyz in out.items():
         if node < 0 or not np.all(np.isfinite(xyz)):
