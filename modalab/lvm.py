@@ -284,7 +284,7 @@ def read_lvm(path, *, segment: int = 0, dofs=None, roles=None, units=None, trigg
         ti = 0
         if fidx:
             f = data[fidx[0]]
-            base = np.median(f[: max(8, min(64, f.size // 100))])
+            base = np.median(f[: max(1, min(32, f.size // 10))])
             g = np.abs(f - base)
             pk = g.max()
             if pk > 0:
