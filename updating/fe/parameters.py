@@ -16,6 +16,10 @@ selector                        fields
 (no selector)                   ``global_ge`` (PARAM G), ``rayleigh_alpha``, ``rayleigh_beta``
 ==============================  ==========================================================
 
+Parameters compose: material-wide parameters are applied before property
+ones, so ``E`` of material 1 (factor p₁) and ``E`` of the 'wing' group using
+it (factor p₂) give the wing E·p₁·p₂.
+
 ``mode="factor"`` (default): p multiplies the nominal value of every selected
 object, so p = 1 is the nominal model and p0 = 1.  ``mode="value"``: p *is*
 the physical value (SI) set on every selected object; p0 is the nominal value,
@@ -272,7 +276,11 @@ class ParametricFEModel:
             counter[0] += 1
             return counter[0]
 
-        for par, (tg, _), v in zip(self.parameters, self._targets, p):
+        # material parameters first, so that property-level clones inherit their changes
+        rank = {"global": 0, "material": 1, "property": 2, "element": 3}
+        order = sorted(range(self.n_params), key=lambda i: rank[self._targets[i][0][0][0]])
+        for i in order:
+            par, (tg, _), v = self.parameters[i], self._targets[i], p[i]
             for kind, key in tg:
                 if par.mode == "factor":
                     old = _get(m, kind, key, par.field)
