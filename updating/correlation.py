@@ -88,6 +88,12 @@ def _pair_shapes(a, x, na="analysis shapes", nx="test shapes", same_modes=False)
     return A, X
 
 
+def _rescale(P):
+    """Divide every column by its largest modulus (for criteria invariant to column scaling; avoids underflow)."""
+    m = np.abs(P).max(axis=0, initial=0.0)
+    return P / np.where((m > 0) & np.isfinite(m), m, 1.0)[None, :]
+
+
 def _weight(W, n):
     if W is None:
         return None
@@ -115,6 +121,7 @@ def mac(phi_a, phi_x, *, weight=None) -> np.ndarray:
     a zero vector gives 0.
     """
     A, X = _pair_shapes(phi_a, phi_x)
+    A, X = _rescale(A), _rescale(X)
     W = _weight(weight, A.shape[0])
     num = np.abs(_inner(A, X, W)) ** 2
     da = np.real(np.einsum("ij,ij->j", A.conj(), A if W is None else np.asarray(W @ A)))
@@ -143,6 +150,7 @@ def macx(phi_a, phi_x) -> np.ndarray:
     distinction between a complex mode and its conjugate.
     """
     A, X = _pair_shapes(phi_a, phi_x)
+    A, X = _rescale(A), _rescale(X)
     num = (np.abs(A.conj().T @ X) + np.abs(A.T @ X)) ** 2
     da = np.real(np.einsum("ij,ij->j", A.conj(), A)) + np.abs(np.einsum("ij,ij->j", A, A))
     dx = np.real(np.einsum("ij,ij->j", X.conj(), X)) + np.abs(np.einsum("ij,ij->j", X, X))
@@ -178,13 +186,21 @@ def comac(phi_a, phi_x, *, normalize: bool = True) -> np.ndarray:
     printed eq. 2.64 omits the square of the numerator, without which the value would not
     be bounded by 1).  ``normalize=True`` scales every mode vector to unit length first, so
     each pair counts equally whatever the test scaling.  Values in [0, 1]; 1 = correlated.
+    A DOF that is zero in every mode of both sets (a common node line) counts as 1,
+    a DOF zero in only one of them as 0.
     """
     A, X = _pair_shapes(phi_a, phi_x, same_modes=True)
     if normalize:
-        A, X = _unit(A), _unit(X)
+        A, X = _unit(_rescale(A)), _unit(_rescale(X))
+    # COMAC_i is invariant to scaling row i of A or X: divide each row by its largest modulus
+    ra, rx = np.abs(A).max(axis=1, initial=0.0), np.abs(X).max(axis=1, initial=0.0)
+    A = A / np.where(ra > 0, ra, 1.0)[:, None]
+    X = X / np.where(rx > 0, rx, 1.0)[:, None]
     num = np.sum(np.abs(A * X), axis=1) ** 2
-    den = np.sum(np.abs(A) ** 2, axis=1) * np.sum(np.abs(X) ** 2, axis=1)
-    out = np.where(den > _TINY, num / np.where(den > _TINY, den, 1.0), 0.0)
+    sa, sx = np.sum(np.abs(A) ** 2, axis=1), np.sum(np.abs(X) ** 2, axis=1)
+    den = sa * sx
+    both_zero = (sa <= _TINY) & (sx <= _TINY)
+    out = np.where(den > _TINY, num / np.where(den > _TINY, den, 1.0), np.where(both_zero, 1.0, 0.0))
     return np.clip(out, 0.0, 1.0)
 
 
