@@ -1,0 +1,101 @@
+"""Quality indicators of identified modes and of the synthesised FRFs.
+
+MPC — modal phase collinearity (Pappa, Elliott & Schenk 1993), in its
+eigenvalue form: with ``S = [[Re·Re, Re·Im], [Re·Im, Im·Im]]`` of a shape φ,
+``MPC = ((λ₁−λ₂)/(λ₁+λ₂))² = |φᵀφ|² / (φᴴφ)²``; 1 for a real (normal) mode.
+
+MCF — modal complexity factor, ``1 − MPC`` (0 for a normal mode).
+
+MPD — mean phase deviation (degrees): the |φ|-weighted mean angle between
+each complex component and the best straight line through the components in
+the complex plane (principal direction of ``[Re φ, Im φ]``); 0 for a normal mode.
+
+MOV — mode overcomplexity value (fraction 0..1): with unit-modal-mass
+(a-normalised) driving-point residues ``R_oo``, adding mass at DOF o changes
+the pole by ``dλ = −λ² R_oo dm``; a physically consistent response lowers the
+frequency (``Im dλ < 0``).  MOV is the |R_oo|-weighted fraction of responses
+that do; defined only for scaled modes.
+
+FRF correlation: ``|H_sᴴH_m|² / (H_sᴴH_s · H_mᴴH_m)`` per FRF (FRAC) and the
+relative synthesis error ``‖H_s − H_m‖ / ‖H_m‖``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["mpc", "mcf", "mpd", "mov", "frf_correlation", "synthesis_error", "auto_mac"]
+
+
+def mpc(shapes) -> np.ndarray:
+    """Modal phase collinearity of each column (0..1)."""
+    phi = np.atleast_2d(np.asarray(shapes, complex))
+    num = np.abs(np.sum(phi * phi, axis=0)) ** 2
+    den = np.sum(np.abs(phi) ** 2, axis=0) ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(den > 0, num / den, np.nan)
+
+
+def mcf(shapes) -> np.ndarray:
+    """Modal complexity factor ``1 − MPC``."""
+    return 1.0 - mpc(shapes)
+
+
+def mpd(shapes) -> np.ndarray:
+    """Mean phase deviation in degrees (|φ|-weighted)."""
+    phi = np.atleast_2d(np.asarray(shapes, complex))
+    out = np.full(phi.shape[1], np.nan)
+    for k in range(phi.shape[1]):
+        v = phi[:, k]
+        a = np.abs(v)
+        if not np.any(a > 0):
+            continue
+        X = np.column_stack([v.real, v.imag])
+        _, _, Vt = np.linalg.svd(X, full_matrices=False)
+        u = Vt[0]
+        cross = np.abs(v.real * u[1] - v.imag * u[0])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ang = np.arcsin(np.clip(np.where(a > 0, cross / a, 0.0), 0, 1))
+        out[k] = np.degrees(np.sum(a * ang) / np.sum(a))
+    return out
+
+
+def mov(lam, driving_residues) -> np.ndarray:
+    """Mode overcomplexity value from poles ``lam`` (m,) and driving-point residues ``(n_dp, m)``.
+
+    ``driving_residues[o, r]`` is the residue ``R_oo`` of mode r at a DOF that
+    is both response and reference, in unit-modal-mass scaling.
+    """
+    R = np.atleast_2d(np.asarray(driving_residues, complex))
+    lam = np.asarray(lam, complex)
+    if R.size == 0:
+        return np.full(lam.size, np.nan)
+    dlam = -(lam[None, :] ** 2) * R
+    w = np.abs(R)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.sum(w * (dlam.imag < 0), axis=0) / np.sum(w, axis=0)
+
+
+def frf_correlation(H_syn, H_meas) -> np.ndarray:
+    """FRAC per FRF over the last axis (0..1)."""
+    a = np.asarray(H_syn)
+    b = np.asarray(H_meas)
+    num = np.abs(np.sum(a.conj() * b, axis=-1)) ** 2
+    den = np.sum(np.abs(a) ** 2, axis=-1) * np.sum(np.abs(b) ** 2, axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(den > 0, num / den, np.nan)
+
+
+def synthesis_error(H_syn, H_meas) -> np.ndarray:
+    """Relative synthesis error ``‖H_s − H_m‖ / ‖H_m‖`` per FRF."""
+    a = np.asarray(H_syn)
+    b = np.asarray(H_meas)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.linalg.norm(a - b, axis=-1) / np.linalg.norm(b, axis=-1)
+
+
+def auto_mac(shapes) -> np.ndarray:
+    """MAC of every pair of columns, ``(m, m)``."""
+    from .stabilisation import mac_vectors
+
+    phi = np.asarray(shapes)
+    return mac_vectors(phi, phi)

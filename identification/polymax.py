@@ -1,0 +1,380 @@
+"""Poly-reference least-squares complex-frequency estimator (pLSCF, "PolyMAX").
+
+Model
+-----
+A right matrix-fraction description on the z-domain, all references at once
+(Guillaume et al. 2003, "A poly-reference implementation of the least-squares
+complex frequency-domain estimator", IMAC XXI; Peeters et al. 2004, "The
+PolyMAX frequency-domain method: a new standard for modal parameter
+estimation?", Shock and Vibration 11):
+
+    H_o(ω) ≈ N_o(ω) A(ω)⁻¹,   N_o(ω) = Σ_r Ω_r(ω) β_or,   A(ω) = Σ_r Ω_r(ω) α_r,
+
+with ``Ω_r(ω) = z^r``, ``z = exp(iωΔt)``, ``Δt = 1/(2 f_max)``, real
+coefficients ``β_or`` (1 × n_in) and ``α_r`` (n_in × n_in), one numerator row
+per output and a common denominator matrix.  The linearised weighted error
+``E_o(ω_k) = w_o(ω_k) [Ω(ω_k) β_o − H_o(ω_k) ⊗ Ω(ω_k) α]`` leads to the normal
+equations with the blocks
+
+    R_o = Re(Γ_oᴴΓ_o),  S_o = Re(Γ_oᴴΥ_o),  T_o = Re(Υ_oᴴΥ_o),
+
+and, after eliminating every numerator, to the *reduced* normal equations
+(Peeters 2004, eq. 6)
+
+    M α = 0,    M = 2 Σ_o (T_o − S_oᵀ R_o⁻¹ S_o).
+
+Because ``Ω_r`` are powers of ``z`` on the unit circle, every block is
+Toeplitz in the order index: each is built from 2p+1 "lag" sums, one matrix
+product over the frequency lines for all outputs at once.  ``M`` is built
+once, for the highest order ``p``; the reduced matrix of a lower order ``n`` is
+taken as its leading ``(n+1)·n_in`` block (the denominator of order ``n`` with
+the numerators kept at order ``p``), so no order rebuilds anything.  The
+constraint ``α_n = I`` (PolyMAX) gives ``α_0..α_{n-1}`` from a linear solve,
+the poles are the eigenvalues of the block companion matrix and each modal
+participation vector ``l`` spans the left null space of ``A(z_pole)``.
+
+Memory holds the lag sums, one chunk of ``S_o`` blocks and ``M``: it does not
+grow with the order beyond the reduced matrix.
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from modalab.errors import ModalabValueError, NotFittedError, ShapeError, fmt_error
+from modalab.frf import FRF
+
+log = logging.getLogger(__name__)
+
+__all__ = ["PolyMAX", "frequency_weights", "reduced_normal_matrix", "poles_at_order"]
+
+_WEIGHTINGS = (None, "none", "coherence", "variance")
+
+
+# --------------------------------------------------------------------------- weights
+def frequency_weights(frf: FRF, weighting=None, *, normalise: bool = True) -> np.ndarray:
+    """Per-output, per-line amplitude weights ``w_o(ω_k)``, shape ``(n_out, n_freq)``.
+
+    ``weighting``
+        ``None``/``'none'`` — unit weights;
+        ``'coherence'`` — the mean ordinary coherence over the references
+        (lines with poor coherence count less);
+        ``'variance'`` — ``1/σ_H``, the inverse standard deviation of the FRF
+        estimate, from ``frf.metadata['H_variance']`` (same shape as ``H``) when
+        present, else from coherence and ``n_averages`` with the H1 variance
+        ``σ² ≈ (1−γ²)/(2 n_avg γ²)·|H|²`` (Bendat & Piersol, eq. 9.73).
+
+    With ``normalise`` every output is scaled by the RMS of its weighted FRFs,
+    so that strong and weak responses count equally (and units cancel).
+    """
+    if weighting not in _WEIGHTINGS:
+        raise ModalabValueError(fmt_error("weighting", weighting, "None, 'coherence' or 'variance'",
+                                          "Use 'coherence' when the FRFs carry coherence, else None"))
+    H = frf.H
+    n_out, n_in, nf = H.shape
+    w = np.ones((n_out, nf))
+    if weighting == "coherence":
+        if frf.coherence is None:
+            raise ModalabValueError("weighting='coherence' but the FRF has no coherence; "
+                                    "pass weighting=None or estimate the FRFs with coherence")
+        w = np.clip(np.nan_to_num(frf.coherence, nan=0.0), 0.0, 1.0).mean(axis=1)
+    elif weighting == "variance":
+        var = frf.metadata.get("H_variance")
+        if var is not None:
+            var = np.asarray(var, dtype=float)
+            if var.shape != H.shape:
+                raise ShapeError(f"metadata['H_variance'] has shape {var.shape}; expected {H.shape} like H")
+        else:
+            if frf.coherence is None:
+                raise ModalabValueError("weighting='variance' needs metadata['H_variance'] or coherence; "
+                                        "neither is present. Use weighting=None")
+            n_avg = float(frf.metadata.get("n_averages", 1) or 1)
+            g2 = np.clip(frf.coherence, 1e-6, 1 - 1e-9)
+            var = (1 - g2) / (2 * n_avg * g2) * np.abs(H) ** 2
+        var_o = np.mean(var, axis=1)
+        floor = 1e-12 * np.maximum(np.median(var_o, axis=1, keepdims=True), 1e-300)
+        w = 1.0 / np.sqrt(np.maximum(var_o, floor))
+    if normalise:
+        rms = np.sqrt(np.mean(np.abs(H) ** 2 * (w ** 2)[:, None, :], axis=(1, 2)))
+        rms[~(rms > 0)] = 1.0
+        w = w / rms[:, None]
+    return w
+
+
+# --------------------------------------------------------------------------- reduced matrix
+def _lag_matrix(theta: np.ndarray, lags: np.ndarray) -> np.ndarray:
+    """``Z[k, d] = exp(i θ_k d)`` for the given lags."""
+    return np.exp(1j * np.outer(theta, lags))
+
+
+def reduced_normal_matrix(H: np.ndarray, w: np.ndarray, theta: np.ndarray, max_order: int, *,
+                          chunk: int = 16, rcond: float = 1e-12) -> np.ndarray:
+    """Reduced normal matrix ``M`` of pLSCF for order ``p = max_order``.
+
+    Parameters
+    ----------
+    H : (n_out, n_in, n_freq) complex FRFs.
+    w : (n_out, n_freq) amplitude weights.
+    theta : (n_freq,) normalised angular frequencies ``ω_k Δt`` in rad.
+    max_order : highest polynomial order ``p``.
+
+    Returns the real symmetric ``((p+1)·n_in, (p+1)·n_in)`` matrix with rows
+    and columns ordered (order r, input i), r-major.  Blocks R, S, T are
+    Toeplitz in the order index and are formed from lag sums (module docs).
+    """
+    n_out, n_in, nf = H.shape
+    p = int(max_order)
+    c = (p + 1) * n_in
+    a = (w ** 2).astype(float)                                    # |w|², (n_out, nf)
+    lags = np.arange(-p, p + 1)
+    Z = _lag_matrix(theta, lags)                                   # (nf, 2p+1)
+    D = np.arange(p + 1)[None, :] - np.arange(p + 1)[:, None]     # s - r
+    # --- T summed over outputs: tau_ij(d) = Σ_o Σ_k a conj(H_oi) H_oj z^d, d = 0..p
+    aH = a[:, None, :] * H                                          # (n_out, n_in, nf)
+    G = np.einsum("oik,ojk->ijk", H.conj(), aH, optimize=True)     # (n_in, n_in, nf)
+    tau_pos = G.reshape(n_in * n_in, nf) @ Z[:, p:]                 # d = 0..p
+    tau_pos = tau_pos.reshape(n_in, n_in, p + 1)
+    tau = np.empty((n_in, n_in, 2 * p + 1), complex)
+    tau[:, :, p:] = tau_pos
+    tau[:, :, :p] = np.conj(tau_pos.transpose(1, 0, 2)[:, :, :0:-1])   # tau_ij(-d) = conj(tau_ji(d))
+    T4 = tau.real[:, :, D + p]                                      # (i, j, r, s)
+    M = T4.transpose(2, 0, 3, 1).reshape(c, c).copy()
+    # --- R and S per output, eliminated in chunks of outputs
+    rho = (a @ Z).real                                              # (n_out, 2p+1), Re rho
+    same_R = np.allclose(a, a[:1] * (a.sum(1, keepdims=True) / max(a[0].sum(), 1e-300)), rtol=1e-10, atol=0)
+    if same_R:
+        Rinv0 = np.linalg.pinv(rho[0][D + p], rcond=rcond, hermitian=True)
+    for o0 in range(0, n_out, chunk):
+        sl = slice(o0, min(o0 + chunk, n_out))
+        no = sl.stop - sl.start
+        sig = (aH[sl].reshape(no * n_in, nf) @ Z).reshape(no, n_in, 2 * p + 1)
+        # S_o[r, (s, j)] = -Re sigma_oj(s - r)
+        S = -sig.real[:, :, D + p]                                  # (no, j, r, s)
+        S = S.transpose(0, 2, 3, 1).reshape(no, p + 1, c)
+        if same_R:
+            scale = rho[0, p] / rho[sl, p]                          # R_o = R_0 * rho_o(0)/rho_0(0)
+            X = np.einsum("rq,oqc->orc", Rinv0, S, optimize=True) * scale[:, None, None]
+        else:
+            R = rho[sl][:, D + p]                                   # (no, p+1, p+1)
+            X = np.linalg.pinv(R, rcond=rcond, hermitian=True) @ S
+        M -= S.reshape(no * (p + 1), c).T @ X.reshape(no * (p + 1), c)
+    M = 0.5 * (M + M.T)
+    return 2.0 * M
+
+
+def poles_at_order(M: np.ndarray, order: int, n_in: int, dt: float):
+    """Poles and participation vectors of the model of ``order`` from the reduced matrix ``M``.
+
+    Uses the leading ``(order+1)·n_in`` block of ``M`` (built for a higher
+    order) with the constraint ``α_order = I``.
+
+    Returns
+    -------
+    lam : (n_roots,) complex continuous-time poles ``ln(z)/Δt`` in rad/s, all
+        ``order·n_in`` roots (both half-planes, real roots included).
+    L : (n_in, n_roots) complex participation vectors (unit norm).
+    """
+    n = int(order)
+    if n < 1:
+        raise ModalabValueError(f"model order {order} < 1; orders start at 1")
+    c = (n + 1) * n_in
+    if c > M.shape[0]:
+        raise ModalabValueError(f"order {order} needs a reduced matrix of size {c}; got {M.shape[0]}. "
+                                "Build M for at least this order")
+    k = n * n_in
+    Mn = M[:c, :c]
+    A11, A12 = Mn[:k, :k], Mn[:k, k:c]
+    try:
+        alpha = np.linalg.solve(A11, -A12)                          # (k, n_in)
+    except np.linalg.LinAlgError:
+        alpha = np.linalg.lstsq(A11, -A12, rcond=None)[0]
+    if n_in == 1:
+        comp = np.zeros((k, k))
+        if k > 1:
+            comp[np.arange(k - 1), np.arange(1, k)] = 1.0
+        comp[-1, :] = -alpha[:, 0]
+        z = np.linalg.eigvals(comp)
+        L = np.ones((1, z.size), complex)
+    else:
+        comp = np.zeros((k, k))
+        if n > 1:
+            comp[: k - n_in, n_in:] = np.eye(k - n_in)
+        comp[k - n_in:, :] = -np.hstack([alpha[r * n_in:(r + 1) * n_in] for r in range(n)])
+        z = np.linalg.eigvals(comp)
+        L = _participation(alpha, n, n_in, z)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lam = np.log(z.astype(complex)) / dt
+    ok = np.isfinite(lam)
+    return lam[ok], L[:, ok]
+
+
+def _participation(alpha: np.ndarray, n: int, n_in: int, z: np.ndarray) -> np.ndarray:
+    """Null vectors of the denominator at the poles (batched SVD), unit norm, largest entry real > 0."""
+    blocks = [alpha[r * n_in:(r + 1) * n_in] for r in range(n)] + [np.eye(n_in)]
+    # A(z) = Σ z^r α_r evaluated by Horner for all poles at once: (n_poles, n_in, n_in)
+    Az = np.broadcast_to(blocks[-1], (z.size, n_in, n_in)).astype(complex)
+    for r in range(n - 1, -1, -1):
+        Az = Az * z[:, None, None] + blocks[r][None]
+    # H_o = N_o A(z)⁻¹ and A⁻¹ ≈ v wᵀ / (z − z_r) near a pole (A v = 0, wᵀA = 0), so the residue of
+    # every output is ∝ wᵀ: the participation vector is the LEFT null vector of A(z_r).
+    U, _, _ = np.linalg.svd(Az)
+    L = U[:, :, -1].conj().T                                        # (n_in, n_poles)
+    return _normalise_vectors(L)
+
+
+def _normalise_vectors(L: np.ndarray) -> np.ndarray:
+    nrm = np.linalg.norm(L, axis=0)
+    nrm[nrm == 0] = 1.0
+    L = L / nrm
+    k = np.argmax(np.abs(L), axis=0)
+    ph = L[k, np.arange(L.shape[1])]
+    ph = np.where(np.abs(ph) > 0, ph / np.abs(ph), 1.0)
+    return L / ph[None, :]
+
+
+# --------------------------------------------------------------------------- estimator
+class PolyMAX:
+    """Poly-reference LSCF (PolyMAX-style) modal parameter estimator.
+
+    Parameters (stored only; :meth:`fit` does the work)
+    ----------
+    max_order : int
+        Highest polynomial order ``p``; order ``n`` yields ``n·n_in`` poles.
+    min_order, order_step : int
+        Orders evaluated: ``min_order, min_order+step, ..., max_order``.
+    weighting : None, 'coherence' or 'variance'
+        Frequency weighting (:func:`frequency_weights`).
+    band_hz : (lo, hi) or None
+        Frequency band used; the whole FRF by default.
+    criteria : :class:`~identification.stabilisation.StabilisationCriteria` or None (defaults).
+    select : 'auto', a sequence of frequencies in Hz, or a path to a JSON/TOML selection file.
+    selection : :class:`~identification.selection.SelectionOptions` or None (defaults).
+    lower_residual, upper_residual : bool
+        Residual terms in LSFD.
+    window_correction : bool
+        Subtract ``frf.metadata['exp_window_beta']`` (1/s) from the decay rates.
+
+    Fitted attributes
+    -----------------
+    orders_ : (n_orders,) int — the model order of each row of the stabilisation data.
+    poles_ : list of (n_k,) complex — upper-half-plane poles (rad/s) of each order, as estimated
+        (before window correction).
+    participation_ : list of (n_in, n_k) complex — participation vectors of those poles.
+    stabilisation_ : :class:`~identification.stabilisation.StabilisationDiagram`.
+    selected_ : :class:`~identification.selection.SelectedPoles` (measured poles).
+    lsfd_ : :class:`~identification.lsfd.LSFDResult`.
+    modes_ : :class:`modalab.ModeSet` — window-corrected, scaled modes with indicators.
+    frf_ : the FRF actually used (band, references), ``dt_`` the z-domain sampling time.
+    reduced_matrix_shape_ : shape of the reduced normal matrix (memory diagnostic).
+
+    Example
+    -------
+    >>> pm = PolyMAX(max_order=40).fit(frf)          # doctest: +SKIP
+    >>> pm.modes_.freq_hz, pm.modes_.damping         # doctest: +SKIP
+    """
+
+    def __init__(self, max_order: int = 64, *, min_order: int = 1, order_step: int = 1, weighting=None,
+                 band_hz=None, criteria=None, select="auto", selection=None, lower_residual: bool = True,
+                 upper_residual: bool = True, window_correction: bool = True):
+        self.max_order = max_order
+        self.min_order = min_order
+        self.order_step = order_step
+        self.weighting = weighting
+        self.band_hz = band_hz
+        self.criteria = criteria
+        self.select = select
+        self.selection = selection
+        self.lower_residual = lower_residual
+        self.upper_residual = upper_residual
+        self.window_correction = window_correction
+
+    # ------------------------------------------------------------------ helpers
+    def _check_params(self, frf):
+        if not isinstance(frf, FRF):
+            raise ModalabValueError(fmt_error("frf", type(frf).__name__, "a modalab.FRF",
+                                              "Build one with FRF.from_arrays or FRF.from_uff"))
+        for name in ("max_order", "min_order", "order_step"):
+            v = getattr(self, name)
+            if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
+                raise ModalabValueError(fmt_error(name, v, "a positive integer", "e.g. max_order=64"))
+        if self.min_order > self.max_order:
+            raise ModalabValueError(f"min_order={self.min_order} > max_order={self.max_order}; "
+                                    "give min_order <= max_order")
+        if self.weighting not in _WEIGHTINGS:
+            raise ModalabValueError(fmt_error("weighting", self.weighting, "None, 'coherence' or 'variance'",
+                                              "Use None for unit weights"))
+
+    @staticmethod
+    def prepare(frf: FRF, band_hz=None) -> FRF:
+        """Band-limit and drop lines at 0 Hz or with non-finite data."""
+        f = frf if band_hz is None else frf.band(*band_hz)
+        good = (f.freq_hz > 0) & np.all(np.isfinite(f.H), axis=(0, 1))
+        if not good.all():
+            coh = None if f.coherence is None else f.coherence[..., good]
+            f = f._replace(freq_hz=f.freq_hz[good], H=f.H[..., good], coherence=coh)
+        return f
+
+    # ------------------------------------------------------------------ fit
+    def fit(self, frf: FRF) -> "PolyMAX":
+        """Estimate poles for every order, stabilise, select, and fit shapes by LSFD."""
+        from .stabilisation import StabilisationCriteria, stabilise
+        from .selection import SelectionOptions, select_poles
+        from .lsfd import modes_from_poles
+
+        self._check_params(frf)
+        data = self.prepare(frf, self.band_hz)
+        n_out, n_in, nf = data.shape
+        p = int(self.max_order)
+        if nf < 2 * p // max(n_in, 1) + 2:
+            log.warning("only %d lines for order %d: the problem is barely over-determined", nf, p)
+        if nf < p + 2:
+            raise ModalabValueError(f"{nf} frequency lines cannot support max_order={p}; "
+                                    f"use max_order <= {max(nf - 2, 1)} or a wider band")
+        fmax = float(data.freq_hz[-1])
+        dt = 1.0 / (2.0 * fmax)
+        theta = 2 * np.pi * data.freq_hz * dt
+        w = frequency_weights(data, self.weighting)
+        M = reduced_normal_matrix(data.H, w, theta, p)
+        orders = np.arange(self.min_order, p + 1, self.order_step)
+        poles, parts = [], []
+        for n in orders:
+            lam, L = poles_at_order(M, int(n), n_in, dt)
+            up = lam.imag > 0
+            lam, L = lam[up], L[:, up]
+            o = np.argsort(lam.imag)
+            poles.append(lam[o])
+            parts.append(L[:, o])
+        crit = self.criteria if self.criteria is not None else StabilisationCriteria()
+        self.frf_ = data
+        self.dt_ = dt
+        self.reduced_matrix_shape_ = M.shape
+        self.orders_ = orders
+        self.poles_ = poles
+        self.participation_ = parts
+        self.stabilisation_ = stabilise(orders, poles, parts, crit)
+        opts = self.selection if self.selection is not None else SelectionOptions()
+        band = (float(data.freq_hz[0]), fmax)
+        self.selected_ = select_poles(self.stabilisation_, self.select, opts, band_hz=band)
+        beta = float(data.metadata.get("exp_window_beta", 0.0) or 0.0) if self.window_correction else 0.0
+        self.modes_, self.lsfd_ = modes_from_poles(
+            data, self.selected_.lam, self.selected_.participation, lower_residual=self.lower_residual,
+            upper_residual=self.upper_residual, window_beta=beta,
+            extra_indicators={"cluster_size": self.selected_.cluster_size,
+                              "order": self.selected_.order})
+        self.modes_.metadata.update({"method": "pLSCF (PolyMAX-style) + LSFD", "max_order": p,
+                                     "band_hz": list(band), "exp_window_beta": beta,
+                                     "weighting": self.weighting or "none"})
+        log.info("PolyMAX: %d outputs x %d references x %d lines, orders %d..%d, %d modes",
+                 n_out, n_in, nf, orders[0], orders[-1], self.modes_.n_modes)
+        return self
+
+    def __getattr__(self, name):
+        if name.endswith("_") and not name.startswith("__"):
+            raise NotFittedError(f"PolyMAX.{name} is not available: call fit(frf) first")
+        raise AttributeError(name)
+
+    def synthesise(self, freq_hz=None) -> FRF:
+        """FRFs synthesised from the fitted modal model (measured poles and residuals)."""
+        res = self.lsfd_
+        return res.synthesise(self.frf_ if freq_hz is None else np.asarray(freq_hz, float))

@@ -1,0 +1,230 @@
+"""Pole selection from a stabilisation diagram: automatic clustering or the analyst's choice.
+
+Automatic selection (in the spirit of Neu et al. 2017, "Fully automated
+operational modal analysis using multi-stage clustering", MSSP 76)
+
+1. keep the stable poles (frequency, damping and participation tests) that are
+   physical: ``0 < ζ ≤ max_damping`` and inside the band (away from its edges);
+2. cluster them hierarchically (average linkage) with the distance
+   ``d_ij = |f_i−f_j|/max(f_i,f_j) + w_ζ·|ζ_i−ζ_j|/max(ζ_i,ζ_j) + w_mac·(1 − MAC(l_i,l_j))``
+   cut at ``distance`` (default 1 %, the frequency stabilisation tolerance);
+3. a cluster that holds two or more poles of the same order in most of its
+   orders contains several modes: it is split (Ward linkage on frequency and
+   damping) into that many;
+4. keep clusters holding at least ``min_fraction`` of the largest cluster and at
+   least ``min_poles`` poles: spurious poles are rarely stable over many orders;
+5. represent each cluster by the median frequency and damping of its poles in the upper third of
+   its orders (estimates converge with the order), with the participation vector of the pole
+   closest to that median.
+
+Manual selection: a list of frequencies in Hz, or a selection file (JSON list,
+``{"freq_hz": [...]}``, or TOML ``freq_hz = [...]``); for each, the nearest
+stable pole of the highest order that has one within ``manual_tol``.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from modalab.errors import ModalabValueError, fmt_error
+from .stabilisation import StabilisationDiagram, mac_vectors, pole_freq_damping
+
+log = logging.getLogger(__name__)
+
+__all__ = ["SelectionOptions", "SelectedPoles", "select_poles", "auto_select", "select_frequencies",
+           "load_selection_file"]
+
+
+@dataclass(frozen=True)
+class SelectionOptions:
+    """Settings of the automatic and manual pole selection."""
+
+    distance: float = 0.01          # cut height of the hierarchical clustering
+    damping_weight: float = 0.02    # w_ζ in the distance
+    mac_weight: float = 0.05        # w_mac in the distance
+    min_fraction: float = 0.3       # of the largest cluster's pole count
+    min_poles: int = 4
+    max_damping: float = 0.20       # poles with more damping are unphysical here
+    edge_fraction: float = 0.005    # poles within this fraction of the band edges are dropped
+    manual_tol: float = 0.02        # relative frequency window for manual picks
+
+    def __post_init__(self):
+        for name in ("distance", "max_damping", "manual_tol"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and v > 0):
+                raise ModalabValueError(fmt_error(f"SelectionOptions.{name}", v, "a positive number",
+                                                  "Keep the default unless the data call for another"))
+        if not (0 <= self.min_fraction <= 1):
+            raise ModalabValueError(fmt_error("SelectionOptions.min_fraction", self.min_fraction, "0..1",
+                                              "Default 0.3"))
+
+
+@dataclass
+class SelectedPoles:
+    """The chosen poles (as estimated, before window correction), sorted by frequency."""
+
+    lam: np.ndarray
+    participation: np.ndarray      # (n_in, n_modes)
+    order: np.ndarray              # model order of the representative pole
+    cluster_size: np.ndarray       # number of stable poles behind each mode (0 for manual picks off-diagram)
+    source: str = "auto"
+
+    @property
+    def freq_hz(self):
+        return pole_freq_damping(self.lam)[0]
+
+    @property
+    def damping(self):
+        return pole_freq_damping(self.lam)[1]
+
+    def __len__(self):
+        return self.lam.size
+
+    def _sorted(self):
+        o = np.argsort(self.freq_hz)
+        return SelectedPoles(self.lam[o], self.participation[:, o], self.order[o], self.cluster_size[o], self.source)
+
+
+def _empty(n_in, source):
+    return SelectedPoles(np.zeros(0, complex), np.zeros((n_in, 0), complex), np.zeros(0, int), np.zeros(0, int),
+                         source)
+
+
+def _physical(diag: StabilisationDiagram, opts: SelectionOptions, band_hz):
+    lo, hi = band_hz if band_hz is not None else (diag.freq_hz.min(initial=0.0), diag.freq_hz.max(initial=np.inf))
+    margin = opts.edge_fraction * (hi - lo)
+    return ((diag.damping > 0) & (diag.damping <= opts.max_damping)
+            & (diag.freq_hz > lo + margin) & (diag.freq_hz < hi - margin))
+
+
+def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = None, *, band_hz=None) -> SelectedPoles:
+    """Automatic selection by hierarchical clustering of the stable, physical poles (module docs)."""
+    from scipy.cluster.hierarchy import fcluster, linkage
+    from scipy.spatial.distance import squareform
+
+    opts = options if options is not None else SelectionOptions()
+    n_in = diag.participation.shape[0]
+    idx = np.flatnonzero(diag.stable & _physical(diag, opts, band_hz))
+    if idx.size < max(opts.min_poles, 2):
+        log.warning("automatic selection: only %d stable physical poles; no mode selected", idx.size)
+        return _empty(n_in, "auto")
+    f, z, L, od = diag.freq_hz[idx], diag.damping[idx], diag.participation[:, idx], diag.order[idx]
+    df = np.abs(f[:, None] - f[None, :]) / np.maximum(f[:, None], f[None, :])
+    dz = np.abs(z[:, None] - z[None, :]) / np.maximum(z[:, None], z[None, :])
+    dm = 1.0 - mac_vectors(L, L)
+    d = df + opts.damping_weight * dz + opts.mac_weight * dm
+    d = 0.5 * (d + d.T)
+    np.fill_diagonal(d, 0.0)
+    Z = linkage(squareform(np.clip(d, 0, None), checks=False), method="average")
+    lab = fcluster(Z, t=opts.distance, criterion="distance")
+    groups = []
+    for c in np.unique(lab):
+        members = np.flatnonzero(lab == c)
+        _, counts = np.unique(od[members], return_counts=True)
+        k = int(np.round(np.median(counts)))
+        if k >= 2 and members.size >= 2 * k:
+            feat = np.column_stack([f[members] / f[members].mean(), 0.1 * z[members] / max(z[members].mean(), 1e-12)])
+            sub = fcluster(linkage(feat, method="ward"), t=k, criterion="maxclust")
+            groups.extend(members[sub == s] for s in np.unique(sub))
+        else:
+            groups.append(members)
+    sizes = np.array([g.size for g in groups])
+    keep = (sizes >= opts.min_poles) & (sizes >= opts.min_fraction * sizes.max())
+    lam, parts, orders, csize = [], [], [], []
+    for g, ok in zip(groups, keep):
+        if not ok:
+            continue
+        # estimates converge with the order: represent the cluster by its upper third of orders
+        top = g[od[g] >= np.percentile(od[g], 67)]
+        fm, zm = np.median(f[top]), np.median(z[top])
+        score = np.abs(f[top] - fm) / fm + np.abs(z[top] - zm) / max(zm, 1e-12) * 0.01
+        best = top[np.argmin(score)]
+        # the representative pole: median frequency and damping, participation of the closest pole
+        lam.append(complex(-zm * 2 * np.pi * fm, 2 * np.pi * fm * np.sqrt(max(1 - zm ** 2, 0.0))))
+        parts.append(L[:, best])
+        orders.append(od[best])
+        csize.append(g.size)
+    log.info("automatic selection: %d stable poles in %d clusters, %d kept", idx.size, len(groups), len(lam))
+    if not lam:
+        return _empty(n_in, "auto")
+    return SelectedPoles(np.array(lam), np.array(parts).T, np.array(orders), np.array(csize), "auto")._sorted()
+
+
+def select_frequencies(diag: StabilisationDiagram, freqs_hz, options: SelectionOptions | None = None) -> SelectedPoles:
+    """For each requested frequency the nearest pole of the highest order with a stable pole within ``manual_tol``.
+
+    Falls back to any pole within the window (logged) and raises when none is near.
+    """
+    opts = options if options is not None else SelectionOptions()
+    targets = np.atleast_1d(np.asarray(freqs_hz, dtype=float))
+    if targets.ndim != 1 or not np.all(np.isfinite(targets)) or np.any(targets <= 0):
+        raise ModalabValueError(fmt_error("selected frequencies", freqs_hz, "positive frequencies in Hz",
+                                          "Give e.g. [12.5, 40.2]"))
+    n_in = diag.participation.shape[0]
+    lam, parts, orders, csize = [], [], [], []
+    phys = (diag.damping > 0) & (diag.damping <= opts.max_damping)
+    for ft in targets:
+        near = np.abs(diag.freq_hz - ft) <= opts.manual_tol * ft
+        cand = np.flatnonzero(near & diag.stable & phys)
+        if cand.size == 0:
+            cand = np.flatnonzero(near & phys)
+            if cand.size == 0:
+                cand = np.flatnonzero(near)
+            if cand.size == 0:
+                raise ModalabValueError(
+                    f"no pole within {100 * opts.manual_tol:.3g} % of {ft:.6g} Hz at any order; "
+                    "check the frequency, widen SelectionOptions.manual_tol or raise max_order")
+            log.warning("selection at %.6g Hz: no stable pole nearby, taking the nearest unstable one", ft)
+        top = diag.order[cand].max()
+        c = cand[diag.order[cand] == top]
+        best = c[np.argmin(np.abs(diag.freq_hz[c] - ft))]
+        lam.append(diag.lam[best])
+        parts.append(diag.participation[:, best])
+        orders.append(diag.order[best])
+        csize.append(int(np.sum(near & diag.stable)))
+    return SelectedPoles(np.array(lam), np.array(parts).T.reshape(n_in, -1), np.array(orders), np.array(csize),
+                         "manual")._sorted()
+
+
+def load_selection_file(path) -> list[float]:
+    """Frequencies (Hz) from a JSON file (list or ``{"freq_hz": [...]}``) or TOML file (``freq_hz = [...]``)."""
+    p = os.fspath(path)
+    if not os.path.isfile(p):
+        raise ModalabValueError(f"selection file {p!r} does not exist; give a JSON or TOML file listing freq_hz")
+    try:
+        if p.lower().endswith(".toml"):
+            import tomllib
+
+            with open(p, "rb") as fh:
+                data = tomllib.load(fh)
+        else:
+            with open(p) as fh:
+                data = json.load(fh)
+    except Exception as e:  # noqa: BLE001 - report any parse failure the same way
+        raise ModalabValueError(f"cannot parse selection file {p!r}: {e}. Write a JSON list of Hz, "
+                                "{\"freq_hz\": [...]} or TOML 'freq_hz = [...]'") from None
+    vals = data.get("freq_hz") if isinstance(data, dict) else data
+    try:
+        out = [float(v) for v in vals]
+    except (TypeError, ValueError):
+        raise ModalabValueError(f"selection file {p!r}: freq_hz must be a list of numbers; got {vals!r}") from None
+    if not out:
+        raise ModalabValueError(f"selection file {p!r} lists no frequency; add at least one")
+    return out
+
+
+def select_poles(diag: StabilisationDiagram, select="auto", options: SelectionOptions | None = None, *,
+                 band_hz=None) -> SelectedPoles:
+    """Dispatch: ``'auto'``, a sequence of frequencies (Hz) or a path to a selection file."""
+    if isinstance(select, str) and select == "auto":
+        return auto_select(diag, options, band_hz=band_hz)
+    if isinstance(select, (str, os.PathLike)):
+        return select_frequencies(diag, load_selection_file(select), options)
+    if np.ndim(select) == 0 and not isinstance(select, (int, float)):
+        raise ModalabValueError(fmt_error("select", select, "'auto', frequencies in Hz or a selection-file path",
+                                          "Use select='auto' for automatic selection"))
+    return select_frequencies(diag, select, options)
