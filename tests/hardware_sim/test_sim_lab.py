@@ -136,13 +136,13 @@ class TestRecordFormat:
         assert r.roles == ["force", "response", "response", "response"]
         assert r.units == ["N", "m/s^2", "m/s^2", "m/s^2"]
         assert r.dofs == [Dof.parse(d) for d in ("14+Z", "19+Z", "12+Z", "1+Z")]
-        assert np.allclose(r.sensitivity, [2.25e-3] + [0.1 / 9.80665] * 3)
+        assert np.allclose(r.sensitivity, [2.25e-3] + [0.05 / 9.80665] * 3)
         f = r.force[0]
         assert f[r.trigger_index] >= 5.0 > f[r.trigger_index - 1]
         assert not r.overloaded
         assert [q.hit_id for q in recs] == [1, 2, 3, 4]
         assert r.metadata["point"] == "14+Z"
-        assert np.allclose(r.metadata["range"], [5 / 2.25e-3] + [5 / (0.1 / 9.80665)] * 3)
+        assert np.allclose(r.metadata["range"], [5 / 2.25e-3] + [5 / (0.05 / 9.80665)] * 3)
 
     def test_pretrigger_is_quiet_and_pulse_is_where_metadata_says(self, viscous_hits):
         _, recs = viscous_hits
