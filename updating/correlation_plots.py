@@ -49,7 +49,7 @@ def plot_mac(mac_matrix, path, *, analysis_freq_hz=None, test_freq_hz=None, pair
     if M.ndim != 2 or 0 in M.shape:
         raise ShapeError(f"MAC matrix has shape {M.shape}; expected a non-empty (n_analysis, n_test) matrix")
     na, nx = M.shape
-    fig = _figure((1.6 + 0.45 * nx + 1.5, 1.2 + 0.45 * na + 0.8))
+    fig = _figure((min(1.6 + 0.45 * nx + 1.5, 16.0), min(1.2 + 0.45 * na + 0.8, 14.0)))
     ax = fig.add_subplot()
     im = ax.imshow(M, vmin=0, vmax=1, cmap="Blues", origin="upper", aspect="auto")
     fig.colorbar(im, ax=ax, label="MAC")

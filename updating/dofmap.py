@@ -287,6 +287,7 @@ class DofMap:
                            "Add the test DOFs to the DOF map (--map) or remove them from the test data")
         C = sp.csr_matrix((vals, (rows, cols)), shape=(len(tl), len(ml)))
         C.sum_duplicates()
+        C.eliminate_zeros()
         return C
 
     def selection(self, test_dofs, model_dofs) -> tuple[np.ndarray, np.ndarray]:
@@ -307,6 +308,18 @@ class DofMap:
                     "sensors, or map the DOF onto one model DOF")
             idx[i], fac[i] = C.indices[nz[0]], C.data[nz[0]]
         return idx, fac
+
+    def model_labels(self, test_dofs, model_dofs) -> tuple[list[Dof], np.ndarray]:
+        """Signed model labels read by selection-type test DOFs and the remaining scale factors.
+
+        ``x_test[i] = scale[i] * x_model[label[i]]`` where a label of negative sign
+        negates; ``scale`` is 1 for plain (signed) selections.
+        """
+        ml = parse_dofs(model_dofs)
+        idx, fac = self.selection(test_dofs, ml)
+        c = fac * np.array([ml[i].sign for i in idx], float)       # coefficient on the positive model axis
+        labels = [Dof(ml[i].node, ml[i].axis * (1 if ci > 0 else -1)) for i, ci in zip(idx, c)]
+        return labels, np.abs(c)
 
     def apply(self, modes: ModeSet, test_dofs) -> ModeSet:
         """Model modes observed at the test DOFs: ``shapes = C @ modes.shapes`` on the test labels."""

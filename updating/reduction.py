@@ -120,7 +120,8 @@ class _Factor:
         self.what = what
         try:
             if sp.issparse(A):
-                self._lu = spla.splu(sp.csc_matrix(A))
+                # structural matrices are symmetric: a symmetric fill-reducing ordering beats the COLAMD default
+                self._lu = spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A")
                 self._solve = self._lu.solve
             else:
                 with np.errstate(all="ignore"), warnings.catch_warnings():
@@ -401,9 +402,13 @@ def serep(K, M, masters, *, dofs=None, modes=None, n_modes: int | None = None, r
                         dofs=None if dofs is None else parse_dofs(dofs), method="serep")
 
 
-def reduce(structure: Structure, masters, method: str = "guyan", **kw) -> ReducedModel:
+def reduce(structure: Structure, masters, method: str = "guyan", *, dofmap=None, **kw) -> ReducedModel:
     """Reduce a :class:`~modalab.structure.Structure` onto labelled masters by ``'guyan'``, ``'irs'`` or ``'serep'``.
 
+    With ``dofmap`` (a :class:`~updating.dofmap.DofMap`, dict or file), ``masters``
+    are *test* DOF labels: each is mapped onto its model DOF (sign and factor
+    included) and the reduced model is expressed in the test coordinates, so it
+    compares directly with test modes (e.g. :func:`updating.correlation.mixed_orthogonality`).
     Keyword arguments go to the method.  Viscous (C) and hysteretic (D) damping
     are transformed with the same ``T``.
     """
@@ -414,7 +419,19 @@ def reduce(structure: Structure, masters, method: str = "guyan", **kw) -> Reduce
     f = funcs.get(str(method).lower())
     if f is None:
         raise ModalabValueError(f"reduction method {method!r}; expected one of {sorted(funcs)}")
-    red = f(structure.K, structure.M, masters, dofs=structure.dofs, **kw)
+    if dofmap is None:
+        red = f(structure.K, structure.M, masters, dofs=structure.dofs, **kw)
+    else:
+        from .dofmap import as_dofmap
+
+        test_labels = parse_dofs(masters)
+        idx, fac = as_dofmap(dofmap).selection(test_labels, structure.dofs)
+        red = f(structure.K, structure.M, [int(i) for i in idx], dofs=structure.dofs, **kw)
+        d = 1.0 / fac                                  # x_model[idx] = x_test / fac
+        red.T = red.T * d[None, :]
+        red.K = red.K * np.outer(d, d)
+        red.M = red.M * np.outer(d, d)
+        red.masters = test_labels
     if structure.C is not None:
         red.C = _project(structure.C, red.T)
     if structure.D is not None:

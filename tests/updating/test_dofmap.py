@@ -167,3 +167,11 @@ class TestSelection:
         idx, fac = DofMap(dofs={"101+Z": "13-Z"}).selection(["101+Z", "12+X"], MODEL)
         assert list(idx) == [MODEL.index("13+Z"), MODEL.index("12+X")]
         assert list(fac) == [-1.0, 1.0]
+
+    def test_model_labels(self):
+        dm = DofMap(dofs={"101+Z": "13-Z", "102+X": {"12+X": 2.0}})
+        labels, scale = dm.model_labels(["101+Z", "102+X", "14-Y"], MODEL)
+        assert [str(d) for d in labels] == ["13-Z", "12+X", "14-Y"]
+        np.testing.assert_allclose(scale, [1.0, 2.0, 1.0])
+        labels, _ = DofMap().model_labels(["12+Z"], ["12-Z"])
+        assert [str(d) for d in labels] == ["12+Z"]

@@ -217,3 +217,16 @@ class TestReduceStructure:
         K, M, dofs = chain()
         with pytest.raises(ModalabValueError, match="guyan"):
             reduce(Structure(M=M, K=K, dofs=dofs), MASTERS, method="craig")
+
+    def test_masters_as_test_labels_through_a_map(self):
+        from updating.dofmap import DofMap
+        from updating.correlation import mixed_orthogonality
+        K, M, dofs = chain()
+        st = Structure(M=M, K=K, dofs=dofs)
+        dm = DofMap(dofs={"103+Z": "3-Z", "106+Z": "6+Z", "110+Z": "10+Z"})
+        red = reduce(st, ["103+Z", "106+Z", "110+Z"], method="serep", dofmap=dm)
+        assert [str(d) for d in red.masters] == ["103+Z", "106+Z", "110+Z"]
+        w2, phi = sla.eigh(K, M)
+        test_shapes = phi[[2, 5, 9], :3] * np.array([-1.0, 1.0, 1.0])[:, None]   # what the sensors read
+        np.testing.assert_allclose(mixed_orthogonality(test_shapes, red.M), np.eye(3), atol=1e-10)
+        np.testing.assert_allclose(red.expand(test_shapes), phi[:, :3], atol=1e-10)
