@@ -22,7 +22,8 @@ frequency line), :func:`frf_correlation` for labelled FRFs or a Structure.
 High level: :func:`correlate` maps the analysis modes onto the test DOFs,
 computes the MAC matrix, pairs the modes and returns a :class:`CorrelationResult`
 with frequency errors, MSF, COMAC and ECOMAC, ``to_dict()`` for JSON and
-``table()`` for text.  Mode numbers in ``to_dict()`` and ``table()`` are 1-based;
+``table()`` for text; the analysis may be a Structure (:func:`analysis_modes`
+computes its normal modes).  Mode numbers in ``to_dict()`` and ``table()`` are 1-based;
 indices in Python attributes are 0-based.
 """
 from __future__ import annotations
@@ -44,7 +45,7 @@ from .dofmap import as_dofmap
 
 __all__ = ["mac", "automac", "macx", "msf", "comac", "ecomac", "cross_orthogonality", "mixed_orthogonality",
            "frequency_table", "Pairing", "pair_modes", "frac", "csac", "csf", "FrfCorrelation",
-           "frf_correlation", "CorrelationResult", "correlate"]
+           "frf_correlation", "CorrelationResult", "correlate", "analysis_modes"]
 
 log = logging.getLogger(__name__)
 
@@ -580,8 +581,19 @@ class CorrelationResult:
         return "\n".join(lines)
 
 
-def correlate(analysis: ModeSet, test: ModeSet, *, dofmap=None, mac_min: float = 0.5, freq_weight: float = 0.0,
-              max_freq_error: float | None = None) -> CorrelationResult:
+def analysis_modes(structure: Structure, n_modes: int | None = None) -> ModeSet:
+    """Mass-normalised normal modes of a Structure as a :class:`~modalab.modes.ModeSet` (Hz, undamped)."""
+    if not isinstance(structure, Structure):
+        raise ModalabValueError(f"expected a Structure; got {type(structure).__name__}")
+    if n_modes is not None and not 1 <= int(n_modes) <= structure.n_dof:
+        raise ModalabValueError(f"n_modes {n_modes}; expected 1..{structure.n_dof} (the model's DOF count)")
+    omega, phi = structure.normal_modes(None if n_modes is None else int(n_modes))
+    return ModeSet(freq_hz=omega / (2 * np.pi), shapes=phi, dofs=structure.dofs, scaling="unit_modal_mass",
+                   metadata={"source": f"normal modes of {structure.name or 'the model'}"})
+
+
+def correlate(analysis, test: ModeSet, *, dofmap=None, mac_min: float = 0.5, freq_weight: float = 0.0,
+              max_freq_error: float | None = None, n_analysis_modes: int | None = None) -> CorrelationResult:
     """Correlate analysis modes with test modes on the test DOFs.
 
     The analysis modes are observed at the test DOFs through ``dofmap``
@@ -590,7 +602,16 @@ def correlate(analysis: ModeSet, test: ModeSet, *, dofmap=None, mac_min: float =
     Then: MAC matrix (eq. 2.63), optimal pairing (:func:`pair_modes`), frequency
     errors (section 2.2.1), MSF (eq. 2.62), COMAC (eq. 2.64) and ECOMAC over the
     pairs.  Complex test shapes are used as they are (the MAC is complex-aware).
+
+    ``analysis`` may also be a :class:`~modalab.structure.Structure`: its lowest
+    ``n_analysis_modes`` normal modes are used (default: twice the number of test
+    modes plus 5, at most the model size).
     """
+    if isinstance(analysis, Structure):
+        if not isinstance(test, ModeSet):
+            raise ModalabValueError(f"test: got {type(test).__name__}; expected a modalab.modes.ModeSet")
+        n = n_analysis_modes or min(analysis.n_dof, 2 * test.n_modes + 5)
+        analysis = analysis_modes(analysis, n)
     for name, ms in (("analysis", analysis), ("test", test)):
         if not isinstance(ms, ModeSet):
             raise ModalabValueError(f"{name}: got {type(ms).__name__}; expected a modalab.modes.ModeSet")

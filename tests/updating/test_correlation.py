@@ -255,3 +255,10 @@ class TestCorrelate:
         assert out.read_bytes()[:4] == b"%PDF"
         with pytest.raises(ModalabValueError, match="does not exist"):
             plot_frf_overlay(H, H, tmp_path / "missing" / "frf.png")
+
+    def test_structure_as_analysis(self, modes):
+        K, M, dofs = chain()
+        test = modes.select_modes([0, 2]).select_dofs(["2+Z", "5+Z", "8+Z"])
+        r = correlate(Structure(M=M, K=K, dofs=dofs), test)
+        assert r.analysis.n_modes == 8 and r.pairs == [(0, 0), (2, 1)]
+        np.testing.assert_allclose(r.freq_error_pct, 0.0, atol=1e-9)
