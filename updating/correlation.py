@@ -35,7 +35,6 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import linear_sum_assignment
 
-from modalab.dof import parse_dofs
 from modalab.errors import ModalabValueError, ShapeError
 from modalab.frf import FRF
 from modalab.modes import ModeSet

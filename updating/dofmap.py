@@ -54,7 +54,7 @@ import csv
 import logging
 import tomllib
 from pathlib import Path
-from typing import Iterable, Mapping, Sequence
+from typing import Mapping
 
 import numpy as np
 import scipy.sparse as sp
