@@ -29,6 +29,10 @@ Ewins 2000, §4.4) are
     γ²_ij = |G_yx_ij|² / (G_xx_jj G_yy_i)          ordinary coherence
     γ²_i  = Re(G_yx_i H1_i^H) / G_yy_i              multiple coherence of response i
 
+Lines where the force auto-spectrum is zero up to round-off (below 1e-24 of its strongest line)
+give NaN FRFs; coherence is 0 where either signal has no energy, and where the forces of a MIMO
+set are not independent (multiple coherence there is 0, and H1 NaN).
+
 For several force channels (MIMO) the FRF container's coherence holds the *multiple* coherence of
 each response (repeated along the references) and ``metadata['coherence_kind'] == 'multiple'``.
 
@@ -74,6 +78,8 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 ESTIMATORS = ("H1", "H2", "Hv")
+#: auto-spectrum lines below this fraction of the strongest line count as empty (round-off of zero)
+_EPS_REL = 1e-24
 
 _QUANTITY_OF_UNIT = {
     "m/s^2": "accelerance", "m/s2": "accelerance", "m/s**2": "accelerance", "m/s²": "accelerance",
@@ -124,26 +130,34 @@ class CrossSpectra:
         return self.Gyx.shape[0]
 
     # ------------------------------------------------------------------ estimators
+    def _no_energy(self, g: np.ndarray) -> np.ndarray:
+        """Lines whose auto-spectrum is zero up to round-off (relative to the strongest line)."""
+        return g <= _EPS_REL * max(float(np.max(g, initial=0.0)), np.finfo(float).tiny)
+
     def h1(self) -> np.ndarray:
         """H1 = G_yx G_xx⁻¹, shape (n_out, n_in, n_freq); NaN where the force has no energy."""
+        return self._h1(strict=True)
+
+    def _h1(self, strict: bool) -> np.ndarray:
         if self.n_in == 1:
             gxx = self.Gxx[0, 0].real
             with np.errstate(divide="ignore", invalid="ignore"):
                 H = self.Gyx / gxx[None, None, :]
-            H[:, :, gxx <= 0] = np.nan
+            H[:, :, self._no_energy(gxx)] = np.nan
             return H
-        if self.n_averages < self.n_in:
+        if strict and self.n_averages < self.n_in:
             raise ModalabValueError(
                 f"MIMO H1 with {self.n_in} force channels needs at least {self.n_in} averages with independent "
                 f"forces; got {self.n_averages}. Record more hits before estimating")
         A = self.Gxx.transpose(2, 1, 0)                        # (nf, n_in, n_in) = Gxxᵀ
         B = self.Gyx.transpose(2, 1, 0)                        # (nf, n_in, n_out) = Gyxᵀ
-        cond = np.linalg.cond(A)
+        with np.errstate(all="ignore"):
+            cond = np.linalg.cond(A)
         bad = ~np.isfinite(cond) | (cond > 1e12)
         H = np.full((A.shape[0], self.n_in, self.n_out), np.nan, complex)
         if np.any(~bad):
             H[~bad] = np.linalg.solve(A[~bad], B[~bad])
-        if np.any(bad):
+        if np.any(bad) and strict:
             frac = bad.mean()
             msg = (f"G_xx is singular at {int(bad.sum())} of {bad.size} lines: the {self.n_in} forces are not "
                    "independent there (H1 set to NaN)")
@@ -163,6 +177,7 @@ class CrossSpectra:
         with np.errstate(divide="ignore", invalid="ignore"):
             H = self.Gyy / gxy
         H[~np.isfinite(H)] = np.nan
+        H[:, self._no_energy(self.Gxx[0, 0].real)] = np.nan
         return H[:, None, :]
 
     def hv(self) -> np.ndarray:
@@ -180,6 +195,8 @@ class CrossSpectra:
         with np.errstate(divide="ignore", invalid="ignore"):
             H = -np.conj(ux) / np.conj(uy)[..., None]
         H[~np.isfinite(H)] = np.nan
+        gxx = np.real(np.einsum("iif->f", self.Gxx))
+        H[self._no_energy(gxx)] = np.nan
         return H.transpose(1, 2, 0)
 
     def estimate(self, estimator: str = "H1") -> np.ndarray:
@@ -194,18 +211,19 @@ class CrossSpectra:
         den = self.Gyy[:, None, :] * gxx[None, :, :]
         with np.errstate(divide="ignore", invalid="ignore"):
             c = np.abs(self.Gyx) ** 2 / den
-        c[~np.isfinite(c) | (den <= 0)] = 0.0
+        dead = self._no_energy(gxx)[None, :, :] | self._no_energy(self.Gyy)[:, None, :]
+        c[~np.isfinite(c) | (den <= 0) | dead] = 0.0
         return np.clip(c, 0.0, 1.0)
 
     def multiple_coherence(self) -> np.ndarray:
         """Multiple coherence of each response with all forces, in [0, 1], shape (n_out, n_freq)."""
         if self.n_in == 1:
             return self.coherence()[:, 0, :]
-        H = self.h1()
+        H = self._h1(strict=False)
         num = np.real(np.einsum("oif,oif->of", self.Gyx, np.conj(H)))
         with np.errstate(divide="ignore", invalid="ignore"):
             c = num / self.Gyy
-        c[~np.isfinite(c) | (self.Gyy <= 0)] = 0.0
+        c[~np.isfinite(c) | self._no_energy(self.Gyy)] = 0.0
         return np.clip(c, 0.0, 1.0)
 
 
