@@ -352,3 +352,15 @@ def test_roving_test_over_points():
     recs = simulate_roving_test(lab, ["1+Z", "11+Z"], hits_per_point=2)
     assert [str(r.dofs[0]) for r in recs] == ["1+Z", "1+Z", "11+Z", "11+Z"]
     assert [r.hit_id for r in recs] == [1, 2, 3, 4]
+
+
+def test_prepare_batches_without_changing_the_records():
+    a = demo_lab(31)
+    a.prepare(["4+Z", "11+Z"])
+    assert {"4+Z", "11+Z"} <= {str(d) for d in a._cache}
+    b = demo_lab(31)
+    for p in ("4+Z", "11+Z"):
+        ra, rb = a.hit(p), b.hit(p)
+        assert np.allclose(ra.data, rb.data, rtol=0, atol=1e-9 * np.abs(rb.data).max())
+    with pytest.raises(DofError):
+        a.prepare(["99+Z"])
