@@ -77,7 +77,8 @@ def plot_mac(mac_matrix, path, *, analysis_freq_hz=None, test_freq_hz=None, pair
 def plot_frequencies(test_freq_hz, analysis_freq_hz, path, *, labels=None, title: str = "Natural frequencies") -> Path:
     """Paired frequencies, analysis against test, with the 45° line (section 2.2.1).
 
-    Both arrays are in pair order (one entry per pair); ``labels`` annotate the points.
+    Both arrays are in pair order (one entry per pair); ``labels`` annotate the points
+    (:func:`save_correlation_plots` writes "test/FE" mode numbers).
     """
     fx, fa = np.asarray(test_freq_hz, float), np.asarray(analysis_freq_hz, float)
     if fx.shape != fa.shape or fx.ndim != 1:
@@ -89,7 +90,7 @@ def plot_frequencies(test_freq_hz, analysis_freq_hz, path, *, labels=None, title
     for pct in (5, 10):
         ax.plot([0, hi], [0, hi * (1 + pct / 100)], ":", color="0.6", lw=0.6)
         ax.plot([0, hi], [0, hi * (1 - pct / 100)], ":", color="0.6", lw=0.6)
-    ax.plot(fx, fa, "o", color="tab:blue", label="pairs")
+    ax.plot(fx, fa, "o", color="tab:blue", label="pairs" + (" (test/FE mode)" if labels is not None else ""))
     for k in range(fx.size):
         ax.annotate(str(labels[k]) if labels is not None else str(k + 1), (fx[k], fa[k]), fontsize=7,
                     xytext=(3, 3), textcoords="offset points")
@@ -105,7 +106,7 @@ def plot_frequencies(test_freq_hz, analysis_freq_hz, path, *, labels=None, title
 
 def plot_frf_overlay(analysis: FRF, test: FRF, path, *, responses=None, reference=None, max_panels: int = 6,
                      title: str = "FRF overlay") -> Path:
-    """Magnitude (log) and phase of analysis and test FRFs on the same labels, one panel per response.
+    """Magnitudes (log scale) of analysis and test FRFs on the same labels, one panel per response.
 
     Both FRFs must share the frequency lines and carry the chosen labels (align with
     :func:`updating.correlation.frf_correlation` first when the labels differ).
