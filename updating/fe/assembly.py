@@ -78,6 +78,33 @@ def _cd_transform(model, edofs):
     return T
 
 
+def _add_batch(model, cls, group, ctx, idx, parts):
+    K, M, ge = cls.batch_matrices(group, ctx)
+    nd = K.shape[1]
+    keys = [el.dofs() for el in group]
+    try:
+        rows = np.array([[idx[d] for d in ks] for ks in keys], dtype=np.int64)
+    except KeyError as e:
+        raise ModalabValueError(f"a {cls.__name__} element uses DOF {e.args[0]} that is not in the model's DOF "
+                                "list; this is an internal inconsistency, rebuild the model") from None
+    rotated = [k for k, el in enumerate(group) if any(model.nodes[n].cd is not None for n in el.nodes)]
+    for k in rotated:
+        T = _cd_transform(model, keys[k])
+        K[k] = T.T @ K[k] @ T
+        M[k] = T.T @ M[k] @ T
+    r = np.broadcast_to(rows[:, :, None], (len(group), nd, nd)).ravel()
+    c = np.broadcast_to(rows[:, None, :], (len(group), nd, nd)).ravel()
+    for key, A in (("K", K), ("M", M)):
+        parts[key][0].append(r)
+        parts[key][1].append(c)
+        parts[key][2].append(A.ravel())
+    ge = np.asarray(ge)
+    if np.any(ge != 0):
+        parts["D"][0].append(r)
+        parts["D"][1].append(c)
+        parts["D"][2].append((ge[:, None, None] * K).ravel())
+
+
 def assemble(model, elements=None, dtype=float, index: dict | None = None,
              include_global: bool = True) -> Matrices:
     """Assemble K, M, C, D of ``model`` (or of the listed ``elements`` only) on ``model.dofs``.
@@ -89,8 +116,18 @@ def assemble(model, elements=None, dtype=float, index: dict | None = None,
     idx = dof_index(dofs) if index is None else index
     ctx = AssemblyContext(model)
     parts = {k: ([], [], []) for k in ("K", "M", "C", "D")}
-    els = model.elements.values() if elements is None else elements
+    els = list(model.elements.values()) if elements is None else list(elements)
+    # element classes with a vectorised kernel are assembled in one batch per class
+    batched: dict = {}
+    single = []
     for el in els:
+        if hasattr(type(el), "batch_matrices"):
+            batched.setdefault(type(el), []).append(el)
+        else:
+            single.append(el)
+    for cls, group in batched.items():
+        _add_batch(model, cls, group, ctx, idx, parts)
+    for el in single:
         em = el.matrices(ctx)
         try:
             rows = np.fromiter((idx[d] for d in em.dofs), int, len(em.dofs))

@@ -41,14 +41,6 @@ def local_axes(x1, x2, v, eid) -> tuple[float, np.ndarray]:
     return L, np.vstack([ex, ey, ez])
 
 
-def transformation(lam: np.ndarray, n_nodes: int = 2) -> np.ndarray:
-    """Block-diagonal T with u_local = T u_basic (2 triplets per node)."""
-    T = np.zeros((6 * n_nodes, 6 * n_nodes))
-    for k in range(2 * n_nodes):
-        T[3 * k:3 * k + 3, 3 * k:3 * k + 3] = lam
-    return T
-
-
 def _bending_K(EI, L, phi):
     c = EI / ((1 + phi) * L ** 3)
     return c * np.array([
@@ -87,35 +79,117 @@ def _axial(k):
     return k * np.array([[1, -1], [-1, 1]])
 
 
-def frame_local(L, E, G, rho, A, Iy, Iz, J, Ip, nsm, *, shear_y=None, shear_z=None,
-                lumped=False, rotary=False):
-    """Local 12×12 stiffness and mass of a 3-D frame element.
+# ------------------------------------------------------------------ batched
+def _fill(n, dtype, entries):
+    """(n, r, c) array from a nested list of scalars/(n,) arrays."""
+    r, c = len(entries), len(entries[0])
+    out = np.zeros((n, r, c), dtype)
+    for i in range(r):
+        for j in range(c):
+            out[:, i, j] = entries[i][j]
+    return out
 
-    shear_y, shear_z : shear factors κ for Timoshenko behaviour in the x–y and
-    x–z planes (None: shear-rigid).  rotary : include rotary inertia of bending.
-    lumped : Nastran-style lumped mass (half the translational mass at each
-    node, no rotary or torsional inertia), as with PARAM COUPMASS < 0.
+
+def local_axes_batch(x1, x2, v, eids):
+    """Lengths (n,) and rotations (n, 3, 3) of many elements (see :func:`local_axes`)."""
+    d = x2 - x1
+    L = np.sqrt(np.einsum("ij,ij->i", d, d))
+    bad = np.flatnonzero(L <= 0)
+    if bad.size:
+        raise ModalabValueError(f"element {eids[bad[0]]} has zero length (its two nodes coincide); "
+                                "check the node coordinates")
+    ex = d / L[:, None]
+    ez = np.cross(ex, v)
+    nz = np.sqrt(np.einsum("ij,ij->i", ez, ez))
+    nv = np.sqrt(np.einsum("ij,ij->i", v, v))
+    bad = np.flatnonzero(~(nz >= 1e-8 * np.maximum(nv, 1e-300)) | (nv == 0))
+    if bad.size:
+        k = bad[0]
+        raise ModalabValueError(f"element {eids[k]}: orientation vector {tuple(v[k])} is parallel to the element "
+                                f"axis {tuple(np.round(ex[k], 6))}; give a vector that is not along the beam")
+    ez = ez / nz[:, None]
+    ey = np.cross(ez, ex)
+    return L, np.stack([ex, ey, ez], axis=1)
+
+
+def _bending_K_batch(EI, L, phi, n, dtype):
+    c = EI / ((1 + phi) * L ** 3)
+    L2 = L * L
+    return c[:, None, None] * _fill(n, dtype, [
+        [12, 6 * L, -12, 6 * L],
+        [6 * L, (4 + phi) * L2, -6 * L, (2 - phi) * L2],
+        [-12, -6 * L, 12, -6 * L],
+        [6 * L, (2 - phi) * L2, -6 * L, (4 + phi) * L2]])
+
+
+def _bending_M_batch(m, rhoI, L, phi, n, dtype):
+    p2 = phi * phi
+    c = m * L / (210 * (1 + phi) ** 2)
+    m11 = 70 * p2 + 147 * phi + 78
+    m12 = (35 * p2 + 77 * phi + 44) * L / 4
+    m13 = 35 * p2 + 63 * phi + 27
+    m14 = -(35 * p2 + 63 * phi + 26) * L / 4
+    m22 = (7 * p2 + 14 * phi + 8) * L * L / 4
+    m24 = -(7 * p2 + 14 * phi + 6) * L * L / 4
+    Mt = c[:, None, None] * _fill(n, dtype, [[m11, m12, m13, m14], [m12, m22, -m14, m24],
+                                             [m13, -m14, m11, -m12], [m14, m24, -m12, m22]])
+    r = rhoI / (30 * (1 + phi) ** 2 * L)
+    a = (3 - 15 * phi) * L
+    b = (10 * p2 + 5 * phi + 4) * L * L
+    e = (5 * p2 - 5 * phi - 1) * L * L
+    Mr = r[:, None, None] * _fill(n, dtype, [[36, a, -36, a], [a, b, -a, e], [-36, -a, 36, -a], [a, e, -a, b]])
+    return Mt + Mr
+
+
+def frame_local_batch(L, E, G, rho, A, Iy, Iz, J, Ip, nsm, *, shear_y=None, shear_z=None,
+                      lumped=False, rotary=False):
+    """Local 12×12 stiffness and mass of n 3-D frame elements (every argument an (n,) array).
+
+    shear_y, shear_z : shear factors κ (n,) for Timoshenko behaviour in the x–y and
+    x–z planes (None, or 0 for an element: shear-rigid).  rotary : include rotary
+    inertia of bending.  lumped : Nastran-style lumped mass (half the translational
+    mass at each node, no rotary or torsional inertia), as with PARAM COUPMASS < 0.
     """
+    n = L.shape[0]
     dtype = np.result_type(E, G, rho, A, Iy, Iz, J, Ip, nsm, float)
-    K = np.zeros((12, 12), dtype)
-    M = np.zeros((12, 12), dtype)
-    iu, it = [0, 6], [3, 9]
-    K[np.ix_(iu, iu)] = _axial(E * A / L)
-    K[np.ix_(it, it)] = _axial(G * J / L)
-    phi_z = 12 * E * Iz / (shear_y * G * A * L * L) if shear_y else 0.0   # x–y plane
-    phi_y = 12 * E * Iy / (shear_z * G * A * L * L) if shear_z else 0.0   # x–z plane
-    ixy = [1, 5, 7, 11]                      # v1, θz1, v2, θz2 ; θz = v'
-    ixz = [2, 4, 8, 10]                      # w1, θy1, w2, θy2 ; θy = −w'
-    S = np.diag([1.0, -1.0, 1.0, -1.0])
-    K[np.ix_(ixy, ixy)] = _bending_K(E * Iz, L, phi_z)
-    K[np.ix_(ixz, ixz)] = S @ _bending_K(E * Iy, L, phi_y) @ S
+    K = np.zeros((n, 12, 12), dtype)
+    M = np.zeros((n, 12, 12), dtype)
+    B = np.array([[1.0, -1.0], [-1.0, 1.0]])
+    iu, it = np.array([0, 6]), np.array([3, 9])
+    K[:, iu[:, None], iu[None, :]] = (E * A / L)[:, None, None] * B
+    K[:, it[:, None], it[None, :]] = (G * J / L)[:, None, None] * B
+    zero = np.zeros(n)
+    def shear_phi(I, k):
+        # k = 0 (or None) marks a shear-rigid plane
+        if k is None:
+            return zero
+        on = np.real(k) > 0
+        return np.where(on, 12 * E * I / (np.where(on, k, 1.0) * G * A * L * L), 0.0)
+
+    phi_z = shear_phi(Iz, shear_y)
+    phi_y = shear_phi(Iy, shear_z)
+    ixy = np.array([1, 5, 7, 11])
+    ixz = np.array([2, 4, 8, 10])
+    S = np.array([1.0, -1.0, 1.0, -1.0])
+    SS = S[:, None] * S[None, :]
+    K[:, ixy[:, None], ixy[None, :]] = _bending_K_batch(E * Iz, L, phi_z, n, dtype)
+    K[:, ixz[:, None], ixz[None, :]] = SS * _bending_K_batch(E * Iy, L, phi_y, n, dtype)
     m = rho * A + nsm
     if lumped:
         for k in (0, 1, 2, 6, 7, 8):
-            M[k, k] = m * L / 2
+            M[:, k, k] = m * L / 2
         return K, M
-    M[np.ix_(iu, iu)] = m * L / 6 * np.array([[2, 1], [1, 2]])
-    M[np.ix_(it, it)] = rho * Ip * L / 6 * np.array([[2, 1], [1, 2]])
-    M[np.ix_(ixy, ixy)] = _bending_M(m, rho * Iz if rotary else 0.0, L, phi_z)
-    M[np.ix_(ixz, ixz)] = S @ _bending_M(m, rho * Iy if rotary else 0.0, L, phi_y) @ S
+    C = np.array([[2.0, 1.0], [1.0, 2.0]])
+    M[:, iu[:, None], iu[None, :]] = (m * L / 6)[:, None, None] * C
+    M[:, it[:, None], it[None, :]] = (rho * Ip * L / 6)[:, None, None] * C
+    M[:, ixy[:, None], ixy[None, :]] = _bending_M_batch(m, rho * Iz if rotary else zero, L, phi_z, n, dtype)
+    M[:, ixz[:, None], ixz[None, :]] = SS * _bending_M_batch(m, rho * Iy if rotary else zero, L, phi_y, n, dtype)
     return K, M
+
+
+def to_basic(A, lam):
+    """Rotate (n, 12, 12) local matrices to basic: Tᵀ A T with T = blockdiag(λ) per triplet."""
+    n = A.shape[0]
+    Ar = A.reshape(n, 4, 3, 4, 3)
+    out = np.einsum("nij,naibk,nkl->najbl", lam, Ar, lam, optimize=True)
+    return out.reshape(n, 12, 12)

@@ -14,7 +14,7 @@ import numpy as np
 
 from modalab.errors import ModalabValueError
 
-from ._frame import frame_local, local_axes, transformation
+from ._frame import frame_local_batch, local_axes, local_axes_batch, to_basic
 from .base import Element, ElementMatrices, six_dofs
 from ..properties import BeamProperty
 
@@ -55,16 +55,53 @@ class Beam3D(Element):
         return local_axes(x1, x2, v, self.eid)
 
     def matrices(self, ctx) -> ElementMatrices:
-        prop = ctx.prop(self.pid)
-        if not isinstance(prop, BeamProperty):
-            raise ModalabValueError(f"element {self.eid} ({type(self).__name__}) refers to property "
-                                    f"{self.pid}, a {type(prop).__name__}; a beam needs a BeamProperty")
-        mat = ctx.material(prop.mid)
-        s = prop.section
-        L, lam = self.axes(ctx)
-        Kl, Ml = frame_local(L, mat.E, mat.shear_modulus, mat.rho, s.A, s.Iy, s.Iz, s.J, s.polar, prop.nsm,
-                             shear_y=s.ky if self._shear else None, shear_z=s.kz if self._shear else None,
-                             lumped=not ctx.coupled_mass, rotary=self._shear)
-        T = transformation(lam)
-        ge = prop.ge if prop.ge is not None else mat.ge
-        return ElementMatrices(self.dofs(), K=T.T @ Kl @ T, M=T.T @ Ml @ T, ge=ge)
+        K, M, ge = type(self).batch_matrices([self], ctx)
+        return ElementMatrices(self.dofs(), K=K[0], M=M[0], ge=ge[0])
+
+    @classmethod
+    def batch_matrices(cls, elements, ctx):
+        """(K, M, ge) of many elements of this class: (n, 12, 12), (n, 12, 12), (n,) in basic axes."""
+        n = len(elements)
+        x1 = np.empty((n, 3))
+        x2 = np.empty((n, 3))
+        v = np.empty((n, 3))
+        pids = np.empty(n, dtype=np.int64)
+        for k, el in enumerate(elements):
+            x1[k] = ctx.xyz(el.n1)
+            x2[k] = ctx.xyz(el.n2)
+            o = el.orientation
+            v[k] = ctx.xyz(int(o)) - x1[k] if np.ndim(o) == 0 else o
+            pids[k] = el.pid
+        L, lam = local_axes_batch(x1, x2, v, [el.eid for el in elements])
+        names = ("E", "G", "rho", "A", "Iy", "Iz", "J", "Ip", "nsm", "ky", "kz", "ge")
+        cols = {nm: [None] * n for nm in names}
+        uniq, inv = np.unique(pids, return_inverse=True)
+        for u, pid in enumerate(uniq):
+            prop = ctx.prop(int(pid))
+            if not isinstance(prop, BeamProperty):
+                bad = elements[int(np.flatnonzero(inv == u)[0])]
+                raise ModalabValueError(f"element {bad.eid} ({cls.__name__}) refers to property {pid}, a "
+                                        f"{type(prop).__name__}; a beam needs a BeamProperty")
+            mat = ctx.material(prop.mid)
+            s = prop.section
+            vals = dict(E=mat.E, G=mat.shear_modulus, rho=mat.rho, A=s.A, Iy=s.Iy, Iz=s.Iz, J=s.J, Ip=s.polar,
+                        nsm=prop.nsm, ky=s.ky, kz=s.kz, ge=prop.ge if prop.ge is not None else mat.ge)
+            for nm in names:
+                cols[nm][u] = vals[nm]
+        arr = {}
+        for nm in names:
+            per = cols[nm][:len(uniq)]
+            if nm in ("ky", "kz"):
+                if not cls._shear or any(x is None for x in per):
+                    # shear-rigid where no factor is given
+                    per = [0.0 if x is None else x for x in per]
+                    if not cls._shear:
+                        arr[nm] = None
+                        continue
+            a = np.asarray(per)
+            arr[nm] = a[inv]
+        ky, kz = arr["ky"], arr["kz"]   # 0 marks a shear-rigid plane
+        Kl, Ml = frame_local_batch(L, arr["E"], arr["G"], arr["rho"], arr["A"], arr["Iy"], arr["Iz"], arr["J"],
+                                   arr["Ip"], arr["nsm"], shear_y=ky, shear_z=kz, lumped=not ctx.coupled_mass,
+                                   rotary=cls._shear)
+        return to_basic(Kl, lam), to_basic(Ml, lam), arr["ge"]
