@@ -110,7 +110,7 @@ def parse_lvm(path) -> LvmFile:
     k = 1
     sep = "\t"
     while k < len(lines) and not lines[k].startswith(_END):
-        parts = re.split(r"[\t,]" if header.get("Separator") == "Comma" else r"\t", lines[k], maxsplit=1)
+        parts = re.split(r"[\t,]", lines[k], maxsplit=1)    # keys hold neither tabs nor commas
         if parts[0].strip():
             header[parts[0].strip()] = parts[1].strip() if len(parts) > 1 else ""
         k += 1

@@ -119,6 +119,13 @@ def test_small_files_in_every_layout(tmp_path, dec, xcols):
     assert rec.trigger_index == 1
 
 
+def test_comma_separated_file(tmp_path):
+    text = small(".", "One").replace("\t", ",").replace("Separator,Tab", "Separator,Comma")
+    rec = read_lvm(write(tmp_path, text))
+    np.testing.assert_allclose(rec.data, [[0, 5, 1, 0], [0, -5, -1, 0]])
+    assert parse_lvm(tmp_path / "x.lvm").header["Separator"] == "Comma"
+
+
 def test_caller_overrides_roles_units_and_trigger(tmp_path):
     rec = read_lvm(write(tmp_path, small()), roles=["force", "response"], units=["kN", "g"], trigger_index=0,
                    hit_id=7)

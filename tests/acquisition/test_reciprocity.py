@@ -1,7 +1,6 @@
 """Reciprocity: roving-hammer sets re-ordered with the sensors as references, and the both-ways check."""
 import numpy as np
 import pytest
-import scipy.sparse as sp
 
 from acquisition.reciprocity import ReciprocityReport, reciprocal_frf, reciprocity_check
 from modalab.dof import Dof

@@ -213,6 +213,7 @@ class TestArrayEstimators:
         x = rng.standard_normal(256)
         fs = 50.0
         cs = cross_spectra(x, x, fs)
+        assert isinstance(cs, CrossSpectra) and cs.n_averages == 1 and cs.Gxx.shape == (1, 1, 129)
         df = fs / 256
         assert cs.Gxx[0, 0].real.sum() * df == pytest.approx(np.sum(x ** 2) / fs, rel=1e-12)
 
