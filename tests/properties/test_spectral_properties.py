@@ -4,7 +4,8 @@ from hypothesis import given, settings, strategies as st
 from hypothesis.extra.numpy import arrays
 
 from acquisition.reciprocity import reciprocity_check
-from acquisition.spectral import coherence, estimate_frf_roving, h1, hv, multiple_coherence
+from acquisition.spectral import coherence, estimate_frf, estimate_frf_roving, h1, hv, multiple_coherence
+from acquisition.windows import ExponentialWindow, ForceWindow
 from modalab.dof import Dof, parse_dofs
 from modalab.records import TimeRecord
 from modalab.structure import Structure
@@ -47,6 +48,31 @@ def test_h1_is_invariant_to_scaling_the_hit(xy, c, sign):
     scale = np.abs(H[ok]).max(initial=0.0) + 1e-300
     np.testing.assert_allclose(Hs[ok], H[ok], rtol=1e-8, atol=1e-10 * scale)
     np.testing.assert_allclose(Hf[ok] * c, H[ok], rtol=1e-8, atol=1e-10 * scale)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2 ** 31 - 1), c=st.floats(1e-3, 1e3), n_hits=st.integers(1, 4),
+       estimator=st.sampled_from(["H1", "Hv"]))
+def test_frf_from_hits_is_invariant_to_the_hit_strength(seed, c, n_hits, estimator):
+    # a linear structure hit c times harder: force and response both scale by c, the FRF does not change
+    rng = np.random.default_rng(seed)
+    s = _chain([1.0, 1.5], [4e4, 6e4], alpha=6.0)
+    recs = _hits(s.modal_model(), "1+Z", ["1+Z", "2+Z"], 256.0, 512, 16, rng.uniform(20, 200, n_hits),
+                 rng.uniform(4e-4, 8e-4, n_hits), 1e-3, rng, 1)
+    strong = [r.copy() for r in recs]
+    for r in strong:
+        r.data = r.data * c
+    kw = dict(estimator=estimator, exp_window=ExponentialWindow(end_level=0.05),
+              force_window=ForceWindow(length_s=0.01, taper_s=0.01))
+    a, b = estimate_frf(recs, **kw), estimate_frf(strong, **kw)
+    np.testing.assert_allclose(b.H, a.H, rtol=1e-8, atol=1e-12 * np.abs(a.H).max())
+    np.testing.assert_allclose(b.coherence, a.coherence, atol=1e-9)
+    if estimator == "H1":          # only the force scaled (a mis-set hammer sensitivity): H1 scales by 1/c
+        weak_force = [r.copy() for r in recs]
+        for r in weak_force:
+            r.data[0] = r.data[0] * c
+        np.testing.assert_allclose(estimate_frf(weak_force, **kw).H * c, a.H, rtol=1e-9,
+                                   atol=1e-12 * np.abs(a.H).max())
 
 
 @settings(max_examples=40, deadline=None)
