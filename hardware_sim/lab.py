@@ -86,13 +86,16 @@ class SimulatedLab:
         nothing above 0.55 fs) and 4 otherwise, so content up to 0.8 × oversample × fs/2 aliases as it would.
     tail_tolerance : relative amplitude the slowest decay must reach before the synthesis grid wraps.
     max_synthesis_s : cap on the synthesis grid length (s) for nearly undamped structures.
+    hit_interval_s : how long after ``arm()`` the manual operator's hit comes (simulated time); a
+        ``wait`` with a shorter timeout reports 'no hit yet' and a later ``wait`` gets the hit.
     sleep : optional callable ``sleep(seconds)`` to make ``wait`` take real time (e.g. ``time.sleep``);
         by default the simulation returns at once.
     """
 
     def __init__(self, structure, channels: Sequence | None = None, setup=None, *, hammer: Hammer | None = None,
                  faults: FaultConfig | None = None, rng=None, oversample: int | None = None, tail_tolerance: float = 1e-7,
-                 max_synthesis_s: float = 300.0, sleep: Callable[[float], None] | None = None):
+                 max_synthesis_s: float = 300.0, hit_interval_s: float = 0.0,
+                 sleep: Callable[[float], None] | None = None):
         if isinstance(structure, Structure):
             self.structure = structure
             self.model = structure.modal_model()
@@ -106,6 +109,8 @@ class SimulatedLab:
                                     "ModalModel; build one with modalab.structure.Structure(M=..., K=..., dofs=...)")
         if oversample is not None and int(oversample) < 1:
             raise ModalabValueError(f"oversample={oversample!r} must be an integer >= 1 (or None for automatic)")
+        if not hit_interval_s >= 0:
+            raise ModalabValueError(f"hit_interval_s={hit_interval_s!r} must be >= 0 s")
         if not 0 < tail_tolerance < 1:
             raise ModalabValueError(f"tail_tolerance={tail_tolerance!r} must lie in (0, 1)")
         self.hammer = hammer if hammer is not None else Hammer()
@@ -113,6 +118,7 @@ class SimulatedLab:
         self.oversample = None if oversample is None else int(oversample)
         self.tail_tolerance = float(tail_tolerance)
         self.max_synthesis_s = float(max_synthesis_s)
+        self.hit_interval_s = float(hit_interval_s)
         self._rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
         self._sleep = sleep
         self._state = "unconfigured"
@@ -130,6 +136,8 @@ class SimulatedLab:
     # ------------------------------------------------------------------ config
     def configure(self, channels: Sequence, setup=None) -> None:
         """Set channels and acquisition (either our setup classes or ``modalab.daqconfig`` ones)."""
+        if self._state in ("closed", "lost"):
+            self._check_usable()
         chans = [ChannelSetup.from_config(c) for c in channels]
         acq = AcquisitionSetup() if setup is None else AcquisitionSetup.from_config(setup)
         force = [i for i, c in enumerate(chans) if c.role == "force"]
@@ -140,14 +148,21 @@ class SimulatedLab:
             raise ModalabValueError(f"trigger_channel={tc} but the force channel is channel {force[0]}; "
                                     "the simulated lab triggers on the hammer")
         locate(self.model.dofs, [c.dof for c in chans], "channel DOF")
+        # the synthesis grid and the FRF cache depend on everything but the hammer's DOF: keep them
+        # when a session reconfigures per point with only the roving DOF changed
+        key = (acq, tuple(replace(c, dof=Dof(0)) if c.role == "force" else c for c in chans))
         self.channels = chans
         self.setup = acq
         self._force = force[0]
         self._resp = [i for i, c in enumerate(chans) if c.role == "response"]
         self._point = chans[force[0]].dof
-        self._cache: dict = {}
-        self._build_grid()
-        self._state = "idle"
+        if key != getattr(self, "_config_key", None):
+            self._cache: dict = {}
+            self._build_grid()
+            self._config_key = key
+        if self._state in ("unconfigured", "armed"):
+            self._state = "idle"
+        self._pending = None
 
     def _build_grid(self) -> None:
         acq = self.setup
@@ -243,6 +258,13 @@ class SimulatedLab:
         if role != "response":
             raise ModalabValueError(f"role {role!r}; expected 'force' or 'response'")
         if channel is None:
+            there = [i for i in self._resp if self.channels[i].dof.same_axis(d)]
+            if there:                                    # configure() already put a sensor there
+                if self.channels[there[0]].dof != d:
+                    self.channels[there[0]] = replace(self.channels[there[0]], dof=d)
+                    self._cache.clear()
+                    self._config_key = None
+                return
             if len(self._resp) != 1:
                 raise ModalabValueError(f"{len(self._resp)} response channels; say which one roves with channel=")
             channel = self._resp[0]
@@ -250,6 +272,7 @@ class SimulatedLab:
             raise ModalabValueError(f"channel {channel} is not a response channel; response channels: {self._resp}")
         self.channels[channel] = replace(self.channels[channel], dof=d)
         self._cache.clear()
+        self._config_key = None
 
     # ------------------------------------------------------------------ DAQ
     def arm(self, force_n: float | None = None) -> None:
@@ -269,7 +292,8 @@ class SimulatedLab:
         self._pending = dict(arm=k, no_trigger=k in f.no_trigger_on or u[0] < f.no_trigger_probability,
                              lost=k in f.device_lost_on or u[1] < f.device_lost_probability, storm=storm,
                              double=k in f.double_hit_on or u[3] < f.double_hit_probability,
-                             force_n=force_n, hit=None)
+                             force_n=force_n, hit=None,
+                             remaining_s=0.0 if self.hammer.automatic else self.hit_interval_s)
         if not self.hammer.automatic:
             self._pending["hit"] = self._draw_hit(force_n, self._pending["double"])
         self._state = "armed"
@@ -315,6 +339,12 @@ class SimulatedLab:
             why = ("injected fault: the trigger never comes" if p["no_trigger"]
                    else "the automatic hammer was not fired")
             raise DaqTimeoutError(f"no trigger within {timeout:g} s ({why}); fire or hit, then wait again")
+        if p["remaining_s"] > timeout:
+            p["remaining_s"] -= timeout
+            self._pause(timeout)
+            raise DaqTimeoutError(f"no trigger within {timeout:g} s (no hit yet); wait again")
+        self._pause(p["remaining_s"])
+        p["remaining_s"] = 0.0
         rec = self._synthesise(p)
         if rec is None:
             peak = max(q.amplitude_n for q in p["hit"]["pulses"])

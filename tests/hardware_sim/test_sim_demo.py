@@ -7,7 +7,6 @@ import scipy.linalg as sla
 from hypothesis import given, settings, strategies as st
 
 from hardware_sim import DEMO_POINTS, BeamSection, demo_lab, demo_structure, grillage, simulate_roving_test
-from modalab.structure import Structure
 
 SEC = BeamSection.rectangle(0.020, 0.010)          # aluminium 20 x 10 mm
 

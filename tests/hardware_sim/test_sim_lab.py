@@ -364,3 +364,40 @@ def test_prepare_batches_without_changing_the_records():
         assert np.allclose(ra.data, rb.data, rtol=0, atol=1e-9 * np.abs(rb.data).max())
     with pytest.raises(DofError):
         a.prepare(["99+Z"])
+
+
+def test_hit_interval_gives_no_hit_yet_then_the_hit():
+    waited = []
+    lab = demo_lab(32, hit_interval_s=3.0, sleep=waited.append)
+    lab.arm()
+    with pytest.raises(DaqTimeoutError, match="no hit yet"):
+        lab.wait(timeout_s=2.0)
+    r = lab.wait(timeout_s=2.0)
+    assert r.hit_id == 1
+    assert waited == [2.0, pytest.approx(1.0), pytest.approx(4.0)]
+
+
+def test_session_style_reconfigure_per_point_keeps_the_cache():
+    """acquisition's session calls configure(channels for the point) then notify_point each point."""
+    lab = SimulatedLab(demo_structure(), rng=33)
+    from hardware_sim import demo_channels
+    lab.configure(demo_channels("4+Z"), demo_setup())
+    lab.notify_point("4+Z", "force")
+    lab.hit()
+    cache = lab._cache
+    lab.configure(demo_channels("11+Z"), demo_setup())
+    assert lab._cache is cache and lab.point == Dof.parse("11+Z")
+    assert lab.hit().dofs[0] == Dof.parse("11+Z")
+    # roving accelerometer: configure already put the sensor at the point; notify_point agrees
+    chans = [ChannelSetup("4+Z", "force", 2.25e-3), ChannelSetup("19+Z", "response", 0.005),
+             ChannelSetup("7+Z", "response", 0.005)]
+    lab.configure(chans, demo_setup())
+    assert lab._cache is not cache
+    lab.notify_point("7+Z", "response")
+    with pytest.raises(ModalabValueError, match="channel="):
+        lab.notify_point("12+Z", "response")
+    lab.notify_point("12+Z", "response", channel=2)
+    assert lab.hit().dofs == [Dof.parse(d) for d in ("4+Z", "19+Z", "12+Z")]
+    lab.close()
+    with pytest.raises(DaqError, match="closed"):
+        lab.configure(chans, demo_setup())
