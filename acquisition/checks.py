@@ -2,7 +2,7 @@
 
 :func:`check_hit` inspects one :class:`modalab.records.TimeRecord` and returns a
 :class:`HitReport`; every threshold lives in the frozen :class:`HitCheckConfig`.
-The checks (Ewins 2000, §3.9.4; Brandt 2011, §13.7):
+The checks (Ewins 2000, ch. 3; Brandt 2011, ch. 13):
 
 double hit
     *Time domain*: after the main force pulse has ended (the force has fallen below
@@ -32,8 +32,8 @@ pretrigger content
 
 References
 ----------
-D. J. Ewins, *Modal Testing*, 2nd ed., 2000, §3.9.4 (impactor: double hits, overloads).
-A. Brandt, *Noise and Vibration Analysis*, Wiley 2011, §13.7.
+D. J. Ewins, *Modal Testing*, 2nd ed., 2000, ch. 3 (impact excitation: double hits, overloads).
+A. Brandt, *Noise and Vibration Analysis*, Wiley 2011, ch. 13.
 """
 from __future__ import annotations
 

@@ -3,7 +3,7 @@
 In a roving-hammer test a few accelerometers stay fixed while the hammer visits many points, so
 the measured FRF matrix has the accelerometers as *responses* and the hit points as
 *references*.  For a linear structure with symmetric M, C, K (and D) the receptance matrix is
-symmetric, ``H_ij = H_ji`` (Maxwell–Betti; Ewins 2000, §2.3), and so are the mobility and
+symmetric, ``H_ij = H_ji`` (Maxwell–Betti; Ewins 2000, ch. 2), and so are the mobility and
 accelerance matrices (the same factor iω or −ω² multiplies both).  Transposing the measured set
 therefore gives the matrix a shaker test with the accelerometers as references would have
 produced: many response DOFs, few references — the layout poly-reference identification wants.

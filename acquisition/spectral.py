@@ -18,8 +18,8 @@ continuous Fourier transform of the record), the averaged one-sided energy spect
 
     G_xx[a, b] = 2 E[X_a X_b*],   G_yx[i, b] = 2 E[Y_i X_b*],   G_yy[i] = 2 E[|Y_i|²]
 
-(factor 1 at DC and Nyquist), in unit²·s/Hz.  The estimators (Bendat & Piersol 2010, §6.1, §7.2;
-Ewins 2000, §4.4) are
+(factor 1 at DC and Nyquist), in unit²·s/Hz.  The estimators (Bendat & Piersol 2010, ch. 6 and 7;
+Ewins 2000, ch. 3) are
 
     H1 = G_yx G_xx⁻¹                               (noise on the response; the usual choice)
     H2 = G_yy / G_xy,  G_xy = G_yx*                (single reference only; noise on the force)
@@ -38,8 +38,10 @@ each response (repeated along the references) and ``metadata['coherence_kind'] =
 
 References
 ----------
-J. S. Bendat, A. G. Piersol, *Random Data*, 4th ed., Wiley 2010, §6.1, §7.2, §7.3.
-D. J. Ewins, *Modal Testing*, 2nd ed., 2000, §3.9 (impact testing), §4.4.
+J. S. Bendat, A. G. Piersol, *Random Data*, 4th ed., Wiley 2010, ch. 6 (single input), ch. 7 (multiple
+inputs), ch. 9 (statistical errors of the estimates).
+D. J. Ewins, *Modal Testing: Theory, Practice and Application*, 2nd ed., 2000, ch. 3 (mobility
+measurement: impact excitation, H1/H2).
 H. Vold, J. Crowley, G. T. Rocklin, "New ways of estimating frequency response functions",
 Sound and Vibration 18(11), 1984 (the Hv estimator).
 """

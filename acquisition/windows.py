@@ -1,6 +1,6 @@
 """Time windows for impact testing and the damping they add.
 
-Two windows are used on hammer hits (Ewins 2000, §3.9; Brandt 2011, §13.7):
+Two windows are used on hammer hits (Ewins 2000, ch. 3; Brandt 2011, ch. 13):
 
 Force window (:func:`force_window`, spec :class:`ForceWindow`)
     Applied to the force channel(s) only.  It is 1 over the pulse and zero
@@ -52,8 +52,8 @@ window with a 1.5 % cut-off (``end_level=0.015``).
 
 References
 ----------
-D. J. Ewins, *Modal Testing: Theory, Practice and Application*, 2nd ed., 2000, §3.9, §4.3.
-A. Brandt, *Noise and Vibration Analysis*, Wiley 2011, §13.7 (impact excitation windows).
+D. J. Ewins, *Modal Testing: Theory, Practice and Application*, 2nd ed., 2000, ch. 3 (impact excitation).
+A. Brandt, *Noise and Vibration Analysis*, Wiley 2011, ch. 13 (impact excitation and its windows).
 W. Fladung, R. Rost, "Application and correction of the exponential window for frequency
 response functions", Mechanical Systems and Signal Processing 11(1), 1997, 23-36.
 """

@@ -248,7 +248,7 @@ class TestKnownStructure:
         c = frf.coherence[0, 0]
         assert c[band].min() < 0.9                       # antiresonance / high-frequency lines lose coherence
         use = band & (c > 0.8)
-        # Bendat & Piersol (2010) eq. 9.90: normalised random error of |H| = sqrt(1-γ²)/(|γ| sqrt(2 n_d))
+        # Bendat & Piersol (2010), ch. 9: normalised random error of |H| = sqrt(1-γ²)/(|γ| sqrt(2 n_d))
         eps = np.sqrt(1 - c[use]) / (np.sqrt(c[use]) * np.sqrt(2 * m))
         err = rel_err(frf.H[0, 0], exact.H[0, 0])[use]
         assert np.mean(err < 4 * eps + 1e-3) > 0.99
