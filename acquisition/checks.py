@@ -161,7 +161,8 @@ def _spectral_dip_db(pulse: np.ndarray, fs: float, lobe_db: float) -> float:
     return float(depth.max())
 
 
-def check_hit(record: TimeRecord, config: HitCheckConfig | None = None, *, ranges=None) -> HitReport:
+def check_hit(record: TimeRecord, config: HitCheckConfig | None = None, *, ranges=None,
+              trigger_level: float | None = None) -> HitReport:
     """Quality checks of one hit; see the module docstring for what each flag means.
 
     Parameters
@@ -170,6 +171,9 @@ def check_hit(record: TimeRecord, config: HitCheckConfig | None = None, *, range
     config : thresholds (default :class:`HitCheckConfig()`).
     ranges : per-channel input range in engineering units (±value or (lo, hi)); default
         ``record.metadata['range']`` when present.
+    trigger_level : the DAQ's trigger threshold on the force, N; a peak below it is a weak trigger
+        (the record was not started by this hit).  The stricter of it and
+        ``config.min_peak_force_n`` applies.
 
     Returns
     -------
@@ -239,9 +243,11 @@ def check_hit(record: TimeRecord, config: HitCheckConfig | None = None, *, range
         if peak_force < cfg.min_peak_snr * noise or peak_force <= 0:
             flag("missing_trigger", f"force peak {peak_force:.3g} N is within the noise "
                                     f"({noise:.3g} N RMS): no hit in this record")
-        elif peak_force < cfg.min_peak_force_n:
-            flag("weak_trigger", f"peak force {peak_force:.3g} N is below {cfg.min_peak_force_n:g} N; hit harder "
-                                 "or lower the trigger level")
+        else:
+            level = max(cfg.min_peak_force_n, 0.0 if trigger_level is None else abs(float(trigger_level)))
+            if peak_force < level:
+                flag("weak_trigger", f"peak force {peak_force:.3g} N is below {level:g} N; hit harder "
+                                     "or lower the trigger level")
         lvl = cfg.pulse_end_level * peak_force
         after = np.flatnonzero(g[k:] < lvl)
         end = k + int(after[0]) if after.size else n
@@ -297,6 +303,7 @@ def check_hit(record: TimeRecord, config: HitCheckConfig | None = None, *, range
     return rep
 
 
-def check_hits(records, config: HitCheckConfig | None = None, *, ranges=None) -> list[HitReport]:
+def check_hits(records, config: HitCheckConfig | None = None, *, ranges=None,
+               trigger_level: float | None = None) -> list[HitReport]:
     """:func:`check_hit` for each record."""
-    return [check_hit(r, config, ranges=ranges) for r in records]
+    return [check_hit(r, config, ranges=ranges, trigger_level=trigger_level) for r in records]

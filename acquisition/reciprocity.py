@@ -13,7 +13,7 @@ excitation points" before PolyMAX.
 
 Signs: a DOF label carries the direction in which the sensor measures or the hammer pushes
 (``3-Z``: hit in −Z).  The FRF between two signed labels is the same number whichever is the
-input, so the transpose keeps each value with its pair of labels; :func:`reciprocal_frf` can
+input, so the transpose keeps each value with its pair of labels; :func:`reorder_by_reciprocity` can
 restate the result on positive directions (``positive=True``), negating the data once for each
 negative label, which is what :meth:`modalab.frf.FRF.select` does with opposite signs.
 
@@ -31,12 +31,12 @@ from modalab.dof import Dof
 from modalab.errors import ModalabValueError
 from modalab.frf import FRF
 
-__all__ = ["reciprocal_frf", "ReciprocityPair", "ReciprocityReport", "reciprocity_check"]
+__all__ = ["reorder_by_reciprocity", "ReciprocityPair", "ReciprocityReport", "reciprocity_check"]
 
 log = logging.getLogger(__name__)
 
 
-def reciprocal_frf(frf: FRF, *, positive: bool = False, references=None) -> FRF:
+def reorder_by_reciprocity(frf: FRF, *, positive: bool = False, references=None) -> FRF:
     """Roving-hammer FRFs re-ordered by reciprocity: accelerometers become the references.
 
     Parameters
@@ -55,7 +55,7 @@ def reciprocal_frf(frf: FRF, *, positive: bool = False, references=None) -> FRF:
     ``measured_references`` (the hit DOFs the data were measured with).
     """
     if not isinstance(frf, FRF):
-        raise ModalabValueError(f"reciprocal_frf expects a modalab.frf.FRF; got {type(frf).__name__}")
+        raise ModalabValueError(f"reorder_by_reciprocity expects a modalab.frf.FRF; got {type(frf).__name__}")
     src = frf if references is None else frf.select(responses=references)
     out = src.transpose()
     if positive:

@@ -101,15 +101,17 @@ class ForceWindow:
     """Parameters of a force window; see :func:`force_window`.
 
     Give exactly one of ``length_s`` (s after the trigger) or ``fraction``
-    (of the record duration, measured from the trigger).  ``taper_s`` is the
-    width of the half-cosine taper in s; ``lead_s`` how long before the trigger
-    the window opens (``None``: at the first sample, the whole pretrigger kept).
+    (of the record duration, measured from the trigger).  The half-cosine taper is
+    ``taper_s`` seconds wide, or ``taper`` × the flat part's duration (give at most one);
+    ``lead_s`` is how long before the trigger the window opens (``None``: at the first
+    sample, the whole pretrigger kept).
     """
 
     length_s: float | None = None
     fraction: float | None = None
     taper_s: float = 0.0
     lead_s: float | None = None
+    taper: float | None = None
 
     def __post_init__(self):
         if (self.length_s is None) == (self.fraction is None):
@@ -123,6 +125,12 @@ class ForceWindow:
                                     "e.g. 0.1 keeps the first 10 % of the record after the trigger")
         if not (np.isfinite(self.taper_s) and self.taper_s >= 0):
             raise ModalabValueError(f"force window taper_s={self.taper_s!r} must be >= 0 s")
+        if self.taper is not None:
+            if not (np.isfinite(self.taper) and self.taper >= 0):
+                raise ModalabValueError(f"force window taper={self.taper!r} must be >= 0 (a fraction of the flat part)")
+            if self.taper_s:
+                raise ModalabValueError(f"ForceWindow(taper_s={self.taper_s!r}, taper={self.taper!r}): give the taper "
+                                        "width once, in seconds (taper_s) or as a fraction of the window (taper)")
         if self.lead_s is not None and not (np.isfinite(self.lead_s) and self.lead_s >= 0):
             raise ModalabValueError(f"force window lead_s={self.lead_s!r} must be >= 0 s (or None for the "
                                     "whole pretrigger)")
@@ -130,14 +138,15 @@ class ForceWindow:
     def array(self, n_samples: int, sample_rate_hz: float, trigger_index: int = 0) -> np.ndarray:
         """The window for one record (see :func:`force_window`)."""
         return force_window(n_samples, sample_rate_hz, trigger_index=trigger_index, length_s=self.length_s,
-                            fraction=self.fraction, taper_s=self.taper_s, lead_s=self.lead_s)
+                            fraction=self.fraction, taper_s=self.taper_s, lead_s=self.lead_s, taper=self.taper)
 
     def to_dict(self) -> dict:
         return {"type": "force", **asdict(self)}
 
 
 def force_window(n_samples: int, sample_rate_hz: float, *, trigger_index: int = 0, length_s: float | None = None,
-                 fraction: float | None = None, taper_s: float = 0.0, lead_s: float | None = None) -> np.ndarray:
+                 fraction: float | None = None, taper_s: float = 0.0, lead_s: float | None = None,
+                 taper: float | None = None) -> np.ndarray:
     """Force window: rectangular around the pulse with half-cosine tapers.
 
     Parameters
@@ -152,6 +161,8 @@ def force_window(n_samples: int, sample_rate_hz: float, *, trigger_index: int = 
         flat part opens after the first sample), in s.  0 gives a hard rectangle.
     lead_s : the flat part opens ``lead_s`` s before the trigger (clipped to the record start);
         ``None`` opens it at the first sample, keeping the whole pretrigger.
+    taper : alternatively to ``taper_s``, the taper width as a fraction of the flat part after the
+        trigger (``taper * length_s``).
 
     Returns
     -------
@@ -166,7 +177,7 @@ def force_window(n_samples: int, sample_rate_hz: float, *, trigger_index: int = 
     (1.0, 1.0, 0.0)
     """
     n, fs, ti = _check_record(n_samples, sample_rate_hz, trigger_index)
-    spec = ForceWindow(length_s=length_s, fraction=fraction, taper_s=taper_s, lead_s=lead_s)
+    spec = ForceWindow(length_s=length_s, fraction=fraction, taper_s=taper_s, lead_s=lead_s, taper=taper)
     if spec.length_s is not None:
         flat_s = spec.length_s
     else:
@@ -176,7 +187,7 @@ def force_window(n_samples: int, sample_rate_hz: float, *, trigger_index: int = 
     stop = flat_s
     w = np.zeros(n)
     w[(t >= start - 1e-12 / fs) & (t <= stop + 1e-12 / fs)] = 1.0
-    tap = spec.taper_s
+    tap = spec.taper_s if spec.taper is None else spec.taper * flat_s
     if tap > 0:
         after = (t > stop) & (t < stop + tap)
         w[after] = 0.5 * (1 + np.cos(np.pi * (t[after] - stop) / tap))

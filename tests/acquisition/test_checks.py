@@ -86,6 +86,9 @@ def test_overload_from_range_flat_top_and_device_flag():
 def test_weak_and_missing_trigger():
     rep = check_hit(make_hit(amp=0.5))
     assert rep.flags == ("weak_trigger",)
+    assert check_hit(make_hit(amp=20.0)).ok
+    rep = check_hit(make_hit(amp=20.0), trigger_level=25.0)          # below the DAQ's trigger threshold
+    assert rep.flags == ("weak_trigger",) and "25 N" in rep.messages[0]
     rec = make_hit(amp=0.0, noise=0.0)
     rec.data[0] = np.random.default_rng(1).standard_normal(N) * 0.01
     rec.data[1] = np.random.default_rng(2).standard_normal(N) * 0.01

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from acquisition.reciprocity import ReciprocityReport, reciprocal_frf, reciprocity_check
+from acquisition.reciprocity import ReciprocityReport, reorder_by_reciprocity, reciprocity_check
 from modalab.dof import Dof
 from modalab.errors import ModalabValueError
 from modalab.frf import FRF
@@ -38,7 +38,7 @@ def test_sensors_become_references(body):
     sensors = ["2+Z", "5+Z"]
     hits = ["1+Z", "2+Z", "3-Z", "4+Z", "5+Z", "6-Z"]        # two points hit in -Z
     meas = roving_set(body, sensors, hits)
-    rec = reciprocal_frf(meas)
+    rec = reorder_by_reciprocity(meas)
     assert rec.shape == (6, 2, FREQ.size)
     assert [str(d) for d in rec.responses] == hits and [str(d) for d in rec.references] == sensors
     np.testing.assert_allclose(rec.H, body.frf(FREQ, responses=hits, references=sensors).H, rtol=1e-9, atol=0)
@@ -51,7 +51,7 @@ def test_sensors_become_references(body):
 
 def test_positive_directions_restate_signs(body):
     meas = roving_set(body, ["2+Z", "5-Z"], ["1+Z", "3-Z", "6-Z"])
-    rec = reciprocal_frf(meas, positive=True)
+    rec = reorder_by_reciprocity(meas, positive=True)
     assert all(d.direction > 0 for d in rec.responses + rec.references)
     np.testing.assert_allclose(rec.H, body.frf(FREQ, responses=["1+Z", "3+Z", "6+Z"], references=["2+Z", "5+Z"]).H,
                                rtol=1e-9)
@@ -59,7 +59,7 @@ def test_positive_directions_restate_signs(body):
 
 def test_reference_subset_with_sign(body):
     meas = roving_set(body, ["2+Z", "5+Z"], ["1+Z", "3+Z"])
-    rec = reciprocal_frf(meas, references=["5-Z"])
+    rec = reorder_by_reciprocity(meas, references=["5-Z"])
     assert [str(d) for d in rec.references] == ["5-Z"]
     np.testing.assert_allclose(rec.H[:, 0], -meas.H[1])
 
@@ -72,7 +72,7 @@ def test_thesis_layout_36_points_12_sensors():
     freq = np.linspace(5.0, 100.0, 40)
     meas = s.frf(freq, responses=sensors, references=hits)
     assert meas.shape[:2] == (12, 36)
-    rec = reciprocal_frf(meas)
+    rec = reorder_by_reciprocity(meas)
     assert rec.shape[:2] == (36, 12)
     np.testing.assert_allclose(rec.H, s.frf(freq, responses=hits, references=sensors).H, rtol=1e-8)
     rep = reciprocity_check(meas)
@@ -130,4 +130,4 @@ class TestReciprocityCheck:
         with pytest.raises(ModalabValueError, match="FRF"):
             reciprocity_check(np.zeros((2, 2, 3)))
         with pytest.raises(ModalabValueError, match="FRF"):
-            reciprocal_frf(np.zeros((2, 2, 3)))
+            reorder_by_reciprocity(np.zeros((2, 2, 3)))

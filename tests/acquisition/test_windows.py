@@ -34,6 +34,13 @@ class TestForceWindow:
         assert set(np.unique(a)) == {0.0, 1.0}
         assert a[:20 + 45 + 1].all() and not a[20 + 46:].any()
 
+    def test_taper_as_fraction_of_the_window(self):
+        a = ForceWindow(fraction=0.05, taper=0.25).array(1000, 1000.0, 0)
+        b = force_window(1000, 1000.0, fraction=0.05, taper_s=0.25 * 0.05)
+        np.testing.assert_array_equal(a, b)
+        with pytest.raises(ModalabValueError, match="taper width once"):
+            ForceWindow(fraction=0.05, taper=0.25, taper_s=0.01)
+
     def test_spec_object_matches_function(self):
         spec = ForceWindow(length_s=0.01, taper_s=0.002, lead_s=0.001)
         np.testing.assert_array_equal(spec.array(300, 1000.0, 30),
