@@ -25,7 +25,7 @@ Signal chain (pure functions, :mod:`hardware_sim.signal_chain`)
     :func:`synthesis_taper`.
 Demo structure (:mod:`hardware_sim.demo`)
     :func:`demo_structure` — aluminium aeroplane cross on bungees, 45 DOFs;
-    :func:`demo_channels`, :func:`demo_setup`, :func:`demo_lab`, ``DEMO_POINTS``;
+    :func:`demo_channels`, :func:`demo_setup`, :func:`demo_lab`, ``DEMO_POINTS``, ``DEMO_HAMMER``;
     :func:`grillage`, :class:`BeamSection` to build similar structures.
 Serial twins (:mod:`hardware_sim.serial_devices`)
     ``simcond://`` and ``simhammer://`` pyserial URL handlers.
@@ -38,14 +38,16 @@ Example
 >>> rec.trigger_index, rec.units
 (128, ['N', 'm/s^2', 'm/s^2', 'm/s^2'])
 """
-from .demo import DEMO_POINTS, DEMO_REFERENCES, BeamSection, demo_channels, demo_lab, demo_setup, demo_structure, grillage
+from .demo import (DEMO_HAMMER, DEMO_POINTS, DEMO_REFERENCES, BeamSection, demo_channels, demo_lab, demo_setup,
+                   demo_structure, grillage)
 from .hammer import TIP_STIFFNESS_N_PER_M, Hammer, Pulse, contact_time_s
 from .lab import SimulatedLab, simulate_roving_test
 from .setup import AcquisitionSetup, ChannelSetup, FaultConfig
-from .signal_chain import (antialias_response, half_sine, half_sine_spectrum, iepe_highpass, quantization_step, quantize,
-                           synthesis_taper)
+from .signal_chain import (antialias_response, half_sine, half_sine_spectrum, iepe_highpass, quantization_step,
+                           quantize, synthesis_taper)
 
 __all__ = ["SimulatedLab", "simulate_roving_test", "ChannelSetup", "AcquisitionSetup", "FaultConfig", "Hammer",
            "Pulse", "TIP_STIFFNESS_N_PER_M", "contact_time_s", "half_sine", "half_sine_spectrum", "iepe_highpass",
-           "antialias_response", "quantization_step", "quantize", "synthesis_taper", "demo_structure", "demo_channels", "demo_setup",
-           "demo_lab", "grillage", "BeamSection", "DEMO_POINTS", "DEMO_REFERENCES"]
+           "antialias_response", "quantization_step", "quantize", "synthesis_taper", "demo_structure",
+           "demo_channels", "demo_setup", "demo_lab", "grillage", "BeamSection", "DEMO_HAMMER", "DEMO_POINTS",
+           "DEMO_REFERENCES"]

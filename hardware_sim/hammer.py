@@ -101,7 +101,8 @@ class Hammer:
                                     "0 < min <= max, in s")
         lo, hi = self.double_hit_ratio
         if not 0 < lo <= hi:
-            raise ModalabValueError(f"double_hit_ratio={self.double_hit_ratio!r} must be (min, max) with 0 < min <= max")
+            raise ModalabValueError(f"double_hit_ratio={self.double_hit_ratio!r} must be (min, max) "
+                                    "with 0 < min <= max")
 
     @property
     def stiffness_n_per_m(self) -> float:

@@ -93,8 +93,8 @@ class SimulatedLab:
     """
 
     def __init__(self, structure, channels: Sequence | None = None, setup=None, *, hammer: Hammer | None = None,
-                 faults: FaultConfig | None = None, rng=None, oversample: int | None = None, tail_tolerance: float = 1e-7,
-                 max_synthesis_s: float = 300.0, hit_interval_s: float = 0.0,
+                 faults: FaultConfig | None = None, rng=None, oversample: int | None = None,
+                 tail_tolerance: float = 1e-7, max_synthesis_s: float = 300.0, hit_interval_s: float = 0.0,
                  sleep: Callable[[float], None] | None = None):
         if isinstance(structure, Structure):
             self.structure = structure
@@ -132,6 +132,14 @@ class SimulatedLab:
             self.configure(channels, setup)
         elif setup is not None:
             raise ModalabValueError("an acquisition setup without channels; pass channels too, or call configure()")
+
+    def __repr__(self) -> str:
+        name = self.structure.name if self.structure is not None and self.structure.name else "modal model"
+        if self._state == "unconfigured":
+            return f"SimulatedLab({name}, unconfigured)"
+        return (f"SimulatedLab({name}: {len(self.channels)} channels at {self.setup.sample_rate_hz:g} Hz, hammer at "
+                f"{self._point} ({'automatic' if self.hammer.automatic else 'manual'}, {self.hammer.tip} tip), "
+                f"{self._state}, {self._hits} hits)")
 
     # ------------------------------------------------------------------ config
     def configure(self, channels: Sequence, setup=None) -> None:
