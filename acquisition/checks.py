@@ -6,8 +6,9 @@ The checks (Ewins 2000, ch. 3; Brandt 2011, ch. 13):
 
 double hit
     *Time domain*: after the main force pulse has ended (the force has fallen below
-    ``pulse_end_level`` × peak) a second pulse of the same polarity above
-    ``double_hit_level`` × peak.  *Spectral heuristic*: a single pulse has a smooth,
+    ``pulse_end_level`` × peak) and ``guard_samples`` more (the anti-alias filter of a
+    delta-sigma ADC rings around a pulse only a few samples wide), a second pulse of the same
+    polarity above ``double_hit_level`` × peak.  *Spectral heuristic*: a single pulse has a smooth,
     monotonically falling force spectrum over its main lobe; a double hit modulates it with
     notches spaced 1/Δt apart.  The depth of the deepest notch within the main lobe (down to
     ``lobe_db`` below the low-frequency level) of the force from the pulse start over
@@ -26,7 +27,8 @@ response not decayed
     RMS of the last ``end_fraction`` of each response over its peak above ``max_end_ratio``:
     leakage; use an exponential window or a longer record.
 pretrigger content
-    Force in the pretrigger (before the pulse began) above ``max_pretrigger_ratio`` × peak (the hit
+    Force in the pretrigger (before the pulse began, less ``guard_samples``) above
+    ``max_pretrigger_ratio`` × peak (the hit
     started before the record or an earlier hit), and response RMS in the pretrigger above the same
     ratio × its peak (the structure was still ringing).
 
@@ -59,6 +61,7 @@ class HitCheckConfig:
 
     double_hit_level: float = 0.1        #: second pulse / first pulse peak that counts as a double hit
     pulse_end_level: float = 0.05        #: the pulse has ended when |force| falls below this × peak
+    guard_samples: int = 4               #: samples skipped after the pulse end / before its start (filter ringing)
     dip_db: float = 6.0                  #: notch depth in the force spectrum's main lobe that flags, dB
     lobe_db: float = 20.0                #: the main lobe extends down to this far below its low-frequency level, dB
     spectral_window_s: float = 0.02      #: force analysed for notches: from the pulse start, max(this, 20 pulse widths)
@@ -81,6 +84,8 @@ class HitCheckConfig:
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 raise ModalabValueError(f"HitCheckConfig.{name}={v!r} must be >= 0")
+        if int(self.guard_samples) < 0:
+            raise ModalabValueError(f"HitCheckConfig.guard_samples={self.guard_samples!r} must be >= 0")
         for name in ("rail_samples", "flat_top_samples"):
             if int(getattr(self, name)) < 1:
                 raise ModalabValueError(f"HitCheckConfig.{name}={getattr(self, name)!r} must be >= 1")
@@ -255,11 +260,12 @@ def check_hit(record: TimeRecord, config: HitCheckConfig | None = None, *, range
         start = int(before[-1]) + 1 if before.size else 0
         width = (end - start) / fs
         # double hit: later pulse of the same polarity
-        if end < n:
-            tail = g[end:]
+        gs = int(cfg.guard_samples)
+        if end + gs < n:
+            tail = g[end + gs:]
             j = int(np.argmax(tail))
             dh_ratio = float(tail[j] / peak_force) if peak_force > 0 else 0.0
-            dh_delay = (end + j - k) / fs
+            dh_delay = (end + gs + j - k) / fs
             if dh_ratio > cfg.double_hit_level and "missing_trigger" not in flags:
                 flag("double_hit", f"second force pulse of {100 * dh_ratio:.0f} % of the peak "
                                    f"{1e3 * dh_delay:.3g} ms after the first; repeat the hit")
@@ -272,7 +278,7 @@ def check_hit(record: TimeRecord, config: HitCheckConfig | None = None, *, range
                 flag("double_hit_spectral", f"notch of {dip:.1f} dB in the force spectrum's main lobe "
                                             "(double hit or a bouncing hammer)")
         # pretrigger force: before the pulse started (and before the trigger)
-        pre_end = min(start, ti)
+        pre_end = min(start - gs, ti)
         if pre_end > 0 and peak_force > 0:
             pre_force = float(np.abs(g[:pre_end]).max() / peak_force)
             if pre_force > cfg.max_pretrigger_ratio:
