@@ -9,9 +9,11 @@ Force window (:func:`force_window`, spec :class:`ForceWindow`)
     *before* the trigger, so the rising edge of the pulse that precedes the
     trigger-level crossing is kept, and lasts ``length_s`` seconds (or
     ``fraction`` of the record) after the trigger; a half-cosine (Hann) taper of
-    ``taper_s`` seconds follows the flat part and, when the flat part does not
-    begin at the first sample, a taper of the same width precedes it.
-    Samples before the lead-in are zeroed: pretrigger noise is not force.
+    ``taper_s`` seconds (or ``taper`` × the flat part) follows the flat part and, when
+    the flat part does not begin at the first sample, a taper of the same width
+    precedes it.  Samples before the lead-in are zeroed: pretrigger noise is not
+    force.  As long as the window is 1 over the whole pulse it changes nothing but
+    the noise, so it does not disturb the exponential window's exact pole shift.
 
 Exponential window (:func:`exponential_window`, spec :class:`ExponentialWindow`)
     Applied to force *and* response alike:
@@ -48,7 +50,8 @@ The window's β is either given (1/s) or derived from the residual level it must
 reach at the last sample of the record: ``β = −ln(end_level) / T`` with
 ``T = (n_samples − 1 − trigger_index) / fs`` the time from the trigger to the
 last sample.  The thesis' tests (section 5.3, Table 7) used a force-exponential
-window with a 1.5 % cut-off (``end_level=0.015``).
+window with a "cut-off" of 1.5 % over 10.24 s records; read as the exponential's level at
+the record end that is ``end_level=0.015``, β ≈ 0.41 1/s.
 
 References
 ----------
