@@ -12,6 +12,11 @@ joined by vertical posts, 6 DOFs per node), then prints
   (target: ≤ 3).
 
 Run: ``python benchmarks/fe_eigen_100k.py [--nx 92 --ny 92] [--modes 20] [--no-colamd]``.
+
+One run on the development machine (2 cores shared with other jobs, so wall
+times are noisy): 101 568 DOFs; factorisation MMD_AT_PLUS_A 29 s, COLAMD 110 s
+(3.7×, fill 1.3e8 vs 6.0e7); eigen-solution 72 s for 20 modes with 64 Lanczos
+solves, 1.7× its factorisation + solves baseline; six rigid-body modes below 1e-4 Hz.
 """
 from __future__ import annotations
 

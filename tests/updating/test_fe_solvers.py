@@ -136,6 +136,19 @@ class TestFRF:
         hd = frf_direct(m.system(), [fn], ["1+X"], ["1+X"], quantity="receptance")
         np.testing.assert_allclose(hd.H, h.H, rtol=1e-9)
 
+    def test_model_frf_between_dependent_dofs_is_reciprocal(self):
+        m = garteur_model(3)
+        m.global_ge = 0.02
+        p = m.metadata["points"]
+        a, b = f"{p['wing_centre']}+Z", f"{p['right_drum_centre']}+Y"     # both are rigid-link dependents
+        f = [7.0, 21.0]
+        h = m.frf(f, [a, b], [a, b], quantity="receptance")
+        np.testing.assert_allclose(h.H[0, 1], h.H[1, 0], rtol=1e-9)
+        hm = m.frf(f, [a, b], [a, b], quantity="receptance", method="modal", n_modes=60)
+        np.testing.assert_allclose(hm.H, h.H, rtol=2e-3, atol=1e-3 * np.abs(h.H).max())
+        with pytest.raises(ValueError, match="method"):
+            m.frf(f, [a], [a], method="exact")
+
     def test_modes_report_modal_damping(self, damped):
         md = modes_of(damped.system(), 10)
         el = md.freq_hz > 1

@@ -37,6 +37,7 @@ Using a model
 ``m.system()`` → :class:`FESystem` (constrained K, M, C, D, ``dofs``, ``reduction``, ``.structure()``)
 ``m.structure()`` → :class:`~modalab.structure.Structure` on the constrained DOFs
 ``m.modes(n_modes=None, full=True, method="auto", shift=None, solver="auto")`` → :class:`~modalab.modes.ModeSet`
+``m.frf(freq_hz, responses, references, quantity="accelerance", method="direct"|"modal", n_modes=None)`` → FRF
 
 Solvers (:mod:`updating.fe.solvers`)
 ------------------------------------

@@ -261,3 +261,23 @@ class FEModel:
         """
         from .solvers import modes_of
         return modes_of(self.system(), n_modes, full=full, modal_damping=self.modal_damping, **kw)
+
+    def frf(self, freq_hz, responses=None, references=None, *, quantity: str = "accelerance",
+            method: str = "direct", n_modes: int | None = None, residual: bool = True):
+        """FRFs between any model DOFs: ``method='direct'`` (exact sparse solves) or ``'modal'``
+        (``n_modes`` modes, the model's ``modal_damping`` table if set, residual flexibility).
+
+        See :func:`updating.fe.solvers.frf_direct` and :func:`~updating.fe.solvers.frf_modal`.
+        """
+        from .solvers import frf_direct, frf_modal
+        system = self.system()
+        if method == "direct":
+            if self.modal_damping is not None:
+                log.warning("model %r has a modal damping table, which direct FRFs cannot use; use "
+                            "method='modal' to apply it", self.name)
+            return frf_direct(system, freq_hz, responses, references, quantity=quantity)
+        if method == "modal":
+            return frf_modal(system, freq_hz, responses, references, n_modes=n_modes, residual=residual,
+                             modal_damping=self.modal_damping, quantity=quantity)
+        raise ModalabValueError(f"method {method!r}; expected 'direct' or 'modal'")
+
