@@ -11,6 +11,7 @@ decay without a window.
 """
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 from hardware_sim import (AcquisitionSetup, ChannelSetup, FaultConfig, Hammer, SimulatedLab, demo_lab, demo_setup,
                           demo_structure, simulate_roving_test)
@@ -402,3 +403,51 @@ def test_session_style_reconfigure_per_point_keeps_the_cache():
     lab.close()
     with pytest.raises(DaqError, match="closed"):
         lab.configure(chans, demo_setup())
+
+
+class TestLinearityAndTrigger:
+    @staticmethod
+    def _quiet_lab(seed=0, **setup_kw):
+        w = 2 * np.pi * np.array([60.0, 150.0])
+        s = Structure(M=np.eye(2), K=np.array([[w[0] ** 2 + 1e5, -1e5], [-1e5, w[1] ** 2 + 1e5]]),
+                      C=np.diag([3.0, 6.0]), dofs=["1+Z", "2+Z"], coords={1: (0, 0, 0), 2: (0.1, 0, 0)})
+        chans = [ChannelSetup("1+Z", "force", 2e-3, noise_v_rms=0.0), ChannelSetup("2+Z", "response", 1e-2,
+                                                                                   noise_v_rms=0.0)]
+        kw = dict(sample_rate_hz=1024.0, n_samples=1024, pretrigger_samples=32, adc_noise_v_rms=0.0)
+        kw.update(setup_kw)
+        hammer = Hammer(force_scatter=0.0, width_scatter=0.0, placement_scatter_m=0.0)
+        return SimulatedLab(s, chans, AcquisitionSetup(**kw), hammer=hammer, rng=seed)
+
+    @settings(max_examples=8, deadline=None)
+    @given(force=st.floats(20.0, 1500.0))
+    def test_response_scales_with_the_force(self, force):
+        """Same seed, same timing: the record is linear in the hit force (to 24-bit steps).
+
+        The trigger sample may move with the amplitude; the records are compared after
+        aligning them by the pulse start each reports.
+        """
+        ref = self._quiet_lab().hit(force_n=100.0)
+        rec = self._quiet_lab().hit(force_n=force)
+        fs = rec.sample_rate_hz
+        shift = (rec.metadata["sim"]["pulse_starts_s"][0] - ref.metadata["sim"]["pulse_starts_s"][0]) * fs
+        k = int(round(shift))
+        assert abs(shift - k) < 1e-6          # (a big hit rings over the level a few samples early)
+        a = rec.response[0][max(k, 0): rec.n_samples + min(k, 0)]
+        b = ref.response[0][max(-k, 0): ref.n_samples + min(-k, 0)]
+        step = 5.0 / 2 ** 23 / 1e-2
+        assert np.abs(a - b * force / 100.0).max() <= step * (1 + force / 100.0)
+        assert np.abs(a).max() > 1e4 * step
+
+    def test_falling_slope_triggers_on_the_falling_edge(self):
+        rec = self._quiet_lab(trigger_slope="falling", trigger_level=50.0).hit(force_n=200.0)
+        f = rec.force[0]
+        assert f[rec.trigger_index] <= 50.0 < f[rec.trigger_index - 1]
+        assert f[: rec.trigger_index].max() > 60.0             # the (band-limited) peak came before the trigger
+
+    def test_modal_model_input(self):
+        lab0 = self._quiet_lab()
+        mm = lab0.structure.modal_model()
+        lab = SimulatedLab(mm, lab0.channels, lab0.setup, hammer=Hammer(placement_scatter_m=0.01), rng=1)
+        r = lab.hit("1+Z")
+        assert r.metadata["sim"]["neighbour"] is None              # no coordinates: hit exactly at the point
+        assert lab.structure is None and "modal model" in repr(lab)
