@@ -1,13 +1,12 @@
 """Assembly, coordinate systems, damping matrices and constraints (updating.fe)."""
 import numpy as np
 import pytest
-import scipy.sparse as sp
 from hypothesis import given, settings, strategies as st
 
 from modalab.dof import Dof
 from updating.fe import (Beam3D, BeamProperty, FEModel, LumpedMass, Material, RectangularSection, Spring,
                          eigen_dense)
-from updating.models.beams import beam_model, mesh_line
+from updating.models.beams import beam_model
 
 
 def rotation(a, b, c):

@@ -22,7 +22,6 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from modalab.dof import Dof
 from modalab.errors import ModalabValueError
 
 from .elements.base import AssemblyContext

@@ -26,7 +26,7 @@ from modalab.structure import Structure
 from .assembly import Matrices, assemble
 from .constraints import RBE2, SPC, Reduction, build_reduction, parse_components
 from .elements.base import Element
-from .properties import BeamProperty, Material, RodProperty
+from .properties import Material
 
 log = logging.getLogger(__name__)
 

@@ -16,7 +16,8 @@ selector                        fields
 (no selector)                   ``global_ge`` (PARAM G), ``rayleigh_alpha``, ``rayleigh_beta``
 ==============================  ==========================================================
 
-Parameters compose: material-wide parameters are applied before property
+Changing ``E`` changes G too when the material's G is derived from ν
+(G = E/2(1+ν)), not when G was given explicitly.  Parameters compose: material-wide parameters are applied before property
 ones, so ``E`` of material 1 (factor p₁) and ``E`` of the 'wing' group using
 it (factor p₂) give the wing E·p₁·p₂.
 

@@ -13,7 +13,7 @@ local x–y plane, ``Iy`` (Nastran I2) bending in the local x–z plane.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass
 
 import numpy as np
 
