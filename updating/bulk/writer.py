@@ -124,9 +124,11 @@ def _same(a, b, rtol=1e-12) -> bool:
                                                                             np.abs(b).max(initial=0), 1e-300))
 
 
-def _meta_from(card, template_card):
+def _meta_from(card, template_card, group: str = ""):
     if template_card is not None:
         card.comment = list(template_card.comment or [])
+    elif group:
+        card.comment = _name_comment(group)
     return card
 
 
@@ -353,7 +355,7 @@ class _Exporter:
                             self.b.add(pe)
                         continue
                 s = te.s if isinstance(te, C.Celas2) else 0.0
-                self.b.add(_meta_from(C.Celas2(eid, float(el.k), a, b, float(el.ge), s), te))
+                self.b.add(_meta_from(C.Celas2(eid, float(el.k), a, b, float(el.ge), s), te, el.group))
             elif isinstance(el, Damper):
                 a, b = tuple(el.a), (None if el.b is None else tuple(el.b))
                 if isinstance(te, C.Cdamp1):
@@ -363,7 +365,7 @@ class _Exporter:
                         if te.pid not in self.b.properties:
                             self.b.add(pd)
                         continue
-                self.b.add(_meta_from(C.Cdamp2(eid, float(el.c), a, b), te))
+                self.b.add(_meta_from(C.Cdamp2(eid, float(el.c), a, b), te, el.group))
             elif isinstance(el, LumpedMass):
                 self.b.add(self.conm2(el, te))
             else:
