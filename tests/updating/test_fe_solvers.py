@@ -61,6 +61,14 @@ class TestEigen:
         r = s.K @ pd[:, 8] - wd[8] ** 2 * (s.M @ pd[:, 8])
         assert np.abs(r).max() < 1e-6 * np.abs(s.K @ pd[:, 8]).max()
 
+    def test_singular_pencil_is_reported(self):
+        # free-free 3-D beam with lumped mass: the rigid torsion has neither mass nor stiffness
+        s = beam_model(10, kind="beam3d", coupled_mass=False).system()
+        with pytest.raises(ModalabValueError, match="singular"):
+            eigen_sparse(s.K, s.M, 8, solver="splu")
+        with pytest.raises(ModalabValueError, match="not positive definite"):
+            eigen_dense(s.K, s.M, 8)
+
     @pytest.mark.skipif(not cholmod_available(), reason="scikit-sparse not installed")
     def test_cholmod_path(self, garteur):
         s = garteur.system()

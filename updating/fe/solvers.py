@@ -134,16 +134,23 @@ class _Factor:
     def __init__(self, A, solver: str = "splu", permc_spec: str = "MMD_AT_PLUS_A"):
         A = sp.csc_matrix(A)
         t0 = time.perf_counter()
-        if solver == "cholmod":
-            from sksparse.cholmod import cholesky
-            self._f = cholesky(A)
-            self._solve = self._f
-        elif solver == "splu":
-            self._f = spla.splu(A, permc_spec=permc_spec, diag_pivot_thresh=0.0,
-                                options={"SymmetricMode": True})
-            self._solve = self._f.solve
-        else:
-            raise ModalabValueError(f"solver {solver!r}; expected 'splu', 'cholmod' or 'auto'")
+        try:
+            if solver == "cholmod":
+                from sksparse.cholmod import cholesky
+                self._f = cholesky(A)
+                self._solve = self._f
+            elif solver == "splu":
+                self._f = spla.splu(A, permc_spec=permc_spec, diag_pivot_thresh=0.0,
+                                    options={"SymmetricMode": True})
+                self._solve = self._f.solve
+            else:
+                raise ModalabValueError(f"solver {solver!r}; expected 'splu', 'cholmod' or 'auto'")
+        except (RuntimeError, ArithmeticError) as e:
+            if isinstance(e, ModalabValueError):
+                raise
+            raise ModalabValueError(f"K - shift*M is singular ({e}): some motion has neither stiffness nor mass, "
+                                    "e.g. the rigid torsion of a free-free beam with lumped mass. Constrain it "
+                                    "(SPC), give it inertia or use coupled mass") from None
         self.factor_time = time.perf_counter() - t0
         self.n_solves = 0
         self.solve_time = 0.0
