@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import logging
+import os
 import re
 from dataclasses import dataclass, field
 
@@ -109,6 +110,9 @@ def scan(raw: bytes, path) -> list[Block]:
             if raw[pos:pos + 1] == b"\n":
                 pos += 1
         blocks.append(block)
+    if not blocks:
+        raise UffError("the file holds no datasets (it is empty or blank); expected '    -1' / dataset number "
+                       "/ ... / '    -1' blocks", path=path, line=1)
     return blocks
 
 
@@ -229,9 +233,10 @@ def parse_tags(lines) -> dict[str, str]:
     tags: dict[str, str] = {}
     for ln in lines:
         s = ln.strip()
-        if not s.startswith("modalab"):
+        at = s.find("modalab ") if not s.startswith("modalab") else 0
+        if at < 0:
             continue
-        for tok in s[len("modalab"):].split():
+        for tok in s[at + len("modalab"):].split():
             if "=" in tok:
                 k, v = tok.split("=", 1)
                 if k.endswith("+"):
@@ -241,6 +246,37 @@ def parse_tags(lines) -> dict[str, str]:
     return tags
 
 
+def check_groups(items, path, what: str, kind: str) -> None:
+    """Every write call tags its sets ``w=<id><kind> ns=<count>``; all of them must be present and intact.
+
+    ``items``: (tags, line, relevant) for every dataset of the type read (58 or 55);
+    ``relevant`` says whether the dataset is of the function the reader wants.  Groups of
+    ``kind`` ('f' FRF/coherence, 'r' time records, 'm' modes) must consist of exactly ``ns``
+    relevant datasets.  Catches datasets lost to a corrupted dataset number, delimiter or
+    function type, which would otherwise vanish silently.
+    """
+    groups: dict[str, list] = {}
+    for tags, line, relevant in items:
+        w = tags.get("w", "")
+        if w.endswith(kind):
+            groups.setdefault(w, []).append((tags.get("ns"), line, relevant))
+    for w, members in groups.items():
+        bad = [ln for _, ln, rel in members if not rel]
+        if bad:
+            raise UffError(f"the dataset at line {bad[0]} belongs to a {what} write ({w}) but its function or "
+                           "analysis type says otherwise: the file is corrupt or was edited",
+                           path=path, line=bad[0])
+        try:
+            ns = {int(v) for v, _, _ in members}
+        except (TypeError, ValueError):
+            raise UffError(f"set count tag ns={members[0][0]!r} in ID line 3 is not an integer", path=path,
+                           line=members[0][1] + 4) from None
+        if len(ns) != 1 or ns.pop() != len(members):
+            raise UffError(f"{len(members)} {what} datasets of write {w} found but the writer wrote "
+                           f"{members[0][0]}; datasets were lost, truncated or mislabelled (first at line "
+                           f"{members[0][1]})", path=path, line=members[0][1])
+
+
 def id_line(text: str, what: str = "ID line") -> str:
     s = str(text)
     if "\n" in s or "\r" in s or len(s) > 80:
@@ -248,8 +284,11 @@ def id_line(text: str, what: str = "ID line") -> str:
     return s if s.strip() else "NONE"
 
 
-def date_line() -> str:
+def date_line(n_sets: int | None = None, kind: str = "") -> str:
+    """ID line 3: date and time; with ``n_sets`` also ``modalab w=<write id><kind> ns=<sets written together>``."""
     now = _dt.datetime.now()
+    if n_sets is not None:
+        return f"{date_line()} modalab w={os.urandom(4).hex()}{kind} ns={n_sets}"
     months = ["JAN", "FEB", "MAR", "APR", "MAY", "JUN", "JUL", "AUG", "SEP", "OCT", "NOV", "DEC"]
     return f"{now.day:02d}-{months[now.month - 1]}-{now.year % 100:02d} {now:%H:%M:%S}"
 

@@ -36,7 +36,7 @@ FRF and coherence sets (dataset 58b, or 58 with ``binary=False``), one per
 
     ID line 1  H <response>/<reference>        e.g. "H 12+Z/1+Z"  ("Coherence ..." for func_type 6)
     ID line 2  modalab x0=<Hz> dx=<Hz>          exact abscissa (even spacing)
-    ID line 3  DD-MMM-YY HH:MM:SS               date written
+    ID line 3  DD-MMM-YY HH:MM:SS modalab w=<write id>f ns=<number of sets of this write>
     ID line 4  modalab m=<json>                  FRF metadata (estimator, n_averages,
     ID line 5  modalab m+=<json continued>       exp_window_beta, force_window, ...), compact JSON
     Record 6   func_type 4 (FRF) or 6 (coherence), load case 0,
@@ -52,7 +52,7 @@ Raw hits (``write_records``): one time record (func_type 1) per channel per hit:
 
     ID line 1  hit <hit_id> ch <k> <role> <dof>  e.g. "hit 3 ch 0 force 1+Z"
     ID line 2  modalab role=<force|response> sens=<V per unit> ovl=<0|1> ch=<k> nch=<n_channels>
-    ID line 3  DD-MMM-YY HH:MM:SS
+    ID line 3  DD-MMM-YY HH:MM:SS modalab w=<write id>r ns=<records of this write>
     ID line 4  modalab fs=<sample rate, Hz> trig=<trigger index>
     ID line 5  modalab m=<json of TimeRecord.metadata> (or NONE when empty or longer than the line)
     Record 6   func_type 1, function id k+1, load case id = hit_id,
@@ -69,8 +69,14 @@ Mode shapes (``write_modes``): one dataset 55 per mode, analysis type 2 (real,
 record 8 = frequency, modal mass, viscous damping ratio, 0) or 3 (complex,
 record 8 = eigenvalue, modal A, modal B), 3 or 6 values per node (X Y Z [RX
 RY RZ]); a DOF labelled ``12-Z`` is stored as the negated value at node 12 +Z.
-ID line 2 holds ``modalab f=<Hz> z=<damping ratio>``, ID line 4
-``modalab scaling=<scaling>``.  With ``exact=True`` (default) numbers are written
+ID line 2 holds ``modalab f=<Hz> z=<damping ratio>``, ID line 3 the date and
+``modalab w=<write id>m ns=<modes of this write>``, ID line 4 ``modalab scaling=<scaling>``.
+
+Every write call tags its datasets with a random write id ``w`` (8 hex digits
+and a kind letter: f FRF, r records, m modes) and their count ``ns``; the
+readers check that each write's datasets are all present and of their kind, so
+a dataset lost to a corrupted number or delimiter is an error, not a silently
+smaller result.  With ``exact=True`` (default) numbers are written
 in 25-character fields (17 significant digits); ``exact=False`` writes the
 standard 6E13.5 fields every reader (pyuff, ME'scope) accepts.
 
@@ -96,7 +102,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._uff_core import (Axis, Block, Fn58, date_line, e13, format_58, id_line, parse_58, parse_floats, parse_ints,
+from ._uff_core import (Axis, Block, Fn58, check_groups, date_line, e13, format_58, id_line, parse_58, parse_floats, parse_ints,
                         parse_tags, scan, tokens_exact)
 from .dof import Dof
 from .errors import ModalabError, UffError
@@ -159,8 +165,20 @@ def _guard(path):
                        dataset=None if b is None else b.label, line=None if b is None else b.line) from exc
 
 
+#: datasets found in modal-test files; others are skipped with a warning (a corrupted number shows up here)
+_KNOWN = {15, 18, 55, 58, 82, 151, 164, 259, 1858, 2400, 2411, 2412, 2414, 2420, 2429, 2430, 2467, 2477}
+
+
 def _blocks(path, cur) -> list[Block]:
-    return scan(_read_bytes(path), path)
+    blocks = scan(_read_bytes(path), path)
+    for b in blocks:
+        if b.number not in _KNOWN:
+            if any("modalab w=" in ln for ln in b.lines[:12]):
+                raise UffError(f"dataset number {b.label} is not a known dataset, yet the dataset carries modalab "
+                               "write tags: its number is corrupt", path=path, dataset=b.label, line=b.line)
+            log.warning("%s: dataset %s at line %d is not a universal-file dataset modalab knows; skipped",
+                        path, b.label, b.line)
+    return blocks
 
 
 @contextmanager
@@ -320,7 +338,8 @@ def write_frf(path, frf: FRF, *, binary: bool = True, append: bool = False) -> N
     frf_axes = [abs_axis, num_axis, den_axis, Axis(0)]
     id4, id5 = _json_lines(frf.metadata, "FRF")
     id2 = f"modalab x0={x0!r} dx={dx!r}" if even else "modalab"
-    date = date_line()
+    n_sets = frf.n_out * frf.n_in * (1 if frf.coherence is None else 2)
+    date = date_line(n_sets, "f")
     fid = 0
     with _open_out(path, append) as fh:
         for func, arr, axes, title in ((4, frf.H, frf_axes, "H"), (6, frf.coherence, coh_axes, "Coherence")):
@@ -343,7 +362,7 @@ def _functions(blocks, cur, func_types, header_only=False) -> list[Fn58]:
             continue
         cur.block = b
         fn = parse_58(b, header_only=True)
-        if fn.func_type in func_types:
+        if func_types is None or fn.func_type in func_types:
             out.append(fn if header_only else parse_58(b, header=fn))
     cur.block = None
     return out
@@ -367,6 +386,8 @@ def read_frf(path, *, quantity: str | None = None, responses=None, references=No
     with _guard(path) as cur:
         blocks = _blocks(path, cur)
         lf, ff = _units_factors(blocks)
+        check_groups([(f.tags, f.line, f.func_type in (4, 6)) for f in _functions(blocks, cur, None, True)],
+                     path, "FRF/coherence", "f")
         fns = _functions(blocks, cur, (4, 6))
         frfs = [f for f in fns if f.func_type == 4]
         cohs = [f for f in fns if f.func_type == 6]
@@ -491,7 +512,7 @@ def write_records(path, records, *, binary: bool = True, append: bool = False) -
     if dup:
         raise UffError(f"hit ids {dup} appear more than once; a hit is the set of records sharing a load case id, "
                        "so give every hit its own hit_id", path=path)
-    date = date_line()
+    date = date_line(sum(r.n_channels for r in recs), "r")
     with _open_out(path, append) as fh:
         for rec in recs:
             fs = float(rec.sample_rate_hz)
@@ -532,6 +553,8 @@ def read_records(path) -> list[TimeRecord]:
     with _guard(path) as cur:
         blocks = _blocks(path, cur)
         lf, ff = _units_factors(blocks)
+        check_groups([(f.tags, f.line, f.func_type == 1) for f in _functions(blocks, cur, None, True)],
+                     path, "time record", "r")
         fns = _functions(blocks, cur, (1,))
         if not fns:
             raise UffError("no time records (dataset 58, function type 1) in the file", path=path)
@@ -699,8 +722,8 @@ def read_geometry(path) -> dict[int, tuple[float, float, float]]:
                 nodes = _parse_nodes(b)
                 clash = [n for n in nodes if n in out and out[n] != nodes[n]]
                 if clash:
-                    log.warning("%s: nodes %s defined twice with different coordinates; the later dataset "
-                                "(line %d) wins", path, clash[:10], b.line)
+                    raise UffError(f"nodes {clash[:10]} are defined again with different coordinates; keep one "
+                                   "definition per node", path=path, dataset=b.number, line=b.line)
                 out.update(nodes)
         if not found:
             raise UffError("no node coordinates (dataset 2411 or 15) in the file", path=path)
@@ -777,7 +800,7 @@ def write_modes(path, modes: ModeSet, *, append: bool = False, exact: bool = Tru
         mm = np.ones(modes.n_modes)
     elif "modal_mass" in modes.indicators and np.size(modes.indicators["modal_mass"]) == modes.n_modes:
         mm = np.asarray(modes.indicators["modal_mass"], dtype=float).reshape(-1)
-    date = date_line()
+    date = date_line(modes.n_modes, "m")
     chunks = []
     for k in range(modes.n_modes):
         f, z = float(modes.freq_hz[k]), float(modes.damping[k])
@@ -859,15 +882,17 @@ def read_modes(path, *, dofs=None) -> ModeSet:
     ``read_modes(p, dofs=m.dofs)`` reproduces a written ModeSet ``m``.
     """
     with _guard(path) as cur:
-        sets = []
+        sets, all55 = [], []
         for b in _blocks(path, cur):
             if b.number == 55:
                 cur.block = b
                 s = _parse_55(b)
+                all55.append((s["tags"], b.line, s["analysis"] in (2, 3, 7)))
                 if s["analysis"] in (2, 3, 7):
                     s["line"] = b.line
                     sets.append(s)
         cur.block = None
+        check_groups(all55, path, "mode", "m")
         if not sets:
             raise UffError("no mode shapes (dataset 55, analysis type 2, 3 or 7) in the file", path=path)
         ndv = max(s["ndv"] for s in sets)
