@@ -279,21 +279,76 @@ def mci_system(model, theta_full: np.ndarray, omega: np.ndarray, references: np.
     return A, b
 
 
-def condensation_operator(model, data: MeasuredColumns, p=None) -> sp.csr_matrix:
-    """Sparse block operator ``T`` mapping rows of the full system of :func:`mci_system` (rows = all DOFs) to
-    the measured rows of the condensed one: per (reference, line) block ``[T x]_m = x_m − G(ω)ᵀ x_s`` with
-    ``G = Z_ss⁻¹ Z_sm`` (Z symmetric).
+def _condensation(model, data: MeasuredColumns, p):
+    """``G = Z_ss⁻¹Z_sm`` per line (F, ns, nm) and the least-squares expansion computed from it.
 
-    ``T @ A`` is the exact Jacobian (up to sign) of the measured-row MCI when the unmeasured rows are
-    re-expanded with the model (``∂θ_s/∂p_i = −Z_ss⁻¹[∂Z/∂p_i θ]_s``), and ``T @ b`` equals ``b`` on the measured
+    The left null space of ``Z_{:,s}`` is spanned by ``V = [I; −Ḡ]``, so the part of
+    ``rhs = e − Z_{:,m}θ_m`` no expansion removes is ``V y`` with ``(VᴴV) y = rhs_m − Gᵀ rhs_s``, and the
+    least-squares expansion is ``θ_s = Z_ss⁻¹(rhs_s + Ḡ y)`` — the same as :func:`lsq_expansion`,
+    with one sparse factorisation of ``Z_ss`` per line.
+    """
+    n, m = data.n, data.measured
+    s = np.setdiff1d(np.arange(n), m)
+    R, F, nm = data.references.size, data.omega.size, m.size
+    full = np.zeros((n, R, F), complex)
+    full[m] = data.theta
+    G = np.zeros((F, s.size, nm), complex)
+    if s.size == 0:
+        return G, full
+    mats = _mats(model, p)
+    E = np.zeros((n, R))
+    E[data.references, np.arange(R)] = 1.0
+    if n <= _DENSE_LIMIT:
+        Z = _zdense(mats, data.omega)
+        Zss, Zsm, Zmm = Z[:, s][:, :, s], Z[:, s][:, :, m], Z[:, m][:, :, m]
+        G = np.linalg.solve(Zss, Zsm)
+        th = np.transpose(data.theta, (2, 0, 1))                               # (F, nm, R)
+        rhs_m = E[m][None] - Zmm @ th
+        rhs_s = E[s][None] - Zsm @ th
+        Trhs = rhs_m - np.transpose(G, (0, 2, 1)) @ rhs_s
+        y = np.linalg.solve(np.eye(nm)[None] + np.transpose(G, (0, 2, 1)) @ G.conj(), Trhs)
+        full[s] = np.transpose(np.linalg.solve(Zss, rhs_s + G.conj() @ y), (1, 2, 0))
+        return G, full
+    for k, w in enumerate(data.omega):
+        Z = _zsparse(mats, w)
+        Zsm = Z[s][:, m].toarray()
+        Zmm = Z[m][:, m].toarray()
+        solve = spla.splu(sp.csc_matrix(Z[s][:, s])).solve
+        Gk = solve(Zsm)
+        G[k] = Gk
+        th = data.theta[:, :, k]
+        rhs_m = E[m] - Zmm @ th
+        rhs_s = E[s] - Zsm @ th
+        Trhs = rhs_m - Gk.T @ rhs_s
+        VhV = np.eye(nm) + Gk.T @ Gk.conj()
+        y = np.linalg.solve(VhV, Trhs)
+        full[s, :, k] = solve(rhs_s + Gk.conj() @ y)
+    return G, full
+
+
+def condensation_operator(model, data: MeasuredColumns, p=None, *, whiten: bool = False,
+                          G=None) -> sp.csr_matrix:
+    """Sparse block operator ``T`` from the rows of the full system of :func:`mci_system` (rows = all DOFs)
+    to the measured rows of the condensed one: per (reference, line) block ``[T x] = L(ω)(x_m − G(ω)ᵀ x_s)``
+    with ``G = Z_ss⁻¹ Z_sm`` (Z symmetric) and ``L = I`` or, with ``whiten``, ``L = (I + GᵀḠ)^{-1/2}``.
+
+    ``T @ A`` (L = I) is the exact Jacobian (up to sign) of the measured-row MCI when the unmeasured rows are
+    re-expanded with the model (``∂θ_s/∂p_i = −Z_ss⁻¹[∂Z/∂p_i θ]_s``); ``T @ b`` equals ``b`` on the measured
     rows because the expanded rows have zero MCI.
+
+    With ``whiten`` the columns of ``[I; −G]`` span the left null space of ``Z_{:,s}``, so ``‖T·rhs‖`` is the
+    norm of the part of ``rhs = e − Z_{:,m}θ_m`` that no expansion can remove: the same residual as the
+    least-squares expansion of :func:`lsq_expansion`, computed with one sparse factorisation of ``Z_ss``
+    per line instead of a dense QR of ``Z_{:,s}`` — and free of the poles of the plain condensed residual.
     """
     p = model.p0 if p is None else np.asarray(p, float)
     n, m = data.n, data.measured
     s = np.setdiff1d(np.arange(n), m)
     R, F, nm = data.references.size, data.omega.size, m.size
     mats = _mats(model, p)
-    if s.size == 0:
+    if G is not None:
+        G = np.asarray(G)
+    elif s.size == 0:
         G = np.zeros((F, 0, nm), complex)
     elif n <= _DENSE_LIMIT:
         Z = _zdense(mats, data.omega)
@@ -303,22 +358,24 @@ def condensation_operator(model, data: MeasuredColumns, p=None) -> sp.csr_matrix
         for k, w in enumerate(data.omega):
             Z = _zsparse(mats, w)
             G[k] = spla.splu(sp.csc_matrix(Z[s][:, s])).solve(Z[s][:, m].toarray())
-    rows, cols, vals = [], [], []
+    if whiten:
+        H = np.eye(nm)[None] + np.einsum("fsa,fsb->fab", G, G.conj())
+        ev, U = np.linalg.eigh(H)
+        L = np.einsum("fab,fb,fcb->fac", U, ev ** -0.5, U.conj())            # (F, nm, nm)
+    else:
+        L = np.broadcast_to(np.eye(nm, dtype=complex), (F, nm, nm))
     blk = np.arange(R * F)
     fidx = blk % F
-    # identity on measured rows
-    r0 = (blk[:, None] * nm + np.arange(nm)[None, :])
-    rows.append(r0.ravel())
-    cols.append((blk[:, None] * n + m[None, :]).ravel())
-    vals.append(np.ones(r0.size, complex))
+    Lb = L[fidx]                                                             # (RF, nm, nm)
+    r0 = blk[:, None] * nm + np.arange(nm)[None, :]
+    rows = [np.broadcast_to(r0[:, :, None], Lb.shape).ravel()]
+    cols = [np.broadcast_to((blk[:, None, None] * n + m[None, None, :]), Lb.shape).ravel()]
+    vals = [Lb.ravel()]
     if s.size:
-        # −G(f)ᵀ: entry (mrow a, srow b) = −G[f, b, a]
-        Gt = -np.transpose(G, (0, 2, 1))[fidx]                                # (RF, nm, ns)
-        rr = np.broadcast_to(r0[:, :, None], Gt.shape)
-        cc = np.broadcast_to((blk[:, None, None] * n + s[None, None, :]), Gt.shape)
-        rows.append(rr.ravel())
-        cols.append(cc.ravel())
-        vals.append(Gt.ravel())
+        B = -np.einsum("fab,fsb->fas", L, G)[fidx]                          # −L Gᵀ: (RF, nm, ns)
+        rows.append(np.broadcast_to(r0[:, :, None], B.shape).ravel())
+        cols.append(np.broadcast_to((blk[:, None, None] * n + s[None, None, :]), B.shape).ravel())
+        vals.append(B.ravel())
     return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                          shape=(R * F * nm, R * F * n))
 
@@ -392,11 +449,12 @@ class MCIUpdater:
         step (Golub & Pereyra; Kaufman's Jacobian) on the MCI that the best
         expansion leaves.  Smooth in the parameters; converges in a handful of
         iterations on the six-DOF case.
-        ``'condensed'`` (default above 400 DOFs, sparse): Kidder-type expansion on
-        the unmeasured rows (:func:`dynamic_expansion`) and the exact Jacobian of
-        the measured-row MCI (:func:`condensation_operator`).  Its residual has
-        poles at the resonances of the model constrained at the measured DOFs,
-        so from a poor start it can stall in a local minimum.
+        ``'condensed'`` (default above 400 DOFs, sparse): the same residual and
+        step as ``'projected'``, computed from the Kidder-type condensation
+        ``G = Z_ss⁻¹Z_sm`` (one sparse factorisation per line) whitened by
+        ``(I + GᴴG)^{-1/2}`` (:func:`condensation_operator`); the plain
+        condensed residual (without whitening) has poles at the resonances of
+        the model constrained at the measured DOFs and stalls in local minima.
         ``'fixed'``: the thesis' scheme literally — θ frozen at the current
         expansion while (3.78) is solved, then re-expanded.  With incomplete
         data it drifts towards the trivial solution (parameters shrinking
@@ -444,8 +502,11 @@ class MCIUpdater:
         if not hasattr(self, "p_"):
             raise NotFittedError("this MCIUpdater is not fitted yet; call fit(model, frf) first")
 
-    def _linearise(self, model, data, p, idx, mode, need_jac=True):
-        """Weighted residual r (complex) and Jacobian J with ``J Δp ≈ r``."""
+    def _linearise(self, model, data, p, idx, mode, need_jac=True, w=None):
+        """Weighted residual r (complex), Jacobian J with ``J Δp ≈ r`` and the line weights used.
+
+        ``w`` given: use these weights (frozen during a line search so the cost compared is one function).
+        """
         n, m = data.n, data.measured
         R, F = data.references.size, data.omega.size
         if mode == "projected":
@@ -453,30 +514,38 @@ class MCIUpdater:
             QhR = np.einsum("fns,fnj->fsj", Q.conj(), rhs)
             r = rhs - np.einsum("fns,fsj->fnj", Q, QhR)                       # (F, n, R)
             r = np.transpose(r, (2, 0, 1))                                      # (R, F, n)
-            w = self._weights(data, Zm=Z[:, :, m])                              # (R, F)
+            w = self._weights(data, Zm=Z[:, :, m]) if w is None else w          # (R, F)
             r = (r * w[:, :, None]).reshape(-1)
             if not need_jac:
-                return r, None
+                return r, None, w
             A, _ = mci_system(model, full, data.omega, data.references, p, params=idx)
             Ad = A.toarray().reshape(R, F, n, -1)
             Ad = Ad - np.einsum("fns,fks,jfkp->jfnp", Q, Q.conj(), Ad, optimize=True)
-            return r, (Ad * w[:, :, None, None]).reshape(R * F * n, -1)
-        full = dynamic_expansion(model, data, p)
+            return r, (Ad * w[:, :, None, None]).reshape(R * F * n, -1), w
+        if mode == "condensed":
+            G, full = _condensation(model, data, p)
+        else:
+            full = dynamic_expansion(model, data, p)
         vals = miscorrelation(model, full, data.omega, data.references, p)
-        w = self._weights(data, model=model, p=p)
-        if mode == "condensed" or not need_jac:
-            r = (np.transpose(vals[m], (1, 2, 0)) * w[:, :, None]).reshape(-1)
+        if w is None:
+            w = self._weights(data, model=model, p=p)
+        if mode == "condensed":
+            T = condensation_operator(model, data, p, whiten=True, G=G)
+            b = np.transpose(vals, (1, 2, 0)).reshape(-1)
+            r = (T @ b) * np.repeat(w.reshape(-1), m.size)
             if not need_jac:
-                return r, None
+                return r, None, w
             A, _ = mci_system(model, full, data.omega, data.references, p, params=idx)
-            T = condensation_operator(model, data, p)
             W = sp.diags(np.repeat(w.reshape(-1), m.size))
-            return r, (W @ (T @ A)).tocsr()
+            return r, (W @ (T @ A)).tocsr(), w
+        if not need_jac:
+            r = (np.transpose(vals[m], (1, 2, 0)) * w[:, :, None]).reshape(-1)
+            return r, None, w
         rr = np.arange(n) if self.rows == "all" else m
         r = (np.transpose(vals[rr], (1, 2, 0)) * w[:, :, None]).reshape(-1)
         A, _ = mci_system(model, full, data.omega, data.references, p, rows=rr, params=idx)
         W = sp.diags(np.repeat(w.reshape(-1), rr.size))
-        return r, (W @ A).tocsr()
+        return r, (W @ A).tocsr(), w
 
     def _weights(self, data, Zm=None, model=None, p=None):
         R, F = data.references.size, data.omega.size
@@ -524,7 +593,7 @@ class MCIUpdater:
         change = np.inf
         it = 0
         for it in range(1, self.max_iter + 1):
-            r, J = self._linearise(model, data, p, idx, mode)
+            r, J, wts = self._linearise(model, data, p, idx, mode)
             cn = np.sqrt(np.asarray(abs(J).power(2).sum(axis=0)).ravel()) if sp.issparse(J) \
                 else np.linalg.norm(J, axis=0)
             cn[cn == 0] = 1.0
@@ -541,7 +610,7 @@ class MCIUpdater:
                 p_new[idx] = np.clip(p[idx] + step * dp, lo[idx], hi[idx])
                 if not self.line_search:
                     break
-                r_new, _ = self._linearise(model, data, p_new, idx, mode, need_jac=False)
+                r_new, _, _ = self._linearise(model, data, p_new, idx, mode, need_jac=False, w=wts)
                 if _cost(r_new, p_start, p_new, idx, col_scale, self.penalty) <= cost0:
                     break
                 step *= 0.5
@@ -555,7 +624,7 @@ class MCIUpdater:
         if not self.converged_:
             log.warning("MCI minimisation did not converge in %d iterations (last relative change %.3g)",
                         self.max_iter, change)
-        r, J = self._linearise(model, data, p, idx, mode)
+        r, J, _ = self._linearise(model, data, p, idx, mode)
         Jd = J.toarray() if sp.issparse(J) else J
         Jr = np.vstack([Jd.real, Jd.imag])
         rr = np.concatenate([r.real, r.imag])
