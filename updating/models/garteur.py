@@ -24,8 +24,12 @@ root, fin tip → tail-plane centre.  Aluminium E = 70 GPa, ν = 0.31,
 
 Choices where the published figures are silent (documented, not measured):
 
-* The 0.2 kg drum masses sit at each drum's forward inner corner: a CONM2 at
-  the drum's forward end node (x = +0.2 m) with an offset of 0.05 m inboard.
+* The 0.2 kg drum masses: garteur.md puts them at each drum's forward inner
+  corner (``drum_mass_at="corner"``: a CONM2 at the drum's forward end node,
+  x = +0.2 m, offset 0.05 m inboard).  Where they sat on the thesis' replica is
+  not published; the default ``drum_mass_at="centre"`` puts them at the drum
+  centre (on the wing/drum junction).  The corner position adds pitch inertia
+  to the drums and lowers the wing-torsion pair from 37.3 to 30.7 Hz.
 * ``tail_mass`` (default 0.2 kg) is a point mass at the fin/tail joint, the
   "about 0.2 kg-equivalent" sensor mass of garteur.md.
 * Suspension (``suspension=True``): three vertical grounded springs of
@@ -38,14 +42,23 @@ Choices where the published figures are silent (documented, not measured):
 * No joint flexibility, no viscoelastic tape (the thesis' welded replica has none).
 
 Free-free, without suspension, the first elastic modes of the default mesh
-are 5.54 Hz (two-node wing bending), 15.71 Hz (fuselage roll / antisymmetric
-wing bending), 30.69 and 30.71 Hz (anti-/symmetric wing torsion), 37.7, 43.9,
-53.8, 61.4, 63.8, 69.6 Hz (converged: mesh 24 changes them by < 0.1 %).
-Measured: 6.37 / 16.10 / 33.13 / 33.53 / 35.65 Hz on the original test bed,
-5.65 / 15.73 / 36.79–37.65 Hz on the thesis' replica, whose own Nastran model
-gave 5.66 / 16.54 / 34.57 / 34.67 / 37.05 Hz (Table 10).  The wing torsions are
-low, as in the thesis' original model: that is what its wing-tip torsional
-springs (``torsion_springs=True``, 34.5 Hz) were introduced to correct.
+(Hz) beside the thesis' replica (Table 10, measured):
+
+=====  ================================  =======  ========
+mode   shape                             model    replica
+=====  ================================  =======  ========
+7      two-node wing bending             5.49     5.65
+8      fuselage roll, antisym. bending   15.67    15.73
+9, 10  wing torsion pair                 37.30,   36.79,
+                                         37.42    37.51
+11                                       37.63    37.65
+12                                       43.51    43.73
+13–16                                    53.9, 61.0, 63.9, 69.6   50.32, 55.00, 60.66, 68.23
+=====  ================================  =======  ========
+
+(mesh 24 changes them by < 0.2 %).  The original test bed measured 6.37 /
+16.10 / 33.13 / 33.53 / 35.65 Hz (with its tape and corner masses); the
+thesis' own Nastran model gave 5.66 / 16.54 / 34.57 / 34.67 / 37.05 Hz.
 
 ``mesh`` = elements per member (the fuselage and wing get twice as many as
 the short members; nodes are forced at every junction, mass and spring
@@ -74,7 +87,7 @@ _PIDS = {"fuselage": 1, "wing": 2, "drum": 3, "fin": 4, "htail": 5}
 
 
 def garteur_model(mesh: int = 8, *, E: float = 70e9, nu: float = 0.31, rho: float = 2700.0,
-                  drum_mass: float = 0.2, tail_mass: float = 0.2, suspension: bool = False,
+                  drum_mass: float = 0.2, drum_mass_at: str = "centre", tail_mass: float = 0.2, suspension: bool = False,
                   suspension_stiffness: float = 4000.0, torsion_springs: bool = False,
                   element=Beam3D, coupled_mass: bool = True) -> FEModel:
     """Build the GARTEUR-like beam model (see the module docstring).
@@ -82,6 +95,8 @@ def garteur_model(mesh: int = 8, *, E: float = 70e9, nu: float = 0.31, rho: floa
     ``model.metadata["points"]`` names key nodes: 'wing_centre', 'right_tip', 'left_tip',
     'fin_root', 'fin_tip', 'tail_centre', 'nose', 'tail_end', 'right_drum_front', ...
     """
+    if drum_mass_at not in ("centre", "corner"):
+        raise ModalabValueError(f"drum_mass_at = {drum_mass_at!r}; expected 'centre' or 'corner'")
     if mesh < 1:
         raise ModalabValueError(f"mesh = {mesh}; expected at least 1 element per member")
     if element not in (Beam3D, Timoshenko3D):
@@ -133,9 +148,12 @@ def garteur_model(mesh: int = 8, *, E: float = 70e9, nu: float = 0.31, rho: floa
     m.add_rbe2(eid + 2, pts["left_wing_drum"], [pts["left_drum_centre"]])
     m.add_rbe2(eid + 3, pts["fuselage_fin"], [pts["fin_root"]])
     m.add_rbe2(eid + 4, pts["fin_tip"], [pts["tail_centre"]])
-    if drum_mass:
+    if drum_mass and drum_mass_at == "corner":
         m.add_element(LumpedMass(950, pts["right_drum_front"], drum_mass, offset=(0, -0.5 * _L, 0), group="drum_mass"))
         m.add_element(LumpedMass(951, pts["left_drum_front"], drum_mass, offset=(0, 0.5 * _L, 0), group="drum_mass"))
+    elif drum_mass:
+        m.add_element(LumpedMass(950, pts["right_drum_centre"], drum_mass, group="drum_mass"))
+        m.add_element(LumpedMass(951, pts["left_drum_centre"], drum_mass, group="drum_mass"))
     if tail_mass:
         m.add_element(LumpedMass(952, pts["tail_centre"], tail_mass, group="tail_mass"))
     if suspension:
