@@ -224,10 +224,6 @@ def e13(v: float) -> str:
     return "%13.2E" % v
 
 
-def exact_float(text: str) -> float:
-    return float(text)
-
-
 def parse_tags(lines) -> dict[str, str]:
     """``key=value`` tokens of ID lines that start with ``modalab`` (see :mod:`modalab.uff`)."""
     tags: dict[str, str] = {}

@@ -105,7 +105,7 @@ import numpy as np
 from ._uff_core import (Axis, Block, Fn58, check_groups, date_line, e13, format_58, id_line, parse_58, parse_floats, parse_ints,
                         parse_tags, scan, tokens_exact)
 from .dof import Dof
-from .errors import ModalabError, UffError
+from .errors import DofError, ModalabError, UffError
 from .frf import FRF
 from .modes import ModeSet
 from .records import TimeRecord
@@ -156,12 +156,13 @@ def _guard(path):
     cur = _Cursor(path)
     try:
         yield cur
-    except UffError:
-        raise
+    except (UffError, DofError):
+        raise          # DofError: a label the caller asked for (responses=, dofs=) is not in the file
     except (ModalabError, ValueError, IndexError, KeyError, TypeError, OverflowError, ZeroDivisionError,
             AttributeError, UnicodeError, MemoryError) as exc:
         b = cur.block
-        raise UffError(f"unreadable content ({type(exc).__name__}: {exc})", path=path,
+        raise UffError(f"unreadable content ({type(exc).__name__}: {exc}); the dataset is malformed or "
+                       "mislabelled", path=path,
                        dataset=None if b is None else b.label, line=None if b is None else b.line) from exc
 
 

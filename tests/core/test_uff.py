@@ -6,8 +6,6 @@ The ASCII files below are written by hand from the UFF dataset 58 description
 I10,3I5,2(1X,20A1), data 6E13.5 for single precision, 4E20.12 / E13.5,2E20.12
 for double precision).
 """
-import struct
-
 import numpy as np
 import pytest
 
