@@ -78,6 +78,11 @@ class TestAssembly:
         assert K[0, 0] == 800.0 and np.count_nonzero(K) == 1
         # the mass is isotropic so it is unchanged by the rotation
         np.testing.assert_allclose(mats.M.toarray()[:3, :3], 2 * np.eye(3), atol=1e-15)
+        # a rotated node touched only by scalar elements keeps just the components they use
+        s = FEModel()
+        s.add_node(1, (0, 0, 0), cd=R)
+        s.add_element(Spring(1, (1, 2), None, 10.0))
+        assert [str(d) for d in s.dofs] == ["1+Y"]
 
     def test_structural_damping_material_and_global(self):
         m = frame(ge=0.02)

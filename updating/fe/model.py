@@ -209,19 +209,22 @@ class FEModel:
         """All DOFs (before constraints), sorted by node then axis, as positive :class:`Dof`."""
         if self._dofs is None:
             keys = set()
+            basic = set()
             for el in self.elements.values():
                 for n, a in el.dofs():
                     if n not in self.nodes:
                         raise ModalabValueError(f"element {el.eid} uses node {n}, which is not defined; add the node")
                     keys.add((n, a))
+                    if el.frame == "basic":
+                        basic.add((n, a))
             for link in self.rbe2s.values():
                 for n in (link.independent, *link.dependents):
                     if n not in self.nodes:
                         raise ModalabValueError(f"rigid link {link.eid} uses node {n}, which is not defined")
                 keys.update((link.independent, a) for a in range(1, 7))
                 keys.update((d, c) for d in link.dependents for c in link.components)
-            # a rotated node needs whole triplets
-            for n, a in list(keys):
+            # a rotated node needs whole triplets where basic-frame elements act on it
+            for n, a in basic:
                 if self.nodes[n].cd is not None:
                     base = 1 if a <= 3 else 4
                     keys.update((n, base + k) for k in range(3))
