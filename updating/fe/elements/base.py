@@ -7,6 +7,12 @@ assembly rotates them into each node's displacement system (Nastran CD).
 Scalar elements (springs, dampers) act directly on a node's displacement
 components (``frame = "node"``), like Nastran CELAS/CDAMP.
 
+An element class may also provide a classmethod
+``batch_matrices(elements, ctx) -> (K, M, ge)`` returning stacked (n, d, d)
+matrices in basic axes and (n,) damping coefficients; the assembly then
+builds all elements of that class in one vectorised call (the frame elements
+do: a 100k-DOF frame assembles in seconds).
+
 Element code is written with plain arithmetic so that a property can be a
 complex number: :mod:`updating.fe.parameters` differentiates by the complex
 step (exact to rounding, no truncation error).
