@@ -158,6 +158,30 @@ class TestFrameInvariants:
         assert np.linalg.eigvalsh(M).min() > 0
 
 
+class TestOffsets:
+    @settings(max_examples=10, deadline=None)
+    @given(wa=st.tuples(unit, unit, unit), wb=st.tuples(unit, unit, unit), cls=st.sampled_from([Beam3D, Timoshenko3D]))
+    def test_offsets_equal_rigid_links_to_offset_nodes(self, wa, wb, cls):
+        wa, wb = 0.1 * np.array(wa), 0.1 * np.array(wb)
+
+        def system(with_offsets):
+            m = _two_node_model(x2=(1.0, 0.2, 0.0))
+            if with_offsets:
+                m.add_element(cls(1, 1, 2, 1, (0, 0, 1), offset_a=wa, offset_b=wb))
+            else:
+                m.add_node(3, wa)
+                m.add_node(4, np.array([1.0, 0.2, 0.0]) + wb)
+                m.add_element(cls(1, 3, 4, 1, (0, 0, 1)))
+                m.add_rbe2(2, 1, [3])
+                m.add_rbe2(3, 2, [4])
+            return m.system()
+
+        a, b = system(True), system(False)
+        assert a.dofs == b.dofs
+        np.testing.assert_allclose(a.K.toarray(), b.K.toarray(), rtol=0, atol=1e-12 * abs(a.K).max())
+        np.testing.assert_allclose(a.M.toarray(), b.M.toarray(), rtol=0, atol=1e-12 * abs(a.M).max())
+
+
 class TestBeam2D:
     def test_xz_plane_sign_convention(self):
         # θy = −w′: a rigid rotation about +Y by θ moves node 2 (at x = L) by w = −θ L

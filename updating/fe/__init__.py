@@ -18,7 +18,8 @@ Building a model (Python code or the Nastran bulk-data reader)
     ``RectangularSection(b, h)`` (b along local y, h along local z), ``TubeSection(do, di)``,
     ``CircularSection(d)``.
 ``m.add_property(RodProperty(pid, mid, A, J=0.0, nsm=0.0))``                     PROD
-``m.add_element(Beam3D(eid, n1, n2, pid, orientation=(vx, vy, vz) or G0 node id))``  CBAR
+``m.add_element(Beam3D(eid, n1, n2, pid, orientation=(vx, vy, vz) or G0 node id, offset_a=None, offset_b=None))``
+    CBAR; offsets are rigid end offsets WA/WB in the basic system (m)
 ``m.add_element(Timoshenko3D(eid, n1, n2, pid, orientation))``                  CBEAM-like, shear + rotary inertia
 ``m.add_element(Beam2D(eid, n1, n2, pid, plane="xy"|"xz", axial=False))``       planar beam (w, θ)
 ``m.add_element(Rod(eid, n1, n2, pid))``                                         CROD

@@ -1,10 +1,14 @@
-"""3-D Euler–Bernoulli frame element (Nastran CBAR without offsets or pin flags).
+"""3-D Euler–Bernoulli frame element (Nastran CBAR, with rigid end offsets; no pin flags).
 
 Two nodes, 6 DOFs each in the basic system; axial, torsion and bending in two
 planes.  Consistent mass (cubic Hermite bending, linear axial and torsional
 shapes, as Nastran's coupled CBAR mass) or lumped mass when the model's
 ``coupled_mass`` is False (PARAM COUPMASS).  Stiffness:
 Przemieniecki, *Theory of Matrix Structural Analysis* (1968), eq. 5.115.
+
+End offsets (CBAR WA/WB) are rigid: the beam runs between x_A + w_A and
+x_B + w_B, and its end motion is u_end = u_grid + θ_grid × w, i.e.
+K_grid = Wᵀ K_end W with W = [[I, −[w]×], [0, I]] per end.
 """
 from __future__ import annotations
 
@@ -28,7 +32,9 @@ class Beam3D(Element):
     eid : element id.  n1, n2 : end nodes A and B.  pid : id of a
     :class:`~updating.fe.properties.BeamProperty`.  orientation : the vector v
     (basic system) or the id of a node G0 (v = x(G0) − x(A)); local y lies in
-    the plane of the beam axis and v.
+    the plane of the beam axis and v.  offset_a, offset_b : rigid end offsets
+    (m, basic system) from grid A/B to the beam's end (Nastran WA/WB after
+    rotation to basic); the orientation vector from G0 is taken from grid A.
     """
 
     eid: int
@@ -36,6 +42,8 @@ class Beam3D(Element):
     n2: int
     pid: int
     orientation: object = (0.0, 0.0, 1.0)
+    offset_a: object = None
+    offset_b: object = None
 
     frame = "basic"
     _shear = False
@@ -52,7 +60,9 @@ class Beam3D(Element):
         v = self.orientation
         if np.ndim(v) == 0:
             v = ctx.xyz(int(v)) - x1
-        return local_axes(x1, x2, v, self.eid)
+        wa = np.zeros(3) if self.offset_a is None else np.asarray(self.offset_a, float)
+        wb = np.zeros(3) if self.offset_b is None else np.asarray(self.offset_b, float)
+        return local_axes(x1 + wa, x2 + wb, v, self.eid)
 
     def matrices(self, ctx) -> ElementMatrices:
         K, M, ge = type(self).batch_matrices([self], ctx)
@@ -66,12 +76,22 @@ class Beam3D(Element):
         x2 = np.empty((n, 3))
         v = np.empty((n, 3))
         pids = np.empty(n, dtype=np.int64)
+        offset = []
         for k, el in enumerate(elements):
             x1[k] = ctx.xyz(el.n1)
             x2[k] = ctx.xyz(el.n2)
             o = el.orientation
             v[k] = ctx.xyz(int(o)) - x1[k] if np.ndim(o) == 0 else o
             pids[k] = el.pid
+            if el.offset_a is not None or el.offset_b is not None:
+                wa = np.zeros(3) if el.offset_a is None else np.asarray(el.offset_a, float)
+                wb = np.zeros(3) if el.offset_b is None else np.asarray(el.offset_b, float)
+                if wa.shape != (3,) or wb.shape != (3,):
+                    raise ModalabValueError(f"element {el.eid}: offsets {el.offset_a!r}, {el.offset_b!r}; "
+                                            "expected three components each (m, basic system)")
+                x1[k] += wa
+                x2[k] += wb
+                offset.append((k, wa, wb))
         L, lam = local_axes_batch(x1, x2, v, [el.eid for el in elements])
         names = ("E", "G", "rho", "A", "Iy", "Iz", "J", "Ip", "nsm", "ky", "kz", "ge")
         cols = {nm: [None] * n for nm in names}
@@ -104,4 +124,16 @@ class Beam3D(Element):
         Kl, Ml = frame_local_batch(L, arr["E"], arr["G"], arr["rho"], arr["A"], arr["Iy"], arr["Iz"], arr["J"],
                                    arr["Ip"], arr["nsm"], shear_y=ky, shear_z=kz, lumped=not ctx.coupled_mass,
                                    rotary=cls._shear)
-        return to_basic(Kl, lam), to_basic(Ml, lam), arr["ge"]
+        K, M = to_basic(Kl, lam), to_basic(Ml, lam)
+        for k, wa, wb in offset:
+            W = np.eye(12)
+            W[0:3, 3:6] = -_skew(wa)
+            W[6:9, 9:12] = -_skew(wb)
+            K[k] = W.T @ K[k] @ W
+            M[k] = W.T @ M[k] @ W
+        return K, M, arr["ge"]
+
+
+def _skew(r):
+    x, y, z = r
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
