@@ -123,6 +123,9 @@ class FEModel:
         return prop
 
     def add_element(self, element: Element) -> Element:
+        if not isinstance(element, Element):
+            raise ModalabValueError(f"add_element got a {type(element).__name__}; expected an element such as "
+                                    "Beam3D, Spring or LumpedMass (rigid links go through add_rbe2)")
         eid = element.eid
         if eid in self.elements or eid in self.rbe2s:
             raise ModalabValueError(f"duplicate element id {eid}; element and rigid-link ids must be unique")
