@@ -135,7 +135,7 @@ def test_ranking_and_identifiability():
     ok = identifiability(model(P_INIT), tm, params=UPD)
     assert ok["rank"] == 8 and np.isfinite(ok["condition"])
     # a duplicated parameter (same derivative matrix as k3) is not identifiable
-    dup = model(np.r_[P_INIT, 0.0], extra_terms=[("k3bis", Derivative(dK=_spring(1, 2)))])
+    dup = model(np.r_[P_INIT, P_INIT[2]], extra_terms=[("k3bis", Derivative(dK=_spring(1, 2)))])
     bad = identifiability(dup, tm, params=UPD + ["k3bis"])
     assert bad["rank"] == 8
     assert {n for n, _ in bad["unidentifiable"][0]} == {"k3", "k3bis"}
