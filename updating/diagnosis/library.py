@@ -1,0 +1,329 @@
+"""The library of model augmentations that ``modalab diagnose`` tests.
+
+Each :class:`Candidate` is one physical effect the nominal model may have
+left out, at one place, with one non-negative value:
+
+=====================  ==============================================  ==========  =========
+physics                what is added (bulk data)                       value       matrix
+=====================  ==============================================  ==========  =========
+ground_spring          spring to ground on one DOF (CELAS1/2)          k           K
+added_mass             point mass at a node (CONM2), or rotary         m, J        M
+                       inertia about one axis
+local_damping          hysteretic damping on an element group          ge (η)      D
+                       (property clone with GE), or a dashpot to
+                       ground on one DOF (CDAMP)                       c           C
+joint_flexibility      a node split in two (new GRID), the halves      k           K
+                       joined rigidly except one component, which
+                       gets a spring (RBE2 + CELAS)
+boundary_flexibility   one constrained component released (SPC         k           K
+                       edited) into a spring to ground
+=====================  ==============================================  ==========  =========
+
+The frequency signature of each follows from the dynamic stiffness it adds:
+real and constant (stiffness), real ∝ −ω² (mass), imaginary ∝ ω (viscous),
+imaginary and constant (hysteretic).  Candidates of the first three kinds act
+on the existing DOFs (``shared=True``): their unit matrix ``G`` on the model's
+constrained DOFs enters the linear screening.  Joint and boundary candidates
+change the DOF set and are judged by the non-linear fit only.
+
+Every candidate knows how to add itself to an :class:`~updating.fe.FEModel`
+together with an updating :class:`~updating.fe.Parameter` for its value, so
+the augmented model is differentiated exactly like any other.
+"""
+from __future__ import annotations
+
+import dataclasses
+import logging
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import scipy.sparse as sp
+
+from modalab.dof import DIRECTION_NAMES, Dof
+
+from ..fe import Damper, FEModel, LumpedMass, Parameter, Spring
+from ..fe.assembly import assemble
+from ..fe.constraints import RBE2, SPC
+
+log = logging.getLogger(__name__)
+__all__ = ["Candidate", "build_library", "UNITS"]
+
+UNITS = {("ground_spring", 1): "N/m", ("ground_spring", 4): "N·m/rad", ("added_mass", 1): "kg",
+         ("added_mass", 4): "kg·m²", ("local_damping", "D"): "-", ("local_damping", "C"): "N·s/m",
+         ("joint_flexibility", 1): "N/m", ("joint_flexibility", 4): "N·m/rad",
+         ("boundary_flexibility", 1): "N/m", ("boundary_flexibility", 4): "N·m/rad"}
+
+
+def _unit(physics, comp=None, matrix=None):
+    if physics == "local_damping":
+        return UNITS[(physics, matrix)]
+    return UNITS[(physics, 1 if comp <= 3 else 4)]
+
+
+@dataclass
+class Candidate:
+    """One augmentation: category, place, value name and unit, and how to build it."""
+
+    physics: str
+    label: str
+    nodes: tuple
+    dofs: tuple                      # DOF labels, e.g. ('14+Z',)
+    elements: tuple                  # element ids concerned (damping group, joint side)
+    value_name: str                  # 'k', 'm', 'J', 'eta', 'c'
+    unit: str
+    matrix: str                      # 'K', 'M', 'C', 'D'
+    shared: bool
+    apply: Callable = field(repr=False, default=None)   # (FEModel, eid) -> (FEModel, Parameter, scale)
+    G: sp.spmatrix | None = field(repr=False, default=None)
+    initial: float = 0.0
+    key: str = ""
+
+    def __post_init__(self):
+        if not self.key:
+            self.key = f"{self.physics}:{self.label}"
+
+
+def _T_rows(red, dofs_full_index, keys):
+    """Rows of the reduction T for the (node, comp) keys present in the full DOF list."""
+    rows = [dofs_full_index[k] for k in keys if k in dofs_full_index]
+    return red.T[rows] if rows else None
+
+
+def _element_K(model: FEModel, red, el):
+    K = assemble(model, elements=[el], include_global=False).K
+    return sp.csr_matrix(red.T.T @ K @ red.T)
+
+
+def _next_id(model: FEModel) -> int:
+    ids = list(model.elements) + list(model.rbe2s)
+    return (max(ids) if ids else 0) + 1
+
+
+def _next_node(model: FEModel) -> int:
+    return max(model.nodes) + 1 if model.nodes else 1
+
+
+def _fix_foreign(m: FEModel, node: int, comps) -> None:
+    """A lumped mass touches all six components; constrain those the model did not have (planar models)."""
+    foreign = [c for c in range(1, 7) if c not in comps]
+    if foreign:
+        m.add_spc(node, "".join(map(str, foreign)))
+
+
+def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, group_size: int = 2,
+                  stiffness_scale: float | None = None) -> list[Candidate]:
+    """All candidates of the requested ``kinds`` for ``model``.
+
+    nodes : restrict DOF-wise candidates to these nodes (default: every node).
+    joint_nodes : nodes where joint-flexibility candidates are built (default: nodes joined by rigid
+        links, and nodes where elements of different properties meet).
+    group_size : element groups for local damping are single elements and runs of this many
+        neighbouring elements sharing a node.
+    """
+    kinds = set(kinds or ("ground_spring", "added_mass", "local_damping", "joint_flexibility",
+                          "boundary_flexibility"))
+    red = model.reduction()
+    full = red.full_dofs
+    fidx = {(d.node, d.axis): i for i, d in enumerate(full)}
+    present = {}
+    for d in full:
+        present.setdefault(d.node, []).append(d.axis)
+    fixed = {(d.node, d.axis) for d in red.fixed}
+    sel_nodes = sorted(present) if nodes is None else [n for n in nodes if n in present]
+    cands: list[Candidate] = []
+    Kdiag = None
+
+    def dof_G(keys):
+        R = _T_rows(red, fidx, keys)
+        if R is None or R.nnz == 0:
+            return None
+        return sp.csr_matrix(R.T @ R)
+
+    for n in sel_nodes:
+        comps = [c for c in present[n] if (n, c) not in fixed]
+        for c in comps:
+            lbl = f"{n}+{DIRECTION_NAMES[c]}"
+            G = dof_G([(n, c)])
+            if G is None:
+                continue
+            if "ground_spring" in kinds:
+                def add_spring(m, eid, n=n, c=c):
+                    m = m.copy()
+                    m.add_element(Spring(eid, a=(n, c), b=None, k=0.0, group=f"diag_k_{eid}"))
+                    return m, Parameter(f"k_{n}_{c}", "k", elements=(eid,), mode="value"), 1.0
+                cands.append(Candidate("ground_spring", f"spring to ground at {lbl}", (n,), (lbl,), (), "k",
+                                       _unit("ground_spring", c), "K", True, add_spring, G))
+            if "local_damping" in kinds:
+                def add_damper(m, eid, n=n, c=c):
+                    m = m.copy()
+                    m.add_element(Damper(eid, a=(n, c), b=None, c=0.0, group=f"diag_c_{eid}"))
+                    return m, Parameter(f"c_{n}_{c}", "c", elements=(eid,), mode="value"), 1.0
+                cands.append(Candidate("local_damping", f"dashpot to ground at {lbl}", (n,), (lbl,), (), "c",
+                                       _unit("local_damping", matrix="C"), "C", True, add_damper, G))
+            if "added_mass" in kinds and c >= 4:
+                def add_inertia(m, eid, n=n, c=c, guess=1e-3):
+                    m = m.copy()
+                    inertia = [0.0, 0.0, 0.0]
+                    inertia[c - 4] = guess
+                    m.add_element(LumpedMass(eid, n, mass=0.0, inertia=inertia, group=f"diag_J_{eid}"))
+                    _fix_foreign(m, n, present[n])
+                    return m, Parameter(f"J_{n}_{c}", "inertia", elements=(eid,), mode="factor"), guess
+                cands.append(Candidate("added_mass", f"rotary inertia at {lbl}", (n,), (lbl,), (), "J",
+                                       _unit("added_mass", c), "M", True, add_inertia, G))
+        trans = [c for c in comps if c <= 3]
+        if "added_mass" in kinds and trans:
+            G = dof_G([(n, c) for c in trans])
+            if G is not None:
+                def add_mass(m, eid, n=n):
+                    m = m.copy()
+                    m.add_element(LumpedMass(eid, n, mass=0.0, group=f"diag_m_{eid}"))
+                    _fix_foreign(m, n, present[n])
+                    return m, Parameter(f"m_{n}", "mass", elements=(eid,), mode="value"), 1.0
+                cands.append(Candidate("added_mass", f"point mass at node {n}", (n,),
+                                       tuple(f"{n}+{DIRECTION_NAMES[c]}" for c in trans), (), "m",
+                                       _unit("added_mass", 1), "M", True, add_mass, G))
+
+    # ---------------------------------------------------------------- local damping on element groups
+    if "local_damping" in kinds:
+        beams = [e for e in model.elements.values() if hasattr(e, "pid") and hasattr(e, "n1")]
+        groups = [(e.eid,) for e in beams]
+        if group_size > 1:
+            by_node: dict[int, list] = {}
+            for e in beams:
+                by_node.setdefault(e.n1, []).append(e.eid)
+                by_node.setdefault(e.n2, []).append(e.eid)
+            for n, eids in sorted(by_node.items()):
+                if len(eids) >= 2:
+                    groups.append(tuple(sorted(eids))[:group_size + 1])
+        seen = set()
+        for g in groups:
+            if g in seen:
+                continue
+            seen.add(g)
+            els = [model.elements[i] for i in g]
+            if nodes is not None and not any(e.n1 in nodes or e.n2 in nodes for e in els):
+                continue
+            G = sum((_element_K(model, red, e) for e in els), sp.csr_matrix((red.n_dof, red.n_dof)))
+            enodes = tuple(sorted({e.n1 for e in els} | {e.n2 for e in els}))
+
+            def add_group_damping(m, eid, g=g):
+                m = m.copy()
+                new_pid = max(m.properties) + 1
+                groupname = f"diag_damped_{eid}"
+                pids = {m.elements[i].pid for i in g}
+                mapping = {}
+                for k, pid in enumerate(sorted(pids)):
+                    prop = m.properties[pid]
+                    clone = dataclasses.replace(prop, pid=new_pid + k, ge=0.0)
+                    if hasattr(clone, "name"):
+                        clone = dataclasses.replace(clone, name=getattr(prop, "name", ""))
+                    m.add_property(clone)
+                    mapping[pid] = new_pid + k
+                for i in g:
+                    m.elements[i] = dataclasses.replace(m.elements[i], pid=mapping[m.elements[i].pid])
+                m._changed()
+                m.metadata.setdefault("diagnosis_groups", {})[groupname] = list(mapping.values())
+                return m, Parameter(f"eta_{'_'.join(map(str, g))}", "ge", properties=tuple(mapping.values()),
+                                    mode="value"), 1.0
+            cands.append(Candidate("local_damping", f"structural damping on element(s) {', '.join(map(str, g))}",
+                                   enodes, (), g, "eta", "-", "D", True, add_group_damping, G))
+
+    # ---------------------------------------------------------------- boundary flexibility
+    if "boundary_flexibility" in kinds:
+        for spc in model.spcs:
+            if nodes is not None and spc.node not in nodes:
+                continue
+            for c in spc.components:
+                lbl = f"{spc.node}+{DIRECTION_NAMES[c]}"
+
+                def release(m, eid, spc=spc, c=c):
+                    m = m.copy()
+                    m.spcs = [s for s in m.spcs if s is not spc]
+                    rest = tuple(x for x in spc.components if x != c)
+                    if rest:
+                        m.add_spc(spc.node, "".join(map(str, rest)))
+                    m.add_element(Spring(eid, a=(spc.node, c), b=None, k=0.0, group=f"diag_bc_{eid}"))
+                    m._changed()
+                    return m, Parameter(f"kbc_{spc.node}_{c}", "k", elements=(eid,), mode="value"), 1.0
+                cands.append(Candidate("boundary_flexibility", f"support flexibility at {lbl}", (spc.node,), (lbl,),
+                                       (), "k", _unit("boundary_flexibility", c), "K", False, release, None))
+
+    # ---------------------------------------------------------------- joint flexibility
+    if "joint_flexibility" in kinds:
+        jnodes = set(joint_nodes) if joint_nodes is not None else None
+        # rigid links: release one component of a dependent node
+        for link in model.rbe2s.values():
+            for dep in link.dependents:
+                if jnodes is not None and dep not in jnodes and link.independent not in jnodes:
+                    continue
+                for c in link.components:
+                    lbl = f"{dep}+{DIRECTION_NAMES[c]}"
+
+                    def soften(m, eid, link=link, dep=dep, c=c):
+                        m = m.copy()
+                        del m.rbe2s[link.eid]
+                        others = tuple(d for d in link.dependents if d != dep)
+                        if others:
+                            m.add_rbe2(link.eid, link.independent, others, "".join(map(str, link.components)))
+                        rest = tuple(x for x in link.components if x != c)
+                        new = _next_id(m)
+                        if rest:
+                            m.add_rbe2(max(new, eid + 1), link.independent, (dep,), "".join(map(str, rest)))
+                        m.add_element(Spring(eid, a=(link.independent, c), b=(dep, c), k=0.0, group=f"diag_j_{eid}"))
+                        m._changed()
+                        return m, Parameter(f"kj_{dep}_{c}", "k", elements=(eid,), mode="value"), 1.0
+                    cands.append(Candidate("joint_flexibility", f"flexible joint ({DIRECTION_NAMES[c]}) at the link "
+                                           f"{link.independent}-{dep}", (link.independent, dep), (lbl,), (link.eid,),
+                                           "k", _unit("joint_flexibility", c), "K", False, soften, None))
+        # beam junctions: split a node between elements of different properties
+        by_node: dict[int, list] = {}
+        for e in model.elements.values():
+            if hasattr(e, "n1") and hasattr(e, "pid"):
+                by_node.setdefault(e.n1, []).append(e)
+                by_node.setdefault(e.n2, []).append(e)
+        for n, els in sorted(by_node.items()):
+            if len(els) < 2:
+                continue
+            pids = sorted({e.pid for e in els})
+            if jnodes is None and len(pids) < 2:
+                continue
+            if jnodes is not None and n not in jnodes:
+                continue
+            side_sets = [tuple(e.eid for e in els if e.pid == p) for p in pids] if len(pids) >= 2 else \
+                [tuple(e.eid for e in els[len(els) // 2:])]
+            for side in side_sets[-1:] if len(pids) >= 2 else side_sets:
+                for c in present.get(n, []):
+                    if (n, c) in fixed:
+                        continue
+                    lbl = f"{n}+{DIRECTION_NAMES[c]}"
+
+                    def split(m, eid, n=n, side=side, c=c):
+                        m = m.copy()
+                        nn = _next_node(m)
+                        m.add_node(nn, m.nodes[n].xyz, m.nodes[n].cd)
+                        for i in side:
+                            e = m.elements[i]
+                            kw = {}
+                            if e.n1 == n:
+                                kw["n1"] = nn
+                            if e.n2 == n:
+                                kw["n2"] = nn
+                            m.elements[i] = dataclasses.replace(e, **kw)
+                        comps = [x for x in present[n] if x != c]
+                        rid = eid + 1
+                        while rid in m.elements or rid in m.rbe2s:
+                            rid += 1
+                        if comps:
+                            m.add_rbe2(rid, n, (nn,), "".join(map(str, comps)))
+                        _fix_foreign(m, n, present[n])
+                        _fix_foreign(m, nn, present[n])
+                        m.add_element(Spring(eid, a=(n, c), b=(nn, c), k=0.0, group=f"diag_j_{eid}"))
+                        m._changed()
+                        return m, Parameter(f"kj_{n}_{c}", "k", elements=(eid,), mode="value"), 1.0
+                    cands.append(Candidate("joint_flexibility", f"flexible joint ({DIRECTION_NAMES[c]}) at node {n} "
+                                           f"between element(s) {', '.join(map(str, side))} and the rest", (n,), (lbl,),
+                                           side, "k", _unit("joint_flexibility", c), "K", False, split, None))
+    log.info("candidate library: %d candidates (%s)", len(cands),
+             ", ".join(f"{k}={sum(c.physics == k for c in cands)}" for k in sorted(kinds)))
+    return cands
