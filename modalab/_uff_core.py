@@ -14,6 +14,7 @@ import datetime as _dt
 import logging
 import os
 import re
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,7 +24,7 @@ from .errors import UffError
 log = logging.getLogger(__name__)
 
 _FLOAT_RE = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[EeDd][-+]?\d+)?|[-+]?(?:nan|inf(?:inity)?)", re.IGNORECASE)
-_END_RE = re.compile(rb"^[ \t]*-1[ \t]*\r?$", re.MULTILINE)
+_END_RE = re.compile(rb"\n[ \t]*-1[ \t]*\r?(?=\n|\Z)")   # a '-1' line (6x faster than ^...$ with MULTILINE)
 _ID_RE = re.compile(rb"^\s*(\d+)\s*([bB]?)(.*)$")
 
 #: values per abscissa point in the data section, by (complex, uneven)
@@ -31,17 +32,43 @@ _VALS_PER_POINT = {(False, False): 1, (False, True): 2, (True, False): 2, (True,
 
 
 # ----------------------------------------------------------------------------- blocks
-@dataclass
 class Block:
-    """One dataset of a universal file."""
+    """One dataset of a universal file.
 
-    number: int                 # dataset number (58 for 58 and 58b)
-    binary: bool
-    line: int                   # 1-based line of the dataset-number line
-    lines: list                 # decoded text lines after the dataset-number line (ASCII: all; 58b: header)
-    payload: bytes | None = None
-    byte_order: str = "<"
-    path: object = None
+    ``line`` is the 1-based line of the dataset-number line; ``lines`` the text lines after
+    it (ASCII datasets: all of them, split lazily; 58b: the ASCII header); ``payload`` the
+    binary data of a 58b dataset.
+    """
+
+    def __init__(self, number: int, binary: bool, line: int, lines=None, *, text: str | None = None,
+                 payload=None, byte_order: str = "<", path=None):
+        self.number, self.binary, self.line = number, binary, line
+        self._lines, self.text = lines, text
+        self.payload, self.byte_order, self.path = payload, byte_order, path
+
+    @property
+    def lines(self) -> list:
+        if self._lines is None:
+            t = self.text[:-1] if self.text.endswith("\n") else self.text
+            self._lines = [ln.rstrip("\r") for ln in t.split("\n")] if t else []
+        return self._lines
+
+    def head(self, k: int) -> tuple[list, str]:
+        """First ``k`` lines (as :attr:`lines` splits them) and the rest as one string, without a full split."""
+        if self.text is None:
+            return self.lines[:k], ""
+        cached = getattr(self, "_head", None)
+        if cached is None or cached[0] != k:
+            t = self.text[:-1] if self.text.endswith("\n") else self.text
+            parts = t.split("\n", k) if t else []
+            cached = (k, [ln.rstrip("\r") for ln in parts[:k]], parts[k] if len(parts) > k else "")
+            self._head = cached
+        return cached[1], cached[2]
+
+    @property
+    def hdr(self) -> list:
+        """The 11 header records of a dataset 58 (fewer when truncated)."""
+        return self.head(11)[0]
 
     def error(self, message: str, offset: int | None = None) -> UffError:
         """UffError located at header line ``offset`` (0 = first line after the dataset number)."""
@@ -100,12 +127,12 @@ def scan(raw: bytes, path) -> list[Block]:
         if is_bin:
             block, pos = _scan_binary(raw, pos, number, m.group(3), path, line_no + 1)
         else:
-            mend = _END_RE.search(raw, pos)
+            mend = _END_RE.search(raw, pos - 1)          # raw[pos - 1] is the newline ending the number line
             if mend is None:
                 raise UffError(f"dataset {number} opened at line {line_no} is not closed by a '    -1' line: "
                                "the file is truncated", path=path, dataset=number, line=line_no)
-            text = _decode(raw[pos:mend.start()])
-            block = Block(number, False, line_no + 1, text.splitlines(), path=path)
+            text = _decode(raw[pos:mend.start() + 1])
+            block = Block(number, False, line_no + 1, text=text, path=path)
             pos = mend.end()
             if raw[pos:pos + 1] == b"\n":
                 pos += 1
@@ -184,10 +211,14 @@ def _scan_binary(raw: bytes, pos: int, number: int, rest: bytes, path, id_line_n
 # ----------------------------------------------------------------------------- numbers
 def parse_floats(text: str) -> np.ndarray:
     """All numbers in ``text`` (Fortran D exponents and touching fixed-width fields allowed)."""
-    s = text.replace("D", "E").replace("d", "E")
+    s = text.replace("D", "E").replace("d", "E") if ("D" in text or "d" in text) else text
+    if not s.strip():
+        return np.zeros(0)
     try:
-        return np.array(s.split(), dtype=float)
-    except ValueError:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")            # numpy warns (and stops) at the first bad token
+            return np.fromstring(s, dtype=float, sep=" ")
+    except (ValueError, DeprecationWarning):
         toks = _FLOAT_RE.findall(s)
         return np.array(toks, dtype=float) if toks else np.zeros(0)
 
@@ -335,15 +366,15 @@ class Fn58:
 
 def _binary_length_58(block: Block) -> int:
     """Bytes of data a 58b block must hold according to its record 7."""
-    if len(block.lines) < 7:
-        raise block.error(f"binary dataset header has {len(block.lines)} lines; record 7 is missing")
+    if len(block.hdr) < 7:
+        raise block.error(f"binary dataset header has {len(block.hdr)} lines; record 7 is missing")
     ord_type, n, spacing = _record7(block)[:3]
     size = 4 if ord_type in (2, 5) else 8
     return n * size * _VALS_PER_POINT[(ord_type in (5, 6), spacing == 0)]
 
 
 def _record7(block: Block):
-    text = block.lines[6]
+    text = block.hdr[6]
     toks = tokens_exact(text)
     if toks is None or len(toks) < 5:
         raise block.error(f"record 7 (data form) {text.strip()!r} must hold data type, number of points, "
@@ -367,7 +398,7 @@ def _record7(block: Block):
 
 
 def _record6(block: Block):
-    text = block.lines[5]
+    text = block.hdr[5]
     toks = text.split()
     if len(toks) == 10:
         try:
@@ -395,7 +426,7 @@ def _record6(block: Block):
 
 
 def _axis(block: Block, k: int) -> Axis:
-    text = block.lines[k]
+    text = block.hdr[k]
     padded = text.ljust(80)
     try:
         spec = int(padded[0:10])
@@ -428,10 +459,10 @@ def parse_58(block: Block, header_only: bool = False, header: Fn58 | None = None
 
 
 def _parse_58_header(block: Block) -> Fn58:
-    if len(block.lines) < 11:
-        raise block.error(f"dataset 58 needs 11 header records after the dataset number; found {len(block.lines)}. "
-                          "The dataset is truncated", len(block.lines))
-    ids = [block.lines[k].rstrip() for k in range(5)]
+    if len(block.hdr) < 11:
+        raise block.error(f"dataset 58 needs 11 header records after the dataset number; found {len(block.hdr)}. "
+                          "The dataset is truncated", len(block.hdr))
+    ids = [block.hdr[k].rstrip() for k in range(5)]
     r6 = _record6(block)
     ord_type, n, spacing, x0, dx, z = _record7(block)
     axes = [_axis(block, k) for k in range(7, 11)]
@@ -472,7 +503,7 @@ def _parse_58_data(block: Block, head: Fn58) -> Fn58:
                               f"{need * dt.itemsize}", 6)
         values = np.frombuffer(block.payload, dtype=dt).astype(float)
     else:
-        body = "\n".join(block.lines[11:])
+        body = block.head(11)[1]
         values = parse_floats(body)
         if values.size != need:
             raise block.error(_count_message(block, values.size, need, n), 11)
