@@ -70,12 +70,14 @@ def receptance_rows(model, p, omega, rows) -> np.ndarray:
 
 
 def rfm_system(model, theta_full: np.ndarray, omega: np.ndarray, references: np.ndarray, rows, p=None, *,
-               params=None, weights=None, normal: bool = False, chunk: int = 64, HA=None):
+               params=None, weights=None, normal: bool = False, chunk: int | None = None, HA=None):
     """Assemble Eq. (3.56)–(3.57) for measured ``rows`` and full experimental columns ``theta_full`` (n, R, F).
 
     Returns ``(Rm, b)`` with ``Rm`` complex (R·F·len(rows), P) — block ``(j, f)`` in row-major order — and
     ``b = H_A^j − H_X^j`` on the rows; with ``normal=True`` the real normal equations
     ``(Re(RᴴWR), Re(RᴴWb))`` accumulated over chunks of lines (W = ``weights``², shape (R, F, len(rows))).
+    ``chunk`` lines per block (default: sized to keep the work array near 80 MB); ``HA`` optional
+    precomputed :func:`receptance_rows`.
     """
     p = model.p0 if p is None else np.asarray(p, float)
     n, R, F = theta_full.shape
@@ -92,6 +94,8 @@ def rfm_system(model, theta_full: np.ndarray, omega: np.ndarray, references: np.
     G = sp.csr_matrix((np.ones(pp.size), (np.arange(pp.size), colmap[pp])), shape=(pp.size, params.size))
     if HA is None:
         HA = receptance_rows(model, p, omega, rows)                       # (F, nr, n)
+    if chunk is None:   # keep the (R, lines, rows, pairs) work array near 5e6 complex entries (80 MB)
+        chunk = int(max(1, min(F, 5e6 // max(R * nr * max(pp.size, 1), 1))))
     P = params.size
     if normal:
         N = np.zeros((P, P))
