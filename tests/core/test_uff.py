@@ -326,6 +326,22 @@ class TestFrfIO:
         np.testing.assert_array_equal(g.H[0, 1], [-3j, -4])
         np.testing.assert_array_equal(g.get("5+Z", "2+Z"), [3j, 4])
 
+    def test_binary_header_byte_count(self, tmp_path):
+        """Our 58b header states the true byte count (pyuff writes half of it for complex data)."""
+        frf = _frf(n_out=1, n_in=1, n=10, coherence=True)
+        p = tmp_path / "f.uff"
+        uff.write_frf(p, frf)
+        raw = p.read_bytes()
+        heads = [ln for ln in raw.split(b"\n") if ln.startswith(b"    58b")]
+        assert [int(h.split()[4]) for h in heads] == [10 * 16, 10 * 8]   # complex FRF, real coherence
+
+    def test_unknown_label_requested(self, tmp_path):
+        from modalab.errors import DofError
+        p = tmp_path / "f.uff"
+        uff.write_frf(p, _frf())
+        with pytest.raises(DofError, match="99\\+Z"):
+            uff.read_frf(p, responses=["99+Z"])
+
     def test_subset_selection(self, tmp_path):
         frf = _frf()
         p = tmp_path / "f.uff"
