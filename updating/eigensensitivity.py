@@ -299,7 +299,9 @@ class InverseEigensensitivity:
     Parameters
     ----------
     params : names or indices of the parameters to update (default all).
-    freq_sigma, shape_sigma, use_shapes, residual : weighting and residual definition (module docstring).
+    freq_sigma, shape_sigma, use_shapes, residual : weighting and residual definition (module docstring);
+        ``weights`` a dict with any of ``freq_sigma``, ``shape_sigma``, ``use_shapes`` overrides them
+        (e.g. measurement uncertainties from identification).
     regularisation : ``'lcurve'``, ``'gcv'``, a fixed α ≥ 0, or None (plain least squares).
     tikhonov : ``'step'`` (default) or ``'initial'`` — what α penalises.
     bounds : (lower, upper) arrays in parameter units (None entries unbounded), for the updated parameters
@@ -315,9 +317,10 @@ class InverseEigensensitivity:
     converged_, n_iter_.
     """
 
-    def __init__(self, params=None, *, freq_sigma=0.01, shape_sigma=0.05, use_shapes: bool = True,
+    def __init__(self, params=None, *, weights=None, freq_sigma=0.01, shape_sigma=0.05, use_shapes: bool = True,
                  residual: str = "frequency", regularisation="lcurve", tikhonov: str = "step", bounds=None,
                  max_iter: int = 50, tol: float = 1e-6, mac_min: float = 0.5, n_modes: int | None = None):
+        self.weights = weights
         self.params = params
         self.freq_sigma = freq_sigma
         self.shape_sigma = shape_sigma
@@ -376,9 +379,14 @@ class InverseEigensensitivity:
         scale = np.where(p0[idx] != 0, np.abs(p0[idx]), 1.0)
         lo, hi = self._bounds(model, idx)
         C = _observation(test_modes, model, dofmap)
-        kw = dict(params=idx, n_modes=self.n_modes, mac_min=self.mac_min, freq_sigma=self.freq_sigma,
-                  shape_sigma=self.shape_sigma, use_shapes=self.use_shapes, residual=self.residual,
-                  scale=scale, C=C)
+        wts = dict(freq_sigma=self.freq_sigma, shape_sigma=self.shape_sigma, use_shapes=self.use_shapes)
+        if self.weights is not None:
+            unknown = set(self.weights) - set(wts)
+            if unknown:
+                raise ModalabValueError(f"weights keys {sorted(unknown)}; expected some of {sorted(wts)}")
+            wts.update(self.weights)
+        kw = dict(params=idx, n_modes=self.n_modes, mac_min=self.mac_min, residual=self.residual,
+                  scale=scale, C=C, **wts)
         self.history_ = []
         self.converged_ = False
         self.params_ = idx

@@ -79,7 +79,7 @@ def test_eigenvalue_residual_and_frequency_only():
     # six frequencies identify six stiffnesses when the masses are right
     p0 = P_INIT.copy()
     p0[6:] = P_TRUE[6:]
-    v = InverseEigensensitivity(params=UPD[:6], use_shapes=False).fit(model(p0), tm)
+    v = InverseEigensensitivity(params=UPD[:6], weights={"use_shapes": False}).fit(model(p0), tm)
     np.testing.assert_allclose(v.p_, P_TRUE, rtol=1e-6)
 
 
@@ -170,5 +170,7 @@ def test_errors():
         InverseEigensensitivity().fit(model(P_INIT), np.ones((6, 6)))
     with pytest.raises(ModalabValueError, match="not in the model"):
         InverseEigensensitivity(params=["k99"]).fit(model(P_INIT), test_modes())
+    with pytest.raises(ModalabValueError, match="weights keys"):
+        InverseEigensensitivity(params=UPD, weights={"freq": 1}).fit(model(P_INIT), test_modes())
     with pytest.raises(ModalabValueError, match="regularisation"):
         InverseEigensensitivity(params=UPD, regularisation="magic").fit(model(P_INIT), test_modes())
