@@ -125,12 +125,14 @@ _NUM_UNITS = {"receptance": "m", "mobility": "m/s", "accelerance": "m/s^2"}
 _UNIT_TYPE = {"N": 13, "m/s^2": 12, "m/s": 11, "m": 8}
 #: unit label -> (factor to SI, dimension) for labels found in other writers' files
 _LABEL_SI = {
-    "m": 1.0, "mm": 1e-3, "um": 1e-6, "in": 0.0254, "ft": 0.3048,
-    "m/s": 1.0, "mm/s": 1e-3, "in/s": 0.0254,
-    "m/s^2": 1.0, "m/s2": 1.0, "m/s**2": 1.0, "m/s²": 1.0, "mm/s^2": 1e-3, "mm/s2": 1e-3, "g": G,
-    "in/s^2": 0.0254, "in/s2": 0.0254,
-    "n": 1.0, "kn": 1e3, "lbf": 4.4482216152605, "lb": 4.4482216152605,
+    "m": (1.0, "m"), "mm": (1e-3, "m"), "um": (1e-6, "m"), "in": (0.0254, "m"), "ft": (0.3048, "m"),
+    "m/s": (1.0, "m/s"), "mm/s": (1e-3, "m/s"), "in/s": (0.0254, "m/s"),
+    "m/s^2": (1.0, "m/s^2"), "m/s2": (1.0, "m/s^2"), "m/s**2": (1.0, "m/s^2"), "m/s²": (1.0, "m/s^2"),
+    "mm/s^2": (1e-3, "m/s^2"), "mm/s2": (1e-3, "m/s^2"), "g": (G, "m/s^2"),
+    "in/s^2": (0.0254, "m/s^2"), "in/s2": (0.0254, "m/s^2"),
+    "n": (1.0, "N"), "kn": (1e3, "N"), "lbf": (4.4482216152605, "N"), "lb": (4.4482216152605, "N"),
 }
+_SPEC_SI = {8: "m", 11: "m/s", 12: "m/s^2", 13: "N", 9: "N"}
 _META_KEYS = ("estimator", "n_averages", "exp_window_beta", "force_window")
 
 
@@ -283,11 +285,17 @@ def _json_meta(tags: dict) -> dict:
         return {}
 
 
-def _label_factor(label: str) -> float | None:
+def _label_si(label: str) -> tuple[float, str] | None:
+    """(factor to SI, SI unit) of a units label, None when absent or unknown."""
     s = (label or "").strip()
     if not s or s.upper() == "NONE":
         return None
     return _LABEL_SI.get(s) if s in _LABEL_SI else _LABEL_SI.get(s.lower())
+
+
+def _label_factor(label: str) -> float | None:
+    conv = _label_si(label)
+    return None if conv is None else conv[0]
 
 
 def _units_factors(blocks) -> tuple[float, float]:
@@ -622,18 +630,17 @@ def read_records(path) -> list[TimeRecord]:
                 role = f.tags.get("role")
                 if role not in ("force", "response"):
                     role = "force" if f.axes[1].spec in (13, 9) else "response"
-                unit = f.axes[1].units if f.axes[1].units.upper() != "NONE" else ("N" if role == "force" else "m/s^2")
-                fac = 1.0
-                if unit not in ("N", "m/s^2", "m/s", "m"):
-                    lab = _label_factor(unit)
-                    if lab is not None:
-                        fac = lab
-                        unit = "N" if role == "force" else ("m/s^2" if f.axes[1].spec == 12 or unit.lower() in
-                                                            ("g", "mm/s^2", "mm/s2", "in/s^2", "in/s2") else unit)
-                elif f.axes[1].spec in (8, 11, 12):
-                    fac = 1.0 / lf
-                elif f.axes[1].spec == 13:
-                    fac = 1.0 / ff
+                label, spec = f.axes[1].units, f.axes[1].spec
+                conv = _label_si(label)
+                if conv is not None:                       # a recognised units label wins
+                    fac, unit = conv
+                elif label.strip().upper() in ("", "NONE"):  # SI or dataset 164 units by data type
+                    unit = _SPEC_SI.get(spec, "N" if role == "force" else "m/s^2")
+                    fac = 1.0 / ff if unit == "N" else (1.0 / lf if abs(f.rsp_dir) <= 3 else 1.0)
+                else:
+                    fac, unit = 1.0, label
+                    log.warning("%s: unit %r of the record at line %d is not one modalab converts; "
+                                "values kept as stored", path, label, f.line)
                 data[k] = f.y * fac
                 dofs.append(Dof(f.rsp_node, f.rsp_dir))
                 roles.append(role)
@@ -973,8 +980,9 @@ def info(path) -> dict:
 
     Returns ``{'path', 'datasets': {'58b': n, '2411': n, ...}, 'functions': {'FRF': n, ...},
     'responses': [...], 'references': [...], 'hits': n, 'frequency_range_hz': (lo, hi) | None,
-    'time_range_s': (lo, hi) | None, 'sample_rate_hz': float | None, 'units': {...} | None,
-    'quantity': str | None, 'nodes': n, 'modes': n}``.
+    'time_range_s': (lo, hi) | None, 'sample_rate_hz': float | None, 'units': {...} (dataset 164) | None,
+    'unit_labels': [...] (ordinate/denominator unit labels of the 58 sets), 'quantity': str | None,
+    'nodes': n, 'modes': n}``.  Reads only the headers of 58/58b sets, so it is fast on large files.
     """
     with _guard(path) as cur:
         blocks = _blocks(path, cur)
