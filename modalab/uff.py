@@ -428,9 +428,12 @@ def read_frf(path, *, quantity: str | None = None, responses=None, references=No
                                f"{f.n} lines {f.x[0]:.6g}..{f.x[-1]:.6g} Hz but the first FRF (line {first.line}) has "
                                f"{first.n} lines {first.x[0]:.6g}..{first.x[-1]:.6g} Hz. Split the file or resample "
                                "the FRFs to a common frequency axis", path=path, dataset=58, line=f.line)
+            den = f.axes[2].spec
+            if den not in (0, 1, 9, 13) and quantity is None:
+                raise UffError(f"FRF {Dof(f.rsp_node, f.rsp_dir)}/{Dof(f.ref_node, f.ref_dir)} has denominator data "
+                               f"type {den} (record 10), not force (13): it is not a response per unit force. "
+                               "Pass quantity= to read it anyway", path=path, dataset=58, line=f.line + 10)
             q = _TYPE_QTY.get(f.axes[1].spec)
-            if q is None and "q" in f.tags:
-                q = f.tags["q"]
             if quantity is None:
                 if q is None:
                     raise UffError(f"ordinate data type {f.axes[1].spec} (record 9) is not displacement (8), velocity "

@@ -226,6 +226,11 @@ class TestForeignFiles:
         assert f.quantity == "mobility"
         np.testing.assert_allclose(f.H[0, 0, 0], 1 + 2j)
 
+    def test_transmissibility_is_not_an_frf(self, tmp_path):
+        text = MESCOPE_FRF.replace("0 0 0 0 NONE NONE", "12 0 0 0 Accel m/s^2", 1)
+        with pytest.raises(UffError, match="denominator data type 12.*not force"):
+            uff.read_frf(_write(tmp_path, "t.uff", text))
+
     def test_units_164_mm_converts(self, tmp_path):
         text = TESTLAB_FRF.replace("m/s2", "NONE").replace(
             "         1SI - mks (Newton)           2\r\n  1.00000000000000000D+00",
