@@ -42,7 +42,7 @@ FRF and coherence sets (dataset 58b, or 58 with ``binary=False``), one per
     Record 6   func_type 4 (FRF) or 6 (coherence), load case 0,
                response node/direction and reference node/direction = the signed DOF labels
     Record 7   ordinate type 6 (complex double) for FRFs, 4 (real double) for coherence;
-               even abscissa in Hz
+               even abscissa in Hz (uneven lines: spacing 0, abscissa stored with the data)
     Record 8   abscissa type 18 (frequency), units "Hz"
     Record 9   ordinate type 8/11/12 (displacement/velocity/acceleration) for receptance/
                mobility/accelerance, units "m", "m/s", "m/s^2"; coherence: 0, units "NONE"
@@ -71,14 +71,21 @@ record 8 = eigenvalue, modal A, modal B), 3 or 6 values per node (X Y Z [RX
 RY RZ]); a DOF labelled ``12-Z`` is stored as the negated value at node 12 +Z.
 ID line 2 holds ``modalab f=<Hz> z=<damping ratio>``, ID line 3 the date and
 ``modalab w=<write id>m ns=<modes of this write>``, ID line 4 ``modalab scaling=<scaling>``.
+With ``exact=True`` (default) numbers are written in 25-character fields (17
+significant digits, read back bit for bit); ``exact=False`` writes the standard
+6E13.5 fields every reader (pyuff, ME'scope) accepts.  Unit modal mass scaling
+writes modal mass 1; otherwise ``indicators['modal_mass']`` when present, else 0.
+Participation factors are not stored.
+
+Geometry: dataset 2411 (4I10 / 3E25.16, exact) by default, 15 (4I10, 3E13.5) on request.
+Units: dataset 164, SI (code 1, factors 1, 1, 1, offset 273.15).
 
 Every write call tags its datasets with a random write id ``w`` (8 hex digits
 and a kind letter: f FRF, r records, m modes) and their count ``ns``; the
 readers check that each write's datasets are all present and of their kind, so
 a dataset lost to a corrupted number or delimiter is an error, not a silently
-smaller result.  With ``exact=True`` (default) numbers are written
-in 25-character fields (17 significant digits); ``exact=False`` writes the
-standard 6E13.5 fields every reader (pyuff, ME'scope) accepts.
+smaller result.  FRF metadata beyond the 139 characters of ID lines 4-5 is
+dropped with a logged warning.
 
 Reading other writers' files
 ----------------------------
