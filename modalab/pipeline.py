@@ -217,3 +217,61 @@ def demo(out_dir, *, quick: bool = False) -> dict:
         result["median |H1-exact|/|exact| where coherence>0.99"] = f"{100 * err:.2f} %"
     (out / "demo_summary.json").write_text(json.dumps(result, indent=1))
     return result
+
+
+# ------------------------------------------------------------------------- FE models and test data
+def load_model(path):
+    """An FE model from Nastran bulk data (``.bdf``, ``.dat``, ``.nas``, ``.blk``)."""
+    from updating.bulk import build_model, read_bdf
+
+    p = Path(path)
+    if not p.exists():
+        raise PlanError(f"model file {str(p)!r} does not exist; give a Nastran bulk-data file (.bdf)")
+    return build_model(read_bdf(p))
+
+
+def load_params(path, model):
+    """Updating parameters from a TOML file, or the defaults (E and density multipliers per property group).
+
+    File format::
+
+        [[parameter]]
+        name = "E_wing"
+        field = "E"                    # E, G, nu, rho, ge, b, h, do, di, A, Iy, Iz, J, nsm, k, c, mass, ...
+        properties = ["wing"]          # property names or ids (or materials = [...], elements = [...])
+        mode = "factor"                # factor (p multiplies the nominal) or value (p is the SI value)
+    """
+    from updating.diagnosis.workflow import default_parameters
+    from updating.fe import Parameter
+
+    if path is None:
+        return default_parameters(model)
+    import tomllib
+
+    p = Path(path)
+    try:
+        d = tomllib.loads(p.read_text())
+    except (OSError, tomllib.TOMLDecodeError) as e:
+        raise PlanError(f"cannot read parameter file {str(p)!r}: {e}") from None
+    items = d.get("parameter") or d.get("parameters")
+    if not items:
+        raise PlanError(f"{p}: no [[parameter]] entries; see 'modalab update --help' for the format")
+    out = []
+    for i, it in enumerate(items):
+        try:
+            out.append(Parameter(str(it["name"]), str(it["field"]), materials=tuple(it.get("materials", ())),
+                                 properties=tuple(it.get("properties", ())), elements=tuple(it.get("elements", ())),
+                                 groups=tuple(it.get("groups", ())), mode=str(it.get("mode", "factor"))))
+        except KeyError as e:
+            raise PlanError(f"{p}: parameter {i + 1} lacks {e.args[0]!r}") from None
+    return out
+
+
+def load_modes(path):
+    """Test modes from a UFF (dataset 55) or a JSON written by ``modalab identify``."""
+    from .modes import ModeSet
+
+    p = Path(path)
+    if p.suffix.lower() == ".json":
+        return ModeSet.from_json(p)
+    return ModeSet.from_uff(p)
