@@ -195,11 +195,18 @@ def _blocks(path, cur) -> list[Block]:
 def _open_out(path, append: bool):
     """Write to a temporary file then replace ``path`` (append: write in place)."""
     path = Path(path)
+    try:
+        if append:
+            fh = open(path, "ab")
+        else:
+            fd, tmp = tempfile.mkstemp(dir=str(path.parent), prefix=path.name + ".", suffix=".tmp")
+    except OSError as exc:
+        raise UffError(f"cannot write the file ({exc.strerror or exc}); check that the folder exists and is "
+                       "writable", path=path) from None
     if append:
-        with open(path, "ab") as fh:
+        with fh:
             yield fh
         return
-    fd, tmp = tempfile.mkstemp(dir=str(path.parent) if str(path.parent) else ".", prefix=path.name + ".", suffix=".tmp")
     try:
         with os.fdopen(fd, "wb") as fh:
             yield fh

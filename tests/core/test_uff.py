@@ -402,6 +402,11 @@ class TestFrfErrors:
         with pytest.raises(UffError, match="line 30.*not numeric"):
             uff.read_frf(p)
 
+    def test_unwritable_path(self, tmp_path):
+        for append in (False, True):
+            with pytest.raises(UffError, match="cannot write"):
+                uff.write_units(tmp_path / "no" / "such" / "dir.uff", append=append)
+
     def test_missing_file_and_wrong_content(self, tmp_path):
         with pytest.raises(UffError, match="cannot read"):
             uff.read_frf(tmp_path / "nope.uff")
