@@ -1,25 +1,40 @@
 """The impact-test session: arm, wait for a hit, check it, accept or reject, never lose it.
 
 For every roving point of the plan the session configures the backend, arms
-it (then fires the automatic hammer when one is configured), waits for the
-triggered record, runs the quality checks (double hit, overload, weak or
-missing trigger, response not decayed) and shows the force, its spectrum and
-the running FRF/coherence through an *observer*.  Then it decides:
+it (and only then fires the automatic hammer when one is configured), waits
+for the triggered record, runs the quality checks of :mod:`acquisition.checks`
+(double hit, overload, weak or missing trigger, response not decayed) plus a
+dead-channel check, updates the point's running average
+(:class:`acquisition.spectral.SpectralAverager`) and shows the force, its
+spectrum and the running FRF/coherence through an *observer*.  Then it decides:
 
-* ``mode='auto'``: hits failing a check are rejected; valid hits are stored as
-  candidates until ``max_hits`` (M) of them exist, and the best ``averages``
-  (N) by coherence are kept (greedy leave-one-out on the mean coherence over
-  the analysis band).
+* ``mode='auto'`` (``--auto``): hits with a *rejecting* flag (:data:`REJECT_FLAGS`:
+  double hits, overloads, weak or missing triggers, force before the pulse) are
+  rejected; valid hits are stored as candidates until ``max_hits`` (M) of them
+  exist, and the best ``averages`` (N) by mean coherence over the analysis band
+  are kept (greedy leave-one-out).
 * ``mode='interactive'``: a key per choice from the prompter — ``a`` accept,
   ``r`` reject and repeat, ``s`` skip the point, ``b`` back to the previous
-  point (its hits are superseded), ``q`` quit (resume later).
+  point (its hits are superseded and it is measured again), ``q`` quit (resume
+  later).  After a timeout: ``w`` wait again, ``s`` skip, ``q`` quit.
 
-Every accepted (or candidate) hit is written and fsync-ed by
-:class:`acquisition.store.HitStore` *before the next arm*.  ``resume=True``
-continues at the first unfinished point with all stored hits intact.
+Warnings (:data:`WARN_FLAGS`: response not decayed — the exponential window
+handles it —, a structure still moving before the trigger, a dead channel)
+never reject a hit; they are counted in the per-point summary.  After each
+point every response channel's mean coherence is checked (a noisy or dead
+sensor shows as low coherence).
+
+Nothing is lost: every accepted (or candidate) hit is written and ``fsync``-ed
+by :class:`acquisition.store.HitStore` *before the next arm*.  ``resume=True``
+continues at the first unfinished point with all stored hits intact.  When the
+device disappears (:class:`modalab.errors.DeviceLostError`) the session calls
+the backend's ``reconnect()`` (if it has one), reconfigures and retries, at most
+``max_reconnects`` times per session; after that it stops cleanly (summary
+written, ``complete=False``) so the run continues with ``--resume``.
 """
 from __future__ import annotations
 
+import json
 import logging
 import math
 from dataclasses import dataclass, field
@@ -29,7 +44,7 @@ from typing import Callable, Iterable
 import numpy as np
 
 from modalab.dof import Dof
-from modalab.errors import DaqError, DaqTimeoutError, ModalabError, PlanError
+from modalab.errors import DaqError, DaqTimeoutError, DeviceLostError, ModalabError, PlanError
 from modalab.frf import FRF, concat
 from modalab.records import TimeRecord
 
@@ -38,9 +53,20 @@ from .store import HitStore
 
 log = logging.getLogger(__name__)
 __all__ = ["AcquisitionSession", "SessionObserver", "ScriptedPrompter", "PointSummary", "SessionSummary",
-           "suggest_range", "frf_from_hits"]
+           "suggest_range", "frf_from_hits", "session_frf", "export_session", "mean_coherence", "best_subset",
+           "REJECT_FLAGS", "WARN_FLAGS", "STANDARD_RANGES"]
 
+#: flags of :func:`acquisition.checks.check_hit` that reject a hit in auto mode (and warn interactively)
+REJECT_FLAGS = ("double_hit", "double_hit_spectral", "overload", "weak_trigger", "missing_trigger",
+                "pretrigger_force")
+#: flags that are reported but never reject a hit
+WARN_FLAGS = ("not_decayed", "pretrigger_response", "dead_channel")
+#: input ranges offered by :func:`suggest_range` (engineering units: N or m/s²)
 STANDARD_RANGES = (1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10000, 20000, 50000)
+#: a response whose peak is below this multiple of its pretrigger RMS reads only noise
+DEAD_PEAK_RATIO = 20.0
+#: a response channel whose mean coherence over the band is below this is reported
+LOW_COHERENCE = 0.8
 
 
 # ---------------------------------------------------------------------------- signal processing glue
@@ -56,45 +82,76 @@ def _windows(plan: TestPlan):
     return fw, ew
 
 
-def frf_from_hits(records: list[TimeRecord], plan: TestPlan) -> FRF:
-    """H1 FRF and coherence of a point's hits with the plan's windows, limited to the analysis band."""
-    from .spectral import estimate_frf
+def _averager(plan: TestPlan):
+    from .spectral import SpectralAverager
 
     fw, ew = _windows(plan)
-    frf = estimate_frf(records, estimator="H1", force_window=fw, exp_window=ew)
+    return SpectralAverager(estimator="H1", force_window=fw, exp_window=ew)
+
+
+def _band(frf: FRF, plan: TestPlan) -> FRF:
     return frf.band(0.0, plan.bandwidth_hz)
 
 
-def _check(rec: TimeRecord, plan: TestPlan):
-    from .checks import check_hit
+def frf_from_hits(records: list[TimeRecord], plan: TestPlan) -> FRF:
+    """H1 FRF and coherence of one point's hits with the plan's windows, limited to the analysis band.
 
-    return check_hit(rec, ranges=[c.range for c in plan.channels], trigger_level=plan.acq.trigger_level)
+    The exponential window's decay rate is in ``metadata['exp_window_beta']`` (1/s): the FRF is the
+    structure's at ``s = iω + β``.
+    """
+    avg = _averager(plan)
+    for k, r in enumerate(records):
+        if r.hit_id in avg.hit_ids or r.hit_id is None:
+            r = TimeRecord(sample_rate_hz=r.sample_rate_hz, data=r.data, dofs=r.dofs, roles=r.roles, units=r.units,
+                           sensitivity=r.sensitivity, trigger_index=r.trigger_index, overload=r.overload,
+                           hit_id=-(k + 1), metadata=r.metadata)
+        avg.add(r)
+    return _band(avg.frf(), plan)
 
 
-def mean_coherence(frf: FRF) -> float:
+def mean_coherence(frf: FRF, per_response: bool = False):
+    """Mean ordinary coherence over the lines above 0 Hz (per response row with ``per_response``)."""
     if frf.coherence is None:
-        return float("nan")
+        return np.full(frf.n_out, np.nan) if per_response else float("nan")
     c = frf.coherence[..., frf.freq_hz > 0]
+    if per_response:
+        return np.array([float(np.nanmean(c[i])) if c[i].size else np.nan for i in range(c.shape[0])])
     return float(np.nanmean(c)) if c.size else float("nan")
 
 
-def best_subset(records: list[TimeRecord], n_keep: int, plan: TestPlan) -> list[int]:
-    """Indices of the ``n_keep`` hits whose average has the highest mean coherence (greedy leave-one-out)."""
-    idx = list(range(len(records)))
-    while len(idx) > max(n_keep, 1):
-        if len(idx) == 1:
-            break
+def best_subset(records: dict, n_keep: int, plan: TestPlan, fixed: Iterable[TimeRecord] = ()) -> list[int]:
+    """Hit ids of the ``n_keep`` candidates whose average (with the ``fixed`` hits) has the highest mean coherence.
+
+    Greedy leave-one-out: drop, one at a time, the candidate whose removal raises the mean coherence
+    most.  ``records`` maps hit id → record.  Uses one running average (remove/add), so each trial
+    costs no FFT.
+    """
+    ids = list(records)
+    if len(ids) <= n_keep:
+        return ids
+    avg = _averager(plan)
+    for r in fixed:
+        avg.add(r)
+    for h in ids:
+        avg.add(records[h])
+    while len(ids) > max(n_keep, 1):
         scores = []
-        for k in idx:
-            rest = [records[i] for i in idx if i != k]
-            scores.append(mean_coherence(frf_from_hits(rest, plan)) if len(rest) > 1 else 0.0)
-        idx.pop(int(np.nanargmax(scores)))
-    return idx
+        for h in ids:
+            avg.remove(h)
+            scores.append(mean_coherence(_band(avg.frf(), plan)) if avg.n_averages > 1 else 0.0)
+            avg.add(records[h])
+        drop = ids[int(np.nanargmax(scores))]
+        avg.remove(drop)
+        ids.remove(drop)
+    return ids
 
 
 def suggest_range(peak: float, current: float) -> float | None:
-    """A standard range when the peak uses the current one badly (> 90 % or < 5 %), else None."""
-    if peak <= 0 or not math.isfinite(peak):
+    """A standard range when the peak uses the current one badly (above 90 % or below 5 %), else None.
+
+    The suggestion is the smallest of :data:`STANDARD_RANGES` at least twice the peak.
+    """
+    if not (peak > 0 and math.isfinite(peak)):
         return None
     if 0.05 * current <= peak <= 0.9 * current:
         return None
@@ -104,9 +161,23 @@ def suggest_range(peak: float, current: float) -> float | None:
     return float(STANDARD_RANGES[-1])
 
 
+def _dead_channels(rec: TimeRecord) -> list[int]:
+    """Response channels whose peak is within the noise of their own pretrigger (a dead sensor or cable)."""
+    ti = rec.trigger_index
+    out = []
+    if ti < 16:
+        return out
+    for i in rec.response_channels:
+        x = rec.data[i]
+        rms = float(np.sqrt(np.mean(x[:ti] ** 2)))
+        if float(np.abs(x).max()) < DEAD_PEAK_RATIO * rms or rms == 0.0 and not np.any(x):
+            out.append(i)
+    return out
+
+
 # ---------------------------------------------------------------------------- observers / prompters
 class SessionObserver:
-    """Receives what a person would look at.  The CLI prints and plots; tests record."""
+    """Receives what a person would look at.  The CLI prints and plots; tests record.  All methods optional."""
 
     def point_started(self, index: int, point: str, n_points: int) -> None: ...
 
@@ -120,7 +191,7 @@ class SessionObserver:
 
 
 class ScriptedPrompter:
-    """Answers from a list (tests, batch runs): ``ScriptedPrompter('aarasb...')``."""
+    """Answers from a sequence (tests, batch runs): ``ScriptedPrompter('aarasb')``; ``q`` once exhausted."""
 
     def __init__(self, answers: Iterable[str]):
         self._it = iter(answers)
@@ -133,27 +204,44 @@ class ScriptedPrompter:
         except StopIteration:
             return "q"
         if a not in choices:
-            raise PlanError(f"scripted answer {a!r} is not one of {choices!r}")
+            raise PlanError(f"scripted answer {a!r} is not one of {choices!r} (prompt: {prompt!r}); fix the script")
         return a
 
 
 # ---------------------------------------------------------------------------- summaries
 @dataclass
 class PointSummary:
+    """What happened at one point: accepted hits, rejected hits with reasons, warnings, mean coherence."""
+
     point: str
     accepted: int = 0
-    rejected: list = field(default_factory=list)   # reasons per rejected hit
+    rejected: list = field(default_factory=list)     # reasons per rejected hit
     mean_coherence: float = float("nan")
+    channel_coherence: dict = field(default_factory=dict)
+    warnings: dict = field(default_factory=dict)     # warning -> count
     skipped: str = ""
+    done: bool = False
 
-    def to_dict(self) -> dict:
+    @property
+    def taken(self) -> int:
+        """Hits recorded at this point (accepted + rejected)."""
+        return self.accepted + len(self.rejected)
+
+    @property
+    def rejected_reasons(self) -> dict:
         reasons: dict[str, int] = {}
         for r in self.rejected:
             for x in (r or ["rejected"]):
                 reasons[x] = reasons.get(x, 0) + 1
-        return {"point": self.point, "accepted": self.accepted, "rejected": len(self.rejected),
-                "rejected_reasons": reasons, "mean_coherence": None if math.isnan(self.mean_coherence)
-                else round(self.mean_coherence, 4), "skipped": self.skipped}
+        return reasons
+
+    def to_dict(self) -> dict:
+        nan = math.isnan(self.mean_coherence)
+        return {"point": self.point, "taken": self.taken, "accepted": self.accepted, "rejected": len(self.rejected),
+                "rejected_reasons": self.rejected_reasons, "warnings": dict(self.warnings),
+                "mean_coherence": None if nan else round(self.mean_coherence, 4),
+                "channel_coherence": {k: round(v, 4) for k, v in self.channel_coherence.items()},
+                "skipped": self.skipped, "done": self.done}
 
 
 @dataclass
@@ -162,24 +250,34 @@ class SessionSummary:
     complete: bool
     range_suggestions: dict = field(default_factory=dict)
     discarded: list = field(default_factory=list)
+    stopped: str = ""
 
     def to_dict(self) -> dict:
-        return {"complete": self.complete, "points": [p.to_dict() for p in self.points],
+        return {"complete": self.complete, "stopped": self.stopped, "points": [p.to_dict() for p in self.points],
                 "range_suggestions": self.range_suggestions, "discarded_on_resume": self.discarded}
 
     def table(self) -> str:
-        lines = [f"{'point':>8} {'hits':>5} {'rej':>4} {'coh':>6}  why rejected / skipped"]
+        lines = [f"{'point':>8} {'taken':>5} {'acc':>4} {'rej':>4} {'coh':>6}  why rejected / warnings"]
         for p in self.points:
             d = p.to_dict()
-            why = ", ".join(f"{k} x{v}" for k, v in d["rejected_reasons"].items()) or ""
+            why = ", ".join(f"{k} x{v}" for k, v in d["rejected_reasons"].items())
+            warn = ", ".join(f"{k} x{v}" for k, v in d["warnings"].items())
+            if warn:
+                why = f"{why}; warnings: {warn}" if why else f"warnings: {warn}"
             if p.skipped:
                 why = f"SKIPPED: {p.skipped}" + (f"; {why}" if why else "")
+            elif not p.done:
+                why = "not measured yet" + (f"; {why}" if why else "")
             coh = "" if d["mean_coherence"] is None else f"{d['mean_coherence']:.3f}"
-            lines.append(f"{p.point:>8} {p.accepted:>5} {len(p.rejected):>4} {coh:>6}  {why}")
+            lines.append(f"{p.point:>8} {p.taken:>5} {p.accepted:>4} {len(p.rejected):>4} {coh:>6}  {why}")
         return "\n".join(lines)
 
 
 # ---------------------------------------------------------------------------- the session
+class _Stop(Exception):
+    """Leave the session cleanly (device gone for good)."""
+
+
 class AcquisitionSession:
     """Run a test plan on a backend into a session directory.
 
@@ -189,19 +287,28 @@ class AcquisitionSession:
     backend : a :class:`~acquisition.backend.DaqBackend`.
     out_dir : session directory (created; must be new unless ``resume``).
     mode : 'auto' or 'interactive'.
-    prompter : ``callable(prompt, choices) -> key`` for interactive mode.
-    hammer : optional :class:`~acquisition.instruments.AutoHammer` (armed DAQ first, then fired).
+    prompter : ``callable(prompt, choices) -> key`` for interactive mode (the terminal or a
+        :class:`ScriptedPrompter`).
+    hammer : optional :class:`~acquisition.instruments.AutoHammer`: the DAQ is armed first, then the hammer
+        is armed and fired with ``plan.hammer['force_n']``.
     observer : :class:`SessionObserver`.
+    resume : continue the session stored in ``out_dir``.
     max_timeouts : consecutive 'no hit' timeouts before a point is skipped in auto mode.
+    waits_per_arm : timeouts on one arm before the DAQ is re-armed (a real task stays armed; an injected
+        'trigger never comes' fault needs a new arm).
+    max_attempts_factor : auto mode gives up on a point after this many × ``max_hits`` hits.
+    max_reconnects : device-lost recoveries (``backend.reconnect()``) per session before it stops cleanly.
+    check_config : :class:`~acquisition.checks.HitCheckConfig` thresholds (default ones).
     """
 
     def __init__(self, plan: TestPlan, backend, out_dir, *, mode: str = "auto", prompter: Callable | None = None,
                  hammer=None, observer: SessionObserver | None = None, resume: bool = False,
-                 max_timeouts: int = 3, max_attempts_factor: int = 4):
+                 max_timeouts: int = 6, waits_per_arm: int = 2, max_attempts_factor: int = 4,
+                 max_reconnects: int = 2, check_config=None):
         if mode not in ("auto", "interactive"):
             raise PlanError(f"mode {mode!r}; expected 'auto' or 'interactive'")
         if mode == "interactive" and prompter is None:
-            raise PlanError("interactive mode needs a prompter (the terminal or a ScriptedPrompter)")
+            raise PlanError("interactive mode needs a prompter (the terminal or a ScriptedPrompter); or use --auto")
         self.plan = plan
         self.backend = backend
         self.out_dir = Path(out_dir)
@@ -209,24 +316,66 @@ class AcquisitionSession:
         self.prompter = prompter
         self.hammer = hammer
         self.observer = observer or SessionObserver()
-        self.max_timeouts = max_timeouts
-        self.max_attempts = max_attempts_factor * plan.max_hits
+        self.max_timeouts = int(max_timeouts)
+        self.waits_per_arm = max(1, int(waits_per_arm))
+        self.max_attempts = int(max_attempts_factor) * plan.max_hits
+        self.max_reconnects = int(max_reconnects)
+        self.check_config = check_config
+        self.reconnects = 0
         self.store = HitStore(self.out_dir, plan=plan.raw, resume=resume)
         self.peaks: dict[str, float] = {}
+        self.stopped = ""
+        self._armed = False
+        self._point_dof: Dof | None = None
 
-    # ------------------------------------------------------------------ one hit
-    def _acquire_one(self, point: str):
+    # ------------------------------------------------------------------ backend
+    def _configure(self, point: str) -> None:
+        self.backend.configure(self.plan.channel_configs(point), self.plan.acq)
+        role = "force" if self.plan.pattern == "hammer" else "response"
+        self.backend.notify_point(Dof.parse(point), role)
+        self._armed = False
+
+    def _arm_and_fire(self) -> None:
         self.backend.arm()
-        if self.hammer is not None:
+        self._armed = True
+        if self.hammer is not None:           # the DAQ is armed first, so the hit cannot come too early
             self.hammer.arm()
             self.hammer.fire(float(self.plan.hammer.get("force_n", 100.0)))
-        return self.backend.wait(self.plan.acq.timeout_s)
 
-    def _note_peaks(self, rec: TimeRecord):
+    def _acquire_one(self, point: str, timeouts: int) -> TimeRecord:
+        if not self._armed or (timeouts and timeouts % self.waits_per_arm == 0):
+            if self._armed:
+                self.backend.abort()
+            self._arm_and_fire()
+        rec = self.backend.wait(self.plan.acq.timeout_s)
+        self._armed = False
+        return rec
+
+    def _device_lost(self, point: str, err: Exception) -> None:
+        """Reconnect and reconfigure, or raise _Stop."""
+        self._armed = False
+        self.observer.message(f"point {point}: the DAQ was lost ({err})")
+        rc = getattr(self.backend, "reconnect", None)
+        while self.reconnects < self.max_reconnects and rc is not None:
+            self.reconnects += 1
+            try:
+                rc()
+                self._configure(point)
+                self.observer.message(f"reconnected to the DAQ (attempt {self.reconnects}); repeating the hit")
+                return
+            except (DaqError, ModalabError) as e:
+                self.observer.message(f"reconnect attempt {self.reconnects} failed: {e}")
+        self.stopped = (f"the DAQ was lost at point {point} ({err}); reconnect it and continue with --resume "
+                        "(every accepted hit is stored)")
+        raise _Stop(self.stopped)
+
+    # ------------------------------------------------------------------ one hit
+    def _note_peaks(self, rec: TimeRecord) -> None:
         for ch, x in zip(self.plan.channels, rec.data):
             self.peaks[ch.name] = max(self.peaks.get(ch.name, 0.0), float(np.max(np.abs(x))))
 
     def range_suggestions(self) -> dict:
+        """Per channel whose range is used badly: ``{'peak', 'range', 'suggested'}`` (engineering units)."""
         out = {}
         for ch in self.plan.channels:
             s = suggest_range(self.peaks.get(ch.name, 0.0), ch.range)
@@ -234,19 +383,30 @@ class AcquisitionSession:
                 out[ch.name] = {"peak": round(self.peaks[ch.name], 4), "range": ch.range, "suggested": s}
         return out
 
+    def _check(self, rec: TimeRecord):
+        """Quality report and (rejecting reasons, warnings)."""
+        from .checks import check_hit
+
+        report = check_hit(rec, self.check_config, ranges=[c.range for c in self.plan.channels],
+                           trigger_level=self.plan.acq.trigger_level)
+        reasons = [f for f in report.flags if f in REJECT_FLAGS]
+        warns = [f for f in report.flags if f not in REJECT_FLAGS]
+        for i in _dead_channels(rec):
+            warns.append(f"dead_channel:{self.plan.channels[i].name}")
+        return report, reasons, warns
+
     # ------------------------------------------------------------------ one point
     def _run_point(self, k: int, point: str) -> str:
         """Measure one point; returns 'done', 'skip', 'back' or 'quit'."""
         plan = self.plan
         st = self.store.points().get(k)
-        kept = [self.store.load(h) for h in (st.accepted if st else [])]
-        cands = [self.store.load(h) for h in (st.candidates if st else [])]
-        cand_ids = list(st.candidates) if st else []
-        self.backend.configure(plan.channel_configs(point), plan.acq)
-        role = "force" if plan.pattern == "hammer" else "response"
-        self.backend.notify_point(Dof.parse(point), role)
-        timeouts = 0
-        attempts = 0
+        kept = {h: self.store.load(h) for h in (st.accepted if st else [])}
+        cands = {h: self.store.load(h) for h in (st.candidates if st else [])}
+        avg = _averager(plan)
+        for r in list(kept.values()) + list(cands.values()):
+            avg.add(r)
+        self._configure(point)
+        timeouts = attempts = 0
         while True:
             if self.mode == "interactive" and len(kept) >= plan.averages:
                 return "done"
@@ -255,57 +415,75 @@ class AcquisitionSession:
             if attempts >= self.max_attempts:
                 if self.mode == "auto" and len(kept) + len(cands) >= plan.averages:
                     break
-                self.store.skip_point(k, f"only {len(kept) + len(cands)} valid hits in {attempts} attempts")
+                self.store.skip_point(k, f"only {len(kept) + len(cands)} valid hits in {attempts} hits")
                 return "skip"
             try:
-                rec = self._acquire_one(point)
+                rec = self._acquire_one(point, timeouts)
+            except DeviceLostError as e:
+                self._device_lost(point, e)
+                timeouts = 0
+                continue
             except DaqTimeoutError as e:
                 timeouts += 1
                 self.observer.message(f"point {point}: no hit within {plan.acq.timeout_s:g} s ({e})")
                 if self.mode == "auto" and timeouts >= self.max_timeouts:
+                    self.backend.abort()
+                    self._armed = False
                     self.store.skip_point(k, f"no trigger in {timeouts} waits")
                     return "skip"
                 if self.mode == "interactive":
                     a = self.prompter(f"No hit at {point}. [w]ait again, [s]kip point, [q]uit?", "wsq")
                     if a == "s":
-                        self.store.skip_point(k, "skipped by operator after no trigger")
+                        self.backend.abort()
+                        self._armed = False
+                        self.store.skip_point(k, "skipped by the operator after no trigger")
                         return "skip"
                     if a == "q":
                         return "quit"
                 continue
             attempts += 1
             timeouts = 0
-            rec.metadata.update({"point": point, "point_index": k})
+            rec.metadata = {**(rec.metadata or {}), "point": point, "point_index": k}
+            rec.hit_id = self.store.next_hit_id            # the id the store will give it
             self._note_peaks(rec)
-            report = _check(rec, plan)
-            reasons = list(report.reasons)
-            trial = kept + cands + ([rec] if report.ok else [])
-            running = frf_from_hits(trial, plan) if trial else None
+            report, reasons, warns = self._check(rec)
+            running = None
+            if not reasons:
+                avg.add(rec)
+            if avg.n_averages:
+                running = _band(avg.frf(), plan)
             self.observer.hit(k, point, rec, report, running)
+            extra = {"warnings": warns} if warns else None
             if self.mode == "auto":
-                if not report.ok:
-                    hid = self.store.add(rec, point=k, status="rejected", reasons=reasons)
+                if reasons:
+                    hid = self.store.add(rec, point=k, status="rejected", reasons=reasons, extra=extra)
                     self.observer.decided(k, point, hid, "rejected", reasons)
                     continue
-                hid = self.store.add(rec, point=k, status="candidate")
-                cands.append(rec)
-                cand_ids.append(hid)
-                self.observer.decided(k, point, hid, "candidate", [])
+                hid = self.store.add(rec, point=k, status="candidate", extra=extra)
+                cands[hid] = rec
+                self.observer.decided(k, point, hid, "candidate", warns)
                 continue
             # interactive
-            warn = f" WARNING: {', '.join(reasons)}." if reasons else ""
-            coh = mean_coherence(running) if running is not None else float("nan")
-            a = self.prompter(f"Hit {len(kept) + 1}/{plan.averages} at {point}: mean coherence {coh:.3f}.{warn} "
+            flags = reasons + warns
+            warn = f" WARNING: {', '.join(flags)}." if flags else ""
+            coh = mean_coherence(running) if running is not None and avg.n_averages > 1 else float("nan")
+            cs = "" if math.isnan(coh) else f" running mean coherence {coh:.3f}."
+            a = self.prompter(f"Hit {len(kept) + 1}/{plan.averages} at {point}:{cs}{warn} "
                               "[a]ccept, [r]eject/repeat, [s]kip point, [b]ack, [q]uit?", "arsbq")
             if a == "a":
-                hid = self.store.add(rec, point=k, status="accepted", reasons=reasons)
-                kept.append(rec)
-                self.observer.decided(k, point, hid, "accepted", reasons)
-            elif a == "r":
-                hid = self.store.add(rec, point=k, status="rejected", reasons=reasons + ["operator"])
+                if reasons:                       # the operator overrides a flag: it enters the average now
+                    avg.add(rec)
+                hid = self.store.add(rec, point=k, status="accepted", reasons=reasons, extra=extra)
+                kept[hid] = rec
+                self.observer.decided(k, point, hid, "accepted", flags)
+                continue
+            if not reasons:
+                avg.remove(rec.hit_id)
+            if a == "r":
+                hid = self.store.add(rec, point=k, status="rejected", reasons=reasons + ["operator"], extra=extra)
                 self.observer.decided(k, point, hid, "rejected", reasons + ["operator"])
             elif a == "s":
-                self.store.skip_point(k, "skipped by operator")
+                self.store.skip_point(k, "skipped by the operator")
                 return "skip"
             elif a == "b":
                 return "back"
@@ -313,39 +491,53 @@ class AcquisitionSession:
                 return "quit"
         # auto: choose the best N of the candidates (kept hits stay)
         need = plan.averages - len(kept)
-        if need > 0 and cands:
-            if len(cands) > need:
-                keep_idx = best_subset(cands, need, plan)
-            else:
-                keep_idx = list(range(len(cands)))
-            self.store.select(k, [cand_ids[i] for i in keep_idx])
-        elif cands:
-            self.store.select(k, [])
+        keep = best_subset(cands, max(need, 0), plan, fixed=kept.values()) if need > 0 else []
+        self.store.select(k, keep)
         return "done"
 
-    # ------------------------------------------------------------------ run
+    # ------------------------------------------------------------------ summaries
+    def point_summary(self, k: int, states=None) -> PointSummary:
+        """Summary of point ``k`` from the journal (accepted, rejected with reasons, warnings, coherence)."""
+        states = self.store.points() if states is None else states
+        st = states.get(k)
+        ps = PointSummary(point=self.plan.points[k])
+        if st is None:
+            return ps
+        ps.accepted = len(st.accepted)
+        ps.rejected = [r for _, r in st.rejected]
+        ps.skipped = st.skipped
+        ps.done = st.done
+        warns: dict[str, int] = {}
+        for ev in self.store.events:
+            if ev["event"] == "hit" and int(ev.get("point", -1)) == k and ev["hit"] in st.accepted:
+                for w in ev.get("warnings", []):
+                    warns[w] = warns.get(w, 0) + 1
+        if len(st.accepted) >= 2:
+            frf = frf_from_hits([self.store.load(h) for h in st.accepted], self.plan)
+            ps.mean_coherence = mean_coherence(frf)
+            per = mean_coherence(frf, per_response=True)
+            resp_names = [c.name for c in self.plan.channels if c.role == "response"]
+            ps.channel_coherence = {n: float(v) for n, v in zip(resp_names, per)}
+            for n, v in ps.channel_coherence.items():
+                if v < LOW_COHERENCE:
+                    warns[f"low_coherence:{n}"] = 1
+        ps.warnings = warns
+        return ps
+
     def summary(self) -> SessionSummary:
         states = self.store.points()
-        pts = []
-        for k, point in enumerate(self.plan.points):
-            st = states.get(k)
-            ps = PointSummary(point=point)
-            if st:
-                ps.accepted = len(st.accepted)
-                ps.rejected = [r for _, r in st.rejected]
-                ps.skipped = st.skipped
-                if len(st.accepted) >= 2:
-                    ps.mean_coherence = mean_coherence(frf_from_hits([self.store.load(h) for h in st.accepted],
-                                                                     self.plan))
-            pts.append(ps)
-        complete = all(states.get(k) is not None and states[k].done for k in range(len(self.plan.points)))
+        pts = [self.point_summary(k, states) for k in range(len(self.plan.points))]
+        complete = all(p.done for p in pts)
         return SessionSummary(points=pts, complete=complete, range_suggestions=self.range_suggestions(),
-                              discarded=list(self.store.discarded))
+                              discarded=list(self.store.discarded), stopped=self.stopped)
 
+    # ------------------------------------------------------------------ run
     def run(self) -> SessionSummary:
+        """Measure every unfinished point; returns the summary (also written to ``summary.json``)."""
         plan = self.plan
         n = len(plan.points)
         k = 0
+        suggested = False
         try:
             while k < n:
                 point = plan.points[k]
@@ -356,7 +548,8 @@ class AcquisitionSession:
                 self.observer.point_started(k, point, n)
                 result = self._run_point(k, point)
                 if result == "quit":
-                    self.observer.message("session stopped; continue later with --resume")
+                    self.stopped = "stopped by the operator; continue later with --resume"
+                    self.observer.message(self.stopped)
                     break
                 if result == "back":
                     if k > 0:
@@ -365,26 +558,27 @@ class AcquisitionSession:
                     continue
                 if result == "done":
                     self.store.point_done(k)
-                summary = self.summary().points[k]
-                self.observer.point_finished(k, point, summary)
-                if k == 0:
-                    sugg = self.range_suggestions()
-                    for name, s in sugg.items():
+                self.observer.point_finished(k, point, self.point_summary(k))
+                if not suggested and self.peaks:
+                    suggested = True
+                    for name, s in self.range_suggestions().items():
                         self.observer.message(f"range of {name}: peak {s['peak']:g} against range {s['range']:g}; "
                                               f"consider range {s['suggested']:g}")
                 k += 1
+        except _Stop as e:
+            self.observer.message(str(e))
         finally:
             try:
                 self.backend.abort()
-            except (DaqError, ModalabError) as e:  # pragma: no cover - best effort
+            except (DaqError, ModalabError) as e:
                 log.warning("abort failed: %s", e)
         summ = self.summary()
-        (self.out_dir / "summary.json").write_text(__import__("json").dumps(summ.to_dict(), indent=1))
+        (self.out_dir / "summary.json").write_text(json.dumps(summ.to_dict(), indent=1))
         return summ
 
     # ------------------------------------------------------------------ export
     def frf(self) -> FRF:
-        """FRFs of all finished points; roving hammer data reordered by reciprocity (accelerometers as references)."""
+        """FRFs of all measured points; roving-hammer data reordered by reciprocity (accelerometers as references)."""
         return session_frf(self.store, self.plan)
 
     def export(self, path=None) -> Path:
@@ -393,52 +587,68 @@ class AcquisitionSession:
 
 
 def session_frf(store: HitStore, plan: TestPlan, *, reciprocity: bool = True) -> FRF:
-    """FRF matrix of a session's accepted hits.
+    """FRF matrix of a session's accepted hits (points without accepted hits are left out).
 
-    Roving hammer: one column per hit point (responses = fixed accelerometers);
-    with ``reciprocity`` the matrix is transposed so the accelerometers become
-    the references and the hit points the responses (thesis section 5.3).
-    Roving accelerometer: one row per roving point, the hammer as reference.
+    Roving hammer: one column per hit point (responses = fixed accelerometers); with ``reciprocity``
+    the matrix is transposed so the accelerometers become the references and the hit points the
+    responses (thesis section 5.3).  Roving accelerometer: one row per roving point, the hammer as
+    reference (fixed response channels, if any, are left out).  All points share one exponential-window
+    β (same record length and pretrigger), kept in ``metadata['exp_window_beta']``.
     """
     per_point = store.accepted_records()
-    cols = []
+    parts = []
     for k, point in enumerate(plan.points):
         recs = per_point.get(k)
         if not recs:
             continue
-        cols.append(frf_from_hits(recs, plan))
-    if not cols:
+        f = frf_from_hits(recs, plan)
+        if plan.pattern == "accelerometer":
+            f = f.select(responses=[point])
+        parts.append(f)
+    if not parts:
         raise PlanError(f"the session in {str(store.dir)!r} has no accepted hits yet; acquire first")
+    meta = dict(parts[0].metadata)
     if plan.pattern == "hammer":
-        frf = concat(cols, axis="references")
+        frf = concat(parts, axis="references") if len(parts) > 1 else parts[0]
         if reciprocity:
             from .reciprocity import reorder_by_reciprocity
 
             frf = reorder_by_reciprocity(frf)
     else:
-        rov = plan.roving_channel
-        parts = []
-        for k, c in zip([k for k in range(len(plan.points)) if per_point.get(k)], cols):
-            parts.append(c.select(responses=[plan.points[k]]))
-        frf = concat(parts, axis="responses")
-        del rov
+        frf = concat(parts, axis="responses") if len(parts) > 1 else parts[0]
+    frf.metadata.setdefault("exp_window_beta", meta.get("exp_window_beta", 0.0))
+    frf.metadata["n_averages"] = min(len(v) for v in per_point.values())
     return frf
 
 
 def export_session(store: HitStore, plan: TestPlan, path) -> Path:
-    """One UFF with geometry (2411), raw records (58, func 1), FRFs (58, func 4) and coherence (func 6)."""
+    """One UFF with geometry (2411), raw records (58, func 1), H1 FRFs (58, func 4) and coherence (func 6).
+
+    Written to a temporary file and renamed, so a crash during export never leaves a half file in place.
+    """
     from modalab import uff
 
     path = Path(path)
-    if path.exists():
-        path.unlink()
+    tmp = path.with_name(path.name + ".part")
+    if tmp.exists():
+        tmp.unlink()
     first = True
     if plan.geometry:
-        uff.write_geometry(path, plan.geometry, append=False)
+        uff.write_geometry(tmp, plan.geometry, append=False)
         first = False
-    recs = [r for rs in store.accepted_records().values() for r in rs]
+    recs = []
+    for rs in store.accepted_records().values():
+        for r in rs:      # the raw record keeps only short metadata (UFF ID lines are 80 characters)
+            recs.append(TimeRecord(sample_rate_hz=r.sample_rate_hz, data=r.data, dofs=r.dofs, roles=r.roles,
+                                   units=r.units, sensitivity=r.sensitivity, trigger_index=r.trigger_index,
+                                   overload=r.overload, hit_id=r.hit_id,
+                                   metadata={"point": (r.metadata or {}).get("point")}))
     if recs:
-        uff.write_records(path, recs, append=not first)
+        uff.write_records(tmp, recs, append=not first)
         first = False
-    uff.write_frf(path, session_frf(store, plan), append=not first)
+    frf = session_frf(store, plan)
+    frf.metadata = {k: frf.metadata[k] for k in ("estimator", "n_averages", "exp_window_beta", "sample_rate_hz")
+                    if k in frf.metadata}
+    uff.write_frf(tmp, frf, append=not first)
+    tmp.replace(path)
     return path
