@@ -130,31 +130,95 @@ def file_info(path) -> dict:
 
 
 # ------------------------------------------------------------------------- acquisition
+_SIM_KEYS = {"structure", "seed", "faults", "hit_interval_s", "realtime", "force_n", "tip", "double_hit_probability",
+             "force_scatter", "placement_scatter_m", "dead", "noisy"}
+
+
 def make_sim_backend(plan, *, seed: int | None = None):
-    """A simulated DAQ for a test plan: the plan's [sim] section picks the structure, faults and pace."""
+    """A simulated DAQ (:class:`hardware_sim.lab.SimulatedLab`) for a test plan, from the plan's ``[sim]`` section.
+
+    ``[sim]`` keys: ``structure`` ('demo' or a .bdf), ``seed``, ``hit_interval_s`` (simulated time from arm to
+    the operator's hit), ``realtime`` (waits take real time), the manual hammer's ``force_n``, ``tip``,
+    ``force_scatter``, ``placement_scatter_m``, ``double_hit_probability``; faults: ``[sim.faults]`` (the
+    fields of :class:`hardware_sim.setup.FaultConfig`), ``dead = ["channel name", ...]`` (dead sensors) and
+    ``noisy = {channel name = extra V rms}``.  With a ``[hammer] url = "simhammer://NAME"`` the lab's hammer
+    is automatic and the simulated serial hammer fires it.
+    """
+    import time
+
+    from hardware_sim.hammer import Hammer
     from hardware_sim.lab import SimulatedLab
-    from hardware_sim.setup import FaultConfig
+    from hardware_sim.setup import ChannelSetup, FaultConfig
 
     sim = dict(plan.sim)
+    unknown = set(sim) - _SIM_KEYS
+    if unknown:
+        raise PlanError(f"[sim] has unknown key(s) {sorted(unknown)}; expected some of {sorted(_SIM_KEYS)}")
+    names = [c.name for c in plan.channels]
+    dead = set(sim.get("dead", []))
+    noisy = {str(k): float(v) for k, v in dict(sim.get("noisy", {})).items()}
+    for n in dead | set(noisy):
+        if n not in names:
+            raise PlanError(f"[sim] dead/noisy names channel {n!r}, which the plan does not have; use one of {names}")
     st, _ = _demo_or_structure(sim.get("structure", "demo"))
-    faults = FaultConfig(**sim["faults"]) if sim.get("faults") else None
+    try:
+        faults = FaultConfig(**sim["faults"]) if sim.get("faults") else None
+    except TypeError as e:
+        raise PlanError(f"[sim.faults]: {e}; see hardware_sim.setup.FaultConfig for the fields") from None
+    automatic = str(plan.hammer.get("url", "")).startswith("simhammer://")
+    hkw = {k: sim[k] for k in ("force_n", "tip", "force_scatter", "placement_scatter_m", "double_hit_probability")
+           if k in sim}
+    hammer = Hammer(automatic=automatic, **hkw)
     rng = np.random.default_rng(sim.get("seed", 1) if seed is None else seed)
-    kw = {}
-    if "hit_interval_s" in sim:
-        kw["hit_interval_s"] = float(sim["hit_interval_s"])
-    lab = SimulatedLab(st, None, None, faults=faults, rng=rng, **kw)
-    if plan.hammer.get("url", "").startswith("simhammer://"):
+    lab = SimulatedLab(st, None, None, hammer=hammer, faults=faults, rng=rng,
+                       hit_interval_s=float(sim.get("hit_interval_s", 0.0)),
+                       sleep=time.sleep if sim.get("realtime") else None)
+    if dead or noisy:
+        base_configure = lab.configure
+
+        def configure(channels, setup=None):
+            chans = [ChannelSetup.from_config(c, dead=getattr(c, "name", "") in dead,
+                                              extra_noise_v_rms=noisy.get(getattr(c, "name", ""), 0.0))
+                     for c in channels]
+            return base_configure(chans, setup)
+
+        lab.configure = configure
+    if automatic:
         from hardware_sim import serial_devices
 
         serial_devices.register()
-        dev = serial_devices.device(plan.hammer["url"])
-        dev.on_fire = lab.fire
+        serial_devices.device(plan.hammer["url"]).on_fire = lab.fire
     return lab
 
 
+def _nidaqmx_backend():
+    """The NI backend, after checking that the driver is there (a clear DaqNotFoundError otherwise)."""
+    from acquisition.nidaqmx_backend import NidaqmxBackend
+
+    from .errors import DaqNotFoundError
+
+    be = NidaqmxBackend()
+    try:
+        import nidaqmx.system
+
+        nidaqmx.system.System.local().driver_version
+    except Exception as e:  # noqa: BLE001 - every failure here means: no usable driver
+        be._task = None
+        raise DaqNotFoundError(
+            f"the NI-DAQmx driver is not available on this machine ({str(e).splitlines()[0] if str(e) else e}). "
+            "Install NI-DAQmx (https://www.ni.com/en/support/downloads/drivers/download.ni-daq-mx.html) "
+            "or run with --backend sim to use the simulated lab") from None
+    return be
+
+
 def acquire(plan_path, out_dir, *, backend: str = "sim", auto: bool = False, resume: bool = False,
-            prompter=None, observer=None, seed: int | None = None):
-    """Run ``modalab acquire``: returns (session, summary, exported UFF path or None)."""
+            prompter=None, observer=None, seed: int | None = None, **session_kw):
+    """Run ``modalab acquire``: returns (session, summary, exported UFF path or None).
+
+    ``backend`` is 'sim' (the plan's ``[sim]`` section, :func:`make_sim_backend`), 'nidaqmx' or a ready
+    backend object.  Interactive mode (``auto=False``) needs a ``prompter``.  The UFF is exported when
+    every point is finished.  Extra keywords go to :class:`acquisition.session.AcquisitionSession`.
+    """
     from acquisition.plan import load_plan
     from acquisition.session import AcquisitionSession
 
@@ -162,11 +226,11 @@ def acquire(plan_path, out_dir, *, backend: str = "sim", auto: bool = False, res
     if backend == "sim":
         be = make_sim_backend(plan, seed=seed)
     elif backend == "nidaqmx":
-        from acquisition.nidaqmx_backend import NidaqmxBackend
-
-        be = NidaqmxBackend()
-    else:
+        be = _nidaqmx_backend()
+    elif isinstance(backend, str):
         raise PlanError(f"backend {backend!r}; expected 'sim' or 'nidaqmx'")
+    else:
+        be = backend
     hammer = None
     if plan.hammer.get("url"):
         from acquisition.instruments import AutoHammer, LineTransport
@@ -176,18 +240,32 @@ def acquire(plan_path, out_dir, *, backend: str = "sim", auto: bool = False, res
 
             serial_devices.register()
         hammer = AutoHammer(LineTransport.from_url(plan.hammer["url"], timeout=2.0))
-    sess = AcquisitionSession(plan, be, out_dir, mode="auto" if auto else "interactive", prompter=prompter,
-                              hammer=hammer, observer=observer, resume=resume)
     try:
+        sess = AcquisitionSession(plan, be, out_dir, mode="auto" if auto else "interactive", prompter=prompter,
+                                  hammer=hammer, observer=observer, resume=resume, **session_kw)
         summary = sess.run()
+        exported = sess.export() if summary.complete else None
     finally:
         be.close()
-    exported = sess.export() if summary.complete else None
+        if hammer is not None:
+            hammer.t.close()
     return sess, summary, exported
 
 
 # ------------------------------------------------------------------------- the demo
 def demo(out_dir, *, quick: bool = False) -> dict:
+    """The README's main job: the whole chain on the embedded demo project (``modalab.run.run_demo``).
+
+    Falls back to :func:`demo_lab` (simulated hammer test, FRFs, plot) when the staged runner is unavailable.
+    """
+    try:
+        from .run import run_demo
+    except ImportError:
+        return demo_lab(out_dir, quick=quick)
+    return run_demo(out_dir, quick=quick)
+
+
+def demo_lab(out_dir, *, quick: bool = False) -> dict:
     """Simulated hammer test of the demo structure: raw hits, H1 FRFs + coherence and a plot against the exact FRF."""
     from hardware_sim.demo import DEMO_POINTS, DEMO_REFERENCES
 
