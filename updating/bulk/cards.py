@@ -1114,8 +1114,8 @@ class Param(Card):
         name = r.string(1, "N")
         n = r.n_used()
         vals = tuple(r.value(i, "V") for i in range(2, n))
-        if not vals:
-            raise r.error(f"PARAM {name} has no value", 2)
+        if not vals or vals[0] is None:
+            raise r.error(f"PARAM {name} has no value in field 3", 2)
         return cls(name, vals)._set_meta(r)
 
     @property

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 from modalab.errors import BulkDataError
 
 __all__ = ["Line", "RawCard", "parse_int", "parse_real", "parse_value", "format_value", "format_real",
-           "fits_exactly", "group_cards", "card_lines", "REQUIRED", "BulkDataError"]
+           "fits_exactly", "Verbatim", "group_cards", "card_lines", "REQUIRED", "BulkDataError"]
 
 REQUIRED = object()  # sentinel: a field without default
 
@@ -412,10 +412,18 @@ def fits_exactly(x: float, width: int) -> bool:
     return min(len(c) for c in _candidates(sign, d, e)) <= width
 
 
+class Verbatim(str):
+    """Field text written exactly as read (fields of unsupported cards)."""
+
+
 def format_value(v, width: int = 8) -> str:
     """Text of one field value (None → blank) in at most ``width`` characters."""
     if v is None:
         return ""
+    if isinstance(v, Verbatim):
+        if len(v) > width:
+            raise BulkDataError(f"field text {str(v)!r} does not fit in {width} characters")
+        return str(v)
     if isinstance(v, bool):
         raise BulkDataError(f"cannot write the boolean {v!r} to a bulk-data field; use an integer")
     if isinstance(v, int):
@@ -447,6 +455,8 @@ def card_lines(name: str, values: list, fmt: str = "small") -> list:
         w, per = 16, 8
     else:
         raise BulkDataError(f"unknown bulk-data format {fmt!r}; expected 'small', 'large' or 'free'")
+    if fmt == "large" and len(name) > 7:
+        fmt = "free"  # 'NAME*' must fit in 8 columns; free field holds 16-character values too
     texts = [format_value(v, w) for v in vals]
     chunks = [texts[i:i + per] for i in range(0, max(len(texts), 1), per)] or [[]]
     out = []

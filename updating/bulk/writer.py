@@ -36,7 +36,7 @@ from updating.fe import (Beam3D, BeamProperty, Damper, FEModel, GeneralSection, 
                          RectangularSection, Rod, RodProperty, Spring, Timoshenko3D, TubeSection)
 
 from . import cards as C
-from .fields import card_lines, fits_exactly
+from .fields import Verbatim, card_lines, fits_exactly
 from .geometry import resolve_coord
 from .reader import BulkData, CaseControl
 
@@ -71,15 +71,8 @@ def card_text(name: str, values, format: str = "small", exact: bool = True) -> l
 
 
 def _raw_values(raw):
-    from .fields import parse_value
-    out = []
-    for f in raw.fields[1:raw.n_used()]:
-        s = f.strip()
-        try:
-            out.append(parse_value(s))
-        except Exception:  # noqa: BLE001 - unsupported cards may hold anything: keep the text
-            out.append(s)
-    return out
+    """Fields of an unsupported card, written back verbatim."""
+    return [Verbatim(f.strip()) if f.strip() else None for f in raw.fields[1:raw.n_used()]]
 
 
 def write_bdf(bulk, path=None, *, format: str = "small", exact: bool = True, enddata: bool = True) -> str:
