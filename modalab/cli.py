@@ -127,7 +127,7 @@ def cmd_frf(a):
     plot = None if a.no_plot else (a.plot or str(Path(a.output).with_suffix(".png")))
     out, frf = frf_from_file(a.input, a.output, estimator=a.estimator, force_fraction=a.force_window,
                              exp_end_level=a.exp_end, exp_beta=a.exp_beta, reciprocity=not a.no_reciprocity,
-                             plot_path=plot)
+                             plot_path=plot, bandwidth_hz=a.bandwidth)
     _print(f"wrote {frf.n_out} x {frf.n_in} {frf.metadata.get('estimator', a.estimator)} FRFs "
            f"({frf.n_freq} lines, {frf.freq_hz[0]:g}-{frf.freq_hz[-1]:g} Hz) with coherence to {out}")
     if plot:
@@ -217,6 +217,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--exp-beta", type=float, help="exponential window decay rate beta in 1/s (instead of --exp-end)")
     s.add_argument("--no-reciprocity", action="store_true",
                    help="keep hit points as references (default: accelerometers become references)")
+    s.add_argument("--bandwidth", type=float, help="keep lines up to this frequency in Hz (default fs/2.56)")
     s.add_argument("--plot", help="figure path (default: OUTPUT with .png)")
     s.add_argument("--no-plot", action="store_true", help="no figure")
     s.set_defaults(func=cmd_frf)

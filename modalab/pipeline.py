@@ -17,7 +17,8 @@ from .frf import FRF
 
 log = logging.getLogger(__name__)
 
-__all__ = ["simulate_hits", "frf_from_file", "file_info", "make_sim_backend", "acquire", "demo"]
+__all__ = ["simulate_hits", "frf_from_file", "file_info", "make_sim_backend", "acquire", "demo", "demo_lab",
+           "load_model", "load_params", "load_modes"]
 
 
 # ------------------------------------------------------------------------- simulated lab
@@ -79,8 +80,11 @@ def simulate_hits(out_uff, *, structure="demo", points=None, references=None, hi
 
 def frf_from_file(in_uff, out_uff, *, estimator: str = "H1", force_fraction: float | None = 0.05,
                   exp_end_level: float | None = None, exp_beta: float | None = None, reciprocity: bool = True,
-                  plot_path=None, exact=None):
-    """Raw hits in a UFF → H1 (H2, Hv) FRFs + coherence in a UFF; roving-hammer data reordered by reciprocity."""
+                  plot_path=None, exact=None, bandwidth_hz: float | None = None):
+    """Raw hits in a UFF → H1 (H2, Hv) FRFs + coherence in a UFF; roving-hammer data reordered by reciprocity.
+
+    Lines above ``bandwidth_hz`` (default fs/2.56, the anti-alias band) are dropped.
+    """
     from acquisition.reciprocity import reorder_by_reciprocity
     from acquisition.spectral import estimate_frf_roving
     from acquisition.windows import ExponentialWindow, ForceWindow
@@ -98,6 +102,8 @@ def frf_from_file(in_uff, out_uff, *, estimator: str = "H1", force_fraction: flo
     elif exp_end_level:
         ew = ExponentialWindow(end_level=exp_end_level)
     frf = estimate_frf_roving(recs, estimator=estimator, force_window=fw, exp_window=ew)
+    bw = bandwidth_hz or recs[0].sample_rate_hz / 2.56
+    frf = frf.band(0.0, bw)
     n_ref = len(frf.references)
     if reciprocity and n_ref > len(frf.responses):
         frf = reorder_by_reciprocity(frf)

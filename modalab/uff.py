@@ -274,8 +274,8 @@ def _json_lines(meta: dict, what: str) -> tuple[str, str]:
         else:
             dropped.append(k)
     if dropped:
-        log.warning("%s metadata %s not written to the UFF ID lines (too long or not JSON); "
-                    "keep them in a side file if needed", what, dropped)
+        log.info("%s metadata %s not written to the UFF ID lines (too long or not JSON); "
+                 "keep them in a side file if needed", what, dropped)
     if not keep:
         return "NONE", "NONE"
     s = _compact_json(keep)
@@ -548,14 +548,21 @@ def write_records(path, records, *, binary: bool = True, append: bool = False) -
             m4 = f"modalab fs={fs!r} trig={rec.trigger_index}"
             meta_line = "NONE"
             if rec.metadata:
-                try:
-                    s = "modalab m=" + _compact_json(rec.metadata)
-                    if len(s) <= 80:
-                        meta_line = s
-                    else:
-                        log.warning("hit %d metadata too long for an ID line; not written", rec.hit_id)
-                except (TypeError, ValueError):
-                    log.warning("hit %d metadata is not JSON-serialisable; not written", rec.hit_id)
+                # keep the entries that fit the 80-character ID line (point, backend...); large ones such as
+                # the simulator's ground truth stay out of the file
+                kept: dict = {}
+                for key, value in rec.metadata.items():
+                    try:
+                        trial = "modalab m=" + _compact_json({**kept, key: value})
+                    except (TypeError, ValueError):
+                        continue
+                    if len(trial) <= 80:
+                        kept[key] = value
+                if kept:
+                    meta_line = "modalab m=" + _compact_json(kept)
+                if len(kept) < len(rec.metadata):
+                    log.debug("hit %d: metadata %s not written (too long for an ID line or not JSON)", rec.hit_id,
+                              sorted(set(rec.metadata) - set(kept)))
             for k in range(rec.n_channels):
                 d, role, unit = rec.dofs[k], rec.roles[k], str(rec.units[k])
                 spec = 13 if role == "force" else _UNIT_TYPE.get(unit, 0)
