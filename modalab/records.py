@@ -34,7 +34,9 @@ class TimeRecord:
     trigger_index : sample index of the trigger (the number of pretrigger samples).
     overload : bool per channel, True when the channel clipped or the device flagged overload.
     hit_id : number of the hit in its session (UFF ``load_case_id``).
-    metadata : free-form dict (e.g. ``{'range': [...], 'point': '12+Z'}``).
+    metadata : free-form dict.  Keys used by modalab: ``range`` (per channel, the ± input range in
+        engineering units, or ``(lo, hi)``), ``range_v`` (volts), ``point`` (the roving DOF),
+        ``backend``, ``sim`` (the simulator's ground truth: pulse times, double hit...).
     """
 
     def __init__(self, *, sample_rate_hz, data, dofs, roles, units=None, sensitivity=None,

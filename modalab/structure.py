@@ -49,6 +49,28 @@ def _as_sparse(A, name, n=None):
     return S
 
 
+def _shifted_eigh(K, M):
+    """Eigenpairs of (K, M) when M is only semi-definite (massless DOFs, lumped-mass rotations).
+
+    Solves ``M φ = μ (K − σM) φ`` with a negative shift σ, so that ``λ = σ + 1/μ``; massless
+    directions give μ = 0 (λ = ∞) and are dropped.  Shapes are mass-normalised.
+    """
+    scale = max(np.abs(np.diag(K)).max() / max(np.abs(np.diag(M)).max(), 1e-300), 1.0)
+    sigma = -1e-3 * scale
+    try:
+        mu, phi = sla.eigh(M, K - sigma * M)
+    except np.linalg.LinAlgError as e:
+        raise ModalabValueError(f"the model has DOFs with neither mass nor stiffness ({e}); constrain or remove "
+                                "them (for example the in-plane DOFs of a planar model)") from None
+    keep = mu > 1e-12 * max(mu.max(), 1e-300)
+    lam = sigma + 1.0 / mu[keep]
+    phi = phi[:, keep]
+    mm = np.einsum("ij,ij->j", phi, M @ phi)
+    phi = phi / np.sqrt(mm)[None, :]
+    o = np.argsort(lam)
+    return lam[o], phi[:, o]
+
+
 @dataclass
 class ModalModel:
     """Pole–residue model: ``H(s) = Σ right[:,k] left[k,:]/(s−poles[k]) + rigid rigidᵀ/s²`` (receptance).
@@ -168,9 +190,8 @@ class Structure:
             Md, Kd = self.M.toarray(), self.K.toarray()
             try:
                 w2, phi = sla.eigh(Kd, Md)
-            except np.linalg.LinAlgError as e:
-                raise ModalabValueError(f"the mass matrix is not positive definite ({e}); every DOF needs mass "
-                                        "(add rotary inertia or condense massless DOFs)") from None
+            except np.linalg.LinAlgError:
+                w2, phi = _shifted_eigh(Kd, Md)
             if n_modes is not None:
                 w2, phi = w2[:n_modes], phi[:, :n_modes]
         else:
