@@ -250,7 +250,7 @@ def acquire(plan_path, out_dir, *, backend: str = "sim", auto: bool = False, res
         sess = AcquisitionSession(plan, be, out_dir, mode="auto" if auto else "interactive", prompter=prompter,
                                   hammer=hammer, observer=observer, resume=resume, **session_kw)
         summary = sess.run()
-        exported = sess.export() if summary.complete else None
+        exported = sess.export() if summary.complete and any(p.accepted for p in summary.points) else None
     finally:
         be.close()
         if hammer is not None:
