@@ -28,6 +28,7 @@ Stabilisation and selection
 Mode shapes
 ===========
 :func:`lsfd`, :class:`LSFDResult`  poly-reference LSFD with lower/upper residuals, synthesis.
+:func:`refine_poles`  local variable-projection refinement of the selected poles.
 :func:`modes_from_poles`  LSFD + exponential-window correction + unit-modal-mass scaling + indicators.
 :func:`driving_points`  response/reference pairs on the same DOF.
 
@@ -40,6 +41,10 @@ Figures
 =======
 :func:`plot_stabilisation` (with CMIF or Σ|H|), :func:`plot_synthesis`, :func:`plot_automac`.
 
+Synthetic data
+==============
+:func:`modal_system`, :func:`noisy_frf`  known modes by modal superposition, noisy FRFs.
+
 Notes
 -----
 Small dense eigenproblems dominate the order loop; on a loaded machine a multi-threaded BLAS can be
@@ -47,11 +52,12 @@ much slower than one thread: set ``OPENBLAS_NUM_THREADS=1`` (or the equivalent) 
 """
 from .api import IdentificationReport, default_max_order, identify
 from .indicators import auto_mac, frf_correlation, mcf, mov, mpc, mpd, synthesis_error
-from .lsfd import LSFDResult, driving_points, lsfd, modes_from_poles
+from .lsfd import LSFDResult, driving_points, lsfd, modes_from_poles, refine_poles
 from .plots import plot_automac, plot_stabilisation, plot_synthesis
 from .polymax import PolyMAX, frequency_weights, poles_at_order, reduced_normal_matrix
 from .selection import (SelectedPoles, SelectionOptions, auto_select, load_selection_file, select_frequencies,
                         select_poles)
+from .synthetic import modal_system, noisy_frf
 from .stabilisation import StabilisationCriteria, StabilisationDiagram, mac_vectors, pole_freq_damping, stabilise
 
 __all__ = [
@@ -59,7 +65,7 @@ __all__ = [
     "PolyMAX", "frequency_weights", "reduced_normal_matrix", "poles_at_order",
     "StabilisationCriteria", "StabilisationDiagram", "stabilise", "mac_vectors", "pole_freq_damping",
     "SelectionOptions", "SelectedPoles", "select_poles", "auto_select", "select_frequencies", "load_selection_file",
-    "LSFDResult", "lsfd", "driving_points", "modes_from_poles",
+    "LSFDResult", "lsfd", "refine_poles", "driving_points", "modes_from_poles",
     "mpc", "mpd", "mcf", "mov", "frf_correlation", "synthesis_error", "auto_mac",
-    "plot_stabilisation", "plot_synthesis", "plot_automac",
+    "plot_stabilisation", "plot_synthesis", "plot_automac", "modal_system", "noisy_frf",
 ]

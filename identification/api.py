@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -85,7 +86,8 @@ class IdentificationReport:
 def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="auto", references=None,
              plots_dir=None, weighting=None, criteria: StabilisationCriteria | None = None,
              selection: SelectionOptions | None = None, min_order: int = 1, order_step: int = 1,
-             lower_residual: bool = True, upper_residual: bool = True, window_correction: bool = True):
+             lower_residual: bool = True, upper_residual: bool = True, window_correction: bool = True,
+             refine: bool = True):
     """Identify modes from FRFs with poly-reference pLSCF, stabilisation, pole selection and LSFD.
 
     Parameters
@@ -107,6 +109,7 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
     min_order, order_step : orders evaluated.
     lower_residual, upper_residual : residual terms of LSFD.
     window_correction : subtract ``frf.metadata['exp_window_beta']`` from the decay rates.
+    refine : refine the selected poles by local variable-projection least squares (default True).
 
     Returns
     -------
@@ -131,15 +134,16 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
     pm = PolyMAX(max_order=n_order, min_order=min_order, order_step=order_step, weighting=weighting,
                  band_hz=band_hz, criteria=criteria, select=select, selection=selection,
                  lower_residual=lower_residual, upper_residual=upper_residual,
-                 window_correction=window_correction).fit(data)
+                 window_correction=window_correction, refine=refine).fit(data)
     modes: ModeSet = pm.modes_
     synth = pm.lsfd_.synthesise(pm.frf_)
     report = IdentificationReport(
         diagram=pm.stabilisation_, selected=pm.selected_, lsfd=pm.lsfd_, synthesis=synth,
         frf_correlation=pm.lsfd_.metadata["frf_correlation"], synthesis_error=pm.lsfd_.metadata["synthesis_error"],
         settings={"band_hz": [float(pm.frf_.freq_hz[0]), float(pm.frf_.freq_hz[-1])], "max_order": int(n_order),
-                  "min_order": int(min_order), "order_step": int(order_step), "weighting": weighting or "none",
-                  "select": select if isinstance(select, str) else [float(x) for x in np.atleast_1d(select)],
+                  "min_order": int(min_order), "order_step": int(order_step), "weighting": weighting or "none", "refine": bool(refine),
+                  "select": (str(select) if isinstance(select, (str, os.PathLike))
+                             else [float(x) for x in np.atleast_1d(select)]),
                   "references": [str(r) for r in pm.frf_.references], "n_responses": pm.frf_.n_out,
                   "n_lines": pm.frf_.n_freq, "quantity": pm.frf_.quantity,
                   "exp_window_beta": float(modes.metadata.get("exp_window_beta", 0.0)),

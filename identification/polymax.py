@@ -252,6 +252,9 @@ class PolyMAX:
     selection : :class:`~identification.selection.SelectionOptions` or None (defaults).
     lower_residual, upper_residual : bool
         Residual terms in LSFD.
+    refine : bool
+        Refine each selected pole by variable-projection least squares on the lines around it
+        (:func:`~identification.lsfd.refine_poles`) before the final LSFD.
     window_correction : bool
         Subtract ``frf.metadata['exp_window_beta']`` (1/s) from the decay rates.
 
@@ -262,7 +265,9 @@ class PolyMAX:
         (before window correction).
     participation_ : list of (n_in, n_k) complex — participation vectors of those poles.
     stabilisation_ : :class:`~identification.stabilisation.StabilisationDiagram`.
-    selected_ : :class:`~identification.selection.SelectedPoles` (measured poles).
+    selected_ : :class:`~identification.selection.SelectedPoles` (measured poles, linear pLSCF estimates).
+    refined_poles_ : (n_modes,) complex — the selected poles after refinement (equal to
+        ``selected_.lam`` with ``refine=False``), before window correction.
     lsfd_ : :class:`~identification.lsfd.LSFDResult`.
     modes_ : :class:`modalab.ModeSet` — window-corrected, scaled modes with indicators.
     frf_ : the FRF actually used (band, references), ``dt_`` the z-domain sampling time.
@@ -276,7 +281,7 @@ class PolyMAX:
 
     def __init__(self, max_order: int = 64, *, min_order: int = 1, order_step: int = 1, weighting=None,
                  band_hz=None, criteria=None, select="auto", selection=None, lower_residual: bool = True,
-                 upper_residual: bool = True, window_correction: bool = True):
+                 upper_residual: bool = True, window_correction: bool = True, refine: bool = True):
         self.max_order = max_order
         self.min_order = min_order
         self.order_step = order_step
@@ -288,6 +293,7 @@ class PolyMAX:
         self.lower_residual = lower_residual
         self.upper_residual = upper_residual
         self.window_correction = window_correction
+        self.refine = refine
 
     # ------------------------------------------------------------------ helpers
     def _check_params(self, frf):
@@ -320,7 +326,7 @@ class PolyMAX:
         """Estimate poles for every order, stabilise, select, and fit shapes by LSFD."""
         from .stabilisation import StabilisationCriteria, stabilise
         from .selection import SelectionOptions, select_poles
-        from .lsfd import modes_from_poles
+        from .lsfd import modes_from_poles, refine_poles
 
         self._check_params(frf)
         data = self.prepare(frf, self.band_hz)
@@ -356,9 +362,14 @@ class PolyMAX:
         opts = self.selection if self.selection is not None else SelectionOptions()
         band = (float(data.freq_hz[0]), fmax)
         self.selected_ = select_poles(self.stabilisation_, self.select, opts, band_hz=band)
+        lam_sel = self.selected_.lam
+        if self.refine and lam_sel.size:
+            lam_sel = refine_poles(data, lam_sel, self.selected_.participation,
+                                   lower_residual=self.lower_residual, upper_residual=self.upper_residual)
+        self.refined_poles_ = lam_sel
         beta = float(data.metadata.get("exp_window_beta", 0.0) or 0.0) if self.window_correction else 0.0
         self.modes_, self.lsfd_ = modes_from_poles(
-            data, self.selected_.lam, self.selected_.participation, lower_residual=self.lower_residual,
+            data, lam_sel, self.selected_.participation, lower_residual=self.lower_residual,
             upper_residual=self.upper_residual, window_beta=beta,
             extra_indicators={"cluster_size": self.selected_.cluster_size,
                               "order": self.selected_.order})

@@ -11,8 +11,10 @@ operational modal analysis using multi-stage clustering", MSSP 76)
 3. a cluster that holds two or more poles of the same order in most of its
    orders contains several modes: it is split (Ward linkage on frequency and
    damping) into that many;
-4. keep clusters holding at least ``min_fraction`` of the largest cluster and at
-   least ``min_poles`` poles: spurious poles are rarely stable over many orders;
+4. keep clusters holding stable poles from at least ``min_fraction`` of the evaluated
+   orders and at least ``min_poles`` poles: spurious poles are rarely stable over many
+   orders; of two kept clusters closer than ``distance/2`` in frequency only the larger
+   stays (one physical mode whose estimates wander);
 5. represent each cluster by the median frequency and damping of its poles in the upper third of
    its orders (estimates converge with the order), with the participation vector of the pole
    closest to that median.
@@ -46,7 +48,7 @@ class SelectionOptions:
     distance: float = 0.01          # cut height of the hierarchical clustering
     damping_weight: float = 0.02    # w_ζ in the distance
     mac_weight: float = 0.05        # w_mac in the distance
-    min_fraction: float = 0.3       # of the largest cluster's pole count
+    min_fraction: float = 0.2       # of the number of evaluated orders
     min_poles: int = 4
     max_damping: float = 0.20       # poles with more damping are unphysical here
     edge_fraction: float = 0.005    # poles within this fraction of the band edges are dropped
@@ -60,7 +62,7 @@ class SelectionOptions:
                                                   "Keep the default unless the data call for another"))
         if not (0 <= self.min_fraction <= 1):
             raise ModalabValueError(fmt_error("SelectionOptions.min_fraction", self.min_fraction, "0..1",
-                                              "Default 0.3"))
+                                              "Default 0.2"))
 
 
 @dataclass
@@ -133,7 +135,15 @@ def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = N
         else:
             groups.append(members)
     sizes = np.array([g.size for g in groups])
-    keep = (sizes >= opts.min_poles) & (sizes >= opts.min_fraction * sizes.max())
+    keep = (sizes >= opts.min_poles) & (sizes >= opts.min_fraction * diag.orders.size)
+    # one physical mode split into several clusters: keep the largest
+    centre = np.array([np.median(f[g]) for g in groups])
+    for a in np.argsort(-sizes):
+        if not keep[a]:
+            continue
+        dup = keep & (np.abs(centre - centre[a]) < 0.5 * opts.distance * centre[a])
+        dup[a] = False
+        keep[dup] = False
     lam, parts, orders, csize = [], [], [], []
     for g, ok in zip(groups, keep):
         if not ok:
