@@ -25,6 +25,8 @@ from pathlib import Path
 from .errors import ModalabError
 
 log = logging.getLogger("modalab")
+UNITS_EPILOG = ("Units: SI throughout - frequencies in Hz, times in s, forces in N, accelerations in m/s^2, "
+                "stiffness in N/m (N*m/rad), masses in kg; DOFs as node+direction, e.g. 12+Z.")
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -238,7 +240,7 @@ def cmd_demo(a):
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="modalab", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter,
-                                epilog="Units: SI inside; frequencies in Hz, forces in N, accelerations in m/s^2.")
+                                epilog=UNITS_EPILOG)
     p.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv for debug)")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
@@ -292,6 +294,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=cmd_acquire)
 
     _add_later_stages(sub)
+    for sp in sub.choices.values():
+        sp.epilog = (sp.epilog + "\n" if sp.epilog else "") + UNITS_EPILOG
     return p
 
 
