@@ -64,7 +64,7 @@ WARN_FLAGS = ("not_decayed", "pretrigger_response", "dead_channel")
 #: input ranges offered by :func:`suggest_range` (engineering units: N or m/s²)
 STANDARD_RANGES = (1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10000, 20000, 50000)
 #: a response whose peak is below this multiple of its pretrigger RMS reads only noise
-DEAD_PEAK_RATIO = 20.0
+DEAD_PEAK_RATIO = 8.0
 #: a response channel whose mean coherence over the band is below this is reported
 LOW_COHERENCE = 0.8
 
