@@ -151,7 +151,7 @@ def refine_poles(frf: FRF, lam, participation, *, passes: int = 2, half_bandwidt
     For mode r, ``λ_r`` (2 real unknowns) minimises ``‖(I − P(λ)) H‖`` over the
     lines within ``f_r ± max(half_bandwidths·ζ_r f_r, 4 lines)``, where ``P(λ)``
     projects on the LSFD basis of the poles inside that window plus, per
-    reference, a complex constant and slope for all modes outside it (shapes and
+    reference, a complex quadratic in frequency for all modes outside it (shapes and
     these local residuals eliminated linearly, Golub & Pereyra 1973).  Modes are swept ``passes`` times.  The
     frequency may move by at most half the distance to the neighbouring modes and
     the damping stays in ``(0, 0.5)``, so a pole never jumps to a neighbour.
@@ -190,17 +190,18 @@ def refine_poles(frf: FRF, lam, participation, *, passes: int = 2, half_bandwidt
             if not (wlo < wn < whi):
                 continue
 
-            # local basis: the modes inside the window plus, per reference, a complex constant and a
-            # complex slope standing for every mode outside it (well conditioned on a short band)
+            # local basis: the modes inside the window plus, per reference, a complex quadratic in
+            # frequency standing for every mode outside it (well conditioned on a short band)
             inwin = np.flatnonzero(np.abs(np.abs(lam) / (2 * np.pi) - fr) <= hw)
             k_r = int(np.flatnonzero(inwin == r)[0])
             x_loc = (f[sel] - fr) / hw
             n_in = frf.n_in
-            extra = np.zeros((n_in, x_loc.size, 2 * n_in), complex)
+            extra = np.zeros((n_in, x_loc.size, 3 * n_in), complex)
             for i in range(n_in):
-                extra[i, :, 2 * i] = 1.0
-                extra[i, :, 2 * i + 1] = x_loc
-            extra = extra.reshape(n_in * x_loc.size, 2 * n_in)
+                extra[i, :, 3 * i] = 1.0
+                extra[i, :, 3 * i + 1] = x_loc
+                extra[i, :, 3 * i + 2] = x_loc ** 2
+            extra = extra.reshape(n_in * x_loc.size, 3 * n_in)
             extra = np.concatenate([extra, 1j * extra], axis=1)
             extra = np.concatenate([extra.real, extra.imag], axis=0)
 

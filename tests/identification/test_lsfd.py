@@ -1,0 +1,128 @@
+"""Poly-reference LSFD, residuals, scaling, window correction, refinement and indicators."""
+import numpy as np
+import pytest
+
+from identification import (driving_points, lsfd, mcf, modal_system, modes_from_poles, mov, mpc, mpd,
+                            plot_automac, plot_synthesis, refine_poles, frf_correlation, synthesis_error)
+from modalab.errors import ModalabValueError
+
+FN = np.array([35.0, 80.0, 150.0, 260.0])
+ZETA = np.array([0.02, 0.01, 0.015, 0.01])
+
+
+def _poles(fn=FN, z=ZETA):
+    w = 2 * np.pi * fn
+    return -z * w + 1j * w * np.sqrt(1 - z ** 2)
+
+
+def _case(quantity="accelerance", refs=(0, 3), f=np.linspace(5, 300, 900), n_dof=6):
+    mm, phi = modal_system(FN, ZETA, n_dof, rng=11)
+    frf = mm.frf(f, references=[mm.dofs[k] for k in refs], quantity=quantity)
+    return frf, phi
+
+
+class TestLSFD:
+    @pytest.mark.parametrize("quantity", ["receptance", "mobility", "accelerance"])
+    def test_exact_residues_and_unit_modal_mass(self, quantity):
+        frf, phi = _case(quantity)
+        lam = _poles()
+        L = phi[[0, 3]].astype(complex)
+        res = lsfd(frf, lam, L)
+        # A_r = ψ_r l_rᵀ equals φ_r φ_r(ref)ᵀ / (2iω_d) (receptance units for every quantity)
+        A_true = phi[:, None, :] * phi[[0, 3]][None, :, :] / (2j * lam.imag)[None, None, :]
+        np.testing.assert_allclose(res.residues, A_true, rtol=1e-6, atol=1e-9 * np.abs(A_true).max())
+        np.testing.assert_allclose(res.lower, 0, atol=1e-6 * np.abs(frf.H).max())
+        modes, _ = modes_from_poles(frf, lam, L)
+        assert modes.scaling == "unit_modal_mass"
+        sign = np.sign(np.real(modes.shapes[0]) * phi[0])
+        np.testing.assert_allclose(modes.shapes * sign, phi, rtol=1e-5, atol=1e-8)
+        np.testing.assert_allclose(modes.freq_hz, FN, rtol=1e-12)
+        np.testing.assert_allclose(modes.damping, ZETA, rtol=1e-10)
+        # A = φ Lᵀ with L the reported participation
+        np.testing.assert_allclose(modes.shapes[:, None, :] * modes.participation[None], A_true, rtol=1e-5,
+                                   atol=1e-9 * np.abs(A_true).max())
+
+    def test_residuals_absorb_out_of_band_modes(self):
+        frf, phi = _case("accelerance", f=np.linspace(60, 200, 600))     # 35 and 260 Hz lie outside
+        lam, L = _poles()[1:3], phi[[0, 3]][:, 1:3].astype(complex)
+        with_r = lsfd(frf, lam, L)
+        without = lsfd(frf, lam, L, lower_residual=False, upper_residual=False)
+        e_with = synthesis_error(with_r.synthesise(frf).H, frf.H).max()
+        e_without = synthesis_error(without.synthesise(frf).H, frf.H).max()
+        assert e_with < 0.1 * e_without
+        assert np.all(frf_correlation(with_r.synthesise(frf).H, frf.H) > 0.998)
+        assert np.abs(with_r.lower).max() > 0 and np.abs(with_r.upper).max() > 0
+
+    def test_dc_line_rejected(self):
+        frf, phi = _case(f=np.linspace(0, 300, 900))
+        with pytest.raises(ModalabValueError, match="above 0 Hz"):
+            lsfd(frf, _poles(), phi[[0, 3]])
+
+    def test_driving_points_with_signs(self):
+        frf, _ = _case()
+        assert driving_points(frf) == [(0, 0, 1), (3, 1, 1)]
+        flipped = frf.select(responses=["1-Z", "2+Z", "3+Z", "4+Z", "5+Z", "6+Z"])
+        assert driving_points(flipped)[0] == (0, 0, -1)
+        modes, _ = modes_from_poles(flipped, _poles(), frf.H[:1, :, :1].squeeze()[:, None] * 0 +
+                                    _case()[1][[0, 3]].astype(complex))
+        _, phi = _case()
+        np.testing.assert_allclose(np.abs(modes.shapes[0]), np.abs(phi[0]), rtol=1e-5)
+
+    def test_no_driving_point_unit_max(self):
+        frf, phi = _case(refs=(0,))
+        frf = frf.select(responses=["2+Z", "3+Z", "4+Z"])
+        modes, _ = modes_from_poles(frf, _poles(), phi[[0]].astype(complex))
+        assert modes.scaling == "unit_max"
+        np.testing.assert_allclose(np.abs(modes.shapes).max(axis=0), 1.0)
+        assert np.all(np.isnan(modes.indicators["MOV"]))
+
+    def test_window_correction(self):
+        beta = 3.0
+        mm, phi = modal_system(FN, ZETA, 6, rng=11, window_beta=beta)
+        frf = mm.frf(np.linspace(5, 300, 900), references=[mm.dofs[0]])
+        measured = _poles() - beta
+        modes, res = modes_from_poles(frf, measured, np.ones((1, 4)), window_beta=beta)
+        np.testing.assert_allclose(modes.damping, ZETA, rtol=1e-10)
+        np.testing.assert_allclose(res.lam, measured)
+        sign = np.sign(np.real(modes.shapes[0]) * phi[0])
+        np.testing.assert_allclose(modes.shapes.real * sign, phi, rtol=1e-5, atol=1e-8)
+
+    def test_refine_recovers_perturbed_poles(self):
+        frf, phi = _case()
+        true = _poles()
+        rough = -ZETA * 1.3 * 2 * np.pi * FN * 1.002 + 1j * true.imag * 1.002
+        out = refine_poles(frf, rough, phi[[0, 3]].astype(complex))
+        # exact up to the local quadratic model of the out-of-window modes
+        np.testing.assert_allclose(out, true, rtol=1e-5)
+        np.testing.assert_allclose(-out.real / np.abs(out), ZETA, rtol=1e-3)
+
+    def test_figures(self, tmp_path):
+        frf, phi = _case()
+        modes, res = modes_from_poles(frf, _poles(), phi[[0, 3]].astype(complex))
+        plot_synthesis(frf, res.synthesise(frf), path=tmp_path / "syn.png")
+        plot_automac(modes, path=tmp_path / "mac.png")
+        assert (tmp_path / "syn.png").stat().st_size > 10_000 and (tmp_path / "mac.png").stat().st_size > 5_000
+
+
+class TestIndicators:
+    def test_real_mode(self):
+        v = np.array([[1.0], [-2.0], [0.5]]) * np.exp(0.7j)          # a rotated real vector
+        assert mpc(v)[0] == pytest.approx(1.0)
+        assert mcf(v)[0] == pytest.approx(0.0, abs=1e-12)
+        assert mpd(v)[0] == pytest.approx(0.0, abs=1e-6)
+
+    def test_complex_mode_closed_form(self):
+        v = np.array([[1.0], [1j]])                                   # phases 0 and 90 deg, equal amplitude
+        assert mpc(v)[0] == pytest.approx(0.0, abs=1e-12)
+        assert mcf(v)[0] == pytest.approx(1.0)
+        assert mpd(v)[0] == pytest.approx(45.0)
+        w = np.array([[1.0], [np.exp(0.2j)]])
+        # |φᵀφ|²/(φᴴφ)² = |1 + e^{0.4i}|²/4 = cos²(0.2)
+        assert mpc(w)[0] == pytest.approx(np.cos(0.2) ** 2)
+
+    def test_mov(self):
+        lam = _poles()[:2]
+        phi = np.array([[0.3, -0.2], [0.1, 0.4]])
+        R = phi ** 2 / (2j * lam.imag)[None, :]
+        np.testing.assert_allclose(mov(lam, R), [1.0, 1.0])
+        np.testing.assert_allclose(mov(lam, -R), [0.0, 0.0])
