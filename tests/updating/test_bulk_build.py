@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from modalab.errors import BulkDataError
-from updating.bulk import build_model, read_bdf, section_properties
+from updating.bulk import build_model, read_bdf, section_properties, to_bulk, write_bdf
 from updating.fe import GeneralSection, ParametricFEModel, RectangularSection, TubeSection
 from updating.models.garteur import garteur_model, garteur_parameters
 
@@ -290,10 +290,18 @@ class TestSystems:
 class TestUnsupportedFeatures:
     def test_offsets_and_pins(self):
         cbar = "CBAR    1       1       1       2       0.      0.      1.\n"
-        offset = ONE_BAR.replace(cbar, cbar + "                        .1\n")       # W1A = 0.1
-        assert read_bdf(offset).elements[1].wa == (0.1, 0.0, 0.0)
-        with pytest.raises(BulkDataError, match=r"CBAR 1.*offset"):
-            build_model(read_bdf(offset))
+        cord = "CORD2R  5               0.      0.      0.      0.      0.      1.\n        0.      1.      0.\n"
+        # W1A = 0.1 along x of grid 1's CD system (basic y) equals the same offset given in basic (OFFT GBG)
+        in_cd = cord + ONE_BAR.replace("GRID    1\n", "GRID,1,,0.,0.,0.,5\n").replace(
+            cbar, cbar + "                        .1\n")
+        in_basic = cord + ONE_BAR.replace("GRID    1\n", "GRID,1,,0.,0.,0.,5\n").replace(
+            cbar, cbar[:-1].ljust(64) + "GBG\n                        0.      .1\n")
+        a, b = (build_model(read_bdf(d)) for d in (in_cd, in_basic))
+        assert np.allclose(a.elements[1].offset_a, (0.0, 0.1, 0.0))
+        assert abs(a.assemble().K - b.assemble().K).max() == 0
+        assert read_bdf(write_bdf(to_bulk(a, template=read_bdf(in_cd)))) == read_bdf(in_cd)
+        with pytest.raises(BulkDataError, match=r"CBAR 1.*element system"):
+            build_model(read_bdf(ONE_BAR.replace(cbar, cbar[:-1].ljust(64) + "GOO\n                        .1\n")))
         pins = ONE_BAR.replace(cbar, cbar + "        456\n")
         with pytest.raises(BulkDataError, match=r"CBAR 1.*pin flags"):
             build_model(read_bdf(pins))

@@ -14,7 +14,9 @@ PBARL / PBEAML      BAR → :class:`~updating.fe.RectangularSection` (b = DIM2 a
                     :class:`~updating.fe.TubeSection`, BOX/I → GeneralSection
                     (:func:`updating.bulk.cards.section_properties`)
 CBAR                :class:`~updating.fe.Beam3D` (:class:`~updating.fe.Timoshenko3D` when the
-                    PBAR gives K1/K2, i.e. shear flexibility); X in the CD system of GA, or G0
+                    PBAR gives K1/K2, i.e. shear flexibility); X in the CD system of GA (OFFT
+                    'G..') or basic ('B..'), or G0; rigid offsets WA/WB in the CD system of
+                    their grid ('.G.') or basic ('.B.')
 CBEAM               :class:`~updating.fe.Timoshenko3D`
 CROD / CONROD       :class:`~updating.fe.Rod` (PROD; CONROD gets a private property ``-EID``)
 CELAS1/2, PELAS     :class:`~updating.fe.Spring` with GE (group ``"PELAS <pid>"`` for CELAS1)
@@ -31,8 +33,8 @@ TABDMP1             :class:`~updating.fe.ModalDampingTable` (chosen by ``SDAMPIN
                     only table)
 ==================  =================================================================
 
-Not supported (a :class:`~modalab.errors.BulkDataError` names the card): bar
-offsets and pin flags, I12 ≠ 0, tapered PBEAM/PBEAML, PBEAM NSI/CW/M/N terms,
+Not supported (a :class:`~modalab.errors.BulkDataError` names the card): pin
+flags, offsets in the element system (OFFT 'O'), I12 ≠ 0, tapered PBEAM/PBEAML, PBEAM NSI/CW/M/N terms,
 scalar points, superelements.  Property and material names come from a
 preceding comment ``$ name: wing`` (also Femap's ``$ Femap Property 2 : wing``
 and Patran's ``$ ... region : wing``), so that parameters can select groups by name.
@@ -224,20 +226,31 @@ def _build(bulk, spc_id, sdamping, name) -> FEModel:
             if e.pa or e.pb:
                 raise e.error(f"pin flags PA = {e.pa!r}, PB = {e.pb!r} are not supported by build_model; release "
                               "the DOFs with a second grid and an RBE2/CELAS instead")
-            if any(e.wa) or any(e.wb):
-                raise e.error("offset vectors WA/WB are not supported by build_model; move the grids to the "
-                              "neutral axis and join them with RBE2")
+            offt = e.offt
+            if len(offt) != 3 or offt[0] not in "GB" or offt[1] not in "GBO" or offt[2] not in "GBO":
+                raise e.error(f"OFFT = {offt!r}; expected three letters: G or B for the orientation vector, "
+                              "then G, B or O for each end offset")
+            if ("O" in offt[1:]) and (any(e.wa) or any(e.wb)):
+                raise e.error(f"OFFT = {offt!r}: offsets in the element system (O) are not supported by "
+                              "build_model; give them in the displacement (G) or basic (B) system")
             if e.g0 is not None:
                 orient = int(e.g0)
             else:
-                orient = tuple(cd_axes[e.ga] @ np.asarray(e.x, float))
+                x = np.asarray(e.x, float)
+                orient = tuple(cd_axes[e.ga] @ x if offt[0] == "G" else x)
+            wa = wb = None
+            if any(e.wa):
+                wa = cd_axes[e.ga] @ np.asarray(e.wa) if offt[1] == "G" else np.asarray(e.wa, float)
+            if any(e.wb):
+                wb = cd_axes[e.gb] @ np.asarray(e.wb) if offt[2] == "G" else np.asarray(e.wb, float)
             prop = bulk.properties[e.pid]
             if isinstance(e, C.Cbeam):
                 cls = Timoshenko3D
             else:
                 shear = isinstance(prop, C.Pbar) and (prop.k1 or prop.k2)
                 cls = Timoshenko3D if shear else Beam3D
-            m.add_element(cls(eid, e.ga, e.gb, e.pid, orientation=orient))
+            m.add_element(cls(eid, e.ga, e.gb, e.pid, orientation=orient,
+                              offset_a=None if wa is None else tuple(wa), offset_b=None if wb is None else tuple(wb)))
         elif isinstance(e, C.Crod):
             m.add_element(Rod(eid, e.ga, e.gb, e.pid))
         elif isinstance(e, C.Conrod):

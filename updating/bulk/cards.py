@@ -17,13 +17,13 @@ I1 = DIM1·DIM2³/12), ROD and TUBE dimensions are radii.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields as dc_fields
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from modalab.errors import BulkDataError
 
-from .fields import RawCard
+from .fields import REQUIRED, RawCard
 
 __all__ = [
     "Card", "Grid", "Coord", "Cbar", "Cbeam", "Crod", "Conrod", "Pbar", "Pbarl", "Pbeam", "Pbeaml", "Prod",
@@ -39,9 +39,6 @@ def _meta():
 @dataclass
 class Card:
     """Base: source location and comment (not compared)."""
-
-    def __post_init__(self):
-        pass
 
     @property
     def name(self) -> str:
@@ -59,10 +56,6 @@ class Card:
     def _set_meta(self, raw: RawCard):
         self.line, self.path, self.comment = raw.line, raw.path, list(raw.comment)
         return self
-
-
-def _meta_fields(cls):
-    return cls
 
 
 # ----------------------------------------------------------------- geometry
@@ -293,7 +286,7 @@ class Conrod(Card):
 
 
 def _grid_comp(r, i, what, required):
-    g = r.integer(i, f"G{what}", 0 if not required else 0)
+    g = r.integer(i, f"G{what}", REQUIRED if required else 0)
     c = r.integer(i + 1, f"C{what}", 0)
     if g < 0:
         raise r.error(f"grid G{what} = {g}; expected > 0 or blank for ground", i)

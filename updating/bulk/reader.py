@@ -35,7 +35,7 @@ import numpy as np
 from modalab.errors import BulkDataError
 
 from . import cards as C
-from .fields import Line, RawCard, group_cards
+from .fields import Line, group_cards
 
 log = logging.getLogger(__name__)
 

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from modalab.errors import BulkDataError
-from updating.fe import (Beam3D, BeamProperty, Damper, FEModel, GeneralSection, LumpedMass, Material,
+from updating.fe import (Beam3D, BeamProperty, Damper, FEModel, LumpedMass, Material,
                          RectangularSection, Rod, RodProperty, Spring, Timoshenko3D, TubeSection)
 
 from . import cards as C
@@ -45,6 +45,7 @@ log = logging.getLogger(__name__)
 __all__ = ["write_bdf", "to_bulk", "card_text"]
 
 _FORMATS = ("small", "large", "free")
+_OFFT_OK = {a + b + c for a in "GB" for b in "GB" for c in "GB"}
 
 
 def _fits(values, width) -> bool:
@@ -64,9 +65,6 @@ def card_text(name: str, values, format: str = "small", exact: bool = True) -> l
     fmt = format
     if fmt == "small" and exact and not _fits(values, 8):
         fmt = "large"
-    if fmt == "free":
-        # free-field values are limited to 16 characters like large field
-        pass
     return card_lines(name, values, fmt)
 
 
@@ -157,6 +155,10 @@ class _Exporter:
         R = np.asarray(R, float)
         self.b.add(C.Coord(cid, "R", 0, (0.0, 0.0, 0.0), tuple(R[:, 2]), tuple(R[:, 0])))
         return cid
+
+    def cd_of(self, nid) -> np.ndarray:
+        node = self.m.nodes[nid]
+        return np.eye(3) if node.cd is None else node.cd
 
     def add_coord_chain(self, cid):
         while cid and cid not in self.b.coords:
@@ -259,7 +261,6 @@ class _Exporter:
         if tp is not None:
             beam_family = isinstance(tp, (C.Pbeam, C.Pbeaml))
         s = prop.section
-        fam = "PBEAML" if beam_family else "PBARL"
         if isinstance(s, RectangularSection):
             dims, typ = (float(s.h), float(s.b)), "BAR"
         elif isinstance(s, TubeSection):
@@ -282,7 +283,6 @@ class _Exporter:
             else:
                 card = C.Pbar(prop.pid, mid, A, Iz, Iy, J, nsm, (0.0,) * 8,
                               float(ky) if ky else None, float(kz) if kz else None)
-        del fam
         card.comment = list(tp.comment or []) if tp is not None else _name_comment(prop.name)
         self.b.add(card)
 
@@ -315,17 +315,27 @@ class _Exporter:
                 cls = C.Cbeam if isinstance(el, Timoshenko3D) else C.Cbar
                 if isinstance(te, C.Cbar) and isinstance(el, Timoshenko3D) and not isinstance(te, C.Cbeam):
                     cls = C.Cbar  # CBAR with PBAR shear factors was built as Timoshenko3D
+                offt = te.offt if isinstance(te, C.Cbar) and te.offt in _OFFT_OK else "GGG"
+                Ra, Rb = (self.cd_of(n) for n in (el.n1, el.n2))
                 if np.ndim(el.orientation) == 0:
                     x, g0 = None, int(el.orientation)
                 else:
-                    node = self.m.nodes[el.n1]
-                    R = np.eye(3) if node.cd is None else node.cd
-                    x, g0 = tuple(float(v) for v in R.T @ np.asarray(el.orientation, float)), None
-                card = cls(eid, el.pid, el.n1, el.n2, x, g0)
+                    v = np.asarray(el.orientation, float)
+                    x, g0 = tuple(float(c) for c in (Ra.T @ v if offt[0] == "G" else v)), None
+                wa, wb = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+                if el.offset_a is not None:
+                    w = np.asarray(el.offset_a, float)
+                    wa = tuple(float(c) for c in (Ra.T @ w if offt[1] == "G" else w))
+                if el.offset_b is not None:
+                    w = np.asarray(el.offset_b, float)
+                    wb = tuple(float(c) for c in (Rb.T @ w if offt[2] == "G" else w))
+                card = cls(eid, el.pid, el.n1, el.n2, x, g0, offt, wa=wa, wb=wb)
                 if te is not None and type(te) is cls:
                     same_orient = (te.g0 == g0) if g0 is not None else (te.x is not None and _same(te.x, x))
                     card = dataclasses.replace(te, pid=el.pid, ga=el.n1, gb=el.n2,
-                                               x=te.x if same_orient else x, g0=te.g0 if same_orient else g0)
+                                               x=te.x if same_orient else x, g0=te.g0 if same_orient else g0,
+                                               wa=te.wa if _same(te.wa, wa) else wa,
+                                               wb=te.wb if _same(te.wb, wb) else wb)
                 self.b.add(_meta_from(card, te))
             elif isinstance(el, Rod):
                 prop = self.m.prop(el.pid)
