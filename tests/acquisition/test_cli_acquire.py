@@ -1,0 +1,98 @@
+"""``modalab acquire`` from the command line: sim backend (auto and terminal-interactive), resume,
+previews instead of a live window without a display, and a clear message without the NI driver."""
+import os
+import subprocess
+import sys
+
+import pytest
+
+from _acq_session_util import ROOT, accepted_hits, journal, small_plan
+from modalab import uff
+from modalab.cli import _ConsoleObserver, main
+
+
+def _run(args, stdin=None):
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    env.pop("DISPLAY", None)
+    return subprocess.run([sys.executable, "-m", "modalab.cli", *map(str, args)], cwd=ROOT, env=env, input=stdin,
+                          capture_output=True, text=True, timeout=300)
+
+
+def _ni_driver_present() -> bool:
+    try:
+        import nidaqmx.system
+
+        nidaqmx.system.System.local().driver_version
+        return True
+    except Exception:  # noqa: BLE001
+        return False
+
+
+@pytest.mark.skipif(_ni_driver_present(), reason="this machine has the NI-DAQmx driver")
+def test_nidaqmx_backend_without_driver_is_a_clear_message(tmp_path):
+    plan = small_plan(tmp_path, points=("14+Z",))
+    r = _run(["acquire", plan, "--backend", "nidaqmx", "--auto", "-o", tmp_path / "s"])
+    assert r.returncode != 0
+    assert "Traceback" not in r.stderr and "Traceback" not in r.stdout
+    assert "NI-DAQmx" in r.stderr and "--backend sim" in r.stderr and "install" in r.stderr.lower()
+    assert len(r.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "s").exists()          # no half session left behind
+
+
+def test_cli_auto_sim_writes_previews_without_a_display(tmp_path, monkeypatch, capsys):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.setenv("MODALAB_LIVE_PLOT", "1")     # asked for, but there is no display
+    plan = small_plan(tmp_path, points=("1+Z", "19+Z"))
+    out = tmp_path / "s"
+    assert main(["acquire", str(plan), "--backend", "sim", "--auto", "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "session complete" in text and "range suggestion: hammer" in text
+    assert text.count("lower coherence than the kept hits x1") == 2
+    for k in range(2):
+        for kind in ("hit", "frf"):
+            png = out / "preview" / f"point_{k:03d}_{kind}.png"
+            assert png.exists() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    import matplotlib.pyplot as plt
+
+    assert plt.get_fignums() == []                   # no window was opened
+    assert len(uff.read_records(out / "session.uff")) == 4
+
+
+def test_live_plot_only_with_a_display_and_the_flag(tmp_path, monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    assert not _ConsoleObserver(tmp_path, live_plot=True).live
+    monkeypatch.setenv("DISPLAY", ":0")
+    assert _ConsoleObserver(tmp_path, live_plot=True).live
+    assert not _ConsoleObserver(tmp_path, live_plot=False).live
+
+
+def test_cli_interactive_at_the_terminal_then_resume(tmp_path):
+    plan = small_plan(tmp_path, points=("1+Z", "19+Z"))
+    out = tmp_path / "s"
+    # accept, an invalid key, reject, accept; then end of input = quit
+    r = _run(["acquire", plan, "--backend", "sim", "-o", out], stdin="a\nx\nr\na\n")
+    assert r.returncode == 3, r.stderr
+    assert "please answer one of: a, r, s, b, q" in r.stdout
+    assert "session incomplete; continue with" in r.stdout and "--resume" in r.stdout
+    before = accepted_hits(journal(out))
+    assert sorted(p for p, _ in before.values()) == [0, 0]
+    r = _run(["acquire", plan, "--backend", "sim", "--auto", "--resume", "-o", out])
+    assert r.returncode == 0, r.stderr
+    after = accepted_hits(journal(out))
+    assert all(after[h] == v for h, v in before.items()) and len(after) == 4
+    assert "session complete" in r.stdout
+
+
+def test_cli_errors_are_one_clear_line(tmp_path, capsys):
+    plan = small_plan(tmp_path, points=("14+Z",))
+    out = tmp_path / "s"
+    out.mkdir()
+    (out / "session.json").write_text("{}")
+    assert main(["acquire", str(plan), "--backend", "sim", "--auto", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "already holds a session" in err and "--resume" in err
+    bad = small_plan(tmp_path, points=("14+Z", "99+Z"), name="bad.toml")
+    assert main(["acquire", str(bad), "--backend", "sim", "--auto", "-o", str(tmp_path / "t")]) == 2
+    assert "99" in capsys.readouterr().err
+    assert main(["acquire", str(tmp_path / "missing.toml"), "--auto", "-o", str(tmp_path / "u")]) == 2
+    assert "cannot read test plan" in capsys.readouterr().err
