@@ -113,7 +113,7 @@ class Line:
 class RawCard:
     """A card as a list of field strings.
 
-    ``fields[0]`` is the upper-case name (without ``*``); ``fields[i]`` for
+    ``fields[0]`` is the upper-case name (without ``*``); ``fields[i]`` (stripped text) for
     i ≥ 1 is the i-th data field of the small-field layout, continuation
     lines following on (``fields[9]`` is field 2 of the first continuation).
     ``comment`` holds the ``$`` lines written just before the card.
@@ -140,7 +140,8 @@ class RawCard:
         return BulkDataError(text, path=self.path, card=label, line=self.line)
 
     def raw(self, i: int) -> str:
-        return self.fields[i].strip() if i < len(self.fields) else ""
+        """Stripped text of field ``i`` ('' beyond the end)."""
+        return self.fields[i] if i < len(self.fields) else ""
 
     def blank(self, i: int) -> bool:
         return not self.raw(i)
@@ -327,7 +328,7 @@ def group_cards(lines) -> list:
                 raise BulkDataError(f"continuation marker {h.name!r} does not match the marker {pending!r} of "
                                     f"the line before (line {pending_line}); markers must match or be a plain "
                                     "'+'/'*'", path=ln.path, line=ln.lineno, card=cur.name)
-            cur.fields.extend(h.data)
+            cur.fields.extend(d.strip() for d in h.data)
             pending, pending_line = h.cont, ln.lineno
             continue
         if cur is not None and pending:
@@ -335,7 +336,8 @@ def group_cards(lines) -> list:
                                 f"{pending!r} but the next line starts a new card {h.name}; add the continuation "
                                 "line or remove the marker", path=cur.path, line=pending_line,
                                 card=cur.name)
-        cur = RawCard(h.name, [h.name] + h.data, ln.lineno, ln.path, comment, h.large, h.free)
+        cur = RawCard(h.name, [h.name] + [d.strip() for d in h.data], ln.lineno, ln.path, comment, h.large,
+                      h.free)
         comment = []
         cards.append(cur)
         pending, pending_line = h.cont, ln.lineno
