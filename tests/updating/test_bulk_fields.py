@@ -68,7 +68,8 @@ class TestGrouping:
         large = ("GRID*                 12               3             1.5             -2.\n"
                  "*                   .25               4\n")
         free = "GRID,12,3,1.5,-2.,.25,4\n"
-        got = [group_cards(lines(t))[0].fields[1:7] for t in (small, large, free)]
+        free_large = "GRID*,12,3,1.5,-2.\n*,.25,4\n"
+        got = [group_cards(lines(t))[0].fields[1:7] for t in (small, large, free, free_large)]
         for g in got:
             assert [f.strip() for f in g] == ["12", "3", "1.5", "-2.", ".25", "4"]
 

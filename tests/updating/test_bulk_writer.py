@@ -127,6 +127,17 @@ def test_export_python_model_without_template():
     assert back.prop(2).name == "wing" and back.elements[970].group == "wing_torsion"
 
 
+def test_export_timoshenko_model_as_cbeam_pbeaml():
+    from updating.fe import Timoshenko3D
+    m = garteur_model(mesh=2, element=Timoshenko3D)
+    out = to_bulk(m)
+    assert isinstance(out.elements[200], C.Cbeam) and isinstance(out.properties[2], C.Pbeaml)
+    for fmt in FORMATS:
+        back = build_model(read_bdf(write_bdf(out, format=fmt)))
+        assert type(back.elements[200]) is Timoshenko3D
+        _same_matrices(back, m)
+
+
 def test_export_rejects_elements_without_card(frame):
     _, model = frame
     m = model.copy()
