@@ -67,19 +67,19 @@ def test_live_plot_only_with_a_display_and_the_flag(tmp_path, monkeypatch):
 
 
 def test_cli_interactive_at_the_terminal_then_resume(tmp_path):
-    plan = small_plan(tmp_path, points=("1+Z", "19+Z"))
+    plan = small_plan(tmp_path, points=("19+Z",))
     out = tmp_path / "s"
-    # accept, an invalid key, reject, accept; then end of input = quit
-    r = _run(["acquire", plan, "--backend", "sim", "-o", out], stdin="a\nx\nr\na\n")
+    # accept, an invalid key, reject; then end of input = quit
+    r = _run(["acquire", plan, "--backend", "sim", "-o", out], stdin="a\nx\nr\n")
     assert r.returncode == 3, r.stderr
     assert "please answer one of: a, r, s, b, q" in r.stdout
     assert "session incomplete; continue with" in r.stdout and "--resume" in r.stdout
     before = accepted_hits(journal(out))
-    assert sorted(p for p, _ in before.values()) == [0, 0]
+    assert len(before) == 1
     r = _run(["acquire", plan, "--backend", "sim", "--auto", "--resume", "-o", out])
     assert r.returncode == 0, r.stderr
     after = accepted_hits(journal(out))
-    assert all(after[h] == v for h, v in before.items()) and len(after) == 4
+    assert all(after[h] == v for h, v in before.items()) and len(after) == 2
     assert "session complete" in r.stdout
 
 
