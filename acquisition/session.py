@@ -323,10 +323,29 @@ class AcquisitionSession:
         self.check_config = check_config
         self.reconnects = 0
         self.store = HitStore(self.out_dir, plan=plan.raw, resume=resume)
+        if resume:
+            self._check_same_plan()
         self.peaks: dict[str, float] = {}
         self.stopped = ""
         self._armed = False
         self._point_dof: Dof | None = None
+
+    #: plan sections that must not change when a session is resumed ([sim], [hammer], [geometry] may)
+    RESUME_SECTIONS = ("acquisition", "trigger", "windows", "channels", "roving")
+
+    def _check_same_plan(self) -> None:
+        try:
+            stored = json.loads((self.out_dir / "session.json").read_text()).get("plan") or {}
+        except (OSError, ValueError):
+            return
+        if not stored:
+            return
+        for key in self.RESUME_SECTIONS:
+            now = json.loads(json.dumps(self.plan.raw.get(key), default=str))
+            if stored.get(key) != now:
+                raise PlanError(f"the plan's [{key}] differs from the one the session in {str(self.out_dir)!r} was "
+                                f"started with ({stored.get(key)!r} then, {now!r} now); resume with the original plan "
+                                "or start a new session directory")
 
     # ------------------------------------------------------------------ backend
     def _configure(self, point: str) -> None:

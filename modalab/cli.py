@@ -158,6 +158,7 @@ class _ConsoleObserver:
     def close(self):
         if self._progress:
             self._progress.stop()
+            self._progress = None
 
 
 # ----------------------------------------------------------------------------- commands
@@ -207,9 +208,14 @@ def cmd_acquire(a):
     live = bool(getattr(a, "live_plot", False)) or os.environ.get("MODALAB_LIVE_PLOT", "") not in ("", "0")
     obs = _ConsoleObserver(out, live_plot=live, quiet=a.quiet)
     prompter = None if a.auto else _TerminalPrompter()
+    resume_cmd = (f"modalab acquire {a.plan} --backend {a.backend} {'--auto ' if a.auto else ''}--resume -o {out}")
     try:
         sess, summary, exported = acquire(a.plan, out, backend=a.backend, auto=a.auto, resume=a.resume,
                                           prompter=prompter, observer=obs, seed=a.seed)
+    except KeyboardInterrupt:
+        obs.close()
+        _print(f"interrupted; every accepted hit is stored. Continue with: {resume_cmd}")
+        return 130
     finally:
         obs.close()
     _print(summary.table())
@@ -222,8 +228,7 @@ def cmd_acquire(a):
     if exported:
         _print(f"session complete: {exported}")
     else:
-        _print(f"session incomplete; continue with: modalab acquire {a.plan} --backend {a.backend} "
-               f"{'--auto ' if a.auto else ''}--resume -o {out}")
+        _print(f"session incomplete; continue with: {resume_cmd}")
     return 0 if summary.complete else 3
 
 

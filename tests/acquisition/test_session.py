@@ -226,6 +226,20 @@ def test_interactive_prompt_shows_the_flags_of_a_double_hit(tmp_path):
     assert reasons["operator"] == 1 and reasons["double_hit"] == 1
 
 
+def test_resume_with_a_changed_plan_is_refused(tmp_path):
+    from modalab.errors import PlanError
+
+    plan_path = small_plan(tmp_path, points=("1+Z", "19+Z"))
+    out = tmp_path / "s"
+    acquire(plan_path, out, prompter=ScriptedPrompter("aq"))
+    other = small_plan(tmp_path, points=("1+Z", "14+Z"), name="other.toml")
+    with pytest.raises(PlanError, match=r"\[roving\] differs"):
+        acquire(other, out, resume=True, prompter=ScriptedPrompter("q"))
+    faulty = small_plan(tmp_path, points=("1+Z", "19+Z"), name="faulty.toml", sim={"faults": {"double_hit_on": [9]}})
+    _, summary, _ = acquire(faulty, out, resume=True, prompter=ScriptedPrompter("q"))   # [sim] may change
+    assert summary.points[0].accepted == 1
+
+
 def test_suggest_range_golden_values():
     assert suggest_range(80.0, 2000.0) == 200.0          # 4 % of the range: too coarse
     assert suggest_range(950.0, 1000.0) == 2000.0        # 95 %: about to overload
