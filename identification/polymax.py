@@ -33,8 +33,9 @@ constraint ``α_n = I`` (PolyMAX) gives ``α_0..α_{n-1}`` from a linear solve,
 the poles are the eigenvalues of the block companion matrix and each modal
 participation vector ``l`` spans the left null space of ``A(z_pole)``.
 
-Memory holds the lag sums, one chunk of ``S_o`` blocks and ``M``: it does not
-grow with the order beyond the reduced matrix.
+Memory holds the lag sums (accumulated over chunks of lines), one chunk of
+``S_o`` blocks (bounded to a few tens of MB) and ``M``: it does not grow with the
+order beyond the reduced matrix.
 """
 from __future__ import annotations
 
@@ -128,27 +129,39 @@ def reduced_normal_matrix(H: np.ndarray, w: np.ndarray, theta: np.ndarray, max_o
     c = (p + 1) * n_in
     a = (w ** 2).astype(float)                                    # |w|², (n_out, nf)
     lags = np.arange(-p, p + 1)
-    Z = _lag_matrix(theta, lags)                                   # (nf, 2p+1)
     D = np.arange(p + 1)[None, :] - np.arange(p + 1)[:, None]     # s - r
-    # --- T summed over outputs: tau_ij(d) = Σ_o Σ_k a conj(H_oi) H_oj z^d, d = 0..p
-    aH = a[:, None, :] * H                                          # (n_out, n_in, nf)
-    G = np.einsum("oik,ojk->ijk", H.conj(), aH, optimize=True)     # (n_in, n_in, nf)
-    tau_pos = G.reshape(n_in * n_in, nf) @ Z[:, p:]                 # d = 0..p
+    # --- lag sums, accumulated over chunks of lines so that memory does not scale with nf x order:
+    #     rho_o(d) = Σ_k a z^d,  sigma_oj(d) = Σ_k a H_oj z^d,  tau_ij(d) = Σ_o Σ_k a conj(H_oi) H_oj z^d
+    rho = np.zeros((n_out, 2 * p + 1), complex)
+    sig_all = np.zeros((n_out * n_in, 2 * p + 1), complex)
+    tau_pos = np.zeros((n_in * n_in, p + 1), complex)
+    f_chunk = max(16, int(4e6 // max(2 * p + 1, 1)))
+    for k0 in range(0, nf, f_chunk):
+        ks = slice(k0, min(k0 + f_chunk, nf))
+        Z = _lag_matrix(theta[ks], lags)                           # (chunk, 2p+1)
+        aH = a[:, None, ks] * H[:, :, ks]
+        rho += a[:, ks] @ Z
+        sig_all += aH.reshape(n_out * n_in, -1) @ Z
+        G = np.einsum("oik,ojk->ijk", H[:, :, ks].conj(), aH, optimize=True)
+        tau_pos += G.reshape(n_in * n_in, -1) @ Z[:, p:]
     tau_pos = tau_pos.reshape(n_in, n_in, p + 1)
     tau = np.empty((n_in, n_in, 2 * p + 1), complex)
     tau[:, :, p:] = tau_pos
     tau[:, :, :p] = np.conj(tau_pos.transpose(1, 0, 2)[:, :, :0:-1])   # tau_ij(-d) = conj(tau_ji(d))
     T4 = tau.real[:, :, D + p]                                      # (i, j, r, s)
     M = T4.transpose(2, 0, 3, 1).reshape(c, c).copy()
-    # --- R and S per output, eliminated in chunks of outputs
-    rho = (a @ Z).real                                              # (n_out, 2p+1), Re rho
+    del T4, tau, tau_pos
+    # --- R and S per output, eliminated in chunks of outputs (a few tens of MB at most)
+    rho = rho.real
+    sig_all = sig_all.reshape(n_out, n_in, 2 * p + 1)
+    chunk = max(1, min(int(chunk), int(16e6 // (8 * (p + 1) * c))))
     same_R = np.allclose(a, a[:1] * (a.sum(1, keepdims=True) / max(a[0].sum(), 1e-300)), rtol=1e-10, atol=0)
     if same_R:
         Rinv0 = np.linalg.pinv(rho[0][D + p], rcond=rcond, hermitian=True)
     for o0 in range(0, n_out, chunk):
         sl = slice(o0, min(o0 + chunk, n_out))
         no = sl.stop - sl.start
-        sig = (aH[sl].reshape(no * n_in, nf) @ Z).reshape(no, n_in, 2 * p + 1)
+        sig = sig_all[sl]
         # S_o[r, (s, j)] = -Re sigma_oj(s - r)
         S = -sig.real[:, :, D + p]                                  # (no, j, r, s)
         S = S.transpose(0, 2, 3, 1).reshape(no, p + 1, c)
@@ -327,6 +340,7 @@ class PolyMAX:
         from .stabilisation import StabilisationCriteria, stabilise
         from .selection import SelectionOptions, select_poles
         from .lsfd import modes_from_poles, refine_poles
+        from .stabilisation import pole_freq_damping
 
         self._check_params(frf)
         data = self.prepare(frf, self.band_hz)
@@ -366,6 +380,17 @@ class PolyMAX:
         if self.refine and lam_sel.size:
             lam_sel = refine_poles(data, lam_sel, self.selected_.participation,
                                    lower_residual=self.lower_residual, upper_residual=self.upper_residual)
+        if self.refine and lam_sel.size and self.selected_.source == "auto":
+            # refinement can expose a spurious pole: it runs off to unphysical damping
+            _, z_ref = pole_freq_damping(lam_sel)
+            ok = (z_ref > 0) & (z_ref <= opts.max_damping)
+            if not ok.all():
+                log.info("refinement rejected %d pole(s) with damping outside (0, %g]", int((~ok).sum()),
+                         opts.max_damping)
+                sp = self.selected_
+                self.selected_ = type(sp)(sp.lam[ok], sp.participation[:, ok], sp.order[ok], sp.cluster_size[ok],
+                                          sp.source)
+                lam_sel = lam_sel[ok]
         self.refined_poles_ = lam_sel
         beta = float(data.metadata.get("exp_window_beta", 0.0) or 0.0) if self.window_correction else 0.0
         self.modes_, self.lsfd_ = modes_from_poles(

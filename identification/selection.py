@@ -114,15 +114,30 @@ def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = N
     if idx.size < max(opts.min_poles, 2):
         log.warning("automatic selection: only %d stable physical poles; no mode selected", idx.size)
         return _empty(n_in, "auto")
+    o = np.argsort(diag.freq_hz[idx])
+    idx = idx[o]
     f, z, L, od = diag.freq_hz[idx], diag.damping[idx], diag.participation[:, idx], diag.order[idx]
-    df = np.abs(f[:, None] - f[None, :]) / np.maximum(f[:, None], f[None, :])
-    dz = np.abs(z[:, None] - z[None, :]) / np.maximum(z[:, None], z[None, :])
-    dm = 1.0 - mac_vectors(L, L)
-    d = df + opts.damping_weight * dz + opts.mac_weight * dm
-    d = 0.5 * (d + d.T)
-    np.fill_diagonal(d, 0.0)
-    Z = linkage(squareform(np.clip(d, 0, None), checks=False), method="average")
-    lab = fcluster(Z, t=opts.distance, criterion="distance")
+    # d_ij >= |Δf|/f, so poles separated by a frequency gap wider than the cut never share a cluster:
+    # cluster each gap-separated block on its own (memory and time stay per mode, not per diagram)
+    gaps = np.flatnonzero(np.diff(f) / f[1:] > opts.distance) + 1
+    lab = np.zeros(idx.size, int)
+    next_label = 1
+    for blk in np.split(np.arange(idx.size), gaps):
+        if blk.size == 1:
+            lab[blk] = next_label
+            next_label += 1
+            continue
+        fb, zb, Lb = f[blk], z[blk], L[:, blk]
+        df = np.abs(fb[:, None] - fb[None, :]) / np.maximum(fb[:, None], fb[None, :])
+        dz = np.abs(zb[:, None] - zb[None, :]) / np.maximum(zb[:, None], zb[None, :])
+        dm = 1.0 - mac_vectors(Lb, Lb)
+        d = df + opts.damping_weight * dz + opts.mac_weight * dm
+        d = 0.5 * (d + d.T)
+        np.fill_diagonal(d, 0.0)
+        sub = fcluster(linkage(squareform(np.clip(d, 0, None), checks=False), method="average"),
+                       t=opts.distance, criterion="distance")
+        lab[blk] = sub + next_label
+        next_label += sub.max() + 1
     groups = []
     for c in np.unique(lab):
         members = np.flatnonzero(lab == c)
