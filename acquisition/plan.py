@@ -50,9 +50,14 @@ Example (every key documented; the README carries the same example)::
     url = "simhammer://bench"
     force_n = 100.0
 
-    [sim]                       # only for --backend sim
+    [sim]                       # only for --backend sim (all keys: modalab.pipeline.make_sim_backend)
     structure = "demo"          # built-in demo structure
     seed = 1
+    hit_interval_s = 0.0        # simulated time from arm to the operator's hit
+    # faults = { double_hit_on = [2], device_lost_on = [7] }; dead = ["acc1"]; noisy = { acc1 = 0.05 }
+
+Ready-made plans for the demo structure: ``examples/plans/demo_roving_hammer.toml``,
+``demo_roving_accelerometer.toml`` and ``demo_auto_hammer.toml`` (automatic hammer ``simhammer://bench``).
 """
 from __future__ import annotations
 

@@ -424,7 +424,10 @@ class AcquisitionSession:
         avg = _averager(plan)
         for r in list(kept.values()) + list(cands.values()):
             avg.add(r)
-        self._configure(point)
+        try:
+            self._configure(point)
+        except DeviceLostError as e:
+            self._device_lost(point, e)
         timeouts = attempts = 0
         while True:
             if self.mode == "interactive" and len(kept) >= plan.averages:
