@@ -135,7 +135,8 @@ def _residual_and_jac(pmodel, p, data: FRFData, free, want_jac=True):
     res = np.concatenate([e.real.ravel(), e.imag.ravel()])
     if not want_jac:
         return res, None
-    ders = pmodel.derivatives(p)
+    from .screen import derivatives
+    ders = derivatives(pmodel, p)
     n, nr, ns = Xj.shape
     J = []
     s = data.s

@@ -229,8 +229,62 @@ def residual_system(structure, data, weights=None) -> ResidualSystem:
     return ResidualSystem(_stack(r, weights), x_full, T, weights, data.s, r.shape)
 
 
-def mci_update(pmodel, p, data, lower, upper, *, iters: int = 8, weights=None, tol: float = 1e-4,
-               reg: float = 1e-6):
+_DERIV_CACHE: "weakref.WeakKeyDictionary" = None
+_LINEAR_FIELDS = ("E", "rho", "k", "c", "mass", "inertia", "nsm")
+
+
+def derivatives(pmodel, p):
+    """``pmodel.derivatives(p)``, cached per model for parameters that enter the matrices linearly.
+
+    For fields that scale an element or material matrix (E, ρ, k, c, mass, inertia, nsm) the derivative
+    does not depend on p itself, only on the values of the model-wide damping fields (PARAM G, Rayleigh)
+    that multiply K or M and of non-linear parameters (section dimensions, ν, GE); the cache is keyed by
+    those.  Saves the complex-step re-assembly (one model per parameter) in iterated MCI updates.
+    """
+    global _DERIV_CACHE
+    import weakref
+    if _DERIV_CACHE is None:
+        _DERIV_CACHE = weakref.WeakKeyDictionary()
+    pars = getattr(pmodel, "parameters", None)
+    if pars is None:
+        return pmodel.derivatives(p)
+    p = np.asarray(p, float)
+    lin = np.array([par.field in _LINEAR_FIELDS for par in pars])
+    key = tuple(np.round(p[~lin], 12))
+    try:
+        store = _DERIV_CACHE.setdefault(pmodel, {})
+    except TypeError:  # pragma: no cover - not weak-referenceable
+        return pmodel.derivatives(p)
+    if key not in store:
+        if len(store) > 8:
+            store.clear()
+        store[key] = pmodel.derivatives(p)
+        return list(store[key])
+    out = list(store[key])
+    nonlin = np.flatnonzero(~lin)
+    if nonlin.size:
+        # the derivatives of the non-linear fields (e.g. PARAM G: ∂D/∂g = K(p)) depend on every parameter
+        from ..fe import ParametricFEModel
+        sub = ParametricFEModel(pmodel.model_at(p), [pars[i] for i in nonlin])
+        for i, d in zip(nonlin, sub.derivatives(sub.p0)):
+            if pars[i].mode == "factor":
+                f = 1.0 / p[i] if p[i] != 0 else 0.0
+                d = type(d)(*(None if A is None else A * f for A in (d.dK, d.dM, d.dC, d.dD)))
+            out[i] = d
+    return out
+
+
+def _solve_ls(B, y, reg):
+    """Least squares with normalised columns and a Tikhonov term by the normal equations (small n_col)."""
+    nrm = np.maximum(np.linalg.norm(B, axis=0), 1e-300)
+    Bn = B / nrm
+    N = Bn.T @ Bn + reg * np.eye(B.shape[1])
+    dz = np.linalg.solve(N, Bn.T @ y)
+    return dz / nrm
+
+
+def mci_update(pmodel, p, data, lower, upper, *, iters: int = 6, weights=None, tol: float = 1e-3,
+               reg: float = 1e-6, free=None):
     """Parameter estimation by minimising the MCI (thesis section 3.2.4): iterate expansion and solution.
 
     Each iteration expands the measured responses with the current model, solves the weighted linear
@@ -241,19 +295,17 @@ def mci_update(pmodel, p, data, lower, upper, *, iters: int = 8, weights=None, t
     """
     p = np.asarray(p, float).copy()
     lo, hi = np.asarray(lower, float), np.asarray(upper, float)
+    free = np.ones(p.size, bool) if free is None else np.asarray(free, bool)
     rss = np.inf
     for _ in range(iters):
         rsys = residual_system(pmodel.structure(p), data, weights)
         if weights is None:
             weights = rsys.w
-        B = rsys.derivative_columns(pmodel.derivatives(p))
+        ders = derivatives(pmodel, p)
+        B = rsys.derivative_columns([d for d, f in zip(ders, free) if f])
         rss = float(rsys.y @ rsys.y)
-        nrm = np.maximum(np.linalg.norm(B, axis=0), 1e-300)
-        Bn = B / nrm
-        A = np.vstack([Bn, np.sqrt(reg) * np.eye(B.shape[1])])
-        b = np.concatenate([rsys.y, np.zeros(B.shape[1])])
-        dz, *_ = np.linalg.lstsq(A, b, rcond=None)
-        dp = dz / nrm
+        dp = np.zeros(p.size)
+        dp[free] = _solve_ls(B, rsys.y, reg)
         p_new = np.clip(p + dp, lo, hi)
         step = np.max(np.abs(p_new - p) / np.maximum(np.abs(p), 1e-12))
         p = p_new
@@ -266,7 +318,7 @@ def mci_update(pmodel, p, data, lower, upper, *, iters: int = 8, weights=None, t
 def rank_candidates(pmodel, p, candidates, data, weights=None):
     """Single-candidate share of the residual each shared candidate explains at ``p`` (parameters free)."""
     rsys = residual_system(pmodel.structure(p), data, weights)
-    B = rsys.derivative_columns(pmodel.derivatives(p))
+    B = rsys.derivative_columns(derivatives(pmodel, p))
     if B.shape[1]:
         Q, _ = np.linalg.qr(B / np.maximum(np.linalg.norm(B, axis=0), 1e-300))
     else:

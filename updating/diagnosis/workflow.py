@@ -161,7 +161,7 @@ def _evidence(c: Candidate, gain: float, rank_same_place: list, band) -> str:
 def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int = 160, holdout: str | None = None,
              kinds=None, max_findings: int = 3, min_gain: float = 0.05, min_holdout_gain: float = 0.10,
              penalty: float = 10.0,
-             band_hz=None, progress=None, max_nfev: int = 30) -> Diagnosis:
+             band_hz=None, progress=None, max_nfev: int = 30, n_try: int = 5) -> Diagnosis:
     """Locate what an FE model leaves out, name it, model it and prove it on held-out data (module docstring)."""
     t0 = time.perf_counter()
     timings = {}
@@ -196,7 +196,10 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
     # is kept only if it removes at least ``min_gain`` of the residual.
     say("step 3/6: localising the residual (MCI) and 4/6: ranking candidate physics")
     t1 = time.perf_counter()
-    p_mci, rss_cur, W = mci_update(pm, p_nom, train, lo, hi)
+    # the MCI starts from the nominal model with the default damping: the damping fitted to the FRFs of a
+    # poor nominal model is often inflated to hide the mismatch
+    free_mci = np.ones(len(params), bool)
+    p_mci, rss_cur, W = mci_update(pm, p_nom, train, lo, hi, free=free_mci)
     current: list = []                      # [Candidate]
     pm_cur, p_cur = pm, p_mci
     lo_cur, hi_cur = lo, hi
@@ -218,9 +221,9 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
         if ranking is None:
             ranking, hot_nodes = rk, hot
         have = {c.key for c in current}
-        options = [(c, th) for c, th, g in rk[:8] if c.key not in have and g > 0.02]
+        options = [(c, th) for c, th, g in rk[:n_try] if c.key not in have and g > 0.02]
         near = set(hot) | {n for c, _, _ in rk[:1] for n in c.nodes}
-        options += [(c, None) for c in lib if not c.shared and near & set(c.nodes) and c.key not in have][:6]
+        options += [(c, None) for c in lib if not c.shared and near & set(c.nodes) and c.key not in have][:n_try]
         best = None
         for c, th in options:
             m_aug, cpar, scales = _augment(model, current + [c])
@@ -239,7 +242,8 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
                 p_aug, rss_aug = None, np.inf
                 for p_par in ((p_cur[:len(params)], p_nom[:len(params)]) if it == 0 else (p_cur[:len(params)],)):
                     start = np.concatenate([p_par, prev, [th / scales[-1]]])
-                    pa, ra, _ = mci_update(pm_aug, start, train, clo, chi, weights=W)
+                    pa, ra, _ = mci_update(pm_aug, start, train, clo, chi, weights=W,
+                                           free=np.concatenate([free_mci, np.ones(len(cpar), bool)]))
                     if ra < rss_aug:
                         p_aug, rss_aug = pa, ra
             except (np.linalg.LinAlgError, ModalabValueError) as e:
