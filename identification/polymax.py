@@ -135,7 +135,7 @@ def reduced_normal_matrix(H: np.ndarray, w: np.ndarray, theta: np.ndarray, max_o
     rho = np.zeros((n_out, 2 * p + 1), complex)
     sig_all = np.zeros((n_out * n_in, 2 * p + 1), complex)
     tau_pos = np.zeros((n_in * n_in, p + 1), complex)
-    f_chunk = max(16, int(4e6 // max(2 * p + 1, 1)))
+    f_chunk = max(16, int(2 ** 17 // max(2 * p + 1, 1)))          # lag matrix of at most ~2 MB
     for k0 in range(0, nf, f_chunk):
         ks = slice(k0, min(k0 + f_chunk, nf))
         Z = _lag_matrix(theta[ks], lags)                           # (chunk, 2p+1)
@@ -154,7 +154,7 @@ def reduced_normal_matrix(H: np.ndarray, w: np.ndarray, theta: np.ndarray, max_o
     # --- R and S per output, eliminated in chunks of outputs (a few tens of MB at most)
     rho = rho.real
     sig_all = sig_all.reshape(n_out, n_in, 2 * p + 1)
-    chunk = max(1, min(int(chunk), int(16e6 // (8 * (p + 1) * c))))
+    chunk = max(1, min(int(chunk), int(1e6 // (8 * (p + 1) * c))))            # ~1 MB of S per chunk
     same_R = np.allclose(a, a[:1] * (a.sum(1, keepdims=True) / max(a[0].sum(), 1e-300)), rtol=1e-10, atol=0)
     if same_R:
         Rinv0 = np.linalg.pinv(rho[0][D + p], rcond=rcond, hermitian=True)
