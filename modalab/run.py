@@ -1,0 +1,642 @@
+"""``modalab run``: the whole chain from a project file, as stages with a manifest.
+
+Stages (:data:`modalab.project.STAGES`)::
+
+    acquire → frf (+ reciprocity) → identify → correlate → update → diagnose → report
+
+Each stage writes its artifacts (UFF, JSON, PNG, bulk data) into ``OUT/<stage>/`` and then, last and
+atomically (write to a temporary file, ``os.replace``), its entry in ``OUT/manifest.json``: the stage's
+key, the options it used, the sha256 of every input file and of every output it wrote.  The key is the
+sha256 of (options, input-file hashes, the output hashes of the stages it depends on), so
+
+* a rerun skips a stage whose key is unchanged and whose outputs are still there with the same hashes;
+* a changed option changes only the keys of that stage and of the stages downstream of it
+  (the dependencies are a graph, not a chain: ``update`` and ``diagnose`` do not depend on each other);
+* a stage without a manifest entry is incomplete — an interrupted run redoes it (the acquisition itself
+  resumes hit by hit through the session's store) and continues with the rest.
+
+Dependencies: acquire ← plan; frf ← acquire (or the project's FRF file); identify ← frf;
+correlate ← identify + model; update ← identify + model + parameters; diagnose ← frf + model + parameters;
+report ← everything.
+
+:func:`run_project` is the library entry point; ``progress`` (a callable ``(stage, event, text)`` with event
+in 'start', 'skip', 'done', 'info') lets the CLI show progress.  Library code logs, never prints.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import hashlib
+import importlib
+import json
+import logging
+import os
+import shutil
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import ModalabValueError, PlanError
+from .project import STAGES, Project, load_parameters, load_project
+
+log = logging.getLogger(__name__)
+
+__all__ = ["run_project", "RunResult", "Manifest", "stage_key", "sha256_file", "DEPENDS", "load_truth"]
+
+#: upstream stages of each stage
+DEPENDS = {"acquire": (), "frf": ("acquire",), "identify": ("frf",), "correlate": ("identify",),
+           "update": ("identify",), "diagnose": ("frf",),
+           "report": ("acquire", "frf", "identify", "correlate", "update", "diagnose")}
+#: project sections each stage reads (its options)
+SECTIONS = {"acquire": ("test",), "frf": ("frf", "test"), "identify": ("identify",), "correlate": ("correlate", "model"),
+            "update": ("update", "model", "correlate"), "diagnose": ("diagnose", "model"), "report": ("report", "project")}
+MANIFEST = "manifest.json"
+_VERSION = 1
+
+
+def sha256_file(path, chunk: int = 1 << 20) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        while True:
+            b = fh.read(chunk)
+            if not b:
+                break
+            h.update(b)
+    return h.hexdigest()
+
+
+def _canon(obj) -> str:
+    return json.dumps(obj, sort_keys=True, default=str, separators=(",", ":"))
+
+
+def stage_key(options: dict, inputs: dict, upstream: dict) -> str:
+    """sha256 over the stage's options, its input files' hashes and its upstream stages' output hashes."""
+    return hashlib.sha256(_canon({"v": _VERSION, "options": options, "inputs": inputs,
+                                  "upstream": upstream}).encode()).hexdigest()
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    with open(tmp, "w") as fh:
+        fh.write(text)
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+
+
+class Manifest:
+    """``OUT/manifest.json``: one entry per completed stage (see the module docstring)."""
+
+    def __init__(self, out_dir):
+        self.out_dir = Path(out_dir)
+        self.path = self.out_dir / MANIFEST
+        self.data = {"version": _VERSION, "stages": {}}
+        if self.path.is_file():
+            try:
+                d = json.loads(self.path.read_text())
+                if d.get("version") == _VERSION and isinstance(d.get("stages"), dict):
+                    self.data = d
+                else:
+                    log.warning("%s has another format; every stage will run again", self.path)
+            except json.JSONDecodeError:
+                log.warning("%s is not valid JSON; every stage will run again", self.path)
+
+    @property
+    def stages(self) -> dict:
+        return self.data["stages"]
+
+    def entry(self, stage: str) -> dict | None:
+        return self.stages.get(stage)
+
+    def valid(self, stage: str, key: str) -> bool:
+        """True when the stage completed with this key and its outputs are unchanged on disk."""
+        e = self.entry(stage)
+        if not e or e.get("key") != key:
+            return False
+        for rel, h in e.get("outputs", {}).items():
+            p = self.out_dir / rel
+            if not p.is_file() or sha256_file(p) != h:
+                log.info("%s: output %s changed or missing; the stage runs again", stage, rel)
+                return False
+        return True
+
+    def record(self, stage: str, entry: dict) -> None:
+        self.stages[stage] = entry
+        self.save()
+
+    def forget(self, stage: str) -> None:
+        if self.stages.pop(stage, None) is not None:
+            self.save()
+
+    def save(self) -> None:
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        _atomic_write(self.path, json.dumps(self.data, indent=1, default=str))
+
+
+@dataclass
+class RunResult:
+    """What :func:`run_project` did: stage -> 'ran' | 'skipped' | 'not requested'; summaries per stage."""
+
+    out_dir: Path
+    status: dict = field(default_factory=dict)
+    summaries: dict = field(default_factory=dict)
+    elapsed_s: dict = field(default_factory=dict)
+
+    @property
+    def report(self) -> Path:
+        return self.out_dir / "report" / "report.html"
+
+
+def load_truth(spec: str):
+    """Import ``'package.module:function'`` and call it: the structure on the simulated bench."""
+    mod, _, fn = spec.partition(":")
+    try:
+        f = getattr(importlib.import_module(mod), fn)
+    except (ImportError, AttributeError) as e:
+        raise PlanError(f"[test] truth = {spec!r} cannot be imported ({e}); give 'package.module:function'") from None
+    return f()
+
+
+# =================================================================================== stages
+class _Context:
+    def __init__(self, project: Project, out_dir: Path, backend: str, progress):
+        self.project = project
+        self.out = out_dir
+        self.backend = backend
+        self.progress = progress
+        self._model = None
+        self._params = None
+
+    def dir(self, stage: str) -> Path:
+        d = self.out / stage
+        d.mkdir(parents=True, exist_ok=True)
+        return d
+
+    def info(self, stage: str, text: str) -> None:
+        log.info("%s: %s", stage, text)
+        if self.progress:
+            self.progress(stage, "info", text)
+
+    # shared inputs
+    def model(self):
+        if self._model is None:
+            from updating.bulk import read_bdf
+            from updating.bulk.build import build_model
+
+            self._model = build_model(read_bdf(self.project.bulk_path))
+        return self._model
+
+    def parameters(self, which: str = "update"):
+        p = self.project.options[which].get("parameters")
+        if not p:
+            return None, None, None
+        return load_parameters(self.project.resolve(p))
+
+    def frf(self):
+        from . import uff
+
+        return uff.read_frf(self.out / "frf" / "frf.uff")
+
+    def test_modes(self):
+        from . import uff
+
+        return uff.read_modes(self.out / "identify" / "modes.uff")
+
+
+def _plan_with(project: Project):
+    from acquisition.plan import load_plan
+
+    return load_plan(project.plan_path)
+
+
+def _sim_lab(ctx: _Context, plan):
+    """The simulated bench: the project's truth builder, else the plan's [sim] structure (modalab.pipeline)."""
+    t = ctx.project.options["test"]
+    seed = t["seed"] if t["seed"] is not None else plan.sim.get("seed", 1)
+    if not t["truth"]:
+        from .pipeline import make_sim_backend
+
+        return make_sim_backend(plan, seed=seed)
+    from hardware_sim.hammer import Hammer
+    from hardware_sim.lab import SimulatedLab
+    from hardware_sim.setup import FaultConfig
+
+    st = load_truth(t["truth"])
+    faults = FaultConfig(**plan.sim["faults"]) if plan.sim.get("faults") else None
+    hk = {k: plan.sim[s] for k, s in (("force_n", "force_n"), ("tip", "hammer_tip"), ("mass_kg", "hammer_mass_kg"))
+          if s in plan.sim}
+    hammer = Hammer(**hk) if hk else None
+    return SimulatedLab(st, None, None, hammer=hammer, faults=faults, rng=np.random.default_rng(seed),
+                        hit_interval_s=float(plan.sim.get("hit_interval_s", 0.0)))
+
+
+def stage_acquire(ctx: _Context, resume: bool) -> tuple[list, dict]:
+    """Run the test plan (automatic mode) and export ``acquire/session.uff`` (raw hits + geometry)."""
+    from acquisition.session import AcquisitionSession
+
+    d = ctx.dir("acquire")
+    plan = _plan_with(ctx.project)
+    be = _sim_lab(ctx, plan) if ctx.backend == "sim" else None
+    if be is None:
+        from acquisition.nidaqmx_backend import NidaqmxBackend
+
+        be = NidaqmxBackend()
+
+    class _Obs:
+        def point_started(self, index, point, n_points):
+            ctx.info("acquire", f"point {index + 1}/{n_points}: {point}")
+
+        def hit(self, *a):
+            pass
+
+        def decided(self, *a):
+            pass
+
+        def point_finished(self, *a):
+            pass
+
+        def message(self, text):
+            log.info("acquire: %s", text)
+
+    sess = AcquisitionSession(plan, be, d / "session", mode="auto", observer=_Obs(), resume=resume)
+    try:
+        summary = sess.run()
+    finally:
+        be.close()
+    if not summary.complete:
+        raise PlanError(f"the acquisition did not complete ({summary.table()}); run again to continue")
+    out = sess.export(d / "session.uff")
+    summ = summary.to_dict() if hasattr(summary, "to_dict") else {}
+    return [out], {"points": len(plan.points), "summary": summ}
+
+
+def stage_frf(ctx: _Context) -> tuple[list, dict]:
+    """Raw hits → H1 FRFs + coherence (reciprocity-reordered), reciprocity check, coherence map."""
+    from acquisition.reciprocity import reciprocity_check
+
+    from . import uff
+    from .pipeline import frf_from_file
+
+    d = ctx.dir("frf")
+    o = ctx.project.options["frf"]
+    if ctx.project.frf_path is not None:
+        frf = uff.read_frf(ctx.project.frf_path)
+        geometry = {}
+        try:
+            geometry = uff.read_geometry(ctx.project.frf_path)
+        except Exception:  # noqa: BLE001 - FRFs without geometry are fine
+            pass
+        if geometry:
+            uff.write_geometry(d / "frf.uff", geometry)
+        uff.write_frf(d / "frf.uff", frf, append=bool(geometry))
+        out = d / "frf.uff"
+    else:
+        plan = _plan_with(ctx.project)
+        ff = o["force_fraction"] if o["force_fraction"] is not None else plan.force_fraction
+        ee = o["exp_end_level"] if o["exp_end_level"] is not None else (plan.exp_end_level or None)
+        out, frf = frf_from_file(ctx.out / "acquire" / "session.uff", d / "frf.uff", estimator=o["estimator"],
+                                 force_fraction=ff, exp_end_level=ee, exp_beta=plan.exp_beta,
+                                 reciprocity=o["reciprocity"])
+    rec = {}
+    try:
+        rep = reciprocity_check(frf)
+        rec = rep.to_dict()
+    except ModalabValueError as e:
+        rec = {"note": str(e)}
+    (d / "reciprocity.json").write_text(json.dumps(rec, indent=1, default=str))
+    from .report import plot_coherence_map
+
+    plot_coherence_map(frf, d / "coherence.png")
+    coh = frf.coherence
+    summ = {"responses": len(frf.responses), "references": [str(r) for r in frf.references],
+            "lines": int(frf.n_freq), "band_hz": [float(frf.freq_hz[0]), float(frf.freq_hz[-1])],
+            "median_coherence": float(np.nanmedian(coh)) if coh is not None else None,
+            "reciprocity_max_rel_diff": rec.get("max_rel_diff")}
+    (d / "frf.json").write_text(json.dumps(summ, indent=1))
+    return [out, d / "reciprocity.json", d / "coherence.png", d / "frf.json"], summ
+
+
+def _band(frf, band):
+    if band:
+        return frf.band(float(band[0]), float(band[1]))
+    f = frf.freq_hz
+    return frf.band(float(f[f > 0][0]), float(f[-1]))
+
+
+def stage_identify(ctx: _Context) -> tuple[list, dict]:
+    from identification import identify
+
+    from . import uff
+
+    d = ctx.dir("identify")
+    o = ctx.project.options["identify"]
+    frf = _band(ctx.frf(), o["band_hz"])
+    modes, rep = identify(frf, max_order=o["max_order"], select=o["select"], weighting=o["weighting"],
+                          plots_dir=d)
+    if modes.n_modes == 0:
+        raise ModalabValueError("identification found no modes; widen [identify] band_hz or raise max_order")
+    out = d / "modes.uff"
+    if out.exists():
+        out.unlink()
+    uff.write_modes(out, modes)
+    rep.to_json(d / "identification.json")
+    table = _mode_table(modes)
+    (d / "modes.json").write_text(json.dumps(table, indent=1))
+    outs = [out, d / "identification.json", d / "modes.json"] + [Path(p) for p in rep.figures.values()]
+    return outs, {"modes": modes.n_modes, "freq_hz": [round(float(f), 3) for f in modes.freq_hz]}
+
+
+def _mode_table(modes) -> list:
+    rows = []
+    ind = getattr(modes, "indicators", None) or {}
+    for k in range(modes.n_modes):
+        r = {"mode": k + 1, "freq_hz": float(modes.freq_hz[k]),
+             "damping_pct": 100 * float(modes.damping[k]) if modes.damping is not None else None}
+        for name, v in ind.items():
+            try:
+                r[name] = float(np.asarray(v)[k])
+            except (TypeError, ValueError, IndexError):
+                pass
+        rows.append(r)
+    return rows
+
+
+def _correlate(model, test, o_corr, n_modes):
+    from updating.correlation import correlate
+
+    analysis = model.modes(max(int(n_modes), 2 * test.n_modes + 6))
+    return correlate(analysis, test, mac_min=o_corr["mac_min"], freq_weight=o_corr["freq_weight"])
+
+
+def stage_correlate(ctx: _Context) -> tuple[list, dict]:
+    from updating.correlation_plots import plot_frequencies, plot_mac
+
+    d = ctx.dir("correlate")
+    res = _correlate(ctx.model(), ctx.test_modes(), ctx.project.options["correlate"],
+                     ctx.project.options["model"]["n_modes"])
+    summ = res.to_dict()
+    (d / "correlation.json").write_text(json.dumps(summ, indent=1, default=float))
+    ia, jx = res.pairing.analysis_index, res.pairing.test_index
+    plot_mac(res.mac, d / "mac_before.png", analysis_freq_hz=res.analysis.freq_hz, test_freq_hz=res.test.freq_hz,
+             pairs=res.pairs, title="MAC, nominal model")
+    plot_frequencies(res.test.freq_hz[jx], res.analysis.freq_hz[ia], d / "frequencies_before.png",
+                     title="Natural frequencies, nominal model")
+    return [d / "correlation.json", d / "mac_before.png", d / "frequencies_before.png"], \
+        {"pairs": len(res.pairs), "mean_abs_freq_error_pct": float(np.mean(np.abs(res.freq_error_pct)))
+         if len(res.pairs) else None}
+
+
+def stage_update(ctx: _Context) -> tuple[list, dict]:
+    from updating.bulk import to_bulk, write_bdf
+    from updating.correlation_plots import plot_frequencies, plot_mac
+    from updating.eigensensitivity import InverseEigensensitivity
+    from updating.fe import ParametricFEModel
+
+    from .report import plot_convergence
+
+    d = ctx.dir("update")
+    o = ctx.project.options["update"]
+    params, lo, hi = ctx.parameters("update")
+    if params is None:
+        raise PlanError(f"{ctx.project.path}: [update] parameters = 'params.toml' is missing; updating needs "
+                        "declared parameters")
+    model = ctx.model()
+    test = ctx.test_modes()
+    pm = ParametricFEModel(model, params)
+    lo_ = np.array([-np.inf if v is None else float(v) for v in lo])
+    hi_ = np.array([np.inf if v is None else float(v) for v in hi])
+    est = InverseEigensensitivity(max_iter=o["max_iter"], regularisation=o["regularisation"],
+                                  use_shapes=o["use_shapes"], freq_sigma=o["freq_sigma"], shape_sigma=o["shape_sigma"],
+                                  bounds=(lo_, hi_), mac_min=ctx.project.options["correlate"]["mac_min"])
+    est.fit(pm, test)
+    updated = pm.model_at(est.p_)
+    from updating.bulk import read_bdf
+
+    text = write_bdf(to_bulk(updated, template=read_bdf(ctx.project.bulk_path)))
+    (d / "updated.bdf").write_text(text)
+    res = _correlate(updated, test, ctx.project.options["correlate"], ctx.project.options["model"]["n_modes"])
+    ia, jx = res.pairing.analysis_index, res.pairing.test_index
+    plot_mac(res.mac, d / "mac_after.png", analysis_freq_hz=res.analysis.freq_hz, test_freq_hz=res.test.freq_hz,
+             pairs=res.pairs, title="MAC, updated model")
+    plot_frequencies(res.test.freq_hz[jx], res.analysis.freq_hz[ia], d / "frequencies_after.png",
+                     title="Natural frequencies, updated model")
+    hist = est.parameter_history() if est.history_ else np.asarray(pm.p0, float)[None, :]
+    hist = np.vstack([np.asarray(pm.p0, float)[None, :], hist])
+    names = [p.name for p in params]
+    plot_convergence(hist, names, d / "convergence.png")
+    summ = {"parameters": {n: {"initial": float(pm.p0[k]), "updated": float(est.p_[k]), "std": float(est.std_[k]),
+                               "mode": params[k].mode} for k, n in enumerate(names)},
+            "converged": bool(est.converged_), "iterations": int(est.n_iter_),
+            "history": [{"iteration": h["iteration"], "p": [float(x) for x in h["p"]], "cost": float(h["cost"]),
+                         "freq_error_pct": [float(x) for x in h["freq_error_pct"]]} for h in est.history_],
+            "correlation_after": res.to_dict()}
+    (d / "update.json").write_text(json.dumps(summ, indent=1, default=float))
+    return [d / "updated.bdf", d / "update.json", d / "mac_after.png", d / "frequencies_after.png",
+            d / "convergence.png"], {"parameters": {n: round(summ["parameters"][n]["updated"], 4) for n in names},
+                                     "mean_abs_freq_error_pct": float(np.mean(np.abs(res.freq_error_pct)))
+                                     if len(res.pairs) else None}
+
+
+def stage_diagnose(ctx: _Context) -> tuple[list, dict]:
+    from updating.bulk import to_bulk, write_bdf
+    from updating.diagnosis import diagnose
+
+    from .report import plot_mci_maps
+
+    d = ctx.dir("diagnose")
+    o = ctx.project.options["diagnose"]
+    params = None
+    if o["parameters"]:
+        params = load_parameters(ctx.project.resolve(o["parameters"]))[0]
+    frf = _band(ctx.frf(), o["band_hz"] or ctx.project.options["identify"]["band_hz"])
+    diag = diagnose(ctx.model(), frf, parameters=params, max_lines=o["max_lines"], max_findings=o["max_findings"],
+                    max_nfev=o["max_nfev"], holdout=o["holdout"], progress=lambda s: ctx.info("diagnose", s))
+    outs = []
+    dd = diag.to_dict()
+    dd["steps"] = {k: (v if not isinstance(v, tuple) else list(v)) for k, v in diag.steps.items()}
+    (d / "diagnosis.json").write_text(json.dumps(dd, indent=1, default=float))
+    outs.append(d / "diagnosis.json")
+    if hasattr(diag, "save"):
+        try:
+            for p in (diag.save(d / "figures") or []):
+                if Path(p).is_file():
+                    outs.append(Path(p))
+        except Exception as e:  # noqa: BLE001 - the engine's own figures are extras
+            log.warning("diagnosis figures failed: %s", e)
+    if diag.maps:
+        outs.append(plot_mci_maps(diag.maps, d / "mci_maps.png"))
+    (d / "diagnosed.bdf").write_text(write_bdf(to_bulk(diag.model)))
+    outs.append(d / "diagnosed.bdf")
+    # FRF overlay data: measured vs nominal vs diagnosed model at the report's DOFs
+    outs.append(_frf_overlays(ctx, frf, diag, d))
+    return outs, {"statement": diag.statement, "findings": len(diag.findings)}
+
+
+def _frf_overlays(ctx: _Context, frf, diag, d: Path) -> Path:
+    """Measured, nominal and augmented-updated FRFs at the chosen DOFs (one figure, first reference)."""
+    from .report import plot_frf_overlays
+
+    want = ctx.project.options["report"]["frf_dofs"]
+    resp = [r for r in frf.responses if want is None or str(r) in {str(w) for w in want}][:4] or frf.responses[:4]
+    ref = frf.references[0]
+    lines = frf.freq_hz[frf.freq_hz > 0]
+    step = max(1, len(lines) // 600)
+    f = lines[::step]
+    curves = {"measured": frf.select(responses=resp, references=[ref]).band(f[0], f[-1])}
+    models = {"nominal": ctx.model(), "diagnosed + updated": diag.model}
+    upd = ctx.out / "update" / "updated.bdf"
+    if upd.is_file():
+        from updating.bulk import read_bdf
+        from updating.bulk.build import build_model
+
+        models["updated (parameters)"] = build_model(read_bdf(upd))
+    eta = diag.parameters.get("eta_global", {}).get("updated")
+    for name, m in models.items():
+        try:
+            mm = m.copy()
+            if eta is not None and not mm.global_ge:
+                mm.global_ge = float(eta)
+            curves[name] = mm.frf(f, responses=resp, references=[ref])
+        except Exception as e:  # noqa: BLE001 - an overlay must not fail the stage
+            log.warning("FRF of the %s model failed: %s", name, e)
+    return plot_frf_overlays(curves, d / "frf_overlay.png", responses=resp, reference=ref)
+
+
+def stage_report(ctx: _Context) -> tuple[list, dict]:
+    from .report import build_report
+
+    d = ctx.dir("report")
+    html, summary = build_report(ctx.out, d, project=ctx.project)
+    return [html, summary], {"report": str(html)}
+
+
+# =================================================================================== runner
+def _inputs(project: Project, stage: str, backend: str) -> dict:
+    files = {}
+    o = project.options
+    if stage == "acquire" and project.plan_path is not None:
+        files["plan"] = project.plan_path
+    if stage == "frf":
+        if project.frf_path is not None:
+            files["frf"] = project.frf_path
+        elif project.plan_path is not None:
+            files["plan"] = project.plan_path
+    if stage in ("correlate", "update", "diagnose"):
+        files["model"] = project.bulk_path
+    if stage == "update" and o["update"]["parameters"]:
+        files["parameters"] = project.resolve(o["update"]["parameters"])
+    if stage == "diagnose" and o["diagnose"]["parameters"]:
+        files["parameters"] = project.resolve(o["diagnose"]["parameters"])
+    out = {k: sha256_file(v) for k, v in files.items()}
+    if stage == "acquire":
+        out["backend"] = backend
+    return out
+
+
+def _options(project: Project, stage: str) -> dict:
+    opts = {s: project.options.get(s, {}) for s in SECTIONS[stage]}
+    if stage == "diagnose":
+        opts["identify_band"] = project.options["identify"]["band_hz"]
+    if stage == "diagnose" or stage == "report":
+        opts["report_dofs"] = project.options["report"]["frf_dofs"]
+    return opts
+
+
+def _wanted(project: Project) -> list:
+    st = list(STAGES)
+    if project.plan_path is None:
+        st.remove("acquire")
+    if not project.options["update"]["parameters"]:
+        st.remove("update")
+    if not project.options["diagnose"]["enabled"]:
+        st.remove("diagnose")
+    return st
+
+
+_RUN = {"frf": stage_frf, "identify": stage_identify, "correlate": stage_correlate, "update": stage_update,
+        "diagnose": stage_diagnose, "report": stage_report}
+
+
+def run_project(project, out_dir, *, backend: str | None = None, from_stage: str | None = None,
+                until_stage: str | None = None, progress=None, force: bool = False) -> RunResult:
+    """Run (or continue) a project into ``out_dir``; see the module docstring.
+
+    backend : 'sim' | 'nidaqmx' (default: the project's [test] backend).
+    from_stage : rerun this stage and everything downstream of it even if the manifest says it is done.
+    until_stage : stop after this stage.
+    progress : callable ``(stage, event, text)``.
+    force : rerun every requested stage.
+    """
+    proj = project if isinstance(project, Project) else load_project(project)
+    be = backend or proj.options["test"]["backend"]
+    if be not in ("sim", "nidaqmx"):
+        raise PlanError(f"backend {be!r}; expected 'sim' or 'nidaqmx'")
+    for s in (from_stage, until_stage):
+        if s is not None and s not in STAGES:
+            raise PlanError(f"stage {s!r}; expected one of {', '.join(STAGES)}")
+    out = Path(out_dir).resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    man = Manifest(out)
+    ctx = _Context(proj, out, be, progress)
+    wanted = _wanted(proj)
+    stop = STAGES.index(until_stage) if until_stage else len(STAGES) - 1
+    forced = set()
+    if from_stage:
+        i0 = STAGES.index(from_stage)
+        forced = {s for s in STAGES[i0:]}
+    result = RunResult(out_dir=out)
+    for s in STAGES:
+        if s not in wanted:
+            result.status[s] = "not in project"
+            continue
+        if STAGES.index(s) > stop:
+            result.status[s] = "not requested"
+            continue
+        ups = {u: man.entry(u)["outputs"] for u in DEPENDS[s] if u in wanted}
+        missing = [u for u in DEPENDS[s] if u in wanted and not man.entry(u)]
+        if missing:
+            raise PlanError(f"stage {s} needs {', '.join(missing)} first; run without --from/--until to complete "
+                            "them")
+        opts = _options(proj, s)
+        inputs = _inputs(proj, s, be)
+        key = stage_key(opts, inputs, ups)
+        if not force and s not in forced and man.valid(s, key):
+            result.status[s] = "skipped"
+            result.summaries[s] = man.entry(s).get("summary", {})
+            if progress:
+                progress(s, "skip", "up to date")
+            continue
+        if progress:
+            progress(s, "start", "")
+        t0 = time.perf_counter()
+        man.forget(s)
+        pending = out / s / ".pending_key"
+        if s == "acquire":
+            resume = pending.is_file() and pending.read_text().strip() == key
+            if not resume and (out / s).exists():
+                shutil.rmtree(out / s)
+            ctx.dir(s)
+            pending.write_text(key)
+            outputs, summary = stage_acquire(ctx, resume)
+        else:
+            if (out / s).exists():
+                shutil.rmtree(out / s)
+            outputs, summary = _RUN[s](ctx)
+        elapsed = time.perf_counter() - t0
+        rel = {}
+        for p in outputs:
+            p = Path(p)
+            if p.is_file():
+                rel[str(p.resolve().relative_to(out))] = sha256_file(p)
+        man.record(s, {"key": key, "options": opts, "inputs": inputs, "depends": list(ups), "outputs": rel,
+                       "summary": summary, "elapsed_s": round(elapsed, 3),
+                       "completed_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")})
+        if pending.is_file():
+            pending.unlink()
+        result.status[s] = "ran"
+        result.summaries[s] = summary
+        result.elapsed_s[s] = elapsed
+        if progress:
+            progress(s, "done", f"{elapsed:.1f} s")
+    return result
