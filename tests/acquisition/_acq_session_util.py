@@ -17,9 +17,11 @@ PLANS = ROOT / "examples" / "plans"
 
 def small_plan(tmp_path, base: str = "demo_roving_hammer", *, points=("1+Z", "14+Z", "19+Z"), averages: int = 2,
                max_hits: int = 3, record_s: float = 1.0, sim: dict | None = None, name: str = "plan.toml",
-               edit=None) -> Path:
+               hammer_range: float | None = None, edit=None) -> Path:
     """A small copy of an example plan (1 s records, few points) written to ``tmp_path``."""
     d = tomllib.loads((PLANS / f"{base}.toml").read_text())
+    if hammer_range is not None:
+        next(c for c in d["channels"] if c["role"] == "force")["range"] = hammer_range
     d["acquisition"].update(record_s=record_s, pretrigger_s=0.03125, averages=averages, max_hits=max_hits)
     d["roving"]["points"] = list(points)
     d["sim"].update({"placement_scatter_m": 0.0, **(sim or {})})

@@ -42,7 +42,7 @@ def test_nidaqmx_backend_without_driver_is_a_clear_message(tmp_path):
 def test_cli_auto_sim_writes_previews_without_a_display(tmp_path, monkeypatch, capsys):
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.setenv("MODALAB_LIVE_PLOT", "1")     # asked for, but there is no display
-    plan = small_plan(tmp_path, points=("1+Z", "19+Z"))
+    plan = small_plan(tmp_path, points=("1+Z", "19+Z"), hammer_range=2000.0)
     out = tmp_path / "s"
     assert main(["acquire", str(plan), "--backend", "sim", "--auto", "-o", str(out)]) == 0
     text = capsys.readouterr().out

@@ -44,7 +44,7 @@ def _spy_arm(lab, session_dir, recorder, violations):
 @pytest.fixture(scope="module")
 def auto_run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("auto")
-    plan_path = small_plan(tmp)
+    plan_path = small_plan(tmp, hammer_range=2000.0)        # far too large for ~100 N hits
     plan = load_plan(plan_path)
     lab = make_sim_backend(plan)
     rec = Recorder()
@@ -139,6 +139,7 @@ def test_roving_accelerometer_session_matches_exact(tmp_path):
     plan_path = small_plan(tmp_path, "demo_roving_accelerometer", points=("3+Z", "18+Z"))
     sess, summary, exported = acquire(plan_path, tmp_path / "s", auto=True)
     assert summary.complete
+    assert "hammer" not in summary.range_suggestions       # the example plan's 500 N range suits ~100 N hits
     frf = uff.read_frf(exported)
     assert [str(d) for d in frf.responses] == ["3+Z", "18+Z"] and [str(d) for d in frf.references] == ["12+Z"]
     err, good = rel_errors(frf, sess.backend.model, BETA)
