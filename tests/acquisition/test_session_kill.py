@@ -31,7 +31,7 @@ def _lines(out):
 
 def test_sigkill_at_random_points_then_resume_loses_nothing(tmp_path):
     rng = random.Random(20261122)
-    plan = small_plan(tmp_path, points=("1+Z", "14+Z", "19+Z"), record_s=0.25,
+    plan = small_plan(tmp_path, points=("1+Z", "5+Z", "14+Z", "19+Z"), record_s=0.25,
                       sim={"realtime": True, "hit_interval_s": 0.05})
     out = tmp_path / "session"
     seen: dict[int, tuple] = {}          # every hit accepted before some kill: id -> (point, sha256)
@@ -39,7 +39,7 @@ def test_sigkill_at_random_points_then_resume_loses_nothing(tmp_path):
     resume = False
     for attempt in range(4):
         proc = _start(plan, out, resume)
-        target = _lines(out) + rng.randint(1, 4)
+        target = _lines(out) + rng.randint(1, 3)
         t0 = time.monotonic()
         while proc.poll() is None and _lines(out) < target and time.monotonic() - t0 < 60:
             time.sleep(0.01)
@@ -48,13 +48,14 @@ def test_sigkill_at_random_points_then_resume_loses_nothing(tmp_path):
             break
         proc.send_signal(signal.SIGKILL)
         proc.wait(timeout=30)
+        assert proc.returncode == -signal.SIGKILL
         kills += 1
         seen.update(accepted_hits(journal(out)))
         resume = True
     assert kills >= 3, "the acquisition finished before it could be killed three times; slow it down"
     assert seen, "no hit was accepted before any kill; the test would prove nothing"
     with open(out / "journal.jsonl", "ab") as fh:      # and a power loss tears the journal's last line
-        fh.write(b'{"event": "hit", "hit": 999, "point": 2, "sta')
+        fh.write(b'{"event": "hit", "hit": 999, "point": 3, "sta')
     proc = _start(plan, out, True)
     stdout, stderr = proc.communicate(timeout=120)
     assert proc.returncode == 0, stderr
@@ -63,7 +64,7 @@ def test_sigkill_at_random_points_then_resume_loses_nothing(tmp_path):
     final = accepted_hits(journal(out))
     # none accepted before a kill is lost (same file content), each point has its N hits
     assert all(final.get(h) == v for h, v in seen.items())
-    assert sorted(p for p, _ in final.values()) == [0, 0, 1, 1, 2, 2]
+    assert sorted(p for p, _ in final.values()) == [0, 0, 1, 1, 2, 2, 3, 3]
     assert 999 not in final
     # every accepted hit is in the exported UFF exactly once
     ids = [r.hit_id for r in uff.read_records(out / "session.uff")]
