@@ -149,7 +149,7 @@ def refine_poles(frf: FRF, lam, participation, *, passes: int = 2, half_bandwidt
     """Refine each pole by variable-projection least squares on the lines around it.
 
     For mode r, ``λ_r`` (2 real unknowns) minimises ``‖(I − P(λ)) H‖`` over the
-    lines within ``f_r ± max(half_bandwidths·ζ_r f_r, 4 lines)``, where ``P(λ)``
+    lines within ``f_r ± max(min(half_bandwidths·ζ_r, 0.1)·f_r, 4 lines)``, where ``P(λ)``
     projects on the LSFD basis of the poles inside that window plus, per
     reference, a complex quadratic in frequency for all modes outside it (shapes and
     these local residuals eliminated linearly, Golub & Pereyra 1973).  Modes are swept ``passes`` times.  The
@@ -175,7 +175,7 @@ def refine_poles(frf: FRF, lam, participation, *, passes: int = 2, half_bandwidt
             wn = abs(lam[r])
             fr = wn / (2 * np.pi)
             zr = -lam[r].real / wn
-            hw = max(half_bandwidths * zr * fr, 4 * df)
+            hw = max(min(half_bandwidths * zr, 0.1) * fr, 4 * df)
             sel = np.abs(f - fr) <= hw
             if sel.sum() < 6:
                 continue
@@ -275,8 +275,6 @@ def modes_from_poles(frf: FRF, lam, participation, *, lower_residual: bool = Tru
         Lrep = L / c[None, :]
         scaling = "unit_max"
         mov = np.full(m, np.nan)
-    # rotate so that each complex shape is closest to real with positive largest entry (scaling-neutral
-    # for unit-modal-mass shapes only up to a sign: keep the sign of c, it is fixed by the residue)
     syn = res.synthesise(frf)
     indic = {"MPC": ind.mpc(phi) if m else np.zeros(0), "MPD": ind.mpd(phi) if m else np.zeros(0),
              "MCF": ind.mcf(phi) if m else np.zeros(0), "MOV": mov}
