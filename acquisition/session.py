@@ -296,7 +296,8 @@ class AcquisitionSession:
     max_timeouts : consecutive 'no hit' timeouts before a point is skipped in auto mode.
     waits_per_arm : timeouts on one arm before the DAQ is re-armed (a real task stays armed; an injected
         'trigger never comes' fault needs a new arm).
-    max_attempts_factor : auto mode gives up on a point after this many × ``max_hits`` hits.
+    max_attempts_factor : auto mode gives up on a point after this many × ``max_hits`` hits (keeping the best
+        ``averages`` when enough were valid, else skipping the point).
     max_reconnects : device-lost recoveries (``backend.reconnect()``) per session before it stops cleanly.
     check_config : :class:`~acquisition.checks.HitCheckConfig` thresholds (default ones).
     """
@@ -434,8 +435,8 @@ class AcquisitionSession:
                 return "done"
             if self.mode == "auto" and len(cands) + len(kept) >= plan.max_hits:
                 break
-            if attempts >= self.max_attempts:
-                if self.mode == "auto" and len(kept) + len(cands) >= plan.averages:
+            if self.mode == "auto" and attempts >= self.max_attempts:     # the operator decides interactively
+                if len(kept) + len(cands) >= plan.averages:
                     break
                 self.store.skip_point(k, f"only {len(kept) + len(cands)} valid hits in {attempts} hits")
                 return "skip"
