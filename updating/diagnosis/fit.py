@@ -38,12 +38,24 @@ class FRFData:
     responses: list
     references: list
     den: np.ndarray = field(default=None)
+    n_averages: int = 1
+    floor: float = 0.01
 
     def __post_init__(self):
         if self.den is None:
             a = np.abs(self.H)
             rms = np.sqrt(np.mean(a ** 2, axis=2, keepdims=True))
             self.den = a + 0.2 * rms + 1e-300
+
+    @property
+    def quality(self) -> np.ndarray:
+        """Line weights in (0, 1]: ``floor / √(floor² + ε²)`` with ε² = (1 − γ²)/(2 n γ²) the variance of the
+        relative random error of an H1 estimate from n averages (Bendat & Piersol), ``floor`` the smallest
+        relative error trusted (systematic errors of the test: 1 %).  Poor-coherence lines (near DC,
+        antiresonances) count little instead of dominating relative residuals."""
+        g2 = np.clip(self.coherence, 1e-3, 1.0)
+        eps2 = (1 - g2) / (2 * max(int(self.n_averages), 1) * g2)
+        return self.floor / np.sqrt(self.floor ** 2 + eps2)
 
     @property
     def freq_hz(self) -> np.ndarray:
@@ -58,7 +70,7 @@ class FRFData:
         den = self.den[r][:, c][:, :, f]
         resp = self.responses if rows is None else [self.responses[i] for i in np.atleast_1d(rows)]
         refs = self.references if cols is None else [self.references[i] for i in np.atleast_1d(cols)]
-        return FRFData(self.s[f], H, coh, resp, refs, den)
+        return FRFData(self.s[f], H, coh, resp, refs, den, self.n_averages, self.floor)
 
 
 def frf_data(frf: FRF, *, max_lines: int = 200, band_hz=None, min_coherence: float = 0.5) -> FRFData:
@@ -88,7 +100,8 @@ def frf_data(frf: FRF, *, max_lines: int = 200, band_hz=None, min_coherence: flo
     beta = float(frf.metadata.get("exp_window_beta") or 0.0)
     s = 1j * 2 * np.pi * rec.freq_hz[idx] + beta
     return FRFData(s=s, H=rec.H[..., idx], coherence=np.clip(coh[..., idx], 0, 1),
-                   responses=list(rec.responses), references=list(rec.references))
+                   responses=list(rec.responses), references=list(rec.references),
+                   n_averages=int(frf.metadata.get("n_averages") or 1))
 
 
 def _indices(model_dofs, data: FRFData):
@@ -107,7 +120,7 @@ def model_frf(structure, data: FRFData) -> np.ndarray:
 def frf_error(H_model: np.ndarray, data: FRFData) -> float:
     """Coherence-weighted RMS of the relative complex FRF difference (see the module docstring)."""
     e = np.abs(H_model - data.H) / data.den
-    w = data.coherence
+    w = data.quality ** 2
     return float(np.sqrt(np.sum(w * e ** 2) / max(np.sum(w), 1e-300)))
 
 
@@ -130,7 +143,7 @@ def _residual_and_jac(pmodel, p, data: FRFData, free, want_jac=True):
     Xj = X[:, [pos[c] for c in ri]] * rs[None, :, None]
     Xm = X[:, [pos[c] for c in mi]] * ms[None, :, None]
     H = Xj[mi] * ms[:, None, None]
-    w = np.sqrt(data.coherence) / data.den
+    w = data.quality / data.den
     e = w * (H - data.H)
     res = np.concatenate([e.real.ravel(), e.imag.ravel()])
     if not want_jac:

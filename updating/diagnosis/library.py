@@ -231,10 +231,26 @@ def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, g
 
     # ---------------------------------------------------------------- boundary flexibility
     if "boundary_flexibility" in kinds:
+        # only constraints that hold something: a released component must couple, through the element
+        # stiffness, to a DOF that moves (not the components a planar model constrains everywhere)
+        Kfull = None
+        free_keys = {(d.node, d.axis) for d in red.dofs} if hasattr(red, "dofs") else set()
         for spc in model.spcs:
             if nodes is not None and spc.node not in nodes:
                 continue
+            if Kfull is None:
+                Kfull = sp.csr_matrix(assemble(model).K)
+                moving = np.zeros(len(full), bool)
+                moving[[fidx[k] for k in free_keys if k in fidx]] = True
+            active = []
             for c in spc.components:
+                i = fidx.get((spc.node, c))
+                if i is None:
+                    continue
+                row = Kfull.getrow(i)
+                if np.any(moving[row.indices[np.abs(row.data) > 1e-12 * max(abs(Kfull[i, i]), 1e-300)]]):
+                    active.append(c)
+            for c in active:
                 lbl = f"{spc.node}+{DIRECTION_NAMES[c]}"
 
                 def release(m, eid, spc=spc, c=c):

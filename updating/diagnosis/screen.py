@@ -74,7 +74,7 @@ def residual_map(structure, data, force_sign=True):
     F = np.zeros((structure.n_dof, len(ri)))
     F[ri, np.arange(len(ri))] = 1.0
     _, r, _, sigma = condensed_residual(structure.K, structure.M, structure.C, structure.D, data.s, mi, x_meas, F)
-    return np.sqrt(np.sum(np.abs(r) ** 2 / (sigma[None] + 1e-300) ** 2 * data.coherence, axis=1))
+    return np.sqrt(np.sum(np.abs(r) ** 2 / (sigma[None] + 1e-300) ** 2 * data.quality ** 2, axis=1))
 
 
 def screen(structure, background_derivs, candidates, data, *, max_terms: int = 4, min_gain: float = 0.12,
@@ -93,7 +93,7 @@ def screen(structure, background_derivs, candidates, data, *, max_terms: int = 4
         F = np.zeros((structure.n_dof, len(ri)))
         F[ri, np.arange(len(ri))] = 1.0
         s = data.s
-        coh = np.sqrt(np.mean(data.coherence, axis=0))            # (n_r, n_s)
+        coh = np.sqrt(np.mean(data.quality ** 2, axis=0))         # (n_r, n_s)
         responses = data.responses
     else:
         s, shapes, labels = x_modes
@@ -224,7 +224,7 @@ def residual_system(structure, data, weights=None) -> ResidualSystem:
     x_full, r, T, sigma = condensed_residual(structure.K, structure.M, structure.C, structure.D, data.s, mi,
                                              x_meas, F)
     if weights is None:
-        coh = np.sqrt(np.mean(data.coherence, axis=0))
+        coh = np.sqrt(np.mean(data.quality ** 2, axis=0))
         weights = coh / (sigma + 1e-12 * np.max(sigma))
     return ResidualSystem(_stack(r, weights), x_full, T, weights, data.s, r.shape)
 
