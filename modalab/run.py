@@ -301,7 +301,7 @@ def stage_frf(ctx: _Context) -> tuple[list, dict]:
     rec = {}
     try:
         rep = reciprocity_check(frf)
-        rec = rep.to_dict()
+        rec = {"max_rel_diff": float(rep.max_rel_diff), **rep.to_dict()}
     except ModalabValueError as e:
         rec = {"note": str(e)}
     (d / "reciprocity.json").write_text(json.dumps(rec, indent=1, default=str))
