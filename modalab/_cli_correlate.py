@@ -14,8 +14,9 @@ def cmd_correlate(a):
 
     model = load_model(a.model)
     test = load_modes(a.modes)
-    res = correlate(model.structure(), test, dofmap=a.map, mac_min=a.mac_min,
-                    n_analysis_modes=a.n_modes or max(2 * test.n_modes + 6, 12))
+    n = a.n_modes or max(2 * test.n_modes + 6, 12)
+    # modes on every model DOF (rigid-link dependents filled in), so test DOFs on linked nodes correlate too
+    res = correlate(model.modes(n, full=True), test, dofmap=a.map, mac_min=a.mac_min, n_analysis_modes=n)
     _print(res.table())
     if a.plots:
         figs = save_correlation_plots(res, a.plots)
