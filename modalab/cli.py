@@ -296,6 +296,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("-o", "--output", required=True, help="session folder")
     s.add_argument("--seed", type=int, help="simulated lab seed (sim backend)")
     s.add_argument("--quiet", action="store_true", help="no per-hit output")
+    s.add_argument("--live-plot", action="store_true",
+                   help="open a live plot window (only with a display; preview PNGs are always written)")
     s.set_defaults(func=cmd_acquire)
 
     _add_later_stages(sub)
