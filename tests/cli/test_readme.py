@@ -1,0 +1,44 @@
+"""The README's promises: its two commands, the plan example validates, .ci/run runs the test command."""
+import json
+import pathlib
+import tomllib
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+README = (ROOT / "README.md").read_text()
+
+
+def _blocks(lang):
+    return [b.split("```")[0] for b in README.split(f"```{lang}")[1:]]
+
+
+def test_opens_with_the_two_commands_and_ci_runs_the_test_command():
+    first = _blocks("bash")[0].strip().splitlines()
+    setup = first[0].split("#")[0].strip()
+    tests = first[1].split("#")[0].strip()
+    assert setup.startswith("pip install -e .") and "modalab demo" in setup
+    assert tests == "pip install -e '.[test]' && python -m pytest -q"
+    ci = (ROOT / ".ci" / "run").read_text().strip().splitlines()
+    assert ci[-1].strip() == tests
+
+
+def test_plan_example_is_valid():
+    from acquisition.plan import TestPlan
+
+    plan = TestPlan.from_dict(tomllib.loads(_blocks("toml")[0]), source="README")
+    assert plan.pattern == "hammer" and plan.averages == 3
+
+
+def test_parameter_example_loads(tmp_path):
+    from modalab.pipeline import load_params
+    from updating.models.garteur import garteur_model
+
+    (tmp_path / "p.toml").write_text(_blocks("toml")[1])
+    params = load_params(tmp_path / "p.toml", garteur_model(mesh=2))
+    assert params[0].name == "E_wing"
+
+
+def test_diagnosis_schema_example_is_json():
+    d = json.loads(_blocks("json")[0])
+    assert set(d) >= {"findings", "parameters", "fit", "statement"}
+    for block in d["fit"].values():
+        assert {"frf_error_held_out", "freq_error_max_pct", "mac_min"} <= set(block)
