@@ -49,6 +49,12 @@ class ShapeError(ModalabValueError):
     """Array dimensions do not agree with each other or with the labels."""
 
 
+def _where(*parts) -> str:
+    """'file 'x', dataset 58, line 12: ' from (name, value) pairs whose value is known."""
+    where = [f"{name} {str(v)!r}" if name == "file" else f"{name} {v}" for name, v in parts if v is not None]
+    return (", ".join(where) + ": ") if where else ""
+
+
 class UffError(ModalabError, ValueError):
     """A universal file is malformed, truncated or cannot be written.
 
@@ -56,15 +62,7 @@ class UffError(ModalabError, ValueError):
     """
 
     def __init__(self, message: str, *, path=None, dataset=None, line=None):
-        where = []
-        if path is not None:
-            where.append(f"file {str(path)!r}")
-        if dataset is not None:
-            where.append(f"dataset {dataset}")
-        if line is not None:
-            where.append(f"line {line}")
-        prefix = (", ".join(where) + ": ") if where else ""
-        super().__init__(prefix + message)
+        super().__init__(_where(("file", path), ("dataset", dataset), ("line", line)) + message)
         self.path, self.dataset, self.line = path, dataset, line
 
 
@@ -72,15 +70,7 @@ class BulkDataError(ModalabError, ValueError):
     """Nastran bulk data is malformed; names the card and the line."""
 
     def __init__(self, message: str, *, path=None, card=None, line=None):
-        where = []
-        if path is not None:
-            where.append(f"file {str(path)!r}")
-        if line is not None:
-            where.append(f"line {line}")
-        if card is not None:
-            where.append(f"card {card}")
-        prefix = (", ".join(where) + ": ") if where else ""
-        super().__init__(prefix + message)
+        super().__init__(_where(("file", path), ("line", line), ("card", card)) + message)
         self.path, self.card, self.line = path, card, line
 
 

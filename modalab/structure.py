@@ -91,21 +91,24 @@ class ModalModel:
     def n_dof(self) -> int:
         return len(self.dofs)
 
+    def _factors(self, responses, references):
+        """Labels and the signed rows of the residue factors for the requested DOFs."""
+        resp = self.dofs if responses is None else parse_dofs(responses)
+        refs = self.dofs if references is None else parse_dofs(references)
+        io, so = locate(self.dofs, resp, "response DOF")
+        ii, si = locate(self.dofs, refs, "reference DOF")
+        so, si = np.asarray(so)[:, None], np.asarray(si)[:, None]
+        return (resp, refs, self.right[io] * so, self.left[:, ii] * si.T, self.rigid[io] * so,
+                self.rigid[ii] * si)
+
     def frf(self, freq_hz, responses=None, references=None, quantity: str = "accelerance",
             chunk: int = 2048) -> FRF:
         """Exact FRFs at ``freq_hz`` between the labelled DOFs (all DOFs by default)."""
         q = check_quantity(quantity)
         freq = np.asarray(freq_hz, dtype=float)
-        resp = self.dofs if responses is None else parse_dofs(responses)
-        refs = self.dofs if references is None else parse_dofs(references)
-        io, so = locate(self.dofs, resp, "response DOF")
-        ii, si = locate(self.dofs, refs, "reference DOF")
-        R = self.right[io] * np.asarray(so)[:, None]
-        L = self.left[:, ii] * np.asarray(si)[None, :]
-        G = self.rigid[io] * np.asarray(so)[:, None]
-        Gi = self.rigid[ii] * np.asarray(si)[:, None]
+        resp, refs, R, L, G, Gi = self._factors(responses, references)
         order = _ORDER[q]
-        H = np.empty((len(io), len(ii), freq.size), complex)
+        H = np.empty((len(resp), len(refs), freq.size), complex)
         for a in range(0, freq.size, chunk):
             s = 2j * np.pi * freq[a:a + chunk]
             with np.errstate(divide="ignore", invalid="ignore"):
@@ -124,16 +127,9 @@ class ModalModel:
             raise ModalabValueError("a model with hysteretic damping has no causal impulse response; "
                                     "synthesise in the frequency domain instead (ModalModel.frf)")
         t = np.asarray(t, dtype=float)
-        resp = self.dofs if responses is None else parse_dofs(responses)
-        refs = self.dofs if references is None else parse_dofs(references)
-        io, so = locate(self.dofs, resp, "response DOF")
-        ii, si = locate(self.dofs, refs, "reference DOF")
-        R = self.right[io] * np.asarray(so)[:, None]
-        L = self.left[:, ii] * np.asarray(si)[None, :]
+        _, _, R, L, G, Gi = self._factors(responses, references)
         h = np.einsum("ok,ki,kt->oit", R, L, np.exp(self.poles[:, None] * t[None, :]), optimize=True).real
         if self.rigid.shape[1]:
-            G = self.rigid[io] * np.asarray(so)[:, None]
-            Gi = self.rigid[ii] * np.asarray(si)[:, None]
             h = h + np.einsum("or,ir,t->oit", G, Gi, t)
         return h
 
