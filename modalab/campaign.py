@@ -95,7 +95,7 @@ def run_many(func: Callable, inputs: Sequence, *, dask=None, workers: int | None
             if own:
                 client.close()
     else:
-        w = int(workers) if workers else (os.cpu_count() or 1)
+        w = (os.cpu_count() or 1) if workers is None else int(workers)
         if w < 1:
             raise ModalabValueError(f"workers = {workers!r}; expected a positive number of processes")
         w = min(w, n)
