@@ -181,7 +181,7 @@ CASES = {
 
 SENSORS = {"bar": ("2+Z", "6+Z"), "stepped": ("3+Z", "8+Z"), "strip": ("4+Z", "7+Z")}
 REFINE = 2
-NOISE_V = 3e-4          # sensor + cable noise (V rms) on every channel: about 1 % random FRF error near resonances
+NOISE_V = 1e-4          # sensor + cable noise (V rms) on every channel: about 1 % random FRF error near resonances
 
 
 def measure(truth: FEModel, points, sensors, seed: int):

@@ -81,7 +81,13 @@ def frf_data(frf: FRF, *, max_lines: int = 200, band_hz=None, min_coherence: flo
     """
     f = frf if band_hz is None else frf.band(*band_hz)
     f = f.band(max(f.freq_hz[0], 1e-9), None) if f.freq_hz[0] <= 0 else f
+    beta = float(frf.metadata.get("exp_window_beta") or 0.0)
+    # exponentially windowed data are the transforms at s = iω + β of the true responses: the quantity
+    # conversion uses s too (dividing windowed accelerance by (iω)² leaves an error 2β/ω)
+    s_all = 1j * 2 * np.pi * f.freq_hz + beta
+    power = {"receptance": 0, "mobility": 1, "accelerance": 2}[f.quantity]
     rec = f.to("receptance")
+    rec = rec._replace(H=f.H / s_all[None, None, :] ** power) if beta else rec
     coh = f.coherence if f.coherence is not None else np.ones(f.shape)
     ok = np.nanmean(coh, axis=(0, 1)) >= min_coherence
     ok &= np.all(np.isfinite(rec.H), axis=(0, 1))
@@ -97,7 +103,6 @@ def frf_data(frf: FRF, *, max_lines: int = 200, band_hz=None, min_coherence: flo
         logt = np.geomspace(fr[0], fr[-1], max_lines - max_lines // 2)
         lg = np.clip(np.searchsorted(fr, logt), 0, idx.size - 1)
         idx = idx[np.unique(np.concatenate([uni, lg]))]
-    beta = float(frf.metadata.get("exp_window_beta") or 0.0)
     s = 1j * 2 * np.pi * rec.freq_hz[idx] + beta
     return FRFData(s=s, H=rec.H[..., idx], coherence=np.clip(coh[..., idx], 0, 1),
                    responses=list(rec.responses), references=list(rec.references),

@@ -161,7 +161,8 @@ def _evidence(c: Candidate, gain: float, rank_same_place: list, band) -> str:
 def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int = 160, holdout: str | None = None,
              kinds=None, max_findings: int = 3, min_gain: float = 0.05, min_holdout_gain: float = 0.10,
              penalty: float = 10.0,
-             band_hz=None, progress=None, max_nfev: int = 30, n_try: int = 5) -> Diagnosis:
+             band_hz=None, progress=None, max_nfev: int = 30, n_try: int = 5,
+             min_term_gain: float = 0.15) -> Diagnosis:
     """Locate what an FE model leaves out, name it, model it and prove it on held-out data (module docstring)."""
     t0 = time.perf_counter()
     timings = {}
@@ -223,7 +224,12 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
         have = {c.key for c in current}
         options = [(c, th) for c, th, g in rk[:n_try] if c.key not in have and g > 0.02]
         near = set(hot) | {n for c, _, _ in rk[:1] for n in c.nodes}
-        options += [(c, None) for c in lib if not c.shared and near & set(c.nodes) and c.key not in have][:n_try]
+        # joints near the located nodes (within one element) and every support release (they are few)
+        near |= {b for e in pm_cur.model_at(p_cur).elements.values() if hasattr(e, "n1") and hasattr(e, "n2")
+                 for a, b in ((e.n1, e.n2), (e.n2, e.n1)) if a in near}
+        options += [(c, None) for c in lib if not c.shared and c.physics == "joint_flexibility"
+                    and near & set(c.nodes) and c.key not in have][:n_try]
+        options += [(c, None) for c in lib if c.physics == "boundary_flexibility" and c.key not in have]
         best = None
         for c, th in options:
             m_aug, cpar, scales = _augment(model, current + [c])
@@ -278,6 +284,35 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
     upd2 = fit_frf(pm, train, p_mci, lower=lo, upper=hi, max_nfev=max_nfev)
     if upd2.error < upd.error:
         upd = upd2
+    # backward elimination: a term whose removal (value 0, the rest as fitted) barely changes the training
+    # FRF error has not earned its place
+    n_par0 = len(params)
+    while len(current) > 1:
+        H0 = best_fit.error
+        worst, worst_err = None, np.inf
+        for k in range(len(current)):
+            pz = best_fit.p.copy()
+            pz[n_par0 + k] = 0.0
+            try:
+                ek = frf_error(model_frf(best_pm.structure(pz), train), train)
+            except (np.linalg.LinAlgError, ModalabValueError):
+                continue
+            if ek < worst_err:
+                worst, worst_err = k, ek
+        if worst is None:
+            break
+        # the weakest term, refitted without it
+        rest = current[:worst] + current[worst + 1:]
+        m_aug, cpar, sc = _augment(model, rest)
+        pm_rest = ParametricFEModel(m_aug, params + cpar)
+        keep = np.r_[np.arange(n_par0), n_par0 + np.array([k for k in range(len(current)) if k != worst], int)]
+        refit = fit_frf(pm_rest, train, best_fit.p[keep], lower=np.concatenate([lo, np.zeros(len(cpar))]),
+                        upper=np.concatenate([hi, np.full(len(cpar), np.inf)]), max_nfev=max_nfev)
+        if refit.error > H0 * (1 + min_term_gain):
+            break
+        log.info("dropping %s: without it the training FRF error is %.4g (with %.4g)", current[worst].label,
+                 refit.error, H0)
+        current, best_pm, best_fit, best_scales = rest, pm_rest, refit, sc
     if current and best_fit.error > upd.error * (1 - min_gain):
         log.info("the augmented model does not fit the training FRFs better than parameter updating alone")
         current, best_fit, best_pm, best_scales = [], upd, pm, []
