@@ -165,7 +165,7 @@ def diagnose_one(job: dict) -> dict:
     band = job.get("band_hz")
     if band:
         frf = frf.band(float(band[0]), float(band[1]))
-    kw = {k: job[k] for k in ("max_lines", "max_findings", "max_nfev", "holdout") if job.get(k) is not None}
+    kw = {k: job[k] for k in ("max_lines", "max_findings", "max_nfev", "holdout", "kinds") if job.get(k) is not None}
     d = diagnose(model, frf, parameters=params, **kw)
     dd = d.to_dict()
     (out / "diagnosis.json").write_text(json.dumps(dd, indent=1, default=float))

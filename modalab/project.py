@@ -80,7 +80,7 @@ STAGE_OPTIONS = {
     "update": {"parameters": (str, None), "max_iter": (int, 20), "regularisation": ((str, float), "lcurve"),
                "use_shapes": (bool, True), "freq_sigma": (float, 0.01), "shape_sigma": (float, 0.05)},
     "diagnose": {"parameters": (str, None), "max_lines": (int, 120), "band_hz": (list, None),
-                 "max_findings": (int, 3), "max_nfev": (int, 30), "holdout": (str, None),
+                 "max_findings": (int, 3), "max_nfev": (int, 30), "holdout": (str, None), "kinds": (list, None),
                  "enabled": (bool, True)},
     "report": {"frf_dofs": (list, None), "title": (str, None)},
     "project": {"name": (str, "modalab project")},

@@ -51,6 +51,10 @@ DEPENDS = {"acquire": (), "frf": ("acquire",), "identify": ("frf",), "correlate"
 #: project sections each stage reads (its options)
 SECTIONS = {"acquire": ("test",), "frf": ("frf", "test"), "identify": ("identify",), "correlate": ("correlate", "model"),
             "update": ("update", "model", "correlate"), "diagnose": ("diagnose", "model"), "report": ("report", "project")}
+#: the outputs downstream stages consume (their hashes enter the downstream keys; figures and timings do not)
+PRODUCTS = {"acquire": ("session.uff",), "frf": ("frf.uff",), "identify": ("modes.uff",),
+            "correlate": ("correlation.json",), "update": ("updated.bdf", "update.json"),
+            "diagnose": ("diagnosis.json", "diagnosed.bdf")}
 MANIFEST = "manifest.json"
 _VERSION = 1
 
@@ -451,7 +455,7 @@ def stage_diagnose(ctx: _Context) -> tuple[list, dict]:
         params = load_parameters(ctx.project.resolve(o["parameters"]))[0]
     frf = _band(ctx.frf(), o["band_hz"] or ctx.project.options["identify"]["band_hz"])
     diag = diagnose(ctx.model(), frf, parameters=params, max_lines=o["max_lines"], max_findings=o["max_findings"],
-                    max_nfev=o["max_nfev"], holdout=o["holdout"], progress=lambda s: ctx.info("diagnose", s))
+                    max_nfev=o["max_nfev"], holdout=o["holdout"], kinds=o["kinds"], progress=lambda s: ctx.info("diagnose", s))
     outs = []
     dd = diag.to_dict()
     dd["steps"] = {k: (v if not isinstance(v, tuple) else list(v)) for k, v in diag.steps.items()}
@@ -593,7 +597,9 @@ def run_project(project, out_dir, *, backend: str | None = None, from_stage: str
         if STAGES.index(s) > stop:
             result.status[s] = "not requested"
             continue
-        ups = {u: man.entry(u)["outputs"] for u in DEPENDS[s] if u in wanted}
+        ups = {u: {k: h for k, h in man.entry(u)["outputs"].items()
+                   if s == "report" or Path(k).name in PRODUCTS.get(u, ())}
+               for u in DEPENDS[s] if u in wanted and man.entry(u)}
         missing = [u for u in DEPENDS[s] if u in wanted and not man.entry(u)]
         if missing:
             raise PlanError(f"stage {s} needs {', '.join(missing)} first; run without --from/--until to complete "

@@ -1,0 +1,187 @@
+"""``modalab run`` on the smaller demo: interrupted and resumed, end to end, manifest skip/rerun logic.
+
+One quick demo run is shared by the tests of this module (it is the expensive part): it is started in a
+subprocess, killed (SIGKILL, like a crash or a power cut) in the middle of the acquisition, and continued in
+this process.  The other tests check the artifacts, the diagnosis and how reruns use the manifest.
+"""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from modalab.demo_project import DEMO_FILES, _ERRORS, DEMO_PARAMETERS, demo_project_dir, run_demo
+from modalab.errors import PlanError
+from modalab.project import STAGES, load_project
+from modalab.run import Manifest, run_project, sha256_file
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def _hit_times(out: Path) -> list:
+    j = out / "acquire" / "session" / "journal.jsonl"
+    if not j.is_file():
+        return []
+    times = []
+    for line in j.read_text().splitlines():
+        try:
+            e = json.loads(line)
+        except json.JSONDecodeError:            # a line cut by the kill
+            continue
+        if e.get("event") == "hit":
+            times.append(float(e["time"]))
+    return times
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo_run")
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", MPLBACKEND="Agg")
+    code = f"from modalab.demo_project import run_demo; run_demo({str(out)!r}, quick=True)"
+    proc = subprocess.Popen([sys.executable, "-c", code], cwd=REPO, env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE)
+    t_end = time.time() + 240
+    while time.time() < t_end and len(_hit_times(out)) < 8 and proc.poll() is None:
+        time.sleep(0.2)
+    killed_at = time.time()
+    alive = proc.poll() is None
+    if alive:
+        os.kill(proc.pid, signal.SIGKILL)
+    err = proc.communicate()[1].decode(errors="replace")
+    assert alive, f"the demo run ended before it could be interrupted: {err[-2000:]}"
+    before = _hit_times(out)
+    man_before = json.loads((out / "manifest.json").read_text()) if (out / "manifest.json").is_file() else {}
+    t0 = time.perf_counter()
+    res = run_demo(out, quick=True)
+    return {"out": out, "result": res, "killed_at": killed_at, "hits_before": before, "manifest_before": man_before,
+            "elapsed": time.perf_counter() - t0}
+
+
+def test_interrupted_acquisition_resumes(demo):
+    out = demo["out"]
+    # nothing was complete at the kill, so the manifest had no stage
+    assert "acquire" not in demo["manifest_before"].get("stages", {})
+    assert len(demo["hits_before"]) >= 8
+    after = _hit_times(out)
+    # the hits taken before the kill were kept: the session continued instead of starting again
+    assert after[: len(demo["hits_before"])] == demo["hits_before"]
+    assert all(t < demo["killed_at"] for t in demo["hits_before"])
+    assert len(after) > len(demo["hits_before"])
+    assert demo["result"].status["acquire"] == "ran"
+
+
+def test_end_to_end_artifacts_and_manifest(demo):
+    out, res = demo["out"], demo["result"]
+    assert all(res.status[s] == "ran" for s in STAGES), res.status
+    for rel in ("acquire/session.uff", "frf/frf.uff", "frf/coherence.png", "identify/modes.uff",
+                "identify/stabilisation.png", "correlate/mac_before.png", "update/updated.bdf", "update/mac_after.png",
+                "update/convergence.png", "diagnose/diagnosis.json", "diagnose/diagnosed.bdf", "diagnose/mci_maps.png",
+                "diagnose/frf_overlay.png", "report/report.html", "report/summary.json"):
+        assert (out / rel).is_file(), rel
+    man = json.loads((out / "manifest.json").read_text())
+    assert list(man["stages"]) == list(STAGES)
+    for s, e in man["stages"].items():
+        assert len(e["key"]) == 64 and e["outputs"]
+        for rel, h in e["outputs"].items():
+            assert sha256_file(out / rel) == h, rel
+    # the report embeds every figure it names
+    html = (out / "report" / "report.html").read_text()
+    assert html.count("<img ") >= 10 and 'src="http' not in html
+
+
+def test_updating_moves_parameters_towards_the_truth(demo):
+    upd = json.loads((demo["out"] / "update" / "update.json").read_text())
+    truth = dict(zip(DEMO_PARAMETERS, _ERRORS))
+    for name in ("t_fin", "rho_fuselage", "t_wing"):
+        p = upd["parameters"][name]["updated"]
+        assert abs(p - truth[name]) < 0.5 * abs(1.0 - truth[name]), (name, p, truth[name])
+    before = json.loads((demo["out"] / "correlate" / "correlation.json").read_text())
+    err0 = np.mean(np.abs([r["freq_error_pct"] for r in before["pairs"]]))
+    err1 = np.mean(np.abs([r["freq_error_pct"] for r in upd["correlation_after"]["pairs"]]))
+    assert err1 < 0.5 * err0
+
+
+def test_diagnosis_finds_the_concealed_effect(demo):
+    d = json.loads((demo["out"] / "diagnose" / "diagnosis.json").read_text())
+    assert d["statement"]
+    assert d["findings"], d["statement"]
+    f = d["findings"][0]
+    # what the truth builder hides: an inertia at the right wing tip (node 218) of the nominal numbering
+    assert 218 in f["nodes"] or any(n in f["nodes"] for n in (216, 217)), f
+    assert f["physics"] == "added_mass", f
+    held = d["fit"]
+    assert held["with_physics"]["frf_error_held_out"] < held["parameters_only"]["frf_error_held_out"]
+
+
+def test_rerun_skips_and_changed_options_rerun_only_dependents(demo, tmp_path):
+    out = demo["out"]
+    proj_path = out / "project" / "project_quick.toml"
+    t0 = time.perf_counter()
+    r = run_project(proj_path, out)
+    assert all(v == "skipped" for v in r.status.values()), r.status
+    assert time.perf_counter() - t0 < 20
+    # a report option: only the report
+    proj = load_project(proj_path)
+    proj.options["report"]["title"] = "another title"
+    r = run_project(proj, out)
+    assert [s for s, v in r.status.items() if v == "ran"] == ["report"]
+    assert "another title" in (out / "report" / "report.html").read_text()
+    # a correlation option: correlate and what reads it (update, report); FRFs, identification and the
+    # diagnosis stay (the identified modes and the FRFs did not change)
+    proj.options["correlate"]["mac_min"] = 0.6
+    r = run_project(proj, out)
+    ran = [s for s, v in r.status.items() if v == "ran"]
+    assert ran == ["correlate", "update", "report"], r.status
+    assert r.status["diagnose"] == "skipped" and r.status["identify"] == "skipped"
+    # --from / --until: just identify again; identical modes -> nothing downstream reruns afterwards
+    r = run_project(proj, out, from_stage="identify", until_stage="identify")
+    assert [s for s, v in r.status.items() if v == "ran"] == ["identify"]
+    assert r.status["report"] == "not requested"
+    r = run_project(proj, out)
+    assert [s for s, v in r.status.items() if v == "ran"] in ([], ["report"]), r.status
+    # a tampered output is noticed and only its stage (and what depends on a changed product) reruns
+    p = out / "update" / "convergence.png"
+    p.write_bytes(p.read_bytes() + b"x")
+    m = Manifest(out)
+    assert not m.valid("update", m.entry("update")["key"])
+    r = run_project(proj, out)
+    assert r.status["update"] == "ran" and r.status["diagnose"] == "skipped"
+
+
+def test_project_validation_names_the_problem(tmp_path):
+    d = tmp_path / "p"
+    d.mkdir()
+    for name in DEMO_FILES:
+        (d / name).write_bytes((demo_project_dir() / name).read_bytes())
+    text = (d / "project_quick.toml").read_text()
+    (d / "bad1.toml").write_text(text.replace('bulk = "nominal.bdf"', 'bulk = "missing.bdf"'))
+    with pytest.raises(PlanError, match="missing.bdf"):
+        load_project(d / "bad1.toml")
+    (d / "bad2.toml").write_text(text.replace("[identify]", "[identify]\nbandwidth = 3"))
+    with pytest.raises(PlanError, match=r"\[identify\] unknown key\(s\) \['bandwidth'\]"):
+        load_project(d / "bad2.toml")
+    (d / "bad3.toml").write_text(text.replace("band_hz = [2.0, 80.0]", "band_hz = [80.0, 2.0]", 1))
+    with pytest.raises(PlanError, match="low < high"):
+        load_project(d / "bad3.toml")
+    (d / "bad4.toml").write_text(text.replace('plan = "plan_quick.toml"', 'plan = "plan_quick.toml"\nfrf = "x.uff"'))
+    with pytest.raises(PlanError, match="exactly one of plan"):
+        load_project(d / "bad4.toml")
+    (d / "params_bad.toml").write_text('[[parameter]]\nname = "E_wing"\nfield = "E"\n')
+    (d / "bad5.toml").write_text(text.replace('parameters = "params.toml"', 'parameters = "params_bad.toml"'))
+    with pytest.raises(PlanError, match="exactly one selector"):
+        load_project(d / "bad5.toml")
+    with pytest.raises(PlanError, match="stage 'fit'"):
+        run_project(d / "project_quick.toml", tmp_path / "o", from_stage="fit")
+
+
+def test_examples_folder_matches_the_packaged_demo():
+    ex = REPO / "examples" / "demo_project"
+    for name in DEMO_FILES:
+        assert (ex / name).read_bytes() == (demo_project_dir() / name).read_bytes(), name
