@@ -15,7 +15,9 @@ operational modal analysis using multi-stage clustering", MSSP 76)
    orders and at least ``min_poles`` poles: spurious poles are rarely stable over many
    orders; of two kept clusters closer than ``distance/2`` in frequency only the larger
    stays (one physical mode whose estimates wander);
-5. represent each cluster by the median frequency and damping of its poles in the upper third of
+5. (in :class:`~identification.polymax.PolyMAX`) after LSFD, automatic picks whose shape
+   has an MPC below ``min_mpc`` are dropped as noise modes;
+6. represent each cluster by the median frequency and damping of its poles in the upper third of
    its orders (estimates converge with the order), with the participation vector of the pole
    closest to that median.
 
@@ -53,6 +55,8 @@ class SelectionOptions:
     max_damping: float = 0.20       # poles with more damping are unphysical here
     edge_fraction: float = 0.005    # poles within this fraction of the band edges are dropped
     manual_tol: float = 0.02        # relative frequency window for manual picks
+    min_mpc: float = 0.5            # after LSFD, automatic picks with a lower MPC are dropped as noise
+    max_block: int = 1500           # poles clustered at once (memory bound of the distance matrix)
 
     def __post_init__(self):
         for name in ("distance", "max_damping", "manual_tol"):
@@ -103,6 +107,19 @@ def _physical(diag: StabilisationDiagram, opts: SelectionOptions, band_hz):
             & (diag.freq_hz > lo + margin) & (diag.freq_hz < hi - margin))
 
 
+def _split_block(blk, rel_gap, gap, max_block):
+    """Split a contiguous run of frequency-sorted poles at gaps wider than ``gap`` until small enough."""
+    if blk.size <= max_block:
+        return [blk]
+    if gap < 1e-6:
+        return np.array_split(blk, int(np.ceil(blk.size / max_block)))
+    cuts = np.flatnonzero(rel_gap[blk[:-1]] > gap) + 1
+    out = []
+    for q in (np.split(blk, cuts) if cuts.size else [blk]):
+        out.extend(_split_block(q, rel_gap, gap / 2, max_block))
+    return out
+
+
 def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = None, *, band_hz=None) -> SelectedPoles:
     """Automatic selection by hierarchical clustering of the stable, physical poles (module docs)."""
     from scipy.cluster.hierarchy import fcluster, linkage
@@ -119,10 +136,14 @@ def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = N
     f, z, L, od = diag.freq_hz[idx], diag.damping[idx], diag.participation[:, idx], diag.order[idx]
     # d_ij >= |Δf|/f, so poles separated by a frequency gap wider than the cut never share a cluster:
     # cluster each gap-separated block on its own (memory and time stay per mode, not per diagram)
-    gaps = np.flatnonzero(np.diff(f) / f[1:] > opts.distance) + 1
+    rel_gap = np.diff(f) / f[1:]
+    blocks = []
+    for blk in np.split(np.arange(idx.size), np.flatnonzero(rel_gap > opts.distance) + 1):
+        # a block crowded with noise poles (very high orders) is split at finer gaps to bound memory
+        blocks.extend(_split_block(blk, rel_gap, opts.distance / 2, opts.max_block))
     lab = np.zeros(idx.size, int)
     next_label = 1
-    for blk in np.split(np.arange(idx.size), gaps):
+    for blk in blocks:
         if blk.size == 1:
             lab[blk] = next_label
             next_label += 1

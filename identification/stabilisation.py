@@ -1,7 +1,8 @@
 """Stabilisation of poles across model orders.
 
-A pole of order ``n`` is compared with the closest pole (in frequency) of the
-*previous evaluated order* — the row directly below it in the diagram — on
+A pole of order ``n`` is compared with one partner of the *previous evaluated
+order* — the row directly below it in the diagram — the pole closest in the sum
+of the three normalised differences below, on
 
 * frequency:      ``|f_n − f_{n−1}| / f_{n−1} ≤ freq_tol``,
 * damping:        ``|ζ_n − ζ_{n−1}| / ζ_{n−1} ≤ damping_tol``,
@@ -139,18 +140,19 @@ def stabilise(orders, poles, participation, criteria: StabilisationCriteria | No
         if prev is not None and prev[0].size and m:
             fp, zp, Lp = prev
             with np.errstate(divide="ignore", invalid="ignore"):
-                fok = np.abs(f[:, None] - fp[None, :]) <= crit.freq_tol * np.abs(fp[None, :])
-                dok = np.abs(z[:, None] - zp[None, :]) <= crit.damping_tol * np.abs(zp[None, :])
-            vok = mac_vectors(L, Lp) >= crit.mac_min
-            # a pole is stable in a test when some pole of the previous order passes it together with
-            # the frequency test (and all three for full stability)
-            sf = fok.any(axis=1)
-            sd = (fok & dok).any(axis=1)
-            sv = (fok & vok).any(axis=1)
-            full = (fok & dok & vok).any(axis=1)
-            # keep the flags consistent: 'stable' must mean one previous pole passes all three
-            sd = sd & (full | ~sv)
-            sv = sv & (full | ~sd)
+                rf = np.abs(f[:, None] - fp[None, :]) / (crit.freq_tol * np.abs(fp[None, :]))
+                rd = np.abs(z[:, None] - zp[None, :]) / (crit.damping_tol * np.abs(zp[None, :]))
+            rv = (1.0 - mac_vectors(L, Lp)) / max(1.0 - crit.mac_min, 1e-12)
+            rf = np.nan_to_num(rf, nan=np.inf)
+            rd = np.nan_to_num(rd, nan=np.inf)
+            # each pole is tested against ONE partner of the previous order: the pole closest in the
+            # combined normalised distance (so dense noise poles cannot pass by picking different
+            # partners for different tests, and shadow poles of close modes pair correctly)
+            j = np.argmin(np.minimum(rf, 1e6) + np.minimum(rd, 1e6) + np.minimum(rv, 1e6), axis=1)
+            i = np.arange(m)
+            sf = rf[i, j] <= 1.0
+            sd = sf & (rd[i, j] <= 1.0)
+            sv = sf & (rv[i, j] <= 1.0)
         cols["order"].append(np.full(m, n))
         cols["lam"].append(lam)
         cols["f"].append(f)
