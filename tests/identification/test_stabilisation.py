@@ -101,6 +101,13 @@ class TestSelection:
         np.testing.assert_allclose(sel.damping, [0.01, 0.006, 0.012], rtol=1e-2)
         assert np.all(sel.cluster_size >= 25)
 
+    def test_crowded_blocks_are_split_without_losing_modes(self):
+        rng = np.random.default_rng(3)
+        la = np.array([1.0, 0.3]) / np.linalg.norm([1.0, 0.3])
+        d = _diagram(rng, [(240.0, 0.006, la), (247.0, 0.012, la), (90.0, 0.01, la)])
+        small = auto_select(d, SelectionOptions(max_block=20), band_hz=(10, 600))
+        np.testing.assert_allclose(small.freq_hz, [90, 240, 247], rtol=1e-4)
+
     def test_unphysical_and_spurious_rejected(self):
         rng = np.random.default_rng(1)
         l0 = np.array([1.0, 0.0], complex)
