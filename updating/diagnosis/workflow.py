@@ -274,6 +274,12 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
     scales_cur = _augment(model, current)[2] if current else []
     if current:
         polish = fit_frf(pm_cur, train, p_cur, lower=lo_cur, upper=hi_cur, max_nfev=max_nfev)
+        # a second start: the nominal parameters (with fitted damping) and the MCI values of the new terms
+        alt = fit_frf(pm_cur, train, np.concatenate([p_nomd, p_cur[len(params):]]), lower=lo_cur, upper=hi_cur,
+                      max_nfev=max_nfev)
+        if alt.error < polish.error:
+            polish = alt
+        log.info("joint FRF fit from the MCI solution %s: error %.4g (%s)", np.round(p_cur, 4), polish.error, polish.message)
         mci_err = frf_error(model_frf(pm_cur.structure(p_cur), train), train)
         best_fit = polish if polish.error <= mci_err else \
             type(polish)(p_cur, np.zeros_like(p_cur), mci_err, [], True, "MCI solution")
@@ -306,8 +312,22 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
         m_aug, cpar, sc = _augment(model, rest)
         pm_rest = ParametricFEModel(m_aug, params + cpar)
         keep = np.r_[np.arange(n_par0), n_par0 + np.array([k for k in range(len(current)) if k != worst], int)]
-        refit = fit_frf(pm_rest, train, best_fit.p[keep], lower=np.concatenate([lo, np.zeros(len(cpar))]),
-                        upper=np.concatenate([hi, np.full(len(cpar), np.inf)]), max_nfev=max_nfev)
+        clo_r = np.concatenate([lo, np.zeros(len(cpar))])
+        chi_r = np.concatenate([hi, np.full(len(cpar), np.inf)])
+        refit = fit_frf(pm_rest, train, best_fit.p[keep], lower=clo_r, upper=chi_r, max_nfev=max_nfev)
+        # also from the MCI solution of the reduced set (the removed term may have dragged the others)
+        try:
+            start = np.concatenate([p_mci, best_fit.p[keep][n_par0:]])
+            p_r, _, _ = mci_update(pm_rest, start, train, clo_r, chi_r, weights=W)
+            refit2 = fit_frf(pm_rest, train, p_r, lower=clo_r, upper=chi_r, max_nfev=max_nfev)
+            if refit2.error < refit.error:
+                refit = refit2
+            refit3 = fit_frf(pm_rest, train, np.concatenate([p_nomd, best_fit.p[keep][n_par0:]]), lower=clo_r,
+                             upper=chi_r, max_nfev=max_nfev)
+            if refit3.error < refit.error:
+                refit = refit3
+        except (np.linalg.LinAlgError, ModalabValueError) as e:  # pragma: no cover
+            log.info("MCI restart failed: %s", e)
         if refit.error > H0 * (1 + min_term_gain):
             break
         log.info("dropping %s: without it the training FRF error is %.4g (with %.4g)", current[worst].label,
