@@ -24,7 +24,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from modalab.errors import ModalabValueError
+from modalab.errors import ModalabError, ModalabValueError
+from modalab.modes import ModeSet
 from modalab.frf import FRF
 
 from ..fe import FEModel, Parameter, ParametricFEModel
@@ -158,11 +159,55 @@ def _evidence(c: Candidate, gain: float, rank_same_place: list, band) -> str:
     return s + (f" (competing: {alt})" if alt else "")
 
 
+def peak_modes(measured: FRF, *, band_hz=None, max_modes: int = 12, prominence: float = 0.05) -> ModeSet:
+    """Test modes by quadrature peak picking on the measured FRFs (used when no identified modes are given).
+
+    Natural frequencies are the peaks of the summed receptance power (``scipy.signal.find_peaks`` with a
+    prominence of ``prominence`` × the largest peak in log scale); each shape is the imaginary part of the
+    receptance column of the reference that responds most at the peak.  Adequate for well-separated,
+    lightly damped modes, which is what the frequency and MAC columns of the fit blocks need.
+    """
+    from scipy.signal import find_peaks
+    f = measured if band_hz is None else measured.band(*band_hz)
+    f = f.band(max(float(f.freq_hz[0]), 1e-9), None) if f.freq_hz[0] <= 0 else f
+    rec = f.to("receptance")
+    P = np.sum(np.abs(rec.H) ** 2, axis=(0, 1))
+    lg = np.log10(P + 1e-300)
+    pk, props = find_peaks(lg, prominence=prominence * max(float(np.ptp(lg)), 1e-12))
+    if pk.size == 0:
+        raise ModalabValueError("no resonance peaks in the measured FRFs; give identified test modes instead")
+    pk = pk[np.argsort(-props["prominences"])[:max_modes]]
+    pk.sort()
+    shapes = []
+    for i in pk:
+        col = int(np.argmax(np.sum(np.abs(rec.H[:, :, i]) ** 2, axis=0)))
+        shapes.append(rec.H[:, col, i].imag)
+    return ModeSet(freq_hz=rec.freq_hz[pk], shapes=np.array(shapes).T, dofs=list(rec.responses),
+                   metadata={"source": "quadrature peak picking"})
+
+
+def _mode_metrics(structure, test_modes) -> dict:
+    """``freq_error_max_pct`` and ``mac_min`` over the test modes paired with the model's modes."""
+    if test_modes is None:
+        return {"freq_error_max_pct": None, "mac_min": None}
+    from ..correlation import correlate
+    try:
+        c = correlate(structure, test_modes, mac_min=0.3)
+    except ModalabError as e:
+        log.info("correlation failed: %s", e)
+        return {"freq_error_max_pct": None, "mac_min": None}
+    if not len(c.pairs):
+        return {"freq_error_max_pct": None, "mac_min": 0.0}
+    macs = [float(c.mac[a, t]) for a, t in c.pairs]
+    return {"freq_error_max_pct": float(np.max(np.abs(c.freq_error_pct))), "mac_min": float(np.min(macs)),
+            "n_pairs": len(c.pairs)}
+
+
 def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int = 160, holdout: str | None = None,
              kinds=None, max_findings: int = 3, min_gain: float = 0.05, min_holdout_gain: float = 0.10,
              penalty: float = 10.0,
              band_hz=None, progress=None, max_nfev: int = 30, n_try: int = 5,
-             min_term_gain: float = 0.15) -> Diagnosis:
+             min_term_gain: float = 0.15, test_modes: ModeSet | None = None) -> Diagnosis:
     """Locate what an FE model leaves out, name it, model it and prove it on held-out data (module docstring)."""
     t0 = time.perf_counter()
     timings = {}
@@ -345,13 +390,29 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
     say("step 6/6: comparing nominal, parameter-only and augmented models on held-out data")
     t1 = time.perf_counter()
 
+    if test_modes is None:
+        try:
+            test_modes = peak_modes(measured, band_hz=band_hz)
+            modes_source = "peaks of the measured FRFs"
+        except ModalabError as e:
+            log.info("no test modes: %s", e)
+            modes_source = None
+    else:
+        modes_source = "given test modes"
+
     def metrics(pmodel, p):
         st = pmodel.structure(p)
-        return {"frf_error_held_out": frf_error(model_frf(st, held), held),
-                "frf_error_train": frf_error(model_frf(st, train), train)}
+        out = {"frf_error_held_out": frf_error(model_frf(st, held), held),
+               "frf_error_train": frf_error(model_frf(st, train), train)}
+        out.update(_mode_metrics(st, test_modes))
+        return out
 
     fit_blocks = {"nominal": metrics(pm, p_nomd), "parameters_only": metrics(pm, upd.p)}
     fit_blocks["with_physics"] = metrics(best_pm, best_fit.p) if current else dict(fit_blocks["parameters_only"])
+    if modes_source:
+        steps_modes = {"test_modes": modes_source, "test_freq_hz": [float(x) for x in test_modes.freq_hz]}
+    else:
+        steps_modes = {}
     if current and fit_blocks["with_physics"]["frf_error_held_out"] > \
             fit_blocks["parameters_only"]["frf_error_held_out"] * (1 - min_holdout_gain):
         log.info("augmentation did not improve held-out data enough; reporting no missing physics")
@@ -377,7 +438,7 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
     diag = Diagnosis(findings=findings, parameters=pars, fit=fit_blocks,
                      statement=statement(findings, fit_blocks, held_desc), model=final_model, parametric=best_pm,
                      p=best_fit.p, steps={"held_out": held_desc, "band_hz": band, "hot_nodes": hot_nodes,
-                                          "n_candidates": n_lib},
+                                          "n_candidates": n_lib, **steps_modes},
                      maps=maps, timings=timings, ranking=scr_ranking)
     timings["total"] = time.perf_counter() - t0
     return diag
