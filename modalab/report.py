@@ -188,25 +188,37 @@ def _load(path):
         return None
 
 
-def _geometry_figure(run_dir: Path, report_dir: Path) -> Path | None:
-    """Geometry with the measured DOFs, from the FRF file (nodes of the test)."""
+def _geometry_figure(run_dir: Path, report_dir: Path, project=None) -> Path | None:
+    """The FE model's wire frame (when the project is known) with the measured DOFs of the test."""
     from . import uff
     from .plots import plot_geometry
 
     frf_path = run_dir / "frf" / "frf.uff"
     if not frf_path.is_file():
         return None
+    coords, lines = {}, []
     try:
-        coords = uff.read_geometry(frf_path)
-    except Exception:  # noqa: BLE001 - FRFs without geometry: no plot
+        coords = dict(uff.read_geometry(frf_path))
+    except Exception:  # noqa: BLE001 - FRFs without geometry
         coords = {}
+    if project is not None:
+        try:
+            from updating.bulk import read_bdf
+            from updating.bulk.build import build_model
+
+            m = build_model(read_bdf(project.bulk_path))
+            for nid, n in m.nodes.items():
+                coords.setdefault(nid, tuple(float(x) for x in n.xyz))
+            lines = [tuple(e.nodes[:2]) for e in m.elements.values() if len(getattr(e, "nodes", ())) >= 2]
+            lines += [(r.independent, d) for r in m.rbe2s.values() for d in r.dependents]
+        except Exception as e:  # noqa: BLE001 - the wire frame is a nicety
+            log.info("no wire frame in the geometry plot: %s", e)
     if not coords:
         return None
     frf = uff.read_frf(frf_path)
     dofs = list(dict.fromkeys(list(frf.responses) + list(frf.references)))
-    coords = {n: xyz for n, xyz in coords.items()}
     path = report_dir / "geometry.png"
-    fig = plot_geometry(coords, dofs=dofs, title="Test geometry: measured DOFs (arrows), references in the FRFs")
+    fig = plot_geometry(coords, dofs=dofs, lines=lines, title="Test geometry: FE model and measured DOFs (arrows)")
     fig.savefig(path, dpi=90, metadata={"Software": None})
     return path
 
@@ -265,7 +277,7 @@ def build_report(run_dir, report_dir=None, *, project=None, title: str | None = 
         parts.append('<p class="muted">The diagnosis stage has not run.</p>')
     # test overview
     parts.append("<h2>Test overview</h2>")
-    g = _geometry_figure(run_dir, rd)
+    g = _geometry_figure(run_dir, rd, project)
     if g:
         parts.append(_fig(g, "Geometry and measured DOFs"))
     if frf_s:
@@ -280,8 +292,7 @@ def build_report(run_dir, report_dir=None, *, project=None, title: str | None = 
     parts.append("<h2>Identification</h2>")
     parts.append(_fig(run_dir / "identify" / "stabilisation.png", "Stabilisation diagram"))
     if modes:
-        cols = ["mode", "freq_hz", "damping_pct"] + [c for c in ("mpc", "mpd", "mcf", "mov", "contribution",
-                                                                 "cluster_size", "order") if c in modes[0]]
+        cols = ["mode", "freq_hz", "damping_pct"] + [c for c in modes[0] if c not in ("mode", "freq_hz", "damping_pct")]
         parts += ["<p>Identified modes with their indicators:</p>", _table(modes, cols, {"freq_hz": "{:.3f}"})]
     parts.append(_fig(run_dir / "identify" / "synthesis.png", "Synthesised vs measured FRFs"))
     # correlation

@@ -10,8 +10,10 @@ key, the options it used, the sha256 of every input file and of every output it 
 sha256 of (options, input-file hashes, the output hashes of the stages it depends on), so
 
 * a rerun skips a stage whose key is unchanged and whose outputs are still there with the same hashes;
-* a changed option changes only the keys of that stage and of the stages downstream of it
-  (the dependencies are a graph, not a chain: ``update`` and ``diagnose`` do not depend on each other);
+* a changed option changes only the key of that stage; a downstream stage's key holds the hashes of the
+  *products* it reads (:data:`PRODUCTS`: ``session.uff``, ``frf.uff``, ``modes.uff``, ...; not figures or
+  timings), so it reruns only when those changed (the dependencies are a graph, not a chain: ``update`` and
+  ``diagnose`` do not depend on each other; the report depends on everything);
 * a stage without a manifest entry is incomplete — an interrupted run redoes it (the acquisition itself
   resumes hit by hit through the session's store) and continues with the rest.
 
@@ -463,8 +465,9 @@ def stage_diagnose(ctx: _Context) -> tuple[list, dict]:
     outs.append(d / "diagnosis.json")
     if hasattr(diag, "save"):
         try:
-            for p in (diag.save(d / "figures") or []):
-                if Path(p).is_file():
+            saved = diag.save(d / "figures") or []
+            for p in (saved.values() if isinstance(saved, dict) else saved):
+                if isinstance(p, (str, Path)) and Path(p).is_file():
                     outs.append(Path(p))
         except Exception as e:  # noqa: BLE001 - the engine's own figures are extras
             log.warning("diagnosis figures failed: %s", e)
