@@ -127,6 +127,10 @@ def test_rerun_skips_and_changed_options_rerun_only_dependents(demo, tmp_path):
     r = run_project(proj_path, out)
     assert all(v == "skipped" for v in r.status.values()), r.status
     assert time.perf_counter() - t0 < 20
+    # the command line: the same, with per-stage progress
+    from modalab.cli import main
+
+    assert main(["run", str(proj_path), "-o", str(out), "--quiet"]) == 0
     # a report option: only the report
     proj = load_project(proj_path)
     proj.options["report"]["title"] = "another title"
