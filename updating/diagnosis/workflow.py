@@ -66,6 +66,30 @@ class Diagnosis:
     maps: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
     ranking: list = field(default_factory=list)
+    curves: dict = field(default_factory=dict)
+    frequencies: dict = field(default_factory=dict)
+
+    def save(self, directory, *, figures: bool = True, bulk: bool = True):
+        """Write ``diagnosis.json``, the figures (:mod:`~updating.diagnosis.report`) and the augmented,
+        updated model as bulk data (``augmented.bdf``: CELAS/CONM2/CDAMP/split GRIDs/edited SPCs) into
+        ``directory``; returns the directory.  Models the bulk writer cannot export are skipped with a log
+        message."""
+        import json
+        from pathlib import Path
+        d = Path(directory)
+        d.mkdir(parents=True, exist_ok=True)
+        (d / "diagnosis.json").write_text(json.dumps(self.to_dict(), indent=1))
+        if figures:
+            from .report import write_figures
+            write_figures(self, d)
+        if bulk and self.model is not None:
+            from modalab.errors import ModalabError
+            try:
+                from ..bulk import write_bdf
+                write_bdf(self.model, d / "augmented.bdf")
+            except ModalabError as e:
+                log.warning("the augmented model was not written as bulk data: %s", e)
+        return d
 
     def to_dict(self) -> dict:
         return {"findings": [f.to_dict() for f in self.findings], "parameters": self.parameters,
@@ -435,11 +459,34 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
     maps = {"freq_hz": train.freq_hz, "responses": [str(d) for d in train.responses],
             "before": residual_map(st_upd, train), "after": residual_map(best_pm.structure(best_fit.p), train)}
     final_model = best_pm.model_at(best_fit.p) if hasattr(best_pm, "model_at") else model
+    # FRF overlays at the located DOFs (findings' measured DOFs, else the worst-fitting nodes) and frequencies
+    curves, freqs = {}, {}
+    try:
+        st_nom, st_par, st_phys = pm.structure(p_nomd), pm.structure(upd.p), best_pm.structure(best_fit.p)
+        want = [d for f in findings for d in f.candidate.dofs] + [f"{n}+Z" for n in hot_nodes]
+        labels = [str(r) for r in data.responses]
+        rows = []
+        for w in want:
+            hit = [i for i, lbl in enumerate(labels) if lbl == w or lbl.split("+")[0].split("-")[0] == w.split("+")[0]]
+            rows += [i for i in hit if i not in rows]
+        rows = rows[:3] or [0]
+        H = {"measured": data.H, "nominal": model_frf(st_nom, data), "parameters_only": model_frf(st_par, data),
+             "with_physics": model_frf(st_phys, data)}
+        curves = {"freq_hz": data.freq_hz, "pairs": [(f"{labels[i]} / {data.references[0]}",
+                                                      {k: v[i, 0] for k, v in H.items()}) for i in rows]}
+        nm = len(test_modes.freq_hz) + 2 if test_modes is not None else 8
+        for key, stx in (("nominal", st_nom), ("parameters_only", st_par), ("with_physics", st_phys)):
+            w, _ = stx.normal_modes(min(nm, stx.n_dof))
+            fx = np.atleast_1d(w) / (2 * np.pi)
+            freqs[key] = [float(x) for x in fx if 1e-6 < x <= 1.1 * band[1]]
+        freqs["test"] = [float(x) for x in test_modes.freq_hz] if test_modes is not None else []
+    except (ModalabError, np.linalg.LinAlgError) as e:  # pragma: no cover - figures are a by-product
+        log.info("FRF overlays/frequency table not prepared: %s", e)
     diag = Diagnosis(findings=findings, parameters=pars, fit=fit_blocks,
                      statement=statement(findings, fit_blocks, held_desc), model=final_model, parametric=best_pm,
                      p=best_fit.p, steps={"held_out": held_desc, "band_hz": band, "hot_nodes": hot_nodes,
                                           "n_candidates": n_lib, **steps_modes},
-                     maps=maps, timings=timings, ranking=scr_ranking)
+                     maps=maps, timings=timings, ranking=scr_ranking, curves=curves, frequencies=freqs)
     timings["total"] = time.perf_counter() - t0
     return diag
 

@@ -1,0 +1,180 @@
+"""Unit tests of the diagnosis engine: candidate library, condensed residual, diagnosis.json schema."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from updating.diagnosis import build_library
+from updating.diagnosis.dynamics import condensed_residual
+from updating.diagnosis.workflow import _augment
+from updating.fe import Beam2D, BeamProperty, FEModel, Material, ParametricFEModel, TubeSection
+
+
+def _small(spc=False):
+    m = FEModel("small beam")
+    for i in range(4):
+        m.add_node(i + 1, (0.3 * i, 0.0, 0.0))
+    m.add_material(Material(1, E=210e9, rho=7850.0))
+    m.add_property(BeamProperty(1, 1, TubeSection(0.02, 0.016), name="a"))
+    m.add_property(BeamProperty(2, 1, TubeSection(0.03, 0.026), name="b"))
+    for i, pid in zip(range(3), (1, 1, 2)):
+        m.add_element(Beam2D(i + 1, i + 1, i + 2, pid, plane="xz"))
+    if spc:
+        m.add_spc(1, "35")
+    return m
+
+
+def _apply(model, cand, value):
+    m_aug, pars, scales = _augment(model, [cand])
+    pm = ParametricFEModel(m_aug, pars)
+    return pm, pm.structure([value / scales[0]])
+
+
+def _idx(structure, label):
+    return [str(d) for d in structure.dofs].index(label)
+
+
+def test_ground_spring_adds_k_on_its_dof():
+    m = _small()
+    base = m.structure()
+    c = next(c for c in build_library(m, kinds=["ground_spring"]) if c.dofs == ("3+Z",))
+    _, s = _apply(m, c, 250.0)
+    dK = (s.K - base.K).toarray()
+    i = _idx(base, "3+Z")
+    expect = np.zeros_like(dK)
+    expect[i, i] = 250.0
+    np.testing.assert_allclose(dK, expect, atol=1e-6)
+    np.testing.assert_allclose(c.G.toarray(), expect / 250.0)
+
+
+def test_added_mass_adds_m_on_translations():
+    m = _small()
+    base = m.structure()
+    c = next(c for c in build_library(m, kinds=["added_mass"]) if c.value_name == "m" and c.nodes == (2,))
+    _, s = _apply(m, c, 0.3)
+    dM = (s.M - base.M).toarray()
+    i = _idx(base, "2+Z")
+    assert dM[i, i] == pytest.approx(0.3)
+    dM[i, i] = 0.0
+    assert np.abs(dM).max() < 1e-12
+    assert (s.K - base.K).count_nonzero() == 0
+
+
+def test_group_damping_is_eta_times_element_stiffness():
+    m = _small()
+    base = m.structure()
+    c = next(c for c in build_library(m, kinds=["local_damping"]) if c.elements == (3,))
+    _, s = _apply(m, c, 0.2)
+    D = s.D.toarray() if s.D is not None else np.zeros((base.n_dof,) * 2)
+    np.testing.assert_allclose(D, 0.2 * c.G.toarray(), atol=1e-9 * np.abs(D).max())
+    assert np.abs(D).max() > 0
+
+
+def test_dashpot_is_viscous():
+    m = _small()
+    c = next(c for c in build_library(m, kinds=["local_damping"]) if c.matrix == "C" and c.dofs == ("4+Z",))
+    _, s = _apply(m, c, 3.0)
+    i = _idx(s, "4+Z")
+    assert s.C.toarray()[i, i] == pytest.approx(3.0)
+
+
+def test_boundary_release_frees_the_dof_into_a_spring():
+    m = _small(spc=True)
+    base = m.structure()
+    cands = build_library(m, kinds=["boundary_flexibility"])
+    assert {c.dofs for c in cands} == {("1+Z",), ("1+RY",)}
+    c = next(c for c in cands if c.dofs == ("1+RY",))
+    _, s = _apply(m, c, 1e3)
+    assert s.n_dof == base.n_dof + 1
+    i = _idx(s, "1+RY")
+    K0 = m.copy()
+    K0.spcs = [x for x in K0.spcs if x.node != 1]
+    K0.add_spc(1, "3")
+    free = K0.structure()
+    np.testing.assert_allclose((s.K - free.K).toarray()[i, i], 1e3)
+    # a very stiff support gives back the clamped model's frequencies
+    _, stiff = _apply(m, c, 1e12)
+    w0 = np.sort(np.linalg.eigvals(np.linalg.solve(base.M.toarray(), base.K.toarray())).real)[:3]
+    w1 = np.sort(np.linalg.eigvals(np.linalg.solve(stiff.M.toarray(), stiff.K.toarray())).real)[:3]
+    np.testing.assert_allclose(w1, w0, rtol=1e-4)
+
+
+def test_joint_split_adds_a_node_coupled_by_a_spring():
+    m = _small()
+    base = m.structure()
+    cands = [c for c in build_library(m, kinds=["joint_flexibility"]) if c.dofs == ("3+RY",)]
+    assert cands, "the junction of properties a and b at node 3 is a joint candidate"
+    pm, s = _apply(m, cands[0], 500.0)
+    assert s.n_dof == base.n_dof + 1                     # one new independent component (RY of the new grid)
+    # a rigid joint gives back the nominal model
+    _, rigid = _apply(m, cands[0], 1e9)
+    ev = lambda x: np.sort(np.linalg.eigvals(np.linalg.solve(x.M.toarray(), x.K.toarray())).real)[2:6]  # noqa: E731
+    np.testing.assert_allclose(ev(rigid), ev(base), rtol=1e-3)
+    assert ev(s)[0] < ev(base)[0]                        # a flexible joint softens the structure
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 10_000), n_meas=st.integers(2, 6))
+def test_condensed_residual_identity(seed, n_meas):
+    """All DOFs measured: r = −ΔZ x exactly; the true model with any measured subset: r = 0."""
+    rng = np.random.default_rng(seed)
+    n = 6
+    A = rng.standard_normal((n, n))
+    K = A @ A.T + n * np.eye(n)
+    M = np.diag(rng.uniform(0.5, 2.0, n))
+    dK = np.zeros((n, n))
+    j = rng.integers(n)
+    dK[j, j] = rng.uniform(0.5, 3.0)
+    dM = np.zeros((n, n))
+    dM[(j + 1) % n, (j + 1) % n] = rng.uniform(0.1, 0.5)
+    s = 1j * np.array([0.3, 0.9, 1.7])
+    F = np.zeros((n, 1))
+    F[0, 0] = 1.0
+    x = np.stack([np.linalg.solve(K + dK + sk ** 2 * (M + dM), F) for sk in s], axis=2)   # (n, 1, n_s)
+    _, r, T, _ = condensed_residual(K, M, None, None, s, np.arange(n), x, F)
+    expect = -np.stack([(dK + sk ** 2 * dM) @ x[:, :, k] for k, sk in enumerate(s)], axis=2)
+    np.testing.assert_allclose(r, expect, atol=1e-10 * np.abs(expect).max())
+    meas = np.sort(rng.choice(np.arange(1, n), n_meas - 1, replace=False))
+    meas = np.concatenate([[0], meas])
+    _, r2, _, _ = condensed_residual(K + dK, M + dM, None, None, s, meas, x[meas], F)
+    assert np.abs(r2).max() < 1e-10
+
+
+CONTROL = Path(__file__).resolve().parents[2] / "examples" / "concealed" / "bar_control"
+
+
+def test_diagnosis_json_schema(tmp_path):
+    from modalab import uff
+    from updating.bulk import build_model, read_bdf
+    from updating.diagnosis import diagnose
+    model = build_model(read_bdf(CONTROL / "nominal.bdf"))
+    diag = diagnose(model, uff.read_frf(CONTROL / "measured.uff"))
+    d = json.loads(json.dumps(diag.to_dict()))
+    assert set(d) >= {"findings", "parameters", "fit", "statement"}
+    assert isinstance(d["findings"], list) and isinstance(d["statement"], str)
+    for name, p in d["parameters"].items():
+        assert set(p) >= {"initial", "updated", "std"}
+    for block in ("nominal", "parameters_only", "with_physics"):
+        assert set(d["fit"][block]) >= {"frf_error_held_out", "freq_error_max_pct", "mac_min"}
+        assert d["fit"][block]["frf_error_held_out"] >= 0
+    assert d["findings"] == []
+    out = diag.save(tmp_path / "report")
+    saved = json.loads((tmp_path / "report" / "diagnosis.json").read_text())
+    assert saved["findings"] == [] and saved["statement"] == d["statement"]
+    assert any(p.suffix == ".png" for p in (tmp_path / "report").iterdir())
+    assert out == tmp_path / "report"
+
+
+def test_finding_schema():
+    from updating.diagnosis.workflow import Finding
+    m = _small()
+    c = next(c for c in build_library(m, kinds=["ground_spring"]) if c.dofs == ("2+Z",))
+    f = Finding(c, 210.0, 16.0, "because").to_dict()
+    assert f["physics"] == "ground_spring" and f["nodes"] == [2] and f["dofs"] == ["2+Z"] and f["elements"] == []
+    assert f["values"] == [{"name": "k", "value": 210.0, "unit": "N/m", "std": 16.0}]
+    assert f["evidence"] == "because"
