@@ -237,39 +237,51 @@ def _sim_lab(ctx: _Context, plan):
                         hit_interval_s=float(plan.sim.get("hit_interval_s", 0.0)))
 
 
-def stage_acquire(ctx: _Context, resume: bool) -> tuple[list, dict]:
-    """Run the test plan (automatic mode) and export ``acquire/session.uff`` (raw hits + geometry)."""
-    from acquisition.session import AcquisitionSession
+class _AcquireObserver:
+    """Session observer that reports points as stage progress."""
 
+    def __init__(self, ctx):
+        self.ctx = ctx
+
+    def point_started(self, index, point, n_points):
+        self.ctx.info("acquire", f"point {index + 1}/{n_points}: {point}")
+
+    def hit(self, *a):
+        pass
+
+    def decided(self, *a):
+        pass
+
+    def point_finished(self, *a):
+        pass
+
+    def message(self, text):
+        log.info("acquire: %s", text)
+
+
+def stage_acquire(ctx: _Context, resume: bool) -> tuple[list, dict]:
+    """Run the test plan (automatic mode) and export ``acquire/session.uff`` (raw hits, FRFs, geometry).
+
+    With a ``[test] truth`` builder and the sim backend, the simulated bench carries that structure; otherwise
+    :func:`modalab.pipeline.acquire` runs the plan on the plan's own [sim] structure or on NI hardware.
+    """
     d = ctx.dir("acquire")
     plan = _plan_with(ctx.project)
-    be = _sim_lab(ctx, plan) if ctx.backend == "sim" else None
-    if be is None:
-        from acquisition.nidaqmx_backend import NidaqmxBackend
+    obs = _AcquireObserver(ctx)
+    if ctx.backend == "sim" and ctx.project.options["test"]["truth"]:
+        from acquisition.session import AcquisitionSession
 
-        be = NidaqmxBackend()
+        be = _sim_lab(ctx, plan)
+        sess = AcquisitionSession(plan, be, d / "session", mode="auto", observer=obs, resume=resume)
+        try:
+            summary = sess.run()
+        finally:
+            be.close()
+    else:
+        from .pipeline import acquire
 
-    class _Obs:
-        def point_started(self, index, point, n_points):
-            ctx.info("acquire", f"point {index + 1}/{n_points}: {point}")
-
-        def hit(self, *a):
-            pass
-
-        def decided(self, *a):
-            pass
-
-        def point_finished(self, *a):
-            pass
-
-        def message(self, text):
-            log.info("acquire: %s", text)
-
-    sess = AcquisitionSession(plan, be, d / "session", mode="auto", observer=_Obs(), resume=resume)
-    try:
-        summary = sess.run()
-    finally:
-        be.close()
+        sess, summary, _ = acquire(ctx.project.plan_path, d / "session", backend=ctx.backend, auto=True,
+                                   resume=resume, observer=obs, seed=ctx.project.options["test"]["seed"])
     if not summary.complete:
         raise PlanError(f"the acquisition did not complete ({summary.table()}); run again to continue")
     out = sess.export(d / "session.uff")
