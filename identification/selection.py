@@ -56,7 +56,7 @@ class SelectionOptions:
     edge_fraction: float = 0.005    # poles within this fraction of the band edges are dropped
     manual_tol: float = 0.02        # relative frequency window for manual picks
     min_mpc: float = 0.5            # after LSFD, automatic picks with a lower MPC are dropped as noise
-    max_block: int = 1500           # poles clustered at once (memory bound of the distance matrix)
+    max_block: int = 600            # poles clustered at once (bounds the distance matrices to a few MB)
 
     def __post_init__(self):
         for name in ("distance", "max_damping", "manual_tol"):
