@@ -189,3 +189,46 @@ def test_examples_folder_matches_the_packaged_demo():
     ex = REPO / "examples" / "demo_project"
     for name in DEMO_FILES:
         assert (ex / name).read_bytes() == (demo_project_dir() / name).read_bytes(), name
+
+
+# ----------------------------------------------------------------------------- manifest unit tests
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+from modalab.run import stage_key  # noqa: E402
+
+_opt_values = st.one_of(st.integers(-5, 5), st.floats(-10, 10, allow_nan=False), st.text(max_size=5), st.booleans(),
+                        st.none(), st.lists(st.floats(0, 100, allow_nan=False), max_size=3))
+
+
+@settings(max_examples=60, deadline=None)
+@given(opts=st.dictionaries(st.text(min_size=1, max_size=6), _opt_values, min_size=1, max_size=6), data=st.data())
+def test_stage_key_changes_with_any_option_and_ignores_order(opts, data):
+    inputs = {"model": "ab" * 32}
+    k = stage_key({"sec": opts}, inputs, {})
+    assert k == stage_key({"sec": dict(reversed(list(opts.items())))}, inputs, {})
+    name = data.draw(st.sampled_from(sorted(opts)))
+    new = data.draw(_opt_values.filter(lambda v: repr(v) != repr(opts[name])))
+    changed = dict(opts, **{name: new})
+    assert stage_key({"sec": changed}, inputs, {}) != k
+    assert stage_key({"sec": opts}, {"model": "cd" * 32}, {}) != k
+    assert stage_key({"sec": opts}, inputs, {"frf": {"frf/frf.uff": "0" * 64}}) != k
+
+
+def test_manifest_atomic_entries_and_output_hashes(tmp_path):
+    out = tmp_path / "run"
+    (out / "frf").mkdir(parents=True)
+    f = out / "frf" / "frf.uff"
+    f.write_bytes(b"data")
+    m = Manifest(out)
+    m.record("frf", {"key": "k1", "outputs": {"frf/frf.uff": sha256_file(f)}})
+    # a crash while the next manifest was being written leaves a temporary file, never a torn manifest
+    (out / ".manifest.json.999.tmp").write_text('{"version": 1, "sta')
+    m2 = Manifest(out)
+    assert m2.valid("frf", "k1") and not m2.valid("frf", "k2") and not m2.valid("identify", "k1")
+    f.write_bytes(b"dat4")
+    assert not Manifest(out).valid("frf", "k1")
+    f.unlink()
+    assert not Manifest(out).valid("frf", "k1")
+    # a corrupt manifest means: everything runs again (with a warning), not a crash
+    (out / "manifest.json").write_text("{not json")
+    assert Manifest(out).stages == {}
