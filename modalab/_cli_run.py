@@ -88,7 +88,7 @@ def register(subparsers):
     s.add_argument("-o", "--output", default="modalab-run", help="output folder (default: modalab-run); a rerun "
                    "into the same folder skips the stages whose inputs and options did not change")
     s.add_argument("--backend", choices=["sim", "nidaqmx"], help="DAQ backend (default: the project's, usually sim)")
-    s.add_argument("--from", dest="from_stage", choices=STAGES, help="rerun from this stage even if up to date")
+    s.add_argument("--from", dest="from_stage", choices=STAGES, help="rerun this stage and the stages that depend on it, even if up to date")
     s.add_argument("--until", dest="until_stage", choices=STAGES, help="stop after this stage")
     s.add_argument("--force", action="store_true", help="rerun every stage")
     s.add_argument("--quiet", action="store_true", help="no progress output")

@@ -582,7 +582,7 @@ def run_project(project, out_dir, *, backend: str | None = None, from_stage: str
     """Run (or continue) a project into ``out_dir``; see the module docstring.
 
     backend : 'sim' | 'nidaqmx' (default: the project's [test] backend).
-    from_stage : rerun this stage and everything downstream of it even if the manifest says it is done.
+    from_stage : rerun this stage and every stage that depends on it, even if the manifest says they are done.
     until_stage : stop after this stage.
     progress : callable ``(stage, event, text)``.
     force : rerun every requested stage.
@@ -602,8 +602,10 @@ def run_project(project, out_dir, *, backend: str | None = None, from_stage: str
     stop = STAGES.index(until_stage) if until_stage else len(STAGES) - 1
     forced = set()
     if from_stage:
-        i0 = STAGES.index(from_stage)
-        forced = {s for s in STAGES[i0:]}
+        forced = {from_stage}
+        for s in STAGES:                       # everything downstream of it (transitively)
+            if any(u in forced for u in DEPENDS[s]):
+                forced.add(s)
     result = RunResult(out_dir=out)
     for s in STAGES:
         if s not in wanted:
