@@ -40,6 +40,7 @@ class FRFData:
     den: np.ndarray = field(default=None)
     n_averages: int = 1
     floor: float = 0.01
+    homogeneous: bool = False        # True: H holds mode shapes (one column) at s = iω_j, no force
 
     def __post_init__(self):
         if self.den is None:
@@ -70,7 +71,7 @@ class FRFData:
         den = self.den[r][:, c][:, :, f]
         resp = self.responses if rows is None else [self.responses[i] for i in np.atleast_1d(rows)]
         refs = self.references if cols is None else [self.references[i] for i in np.atleast_1d(cols)]
-        return FRFData(self.s[f], H, coh, resp, refs, den, self.n_averages, self.floor)
+        return FRFData(self.s[f], H, coh, resp, refs, den, self.n_averages, self.floor, self.homogeneous)
 
 
 def frf_data(frf: FRF, *, max_lines: int = 200, band_hz=None, min_coherence: float = 0.5) -> FRFData:

@@ -216,11 +216,17 @@ def residual_system(structure, data, weights=None) -> ResidualSystem:
     default they are √coherence / σ of this model.
     """
     mi, ms = locate(structure.dofs, data.responses, "measured DOF")
-    ri, rs = locate(structure.dofs, data.references, "reference DOF")
-    ms, rs = np.asarray(ms, float), np.asarray(rs, float)
-    x_meas = data.H * ms[:, None, None] * rs[None, :, None]
-    F = np.zeros((structure.n_dof, len(ri)))
-    F[ri, np.arange(len(ri))] = 1.0
+    ms = np.asarray(ms, float)
+    if getattr(data, "homogeneous", False):
+        # mode shapes: one vector per "line" (mode), no force (the homogeneous residual Z(iω_j) φ_j)
+        x_meas = data.H * ms[:, None, None]
+        F = np.zeros((structure.n_dof, data.H.shape[1]))
+    else:
+        ri, rs = locate(structure.dofs, data.references, "reference DOF")
+        rs = np.asarray(rs, float)
+        x_meas = data.H * ms[:, None, None] * rs[None, :, None]
+        F = np.zeros((structure.n_dof, len(ri)))
+        F[ri, np.arange(len(ri))] = 1.0
     x_full, r, T, sigma = condensed_residual(structure.K, structure.M, structure.C, structure.D, data.s, mi,
                                              x_meas, F)
     if weights is None:
@@ -315,10 +321,14 @@ def mci_update(pmodel, p, data, lower, upper, *, iters: int = 6, weights=None, t
     return p, float(rsys.y @ rsys.y), weights
 
 
-def rank_candidates(pmodel, p, candidates, data, weights=None):
-    """Single-candidate share of the residual each shared candidate explains at ``p`` (parameters free)."""
+def rank_candidates(pmodel, p, candidates, data, weights=None, free=None):
+    """Single-candidate share of the residual each shared candidate explains at ``p`` (parameters ``free``
+    in the regression, all by default)."""
     rsys = residual_system(pmodel.structure(p), data, weights)
-    B = rsys.derivative_columns(derivatives(pmodel, p))
+    ders = derivatives(pmodel, p)
+    if free is not None:
+        ders = [d for d, f in zip(ders, free) if f]
+    B = rsys.derivative_columns(ders)
     if B.shape[1]:
         Q, _ = np.linalg.qr(B / np.maximum(np.linalg.norm(B, axis=0), 1e-300))
     else:
