@@ -136,7 +136,7 @@ def _project_text(quick: bool) -> str:
         "[model]", 'bulk = "nominal.bdf"', "n_modes = 20", "",
         "[correlate]", "mac_min = 0.5", "",
         "[update]", 'parameters = "params.toml"', f"max_iter = {10 if q else 20}", "",
-        "[diagnose]", f"max_lines = {24 if q else 40}", "band_hz = [2.0, 80.0]", f"max_nfev = {6 if q else 10}",
+        "[diagnose]", "max_lines = 40", "band_hz = [2.0, 80.0]", "max_nfev = 10",
         "max_findings = 2", "",
         "[report]", f'frf_dofs = ["218+Z", "200+Z", "508+Y", "115+Z"]', ""])
 
