@@ -636,7 +636,8 @@ def run_project(project, out_dir, *, backend: str | None = None, from_stage: str
         man.forget(s)
         pending = out / s / ".pending_key"
         if s == "acquire":
-            resume = pending.is_file() and pending.read_text().strip() == key
+            resume = (pending.is_file() and pending.read_text().strip() == key
+                      and (out / s / "session" / "session.json").is_file())
             if not resume and (out / s).exists():
                 shutil.rmtree(out / s)
             ctx.dir(s)
