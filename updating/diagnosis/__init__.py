@@ -1,7 +1,29 @@
 """Missing-physics diagnosis: locate the mismatch, name the physics, model it, prove it.
 
-:func:`diagnose` (workflow), :func:`diagnose_modes` (from identified modes only), :func:`build_library` (candidate augmentations),
-:func:`screen` (MCI localisation and candidate ranking), :func:`fit_frf` (non-linear FRF fit).
+:func:`diagnose` (workflow on measured FRFs), :func:`diagnose_modes` (from identified modes only),
+:func:`build_library` (candidate augmentations), :func:`screen` (MCI localisation and candidate ranking),
+:func:`fit_frf` (non-linear FRF fit), :func:`peak_modes` (test modes by peak picking),
+:mod:`~updating.diagnosis.report` (figures).  ``Diagnosis.save(dir)`` writes ``diagnosis.json``, the
+figures and ``augmented.bdf``.
+
+``diagnosis.json`` (``Diagnosis.to_dict()``)::
+
+    {"findings": [{"physics": "ground_spring" | "added_mass" | "joint_flexibility" | "local_damping"
+                              | "boundary_flexibility",
+                   "nodes": [14], "dofs": ["14+Z"], "elements": [], "description": "spring to ground at 14+Z",
+                   "values": [{"name": "k", "value": 210.0, "unit": "N/m", "std": 16.0}],
+                   "evidence": "..."}],
+     "parameters": {"E_wing": {"initial": 1.0, "updated": 0.97, "parameters_only": 0.99, "std": 0.01,
+                               "mode": "factor"}},
+     "fit": {"nominal" | "parameters_only" | "with_physics":
+                {"frf_error_held_out": 0.04,   # coherence-weighted relative RMS on held-out response rows
+                 "frf_error_train": 0.03,
+                 "freq_error_max_pct": 1.2,    # vs test modes (given, or peak-picked from the FRFs), MAC-paired
+                 "mac_min": 0.98, "n_pairs": 6}},
+     "statement": "...", "ranking": [...], "timings_s": {...}}
+
+``"findings": []`` means nothing is missing beyond parameter error.  Values are in SI units (``unit``);
+``std`` is the linearised standard deviation of the final joint fit.
 """
 from .fit import FRFData, fit_frf, frf_data, frf_error, model_frf
 from .library import Candidate, build_library
