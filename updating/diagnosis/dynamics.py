@@ -15,7 +15,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-DENSE_LIMIT = 700
+DENSE_LIMIT = 80     # above: one sparse LU per line (single-threaded SuperLU beats batched dense LAPACK
+                     # by 30x at 400 DOFs on a loaded 2-core machine, and by far more on larger models)
 
 __all__ = ["dynamic_stiffness", "solve_columns", "condensed_residual", "DENSE_LIMIT"]
 
@@ -96,8 +97,10 @@ def condensed_residual(K, M, C, D, s, meas, x_meas, force, chunk: int = 32):
     T = np.zeros((n, meas.size, s.size), complex)
     T[meas, np.arange(meas.size), :] = 1.0
     sigma = np.zeros((nq, s.size))
-    Kd, Md, Cd, Dd = _dense(K), _dense(M), _dense(C), _dense(D)
     F = np.asarray(force, complex)
+    if n > DENSE_LIMIT:
+        return _condensed_sparse(K, M, C, D, s, meas, slave, x_meas, F, x_full, r, T, sigma)
+    Kd, Md, Cd, Dd = _dense(K), _dense(M), _dense(C), _dense(D)
     for a in range(0, s.size, chunk):
         sl = s[a:a + chunk]
         Z = _Z_batch(Kd, Md, Cd, Dd, sl)
@@ -128,4 +131,34 @@ def condensed_residual(K, M, C, D, s, meas, x_meas, force, chunk: int = 32):
         if slave.size:
             Zred = Zred + Z[:, meas][:, :, slave] @ Tsm
         sigma[:, a:a + chunk] = np.linalg.norm(np.abs(Zred) @ np.abs(xm), axis=1).T + force_path
+    return x_full, r, T, sigma
+
+
+def _condensed_sparse(K, M, C, D, s, meas, slave, x_meas, F, x_full, r, T, sigma):
+    """:func:`condensed_residual` with one sparse LU of Z_ss per line (large models)."""
+    for f, sf in enumerate(s):
+        Z = dynamic_stiffness(K, M, C, D, sf).tocsr()
+        Zmm = Z[meas][:, meas].toarray()
+        Zms = Z[meas][:, slave]
+        xm = x_meas[:, :, f]
+        if slave.size:
+            Zss = sp.csc_matrix(Z[slave][:, slave])
+            Zsm = Z[slave][:, meas].toarray()
+            lu = spla.splu(Zss)
+            Tsm = lu.solve(-Zsm)
+            xsF = lu.solve(np.ascontiguousarray(F[slave]))
+            xs = Tsm @ xm + xsF
+            T[slave, :, f] = Tsm
+            force_path = np.linalg.norm(np.abs(Zms.toarray()) @ np.abs(xsF), axis=0)
+            Zred = Zmm + Zms @ Tsm
+        else:
+            xs = np.zeros((0, xm.shape[1]), complex)
+            force_path = 0.0
+            Zred = Zmm
+        xf = np.zeros((K.shape[0], xm.shape[1]), complex)
+        xf[meas] = xm
+        xf[slave] = xs
+        x_full[:, :, f] = xf
+        r[:, :, f] = Z[meas] @ xf - F[meas]
+        sigma[:, f] = np.linalg.norm(np.abs(Zred) @ np.abs(xm), axis=0) + force_path
     return x_full, r, T, sigma
