@@ -26,7 +26,8 @@ Achieved (asserted with these tolerances):
   (1.28 %; achieved ≤ 0.19 %).
 * Bulk data path: the nominal written with ``write_bdf(to_bulk(model))`` and rebuilt with
   ``build_model(read_bdf(...))`` has the same frequencies (1e-9); updated there, the exported deck
-  (``to_bulk(updated, template=...)``) re-imports with the updated frequencies (1e-8).
+  (``to_bulk(updated, template=...)``) re-imports with the updated frequencies (1e-7; achieved 9e-9,
+  the rounding of the written fields).
 
 BLAS threads are limited to one (set before numpy is first imported): on this shared two-core machine
 a threaded dense eigensolution of the 426-DOF model is ~80× slower than a single-threaded one.
@@ -142,5 +143,5 @@ class TestBulkDataPath:
         out = tmp_path / "updated.bdf"
         write_bdf(to_bulk(pm.model_at(u.p_), template=read_bdf(deck)), out)
         again = build_model(read_bdf(out))
-        np.testing.assert_allclose(again.modes(16).freq_hz[6:], u.freq_a_hz_, rtol=1e-8)
+        np.testing.assert_allclose(again.modes(16).freq_hz[6:], u.freq_a_hz_, rtol=1e-7)
         assert np.all(err_pct(u, test) <= TABLE11_ERR_PCT)
