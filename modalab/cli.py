@@ -237,7 +237,7 @@ def cmd_demo(a):
 
     result = demo(a.output, quick=a.quick)
     for k, v in result.items():
-        _print(f"{k:>14}: {v}")
+        _print(f"{k:>12}: {v}")
     return 0
 
 

@@ -259,16 +259,24 @@ def acquire(plan_path, out_dir, *, backend: str = "sim", auto: bool = False, res
 
 
 # ------------------------------------------------------------------------- the demo
-def demo(out_dir, *, quick: bool = False) -> dict:
+def demo(out_dir, *, quick: bool = False, progress=None) -> dict:
     """The README's main job: the whole chain on the embedded demo project (``modalab.run.run_demo``).
 
     Falls back to :func:`demo_lab` (simulated hammer test, FRFs, plot) when the staged runner is unavailable.
     """
     try:
-        from .run import run_demo
-    except ImportError:
+        from .demo_project import run_demo
+    except ImportError:  # pragma: no cover - a stripped install without the updating stage
         return demo_lab(out_dir, quick=quick)
-    return run_demo(out_dir, quick=quick)
+    res = run_demo(out_dir, quick=quick, progress=progress)
+    out = {"report": str(res.report)}
+    for stage, status in res.status.items():
+        t = res.elapsed_s.get(stage)
+        out[stage] = status + (f" ({t:.1f} s)" if t is not None else "")
+    diag = (res.summaries.get("diagnose") or {})
+    if diag.get("statement"):
+        out["diagnosis"] = diag["statement"]
+    return out
 
 
 def demo_lab(out_dir, *, quick: bool = False) -> dict:
