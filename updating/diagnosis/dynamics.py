@@ -21,6 +21,42 @@ DENSE_LIMIT = 80     # above: one sparse LU per line (single-threaded SuperLU be
 __all__ = ["dynamic_stiffness", "solve_columns", "condensed_residual", "DENSE_LIMIT"]
 
 
+class _Pattern:
+    """K, M, C, D on one union sparsity pattern (CSC), so that ``Z(s)`` is a vectorised sum of data arrays."""
+
+    def __init__(self, K, M, C, D):
+        n = K.shape[0]
+        mats = [A for A in (K, M, C, D)]
+        keys = []
+        for A in mats:
+            if A is None:
+                keys.append(None)
+                continue
+            c = sp.coo_matrix(A)
+            keys.append((c.col.astype(np.int64) * n + c.row, c.data))
+        union = np.unique(np.concatenate([k[0] for k in keys if k is not None]))
+        self.n = n
+        self.indices = (union % n).astype(np.int32)
+        self.indptr = np.searchsorted(union // n, np.arange(n + 1)).astype(np.int32)
+        self.data = []
+        for k in keys:
+            if k is None:
+                self.data.append(None)
+                continue
+            d = np.zeros(union.size, complex)
+            np.add.at(d, np.searchsorted(union, k[0]), k[1])
+            self.data.append(d)
+
+    def Z(self, s) -> sp.csc_matrix:
+        dK, dM, dC, dD = self.data
+        v = dK + (s * s) * dM
+        if dC is not None:
+            v = v + s * dC
+        if dD is not None:
+            v = v + 1j * dD
+        return sp.csc_matrix((v, self.indices, self.indptr), shape=(self.n, self.n))
+
+
 def _dense(A):
     return None if A is None else (A.toarray() if sp.issparse(A) else np.asarray(A))
 
@@ -61,8 +97,9 @@ def solve_columns(K, M, C, D, s, cols, chunk: int = 64) -> np.ndarray:
         return out
     E = np.zeros((n, len(cols)), complex)
     E[cols, np.arange(len(cols))] = 1.0
+    pat = _Pattern(K, M, C, D)
     for f, sf in enumerate(s):
-        out[:, :, f] = spla.splu(dynamic_stiffness(K, M, C, D, sf)).solve(E)
+        out[:, :, f] = spla.splu(pat.Z(sf)).solve(E)
     return out
 
 
@@ -136,8 +173,9 @@ def condensed_residual(K, M, C, D, s, meas, x_meas, force, chunk: int = 32):
 
 def _condensed_sparse(K, M, C, D, s, meas, slave, x_meas, F, x_full, r, T, sigma):
     """:func:`condensed_residual` with one sparse LU of Z_ss per line (large models)."""
+    pat = _Pattern(K, M, C, D)
     for f, sf in enumerate(s):
-        Z = dynamic_stiffness(K, M, C, D, sf).tocsr()
+        Z = pat.Z(sf).tocsr()
         Zmm = Z[meas][:, meas].toarray()
         Zms = Z[meas][:, slave]
         xm = x_meas[:, :, f]
