@@ -117,8 +117,8 @@ def main(argv=None):
     print(f"{'DOF':>6} " + " ".join(f"{r[0] + ' ' + r[1]:>20}" for r in rows))
     dofs = [str(d) for d in rows[0][2].mci_final_.dofs]
     for i, d in enumerate(dofs):
-        print(f"{d:>6} " + " ".join(f"{r[2].mci_initial_.max_per_dof()[i]:9.3g} ->{r[2].mci_final_.max_per_dof()[i]:9.3g}"
-                                    for r in rows))
+        cells = [f"{r[2].mci_initial_.max_per_dof()[i]:9.3g} ->{r[2].mci_final_.max_per_dof()[i]:9.3g}" for r in rows]
+        print(f"{d:>6} " + " ".join(cells))
     print("\nSummary")
     print(f"{'case':>16} {'iter':>5} {'max|p/p_true-1|':>16} {'max MCI 40-80':>14} {'FRF misfit >=40':>16}")
     for tag, btag, u, in_band, misfit in rows:
