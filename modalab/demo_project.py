@@ -58,7 +58,7 @@ def truth_model():
     pm = ParametricFEModel(base, garteur_parameters(base, DEMO_PARAMETERS))
     m = pm.model_at(np.array(_ERRORS, float))
     m.global_ge = _LOSS_FACTOR
-    m.add_element(LumpedMass(9990, m.metadata["points"]["right_tip"], 0.08, group="bench"))
+    m.add_element(LumpedMass(9990, m.metadata["points"]["right_tip"], 0.2, group="bench"))
     return m
 
 
