@@ -21,7 +21,7 @@ Achieved (asserted with these tolerances):
   Table 11 error of that mode (achieved ≤ 0.17 %, e.g. 0.10 % against 0.95 % for mode 3 and < 0.01 %
   against 0.01 % for mode 10); parameters within 5 % of the truth (achieved 2.7 %, 1.5 %, 0.3 %; the
   residue comes from the nuisance errors).
-* Frequencies and shapes (default weighting): parameters within 1 % (achieved 0.2 %, 0.3 %, 0.1 %),
+* Frequencies and shapes (default weighting, tol 1e-5): parameters within 1 % (achieved 0.2 %, 0.3 %, 0.1 %),
   order restored, all frequency errors below the largest Table 11 error of the well-correlated modes
   (1.28 %; achieved ≤ 0.19 %).
 * Bulk data path: the nominal written with ``write_bdf(to_bulk(model))`` and rebuilt with
@@ -121,7 +121,10 @@ class TestUpdating:
 
     def test_frequencies_and_shapes(self, case):
         _, test, pm = case
-        u = InverseEigensensitivity(bounds=BOUNDS).fit(pm, test)
+        # tol 1e-5: at 1e-6 the last steps are at the round-off of the shape residuals of the close
+        # wing-torsion pair (39.44/39.51 Hz), and whether a line search still finds a decrease there
+        # depends on the BLAS threading; the parameters agree to 1e-6 either way
+        u = InverseEigensensitivity(bounds=BOUNDS, tol=1e-5).fit(pm, test)
         assert u.converged_
         assert sorted(u.pairs_, key=lambda t: t[1]) == DIAG
         np.testing.assert_allclose(u.p_, P_TRUE, rtol=0.01)
