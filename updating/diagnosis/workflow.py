@@ -269,6 +269,8 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
     # the MCI starts from the nominal model with the default damping: the damping fitted to the FRFs of a
     # poor nominal model is often inflated to hide the mismatch
     free_mci = np.ones(len(params), bool)
+    # large models (sparse path): one start and three expansion/solution iterations per candidate
+    large = pm.structure(p_nom).n_dof > 200
     p_mci, rss_cur, W = mci_update(pm, p_nom, train, lo, hi, free=free_mci)
     current: list = []                      # [Candidate]
     pm_cur, p_cur = pm, p_mci
@@ -315,9 +317,11 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
                         trials.append((residual_system(pm_aug.structure(st_), train, W).y, v))
                     th = min(trials, key=lambda t: float(t[0] @ t[0]))[1]
                 p_aug, rss_aug = None, np.inf
-                for p_par in ((p_cur[:len(params)], p_nom[:len(params)]) if it == 0 else (p_cur[:len(params)],)):
+                starts = (p_cur[:len(params)], p_nom[:len(params)]) if it == 0 and not large else \
+                    (p_cur[:len(params)],)
+                for p_par in starts:
                     start = np.concatenate([p_par, prev, [th / scales[-1]]])
-                    pa, ra, _ = mci_update(pm_aug, start, train, clo, chi, weights=W,
+                    pa, ra, _ = mci_update(pm_aug, start, train, clo, chi, weights=W, iters=3 if large else 6,
                                            free=np.concatenate([free_mci, np.ones(len(cpar), bool)]))
                     if ra < rss_aug:
                         p_aug, rss_aug = pa, ra
