@@ -32,6 +32,7 @@ import importlib
 import json
 import logging
 import os
+import re
 import shutil
 import time
 from dataclasses import dataclass, field
@@ -44,7 +45,7 @@ from .project import STAGES, Project, load_parameters, load_project
 
 log = logging.getLogger(__name__)
 
-__all__ = ["run_project", "RunResult", "Manifest", "stage_key", "sha256_file", "DEPENDS", "load_truth"]
+__all__ = ["run_project", "RunResult", "Manifest", "stage_key", "sha256_file", "content_hash", "DEPENDS", "load_truth"]
 
 #: upstream stages of each stage
 DEPENDS = {"acquire": (), "frf": ("acquire",), "identify": ("frf",), "correlate": ("identify",),
@@ -70,6 +71,18 @@ def sha256_file(path, chunk: int = 1 << 20) -> str:
                 break
             h.update(b)
     return h.hexdigest()
+
+
+_UFF_STAMP = re.compile(rb"^\d\d-[A-Z]{3}-\d\d \d\d:\d\d:\d\d modalab w=[0-9a-f]+", re.M)
+
+
+def content_hash(path) -> str:
+    """sha256 of a file's content; in universal files the writer's date and write-group tag are left out,
+    so the same data written twice hashes the same (downstream stages are not rerun for a new timestamp)."""
+    p = Path(path)
+    if p.suffix.lower() not in (".uff", ".unv"):
+        return sha256_file(p)
+    return hashlib.sha256(_UFF_STAMP.sub(b"<stamp>", p.read_bytes())).hexdigest()
 
 
 def _canon(obj) -> str:
@@ -122,7 +135,7 @@ class Manifest:
             return False
         for rel, h in e.get("outputs", {}).items():
             p = self.out_dir / rel
-            if not p.is_file() or sha256_file(p) != h:
+            if not p.is_file() or content_hash(p) != h:
                 log.info("%s: output %s changed or missing; the stage runs again", stage, rel)
                 return False
         return True
@@ -652,7 +665,7 @@ def run_project(project, out_dir, *, backend: str | None = None, from_stage: str
         for p in outputs:
             p = Path(p)
             if p.is_file():
-                rel[str(p.resolve().relative_to(out))] = sha256_file(p)
+                rel[str(p.resolve().relative_to(out))] = content_hash(p)
         man.record(s, {"key": key, "options": opts, "inputs": inputs, "depends": list(ups), "outputs": rel,
                        "summary": summary, "elapsed_s": round(elapsed, 3),
                        "completed_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")})

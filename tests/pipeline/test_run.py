@@ -20,7 +20,7 @@ import pytest
 from modalab.demo_project import DEMO_FILES, _ERRORS, DEMO_PARAMETERS, demo_project_dir, run_demo
 from modalab.errors import PlanError
 from modalab.project import STAGES, load_project
-from modalab.run import Manifest, run_project, sha256_file
+from modalab.run import Manifest, content_hash, run_project, sha256_file
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -90,7 +90,7 @@ def test_end_to_end_artifacts_and_manifest(demo):
     for s, e in man["stages"].items():
         assert len(e["key"]) == 64 and e["outputs"]
         for rel, h in e["outputs"].items():
-            assert sha256_file(out / rel) == h, rel
+            assert content_hash(out / rel) == h, rel
     # the report embeds every figure it names
     html = (out / "report" / "report.html").read_text()
     assert html.count("<img ") >= 10 and 'src="http' not in html
@@ -223,13 +223,25 @@ def test_manifest_atomic_entries_and_output_hashes(tmp_path):
     f = out / "frf" / "frf.uff"
     f.write_bytes(b"data")
     m = Manifest(out)
-    m.record("frf", {"key": "k1", "outputs": {"frf/frf.uff": sha256_file(f)}})
+    m.record("frf", {"key": "k1", "outputs": {"frf/frf.uff": content_hash(f)}})
     # a crash while the next manifest was being written leaves a temporary file, never a torn manifest
     (out / ".manifest.json.999.tmp").write_text('{"version": 1, "sta')
     m2 = Manifest(out)
     assert m2.valid("frf", "k1") and not m2.valid("frf", "k2") and not m2.valid("identify", "k1")
     f.write_bytes(b"dat4")
     assert not Manifest(out).valid("frf", "k1")
+    # in a UFF the writer's time stamp does not count, the data does
+    from modalab import uff
+    from modalab.frf import FRF
+
+    frf = FRF(freq_hz=np.linspace(1, 10, 10), H=np.ones((1, 1, 10), complex), responses=["1+Z"], references=["1+Z"])
+    uff.write_frf(f, frf)
+    h = content_hash(f)
+    time.sleep(1.1)
+    uff.write_frf(f, frf)
+    assert content_hash(f) == h and sha256_file(f) != h
+    uff.write_frf(f, FRF(freq_hz=frf.freq_hz, H=2 * frf.H, responses=["1+Z"], references=["1+Z"]))
+    assert content_hash(f) != h
     f.unlink()
     assert not Manifest(out).valid("frf", "k1")
     # a corrupt manifest means: everything runs again (with a warning), not a crash
