@@ -8,6 +8,11 @@ spring, default parameters (E and ρ per property group) plus the background los
 
 Prints the time of each step of :func:`updating.diagnosis.diagnose` and the total against the issue's
 budget of 60 s (ratio < 1 is within budget).  Run: ``python benchmarks/diagnose_timing.py``.
+
+Measured 2026-11-22 on the shared 2-core machine (load 4-8): nominal 5 s, parameters 24 s, localise+name
+178 s, model 169 s, proof 2 s, total 379 s (ratio 6.3: NOT within budget), and the finding was wrong (a point
+mass at node 200 instead of the spring at 204+Z).  The cost is the per-candidate MCI iterations and the FRF
+fits with a sparse LU per line; a modal-basis FRF (a few dozen modes instead of 396 DOFs) is the next step.
 """
 from __future__ import annotations
 
