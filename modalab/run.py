@@ -490,10 +490,12 @@ def stage_diagnose(ctx: _Context) -> tuple[list, dict]:
     outs.append(d / "diagnosis.json")
     if hasattr(diag, "save"):
         try:
-            saved = diag.save(d / "figures") or []
-            for p in (saved.values() if isinstance(saved, dict) else saved):
-                if isinstance(p, (str, Path)) and Path(p).is_file():
-                    outs.append(Path(p))
+            saved = diag.save(d / "figures")
+            if isinstance(saved, (str, Path)) and Path(saved).is_dir():
+                outs += sorted(p for p in Path(saved).iterdir() if p.is_file())
+            elif isinstance(saved, (dict, list, tuple)):
+                outs += [Path(p) for p in (saved.values() if isinstance(saved, dict) else saved)
+                         if isinstance(p, (str, Path)) and Path(p).is_file()]
         except Exception as e:  # noqa: BLE001 - the engine's own figures are extras
             log.warning("diagnosis figures failed: %s", e)
     if diag.maps:
