@@ -54,11 +54,13 @@ def test_identical_vectors_have_mac_one(A):
 
 
 @settings(max_examples=40, deadline=None)
-@given(arrays(float, (6, 6), elements=st.floats(-1, 1)))
-def test_orthogonal_vectors_have_mac_zero(R):
-    assume(abs(np.linalg.det(R)) > 1e-3)
+@given(st.integers(0, 2**32 - 1), st.integers(2, 9))
+def test_orthogonal_vectors_have_mac_zero(seed, n):
+    # a Gaussian matrix is non-singular with probability one: no filtering needed (hypothesis' own
+    # float matrices are mostly singular, which tripped its filter health check)
+    R = np.random.default_rng(seed).normal(size=(n, n))
     Q, _ = np.linalg.qr(R)
-    np.testing.assert_allclose(automac(Q), np.eye(6), atol=1e-12)
+    np.testing.assert_allclose(automac(Q), np.eye(n), atol=1e-12)
 
 
 @settings(max_examples=60, deadline=None)
