@@ -235,7 +235,14 @@ def cmd_acquire(a):
 def cmd_demo(a):
     from .pipeline import demo
 
-    result = demo(a.output, quick=a.quick)
+    progress = None
+    try:
+        from ._cli_run import _StageProgress
+
+        progress = _StageProgress()
+    except ImportError:  # pragma: no cover
+        pass
+    result = demo(a.output, quick=a.quick) if progress is None else demo(a.output, quick=a.quick, progress=progress)
     for k, v in result.items():
         _print(f"{k:>12}: {v}")
     return 0
