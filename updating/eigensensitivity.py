@@ -66,6 +66,8 @@ from modalab.modes import ModeSet
 from .sensitivity import (StackedDerivatives, eigenvalue_sensitivities, eigenvector_sensitivities,
                           solve_modes)
 
+from .parametric import parameter_indices
+
 log = logging.getLogger(__name__)
 
 __all__ = [
@@ -100,21 +102,7 @@ def _observation(test: ModeSet, model, dofmap):
     return observation_matrix(test.dofs, model.dofs, dofmap).tocsr()
 
 
-def _param_indices(model, params):
-    names = list(model.parameter_names)
-    if params is None:
-        return np.arange(len(names))
-    out = []
-    for q in params:
-        if isinstance(q, (int, np.integer)):
-            if not 0 <= q < len(names):
-                raise ModalabValueError(f"parameter index {q} outside 0..{len(names) - 1}")
-            out.append(int(q))
-        elif q in names:
-            out.append(names.index(q))
-        else:
-            raise ModalabValueError(f"parameter {q!r} is not in the model; available: {names[:20]}")
-    return np.asarray(out, int)
+_param_indices = parameter_indices
 
 
 @dataclass

@@ -55,6 +55,8 @@ from modalab.units import quantity_factor
 
 from .sensitivity import StackedDerivatives
 
+from .parametric import parameter_indices
+
 log = logging.getLogger(__name__)
 
 __all__ = [
@@ -663,21 +665,7 @@ def _cost(r, p_start, p, idx, col_scale, penalty):
     return c
 
 
-def _param_indices(model, params):
-    names = list(model.parameter_names)
-    if params is None:
-        return np.arange(len(names))
-    out = []
-    for q in params:
-        if isinstance(q, (int, np.integer)):
-            if not 0 <= q < len(names):
-                raise ModalabValueError(f"parameter index {q} outside 0..{len(names) - 1}")
-            out.append(int(q))
-        else:
-            if q not in names:
-                raise ModalabValueError(f"parameter {q!r} is not in the model; available: {names[:20]}")
-            out.append(names.index(q))
-    return np.asarray(out, int)
+_param_indices = parameter_indices
 
 
 def _bounds(bounds, p0):

@@ -18,7 +18,7 @@ from modalab.dof import Dof, parse_dofs
 from modalab.errors import ModalabValueError, ShapeError
 from modalab.structure import Structure
 
-__all__ = ["ParametricModel", "Derivative", "MatrixModel"]
+__all__ = ["ParametricModel", "Derivative", "MatrixModel", "parameter_indices"]
 
 
 @dataclass
@@ -126,3 +126,21 @@ class MatrixModel:
     def derivatives(self, p=None) -> list:
         self._check(p)
         return list(self._terms)
+
+
+def parameter_indices(model, params) -> np.ndarray:
+    """Indices of ``params`` (names or indices; None = all) among ``model.parameter_names``."""
+    names = list(model.parameter_names)
+    if params is None:
+        return np.arange(len(names))
+    out = []
+    for q in params:
+        if isinstance(q, (int, np.integer)):
+            if not 0 <= q < len(names):
+                raise ModalabValueError(f"parameter index {q} outside 0..{len(names) - 1}")
+            out.append(int(q))
+        elif q in names:
+            out.append(names.index(q))
+        else:
+            raise ModalabValueError(f"parameter {q!r} is not in the model; available: {names[:20]}")
+    return np.asarray(out, int)
