@@ -24,7 +24,10 @@ and element length 0.3 m (beam 2.7 m).  With 100 N/m cords they put the
 suspension (cord) modes of the analytical model at 13 and 35 rad/s and the first
 two elastic modes at 65 and 114 rad/s: the bounce mode lies in the 0–20 rad/s band
 the thesis names as cord-dominated and the first elastic mode inside the 40–80 rad/s
-band used for updating.
+band used for updating.  Note that these cords are not "soft" for this light beam: the
+free-free first elastic mode is at 43.9 rad/s, so 100 N/m cords raise it to 65 rad/s and
+1000 N/m cords to 122 rad/s (see ``tests/updating/test_case_beam_mci.py`` for what that
+does to parameter-only updating).
 Poisson's ratio does not enter an Euler–Bernoulli beam, so its Table 4 ratio
 is stored in the materials but has no effect.
 """
