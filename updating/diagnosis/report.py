@@ -67,7 +67,7 @@ def frf_overlay_figure(curves: dict, path) -> Path:
 
 
 def frequency_table_figure(freqs: dict, path) -> Path:
-    """Natural frequencies (Hz) of the test and the three models, errors in % against the test."""
+    """Natural frequencies (Hz) of the test and the three models (MAC-paired with the test modes), errors in %."""
     test = freqs.get("test") or []
     cols = ["nominal", "parameters_only", "with_physics"]
     n = max([len(test)] + [len(freqs.get(c) or []) for c in cols])
@@ -77,7 +77,7 @@ def frequency_table_figure(freqs: dict, path) -> Path:
         row = [str(i + 1), f"{t:.3f}" if t is not None else "-"]
         for c in cols:
             v = (freqs.get(c) or [])
-            if i < len(v):
+            if i < len(v) and v[i] is not None:
                 row.append(f"{v[i]:.3f}" + (f" ({100 * (v[i] - t) / t:+.1f} %)" if t else ""))
             else:
                 row.append("-")

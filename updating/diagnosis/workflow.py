@@ -210,6 +210,26 @@ def peak_modes(measured: FRF, *, band_hz=None, max_modes: int = 12, prominence: 
                    metadata={"source": "quadrature peak picking"})
 
 
+def _paired_frequencies(structure, test_modes, n_modes: int, band) -> list:
+    """Model frequencies (Hz) aligned with the test modes by MAC pairing (None where unpaired); without
+    test modes, the model's frequencies inside the band (rigid-body and mechanism modes left out)."""
+    if test_modes is not None:
+        from ..correlation import correlate
+        try:
+            c = correlate(structure, test_modes, mac_min=0.3)
+        except ModalabError:
+            c = None
+        if c is not None:
+            out = [None] * test_modes.n_modes
+            fa = np.asarray(c.analysis.freq_hz)
+            for a, t in c.pairs:
+                out[t] = float(fa[a])
+            return out
+    w, _ = structure.normal_modes(min(n_modes + 12, structure.n_dof))
+    fx = np.atleast_1d(w) / (2 * np.pi)
+    return [float(x) for x in fx if 0.5 * band[0] < x <= 1.1 * band[1]][:n_modes]
+
+
 def _mode_metrics(structure, test_modes) -> dict:
     """``freq_error_max_pct`` and ``mac_min`` over the test modes paired with the model's modes."""
     if test_modes is None:
@@ -480,9 +500,7 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
                                                       {k: v[i, 0] for k, v in H.items()}) for i in rows]}
         nm = len(test_modes.freq_hz) + 2 if test_modes is not None else 8
         for key, stx in (("nominal", st_nom), ("parameters_only", st_par), ("with_physics", st_phys)):
-            w, _ = stx.normal_modes(min(nm, stx.n_dof))
-            fx = np.atleast_1d(w) / (2 * np.pi)
-            freqs[key] = [float(x) for x in fx if 1e-6 < x <= 1.1 * band[1]]
+            freqs[key] = _paired_frequencies(stx, test_modes, nm, band)
         freqs["test"] = [float(x) for x in test_modes.freq_hz] if test_modes is not None else []
     except (ModalabError, np.linalg.LinAlgError) as e:  # pragma: no cover - figures are a by-product
         log.info("FRF overlays/frequency table not prepared: %s", e)
