@@ -21,7 +21,21 @@ _DEVICES: dict[str, object] = {}
 _LOCK = threading.Lock()
 
 
-class SimConditioner:
+class _LineDevice:
+    """A simulated instrument: one reply line per command line, every exchange kept in ``log``."""
+
+    log: list
+
+    def handle(self, line: str) -> str:
+        reply = self._handle(line.strip())
+        self.log.append((line.strip(), reply))
+        return reply
+
+    def _handle(self, line: str) -> str:  # pragma: no cover - defined by each device
+        raise NotImplementedError
+
+
+class SimConditioner(_LineDevice):
     """State machine of the IEPE conditioner: ``handle(line) -> reply``."""
 
     def __init__(self, unit: int = 1, n_channels: int = 8):
@@ -33,11 +47,6 @@ class SimConditioner:
         self.ovl = {c: False for c in range(1, n_channels + 1)}
         self.fault = {c: "" for c in range(1, n_channels + 1)}   # '', 'OPEN', 'SHORT'
         self.log: list[tuple[str, str]] = []
-
-    def handle(self, line: str) -> str:
-        reply = self._handle(line.strip())
-        self.log.append((line.strip(), reply))
-        return reply
 
     def _handle(self, line: str) -> str:
         if line == "*IDN?":
@@ -87,7 +96,7 @@ class SimConditioner:
         return f"{addr}:ERR=4,unknown command {name}"
 
 
-class SimAutoHammer:
+class SimAutoHammer(_LineDevice):
     """State machine of the automatic hammer: ``handle(line) -> reply``."""
 
     def __init__(self, min_n: float = 5.0, max_n: float = 800.0):
@@ -97,11 +106,6 @@ class SimAutoHammer:
         self.fired: list[float] = []
         self.on_fire: Callable[[float], None] | None = None
         self.log: list[tuple[str, str]] = []
-
-    def handle(self, line: str) -> str:
-        reply = self._handle(line.strip())
-        self.log.append((line.strip(), reply))
-        return reply
 
     def _handle(self, line: str) -> str:
         if line == "*IDN?":
