@@ -48,7 +48,8 @@ from modalab.frf import FRF
 
 log = logging.getLogger(__name__)
 
-__all__ = ["PolyMAX", "frequency_weights", "reduced_normal_matrix", "poles_at_order"]
+__all__ = ["PolyMAX", "frequency_weights", "reduced_normal_matrix", "poles_at_order", "denominator_roots",
+           "aberth_roots"]
 
 _WEIGHTINGS = (None, "none", "coherence", "variance")
 
@@ -176,18 +177,185 @@ def reduced_normal_matrix(H: np.ndarray, w: np.ndarray, theta: np.ndarray, max_o
     return 2.0 * M
 
 
-def poles_at_order(M: np.ndarray, order: int, n_in: int, dt: float):
-    """Poles and participation vectors of the model of ``order`` from the reduced matrix ``M``.
+# --------------------------------------------------------------------------- roots
+_EPS = np.finfo(float).eps
+_TRACK_MIN_DEGREE = 24          # below this the companion eigenvalues cost less than the iteration overhead
+_TRACK_MAX_NEW = 8              # at most this many roots more than the starting set (else eigenvalues)
 
-    Uses the leading ``(order+1)·n_in`` block of ``M`` (built for a higher
-    order) with the constraint ``α_order = I``.
 
-    Returns
-    -------
-    lam : (n_roots,) complex continuous-time poles ``ln(z)/Δt`` in rad/s, all
-        ``order·n_in`` roots (both half-planes, real roots included).
-    L : (n_in, n_roots) complex participation vectors (unit norm).
+def _powers(b: np.ndarray, n: int) -> np.ndarray:
+    """``P[i, k] = b_i**k`` for ``k = 0..n`` by doubling (log2(n) vector products, error O(log n) ulp)."""
+    P = np.empty((b.size, n + 1), b.dtype)
+    P[:, 0] = 1.0
+    if n:
+        P[:, 1] = b
+    k = 2
+    while k <= n:
+        kk = min(k, n + 1 - k)
+        np.multiply(P[:, :kk], (P[:, k - 1] * b)[:, None], out=P[:, k:k + kk])     # b^(k+j) = b^j b^k
+        k += kk
+    return P
+
+
+def _newton_corrections(C, KC, rnd, z):
+    """Newton corrections ``p(z)/p'(z)``, inclusion radii and a "residual at rounding level" flag.
+
+    ``C`` holds the coefficients (ascending) and their reversal in two columns, ``KC`` the
+    derivative coefficients of both.  For ``|z| <= 1`` the polynomial is evaluated in powers of
+    ``z``; outside the unit circle in powers of ``w = 1/z`` through the reversed polynomial
+    ``q(w) = w^n p(1/w)`` (``p/p' = z q / (n q − w q')``), so no power exceeds one in modulus.
+    The disc ``|ζ − z| ≤ n (|p(z)| + e) / |p'(z)|`` contains a root of every polynomial within the
+    rounding error ``e`` of the evaluation (Henrici 1974, Thm 6.4e); ``rnd`` is a bound of ``e``.
     """
+    n = C.shape[0] - 1
+    az = np.abs(z)
+    inside = az <= 1.0
+    b = np.where(inside, z, 1.0 / np.where(inside, 1.0, z))
+    P = _powers(b, n)
+    V = P @ C
+    D = P[:, :-1] @ KC
+    val = np.where(inside, V[:, 0], V[:, 1])
+    den = np.where(inside, D[:, 0], n * V[:, 1] - b * D[:, 1])
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        N = np.where(inside, val, z * val) / den
+        rad = n * (np.abs(val) + rnd) * np.where(inside, 1.0, az) / np.abs(den)
+    at_round = np.abs(val) <= rnd
+    if at_round.any():
+        # sharper rounding bound 4(n+1) eps sum |c_k| |b|^k for the candidates only (also in their radius)
+        B = _powers(np.abs(b[at_round]), n) @ np.abs(C)
+        e = 4 * (n + 1) * _EPS * np.where(inside[at_round], B[:, 0], B[:, 1])
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            rad[at_round] = n * (np.abs(val[at_round]) + e) * np.where(inside[at_round], 1.0, az[at_round]) \
+                / np.abs(den[at_round])
+        at_round[at_round] = np.abs(val[at_round]) <= e
+    return N, rad, at_round
+
+
+def aberth_roots(coeffs, start, *, max_iter: int = 50, tol: float = 1e-12):
+    """Roots of a polynomial by Aberth–Ehrlich iteration from the starting points ``start``, certified.
+
+    ``coeffs`` are the coefficients in ascending powers (``coeffs[-1] != 0``), ``start`` one
+    starting point per root (distinct).  All roots are iterated simultaneously,
+
+        z_i ← z_i − N_i / (1 − N_i Σ_{j≠i} 1/(z_i − z_j)),   N_i = p(z_i)/p'(z_i)
+
+    (Aberth 1973; Bini 1996, "Numerical computation of polynomial zeros by means of Aberth's
+    method"), and a root stops (is frozen) when its Newton inclusion radius falls below
+    ``tol·max(1, |z_i|)`` or its residual reaches the rounding level of the evaluation; a root whose
+    correction is already below ``1e-8·max(1, |z_i|)`` is frozen after that update (the
+    iteration converges cubically, so it is then at rounding level; its radius is widened by the
+    step).  Real starting points of a real polynomial stay real (and conjugate pairs stay pairs)
+    under the iteration, so real and complex roots cannot trade places: callers break the
+    symmetry of their starting points (see :func:`denominator_roots`).
+
+    Returns ``(z, radius)``: every disc ``|ζ − z_i| ≤ radius_i`` holds a root; the result is
+    returned only when these discs are pairwise disjoint, which proves that each holds exactly
+    one root and that all ``n`` roots were found.  Returns ``None`` when the iteration does not
+    converge in ``max_iter`` steps, produces non-finite values or the discs overlap (multiple or
+    very close roots): the caller then falls back to the companion eigenvalues.
+    """
+    a = np.asarray(coeffs)
+    n = a.size - 1
+    z = np.array(start, dtype=complex).ravel()
+    if n < 1 or z.size != n or not np.isfinite(a).all() or a[-1] == 0 or not np.isfinite(z).all():
+        return None
+    a = a / a[-1]
+    C = np.stack([a, a[::-1]], axis=1)
+    KC = np.arange(1, n + 1)[:, None] * C[1:]
+    rnd = 4 * (n + 1) * _EPS * np.abs(a).sum()          # |b| <= 1: a bound of the evaluation error
+    active = np.ones(n, bool)
+    rad = np.full(n, np.inf)
+    n_prev = np.full(n, np.inf)                           # |Newton correction| at the previous visit
+    for _ in range(int(max_iter)):
+        idx = np.flatnonzero(active)
+        if idx.size == 0:
+            break
+        zi = z[idx]
+        N, r, at_round = _newton_corrections(C, KC, rnd, zi)
+        scale = np.maximum(np.abs(zi), 1.0)
+        aN = np.abs(N)
+        # converged: small inclusion radius, or residual at the rounding level and no longer shrinking
+        done = (r <= tol * scale) | (at_round & (aN >= 0.5 * n_prev[idx]))
+        n_prev[idx] = aN
+        rad[idx[done]] = r[done]
+        active[idx[done]] = False
+        keep = ~done
+        upd = idx[keep]
+        if upd.size == 0:
+            break
+        d = z[upd][:, None] - z[None, :]
+        d[np.arange(upd.size), upd] = 1.0
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            R = np.reciprocal(d)
+            R[np.arange(upd.size), upd] = 0.0
+            N = N[keep]
+            W = N / (1.0 - N * R.sum(axis=1))
+        z[upd] -= W
+        if not np.isfinite(z[upd]).all():
+            return None
+        small = np.abs(W) <= 1e-8 * scale[keep]
+        rad[upd[small]] = r[keep][small] + np.abs(W[small])
+        active[upd[small]] = False
+    if active.any():
+        return None
+    d2 = np.abs(z[:, None] - z[None, :])
+    np.fill_diagonal(d2, np.inf)
+    if not np.all(rad < 0.5 * d2.min(axis=1)):         # r_i + r_j < |z_i - z_j| for every pair
+        return None
+    return z, rad
+
+
+def _companion_roots(a: np.ndarray) -> np.ndarray:
+    """Eigenvalues of the companion matrix of the monic polynomial with ascending coefficients ``a``."""
+    n = a.size - 1
+    comp = np.zeros((n, n))
+    if n > 1:
+        comp[np.arange(n - 1), np.arange(1, n)] = 1.0
+    comp[-1, :] = -a[:-1] / a[-1]
+    return np.linalg.eigvals(comp)
+
+
+def denominator_roots(coeffs, start=None):
+    """Roots of a real polynomial (ascending coefficients), tracked from ``start`` when possible.
+
+    With ``start`` (the roots of a nearby polynomial, e.g. the previous model order) and degree
+    at least 24, the roots are found by :func:`aberth_roots` from ``start`` plus one new starting
+    point in each of the widest angular gaps for every extra root; the starting points are rotated
+    by 1e-4 rad so that real roots may become complex pairs and back (and roots whose inclusion
+    disc reaches the real axis are returned exactly real).  Otherwise, or when the
+    iteration cannot certify all roots, the eigenvalues of the companion matrix are used.
+
+    Returns ``(z, method)`` with ``method`` ``'tracked'`` or ``'eigvals'``.
+    """
+    a = np.asarray(coeffs, dtype=float)
+    n = a.size - 1
+    if start is not None and n >= _TRACK_MIN_DEGREE:
+        z0 = np.asarray(start, complex).ravel()
+        z0 = z0[np.isfinite(z0)]
+        k = n - z0.size
+        if 0 <= k <= _TRACK_MAX_NEW and z0.size:
+            if k:
+                ang = np.sort(np.angle(z0))
+                gaps = np.diff(np.append(ang, ang[0] + 2 * np.pi))
+                g = np.argsort(-gaps, kind="stable")[:k]
+                rad0 = float(np.median(np.abs(z0))) or 1.0
+                new = rad0 * np.exp(1j * (ang[g] + gaps[g] * (0.5 + 0.1 * np.arange(g.size) / max(g.size, 1))))
+                z0 = np.concatenate([z0, new])
+            out = aberth_roots(a, z0 * np.exp(1e-4j))
+            if out is not None:
+                z, rad = out
+                # a real polynomial: a root whose disc reaches the real axis is real (its conjugate would
+                # be a second root in the disc); exactly real like the eigenvalues, so that ln z of a
+                # negative real root lands on +iπ/Δt and a positive one on the real axis
+                real = np.abs(z.imag) <= rad
+                z[real] = z[real].real
+                return z, "tracked"
+            log.debug("root tracking failed at degree %d; companion eigenvalues instead", n)
+    return _companion_roots(a), "eigvals"
+
+
+def _denominator(M: np.ndarray, order: int, n_in: int) -> np.ndarray:
+    """``α_0..α_{n-1}`` (stacked, ``(n·n_in, n_in)``) of the model of ``order`` with ``α_n = I``."""
     n = int(order)
     if n < 1:
         raise ModalabValueError(f"model order {order} < 1; orders start at 1")
@@ -199,15 +367,18 @@ def poles_at_order(M: np.ndarray, order: int, n_in: int, dt: float):
     Mn = M[:c, :c]
     A11, A12 = Mn[:k, :k], Mn[:k, k:c]
     try:
-        alpha = np.linalg.solve(A11, -A12)                          # (k, n_in)
+        return np.linalg.solve(A11, -A12)                           # (k, n_in)
     except np.linalg.LinAlgError:
-        alpha = np.linalg.lstsq(A11, -A12, rcond=None)[0]
+        return np.linalg.lstsq(A11, -A12, rcond=None)[0]
+
+
+def _roots_at_order(M: np.ndarray, order: int, n_in: int, start=None):
+    """All roots ``z`` of the denominator of ``order``, participation vectors and the root method."""
+    n = int(order)
+    alpha = _denominator(M, n, n_in)
+    k = n * n_in
     if n_in == 1:
-        comp = np.zeros((k, k))
-        if k > 1:
-            comp[np.arange(k - 1), np.arange(1, k)] = 1.0
-        comp[-1, :] = -alpha[:, 0]
-        z = np.linalg.eigvals(comp)
+        z, method = denominator_roots(np.append(alpha[:, 0], 1.0), start)
         L = np.ones((1, z.size), complex)
     else:
         comp = np.zeros((k, k))
@@ -215,11 +386,35 @@ def poles_at_order(M: np.ndarray, order: int, n_in: int, dt: float):
             comp[: k - n_in, n_in:] = np.eye(k - n_in)
         comp[k - n_in:, :] = -np.hstack([alpha[r * n_in:(r + 1) * n_in] for r in range(n)])
         z = np.linalg.eigvals(comp)
+        method = "eigvals"
         L = _participation(alpha, n, n_in, z)
+    return z, L, method
+
+
+def _to_poles(z: np.ndarray, L: np.ndarray, dt: float):
     with np.errstate(divide="ignore", invalid="ignore"):
         lam = np.log(z.astype(complex)) / dt
     ok = np.isfinite(lam)
     return lam[ok], L[:, ok]
+
+
+def poles_at_order(M: np.ndarray, order: int, n_in: int, dt: float, *, start=None):
+    """Poles and participation vectors of the model of ``order`` from the reduced matrix ``M``.
+
+    Uses the leading ``(order+1)·n_in`` block of ``M`` (built for a higher
+    order) with the constraint ``α_order = I``.  The poles are the eigenvalues of the block
+    companion matrix; with one reference and ``start`` (the z-domain roots ``exp(λ Δt)`` of a
+    nearby order) the roots of the scalar denominator are tracked from ``start`` instead
+    (:func:`denominator_roots`, certified, falls back to the eigenvalues).
+
+    Returns
+    -------
+    lam : (n_roots,) complex continuous-time poles ``ln(z)/Δt`` in rad/s, all
+        ``order·n_in`` roots (both half-planes, real roots included).
+    L : (n_in, n_roots) complex participation vectors (unit norm).
+    """
+    z, L, _ = _roots_at_order(M, order, n_in, start)
+    return _to_poles(z, L, dt)
 
 
 def _participation(alpha: np.ndarray, n: int, n_in: int, z: np.ndarray) -> np.ndarray:
@@ -285,6 +480,8 @@ class PolyMAX:
     modes_ : :class:`modalab.ModeSet` — window-corrected, scaled modes with indicators.
     frf_ : the FRF actually used (band, references), ``dt_`` the z-domain sampling time.
     reduced_matrix_shape_ : shape of the reduced normal matrix (memory diagnostic).
+    root_methods_ : dict — how many orders had their roots tracked from the previous order
+        (one reference, :func:`denominator_roots`) and how many took companion eigenvalues.
 
     Example
     -------
@@ -358,8 +555,12 @@ class PolyMAX:
         M = reduced_normal_matrix(data.H, w, theta, p)
         orders = np.arange(self.min_order, p + 1, self.order_step)
         poles, parts = [], []
+        methods = {"tracked": 0, "eigvals": 0}
+        z = None
         for n in orders:
-            lam, L = poles_at_order(M, int(n), n_in, dt)
+            z, L, how = _roots_at_order(M, int(n), n_in, start=z)
+            methods[how] += 1
+            lam, L = _to_poles(z, L, dt)
             up = lam.imag > 0
             lam, L = lam[up], L[:, up]
             o = np.argsort(lam.imag)
@@ -369,6 +570,7 @@ class PolyMAX:
         self.frf_ = data
         self.dt_ = dt
         self.reduced_matrix_shape_ = M.shape
+        self.root_methods_ = methods
         self.orders_ = orders
         self.poles_ = poles
         self.participation_ = parts

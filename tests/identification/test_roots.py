@@ -1,0 +1,174 @@
+"""Root tracking of the scalar pLSCF denominator (Aberth–Ehrlich, certified, eigenvalue fallback)."""
+import numpy as np
+import pytest
+
+pytest.importorskip("mpmath")
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from identification import PolyMAX, frequency_weights, modal_system, reduced_normal_matrix
+from identification.polymax import _companion_roots, aberth_roots, denominator_roots, poles_at_order
+
+
+def _separated_roots(rng, n_pairs, n_real, min_sep):
+    """Conjugate pairs near the unit circle (like pLSCF poles) and real roots, pairwise >= min_sep apart."""
+    roots = []
+    while len(roots) < 2 * n_pairs:
+        z = rng.uniform(0.5, 1.3) * np.exp(1j * rng.uniform(0.02, np.pi - 0.02))
+        if all(abs(z - r) >= min_sep for r in roots) and abs(z - z.conjugate()) >= min_sep:
+            roots += [z, z.conjugate()]
+    while len(roots) < 2 * n_pairs + n_real:
+        z = complex(rng.uniform(-1.2, 1.2))
+        if all(abs(z - r) >= min_sep for r in roots):
+            roots.append(z)
+    return np.array(roots)
+
+
+def _match_error(a, b):
+    """Largest distance from a root in ``a`` to its partner in ``b`` (one-to-one, greedy by distance)."""
+    a, b = list(a), list(b)
+    assert len(a) == len(b)
+    err = 0.0
+    for x in a:
+        j = int(np.argmin([abs(x - y) for y in b]))
+        err = max(err, abs(x - b.pop(j)))
+    return err
+
+
+def _exact_roots(a):
+    """The roots of the (rounded) coefficients ``a`` to ~30 digits: np.roots polished by Newton in mpmath."""
+    import mpmath
+
+    mpmath.mp.dps = 40
+    c = [mpmath.mpf(float(x)) for x in a[::-1]]
+    out = []
+    for z0 in np.roots(a[::-1]):
+        z = mpmath.mpc(z0)
+        for _ in range(6):
+            p, dp = mpmath.polyval(c, z, derivative=True)
+            z -= p / dp
+        out.append(complex(z))
+    return np.array(out)
+
+
+def _coeffs(roots):
+    return np.real(np.poly(roots))[::-1]            # ascending, monic
+
+
+class TestAberth:
+    @settings(max_examples=30, deadline=None)
+    @given(seed=st.integers(0, 2 ** 31 - 1), n_pairs=st.integers(12, 30), n_real=st.integers(0, 4),
+           n_new=st.integers(0, 3))
+    def test_tracked_roots_match_eigenvalues(self, seed, n_pairs, n_real, n_new):
+        """From perturbed roots (a nearby polynomial) plus a few missing ones, tracking finds them all."""
+        rng = np.random.default_rng(seed)
+        true = _separated_roots(rng, n_pairs, n_real, min_sep=0.05)
+        a = _coeffs(true)
+        start = true + 0.004 * (rng.normal(size=true.size) + 1j * rng.normal(size=true.size))
+        start = start[rng.permutation(true.size)][n_new:]         # a lower order has fewer roots
+        z, method = denominator_roots(a, start)
+        if np.abs(a).sum() > 1e4:
+            # badly scaled coefficients (pLSCF's are O(1)): the rounding level of the evaluation may
+            # leave discs too wide to certify; then the eigenvalues must have been taken
+            if method == "eigvals":
+                np.testing.assert_allclose(np.sort_complex(z), np.sort_complex(_companion_roots(a)))
+                return
+        assert method == "tracked"
+        exact = _exact_roots(a)
+        err_eig = _match_error(np.roots(a[::-1]), exact)
+        assert _match_error(z, exact) <= max(10 * err_eig, 1e-12)   # as accurate as the eigenvalues
+
+    @settings(max_examples=20, deadline=None)
+    @given(seed=st.integers(0, 2 ** 31 - 1), n=st.integers(5, 60))
+    def test_from_a_circle_on_random_polynomials(self, seed, n):
+        """Global convergence from the classical circle start, certified by disjoint inclusion discs."""
+        rng = np.random.default_rng(seed)
+        a = np.append(rng.normal(size=n), 1.0)
+        start = 1.1 * np.exp(1j * (2 * np.pi * np.arange(n) / n + 0.3))
+        out = aberth_roots(a, start, max_iter=200)
+        if out is None:                                             # may fail to certify: must not lie
+            return
+        z, rad = out
+        exact = _exact_roots(a)
+        d = np.abs(z[:, None] - exact[None, :])
+        assert np.all(d.min(axis=1) <= rad) and sorted(d.argmin(axis=1)) == list(range(n))
+        assert _match_error(z, exact) <= max(10 * _match_error(np.roots(a[::-1]), exact), 1e-12)
+
+    def test_real_start_stays_real_unless_rotated(self):
+        """Real starting points of a real polynomial stay real: z² + 1 is never solved from them."""
+        a = np.array([1.0, 0.0, 1.0])
+        assert aberth_roots(a, [0.3, -0.4], max_iter=100) is None
+        z, rad = aberth_roots(a, np.array([0.3, -0.4]) * np.exp(1e-4j))
+        assert _match_error(z, [1j, -1j]) <= 1e-14 and np.all(rad < 1e-12)
+
+    def test_real_roots_come_out_exactly_real(self):
+        true = np.r_[np.exp(1j * np.linspace(0.2, 3.0, 13)), np.exp(-1j * np.linspace(0.2, 3.0, 13)), 0.4, -0.6]
+        z, method = denominator_roots(_coeffs(true), true * 1.001)
+        assert method == "tracked"
+        assert np.sum(z.imag == 0) == 2 and _match_error(z, np.roots(_coeffs(true)[::-1])) <= 1e-9
+
+    @pytest.mark.parametrize("seed", [119, 239, 7])
+    def test_certified_discs_hold_the_exact_roots(self, seed):
+        """Every exact root (30 digits) lies in the inclusion disc of its tracked approximation."""
+        rng = np.random.default_rng(seed)
+        true = _separated_roots(rng, 20, 2, min_sep=0.05)
+        a = _coeffs(true)
+        z, rad = aberth_roots(a, true * np.exp(1e-4j) + 0.003)
+        exact = _exact_roots(a)
+        d = np.abs(z[:, None] - exact[None, :])
+        assert np.all(d.min(axis=1) <= rad)
+        assert sorted(d.argmin(axis=1)) == list(range(z.size))        # one exact root per disc
+        err_eig = _match_error(np.roots(a[::-1]), exact)
+        assert _match_error(z, exact) <= max(10 * err_eig, 1e-12)   # as accurate as the eigenvalues
+
+    def test_multiple_root_falls_back_to_eigenvalues(self):
+        true = np.r_[np.exp(1j * np.linspace(0.2, 3.0, 13)), np.exp(-1j * np.linspace(0.2, 3.0, 13)), 0.5, 0.5]
+        a = _coeffs(true)
+        assert aberth_roots(a, true + 0.01j) is None                 # discs of a double root overlap
+        z, method = denominator_roots(a, true * 1.001)
+        assert method == "eigvals"
+        np.testing.assert_allclose(np.sort_complex(z), np.sort_complex(_companion_roots(a)))
+
+    @pytest.mark.parametrize("case", ["too_many_new", "short_iteration", "nonfinite", "low_degree"])
+    def test_fallback_cases(self, case):
+        rng = np.random.default_rng(5)
+        true = _separated_roots(rng, 15, 2, 0.05)
+        a = _coeffs(true)
+        if case == "too_many_new":
+            z, method = denominator_roots(a, true[:10])
+        elif case == "short_iteration":
+            assert aberth_roots(a, true * 1.01, max_iter=1) is None
+            z, method = denominator_roots(a, true * 1.01)
+            assert method == "tracked"
+            return
+        elif case == "nonfinite":
+            assert aberth_roots(np.r_[a[:-1], np.nan, 1.0][: a.size], true) is None
+            z, method = denominator_roots(a, np.r_[true[:-1], np.nan])     # the nan start is dropped, one new
+            assert method == "tracked"
+            return
+        else:
+            a = _coeffs(true[:10])
+            z, method = denominator_roots(a, true[:10])
+        assert method == "eigvals"
+        np.testing.assert_allclose(np.sort_complex(z), np.sort_complex(_companion_roots(a)))
+
+
+class TestTrackingInPolyMAX:
+    def test_tracked_poles_equal_eigenvalue_poles(self):
+        """One reference, order sweep: every order's poles equal the companion-eigenvalue poles."""
+        fn, zeta = np.array([42.0, 95.0, 151.0, 240.0, 247.0]), np.array([0.01, 0.008, 0.012, 0.006, 0.012])
+        mm, _ = modal_system(fn, zeta, 6, rng=0)
+        f = np.linspace(1.0, 400.0, 1200)
+        frf = mm.frf(f, references=[mm.dofs[0]])
+        rng = np.random.default_rng(3)
+        frf = frf._replace(H=frf.H * (1 + 0.01 * (rng.normal(size=frf.H.shape) + 1j * rng.normal(size=frf.H.shape))))
+        pm = PolyMAX(max_order=80, min_order=2, order_step=2, select=list(fn)).fit(frf)
+        assert pm.root_methods_["tracked"] > 20
+        dt = pm.dt_
+        M = reduced_normal_matrix(pm.frf_.H, frequency_weights(pm.frf_), 2 * np.pi * pm.frf_.freq_hz * dt, 80)
+        for n, lam in zip(pm.orders_, pm.poles_):
+            ref, _ = poles_at_order(M, int(n), 1, dt)                # no start: companion eigenvalues
+            ref = ref[ref.imag > 0]
+            assert lam.size == ref.size
+            assert _match_error(np.exp(lam * dt), np.exp(ref * dt)) <= 1e-9
+        np.testing.assert_allclose(pm.modes_.freq_hz, fn, rtol=2e-3)
