@@ -144,6 +144,74 @@ def _basis(s, q, lam, L, lower_residual, upper_residual):
     return np.concatenate([A.real, A.imag], axis=0)
 
 
+class _LocalProjection:
+    """Variable-projection residual ``(I − QQᵀ)Y/‖Y‖`` of one pole ``λ(ω_n, ζ)`` and its Jacobian.
+
+    The Jacobian is Kaufman's (1975) approximation ``J_k = −(I − QQᵀ)(∂A/∂x_k) A⁺Y``: only the two
+    columns of the refined mode depend on the pole, so ``J`` costs two rank-one products.  It drops
+    the Golub–Pereyra term ``−(A⁺)ᵀ(∂A/∂x_k)ᵀ r``, whose product with the residual vanishes
+    (``A⁺ r = 0``), so the gradient ``Jᵀr`` and the stationary points are exact.  The QR of the
+    last residual evaluation is reused by the Jacobian at the same point.
+    """
+
+    def __init__(self, s, q, lam, L, k_r, extra, Y, ynorm):
+        self.s, self.q, self.lam, self.L, self.k_r = s, q, np.array(lam, complex), L, k_r
+        self.extra, self.Y, self.ynorm = extra, Y, ynorm
+        self.sq = s ** q
+        self._x = None
+
+    @staticmethod
+    def _pole(x):
+        w0, z0 = x
+        return -z0 * w0 + 1j * w0 * np.sqrt(1 - z0 ** 2)
+
+    def _factor(self, x):
+        x = np.asarray(x, float)
+        if self._x is not None and np.array_equal(x, self._x):
+            return
+        lam = self.lam.copy()
+        lam[self.k_r] = self._pole(x)
+        A = np.concatenate([_basis(self.s, self.q, lam, self.L, False, False), self.extra], axis=1)
+        sc = np.linalg.norm(A, axis=0)
+        sc[sc == 0] = 1.0
+        Q, R = np.linalg.qr(A / sc)
+        QtY = Q.T @ self.Y
+        self._x, self._Q, self._R, self._sc, self._QtY, self._lam = x.copy(), Q, R, sc, QtY, lam
+        self._res = (self.Y - Q @ QtY) / self.ynorm
+
+    def residual(self, x):
+        self._factor(x)
+        return self._res.ravel()
+
+    def jacobian(self, x):
+        self._factor(x)
+        m = self._lam.size
+        k = self.k_r
+        try:
+            X = np.linalg.solve(self._R, self._QtY) / self._sc[:, None]          # A⁺Y, unscaled columns
+        except np.linalg.LinAlgError:
+            X = np.linalg.lstsq(self._R, self._QtY, rcond=None)[0] / self._sc[:, None]
+        lam = self._lam[k]
+        l = self.L[:, k][:, None]                                              # (n_in, 1)
+        g1 = l * (self.sq / (self.s - lam) ** 2)[None, :]                       # l ∂g/∂λ, (n_in, nf)
+        g2 = l.conj() * (self.sq / (self.s - lam.conjugate()) ** 2)[None, :]   # l̄ ∂ḡ/∂λ̄
+        # ∂/∂σ and ∂/∂ω_d of the columns "Re ψ" (l g + l̄ gc) and "Im ψ" (i(l g − l̄ gc)) of the mode
+        cols = {"s_re": g1 + g2, "s_im": 1j * (g1 - g2), "w_re": 1j * (g1 - g2), "w_im": -(g1 + g2)}
+        real = {key: np.concatenate([v.real.ravel(), v.imag.ravel()]) for key, v in cols.items()}
+        w0, z0 = self._x
+        sq = np.sqrt(1 - z0 ** 2)
+        dsig = (-z0, -w0)                                                       # ∂σ/∂(ω_n, ζ)
+        dwd = (sq, -w0 * z0 / sq)                                               # ∂ω_d/∂(ω_n, ζ)
+        J = np.empty((self._res.size, 2))
+        for j in range(2):
+            d_re = dsig[j] * real["s_re"] + dwd[j] * real["w_re"]
+            d_im = dsig[j] * real["s_im"] + dwd[j] * real["w_im"]
+            G = np.outer(d_re, X[k]) + np.outer(d_im, X[m + k])
+            G -= self._Q @ (self._Q.T @ G)
+            J[:, j] = -G.ravel() / self.ynorm
+        return J
+
+
 def refine_poles(frf: FRF, lam, participation, *, passes: int = 2, half_bandwidths: float = 12.0,
                  lower_residual: bool = True, upper_residual: bool = True) -> np.ndarray:
     """Refine each pole by variable-projection least squares on the lines around it.
@@ -205,18 +273,9 @@ def refine_poles(frf: FRF, lam, participation, *, passes: int = 2, half_bandwidt
             extra = np.concatenate([extra, 1j * extra], axis=1)
             extra = np.concatenate([extra.real, extra.imag], axis=0)
 
-            def resid(x, s=s, Y=Y, inwin=inwin, k_r=k_r, extra=extra):
-                lam_t = lam[inwin].copy()
-                w0, z0 = x
-                lam_t[k_r] = -z0 * w0 + 1j * w0 * np.sqrt(1 - z0 ** 2)
-                A = np.concatenate([_basis(s, q, lam_t, L[:, inwin], False, False), extra], axis=1)
-                sc = np.linalg.norm(A, axis=0)
-                sc[sc == 0] = 1.0
-                Qm, _ = np.linalg.qr(A / sc)
-                return ((Y - Qm @ (Qm.T @ Y)) / ynorm).ravel()
-
+            vp = _LocalProjection(s, q, lam[inwin], L[:, inwin], k_r, extra, Y, ynorm)
             try:
-                sol = least_squares(resid, x0=[wn, zr], bounds=([wlo, 1e-6], [whi, 0.5]),
+                sol = least_squares(vp.residual, x0=[wn, zr], jac=vp.jacobian, bounds=([wlo, 1e-6], [whi, 0.5]),
                                     x_scale=[max(zr * wn, 1e-3 * wn), max(zr, 1e-4)], xtol=1e-10, ftol=1e-12,
                                     max_nfev=60)
             except ValueError as e:  # noqa: PERF203 - a failed refinement keeps the linear estimate

@@ -126,3 +126,36 @@ class TestIndicators:
         R = phi ** 2 / (2j * lam.imag)[None, :]
         np.testing.assert_allclose(mov(lam, R), [1.0, 1.0])
         np.testing.assert_allclose(mov(lam, -R), [0.0, 0.0])
+
+
+class TestRefinementJacobian:
+    @pytest.mark.parametrize("quantity", ["receptance", "accelerance"])
+    def test_kaufman_gradient_is_exact(self, quantity):
+        """J_Kaufman^T r equals the finite-difference gradient of the projected residual (A⁺r = 0)."""
+        from scipy.optimize._numdiff import approx_derivative
+
+        from identification.lsfd import _LocalProjection
+
+        mm, _ = modal_system(np.array([40.0, 47.0, 90.0]), np.array([0.02, 0.01, 0.015]), 5, rng=1)
+        f = np.linspace(30, 60, 200)
+        frf = mm.frf(f, references=[mm.dofs[0], mm.dofs[2]], quantity=quantity)
+        H = frf.H * (1 + 0.02 * np.random.default_rng(0).normal(size=frf.H.shape))
+        q = {"receptance": 0, "accelerance": 2}[quantity]
+        lam = np.array([-0.02 * 2 * np.pi * 40 + 2j * np.pi * 40.3, -0.01 * 2 * np.pi * 47 + 2j * np.pi * 47.1])
+        L = np.array([[1, 0.5 + 0.2j], [0.3 - 0.1j, 1]])
+        Y = H.transpose(1, 2, 0).reshape(-1, 5)
+        Y = np.concatenate([Y.real, Y.imag])
+        x_loc = (f - 45) / 15
+        extra = np.zeros((2, f.size, 6), complex)
+        for i in range(2):
+            extra[i, :, 3 * i:3 * i + 3] = np.stack([np.ones_like(x_loc), x_loc, x_loc ** 2], axis=1)
+        extra = extra.reshape(2 * f.size, -1)
+        extra = np.concatenate([extra, 1j * extra], 1)
+        extra = np.concatenate([extra.real, extra.imag], 0)
+        for k in (0, 1):
+            vp = _LocalProjection(2j * np.pi * f, q, lam, L, k, extra, Y, np.linalg.norm(Y))
+            x = np.array([abs(lam[k]) * 1.001, -lam[k].real / abs(lam[k]) * 1.1])
+            J = vp.jacobian(x)
+            Jn = approx_derivative(vp.residual, x, method="3-point")
+            r = vp.residual(x)
+            np.testing.assert_allclose(J.T @ r, Jn.T @ r, rtol=1e-6)
