@@ -197,38 +197,55 @@ def _powers(b: np.ndarray, n: int) -> np.ndarray:
     return P
 
 
-def _newton_corrections(C, KC, rnd, z):
+def _newton_corrections(CC, rnd, z):
     """Newton corrections ``p(z)/p'(z)``, inclusion radii and a "residual at rounding level" flag.
 
-    ``C`` holds the coefficients (ascending) and their reversal in two columns, ``KC`` the
-    derivative coefficients of both.  For ``|z| <= 1`` the polynomial is evaluated in powers of
-    ``z``; outside the unit circle in powers of ``w = 1/z`` through the reversed polynomial
-    ``q(w) = w^n p(1/w)`` (``p/p' = z q / (n q − w q')``), so no power exceeds one in modulus.
-    The disc ``|ζ − z| ≤ n (|p(z)| + e) / |p'(z)|`` contains a root of every polynomial within the
-    rounding error ``e`` of the evaluation (Henrici 1974, Thm 6.4e); ``rnd`` is a bound of ``e``.
+    ``CC`` holds, in four columns, the coefficients (ascending), their reversal and the derivative
+    coefficients of both (``k·c_k`` shifted down by one, zero last row).  For ``|z| <= 1`` the
+    polynomial is evaluated in powers of ``z``; outside the unit circle in powers of ``w = 1/z``
+    through the reversed polynomial ``q(w) = w^n p(1/w)`` (``p/p' = z q / (n q − w q')``), so no
+    power exceeds one in modulus.  The disc ``|ζ − z| ≤ n (|p(z)| + e) / |p'(z)|`` contains a root
+    of every polynomial within the rounding error ``e`` of the evaluation (Henrici 1974, Thm 6.4e);
+    ``rnd`` is a bound of ``e``.
     """
-    n = C.shape[0] - 1
+    n = CC.shape[0] - 1
     az = np.abs(z)
     inside = az <= 1.0
-    b = np.where(inside, z, 1.0 / np.where(inside, 1.0, z))
-    P = _powers(b, n)
-    V = P @ C
-    D = P[:, :-1] @ KC
-    val = np.where(inside, V[:, 0], V[:, 1])
-    den = np.where(inside, D[:, 0], n * V[:, 1] - b * D[:, 1])
+    if inside.all():
+        V = _powers(z, n) @ CC
+        val, den = V[:, 0], V[:, 2]
+        num, b, scl = val, z, 1.0
+    else:
+        b = np.where(inside, z, 1.0 / np.where(inside, 1.0, z))
+        V = _powers(b, n) @ CC
+        val = np.where(inside, V[:, 0], V[:, 1])
+        den = np.where(inside, V[:, 2], n * V[:, 1] - b * V[:, 3])
+        num = np.where(inside, val, z * val)
+        scl = np.where(inside, 1.0, az)
+    aval = np.abs(val)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        N = np.where(inside, val, z * val) / den
-        rad = n * (np.abs(val) + rnd) * np.where(inside, 1.0, az) / np.abs(den)
-    at_round = np.abs(val) <= rnd
+        N = num / den
+        aden = np.abs(den)
+        rad = n * (aval + rnd) * scl / aden
+    at_round = aval <= rnd
     if at_round.any():
         # sharper rounding bound 4(n+1) eps sum |c_k| |b|^k for the candidates only (also in their radius)
-        B = _powers(np.abs(b[at_round]), n) @ np.abs(C)
-        e = 4 * (n + 1) * _EPS * np.where(inside[at_round], B[:, 0], B[:, 1])
+        B = _powers(np.abs(b[at_round]), n) @ np.abs(CC[:, :2])
+        ins = inside[at_round]
+        e = 4 * (n + 1) * _EPS * np.where(ins, B[:, 0], B[:, 1])
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            rad[at_round] = n * (np.abs(val[at_round]) + e) * np.where(inside[at_round], 1.0, az[at_round]) \
-                / np.abs(den[at_round])
-        at_round[at_round] = np.abs(val[at_round]) <= e
+            rad[at_round] = n * (aval[at_round] + e) * np.where(ins, 1.0, az[at_round]) / aden[at_round]
+        at_round[at_round] = aval[at_round] <= e
     return N, rad, at_round
+
+
+def _aberth_step(z, upd, N):
+    """Aberth corrections ``N_i / (1 − N_i Σ_{j≠i} 1/(z_i − z_j))`` for the roots ``upd``."""
+    d = z[upd][:, None] - z[None, :]
+    d[np.arange(upd.size), upd] = np.inf                     # 1/inf = 0: no self term
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        np.reciprocal(d, out=d)
+        return N / (1.0 - N * d.sum(axis=1))
 
 
 def aberth_roots(coeffs, start, *, max_iter: int = 50, tol: float = 1e-12):
@@ -261,7 +278,9 @@ def aberth_roots(coeffs, start, *, max_iter: int = 50, tol: float = 1e-12):
         return None
     a = a / a[-1]
     C = np.stack([a, a[::-1]], axis=1)
-    KC = np.arange(1, n + 1)[:, None] * C[1:]
+    CC = np.zeros((n + 1, 4))
+    CC[:, :2] = C
+    CC[:-1, 2:] = np.arange(1, n + 1)[:, None] * C[1:]
     rnd = 4 * (n + 1) * _EPS * np.abs(a).sum()          # |b| <= 1: a bound of the evaluation error
     active = np.ones(n, bool)
     rad = np.full(n, np.inf)
@@ -271,7 +290,7 @@ def aberth_roots(coeffs, start, *, max_iter: int = 50, tol: float = 1e-12):
         if idx.size == 0:
             break
         zi = z[idx]
-        N, r, at_round = _newton_corrections(C, KC, rnd, zi)
+        N, r, at_round = _newton_corrections(CC, rnd, zi)
         scale = np.maximum(np.abs(zi), 1.0)
         aN = np.abs(N)
         # converged: small inclusion radius, or residual at the rounding level and no longer shrinking
@@ -283,13 +302,7 @@ def aberth_roots(coeffs, start, *, max_iter: int = 50, tol: float = 1e-12):
         upd = idx[keep]
         if upd.size == 0:
             break
-        d = z[upd][:, None] - z[None, :]
-        d[np.arange(upd.size), upd] = 1.0
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            R = np.reciprocal(d)
-            R[np.arange(upd.size), upd] = 0.0
-            N = N[keep]
-            W = N / (1.0 - N * R.sum(axis=1))
+        W = _aberth_step(z, upd, N[keep])
         z[upd] -= W
         if not np.isfinite(z[upd]).all():
             return None
