@@ -145,71 +145,152 @@ def _basis(s, q, lam, L, lower_residual, upper_residual):
 
 
 class _LocalProjection:
-    """Variable-projection residual ``(I − QQᵀ)Y/‖Y‖`` of one pole ``λ(ω_n, ζ)`` and its Jacobian.
+    """Variable-projection objective ``‖(I − P(x))Y‖²/‖Y‖²`` of one pole ``λ(ω_n, ζ)``, minimised by LM.
 
-    The Jacobian is Kaufman's (1975) approximation ``J_k = −(I − QQᵀ)(∂A/∂x_k) A⁺Y``: only the two
-    columns of the refined mode depend on the pole, so ``J`` costs two rank-one products.  It drops
-    the Golub–Pereyra term ``−(A⁺)ᵀ(∂A/∂x_k)ᵀ r``, whose product with the residual vanishes
-    (``A⁺ r = 0``), so the gradient ``Jᵀr`` and the stationary points are exact.  The QR of the
-    last residual evaluation is reused by the Jacobian at the same point.
+    The local basis is ``A = [B, a(x)]``: ``B`` (the other modes in the window and the quadratic
+    residual terms) does not depend on the refined pole, ``a(x)`` are the two columns "Re ψ", "Im ψ"
+    of the refined mode.  ``B = Q_B R_B`` is factored once; every evaluation projects ``a`` and ``Y``
+    off ``B`` and factors the two remaining columns (``P = Q_B Q_Bᵀ + q qᵀ``, ``q`` the orthonormal
+    basis of ``(I − Q_B Q_Bᵀ) a``), and the coefficients of ``a`` are those of the regression of the
+    projected data on the projected columns (Frisch–Waugh–Lovell).
+
+    The Jacobian is Kaufman's (1975) ``J_k = −(I − P)(∂a/∂x_k) c`` (``c`` the coefficients of ``a``), the
+    projection of a rank-two matrix, so ``JᵀJ`` and ``Jᵀr`` reduce to inner products of short vectors.
+    It drops the Golub–Pereyra term ``−(A⁺)ᵀ(∂A/∂x_k)ᵀ r``, whose product with the residual vanishes
+    (``A⁺ r = 0``), so the gradient ``Jᵀr`` and the stationary points are exact.
     """
 
     def __init__(self, s, q, lam, L, k_r, extra, Y, ynorm):
-        self.s, self.q, self.lam, self.L, self.k_r = s, q, np.array(lam, complex), L, k_r
-        self.extra, self.Y, self.ynorm = extra, Y, ynorm
+        self.s, self.q, self.k_r = s, q, k_r
+        self.l = np.asarray(L, complex)[:, k_r]
         self.sq = s ** q
-        self._x = None
+        others = np.delete(np.arange(np.size(lam)), k_r)
+        B = np.concatenate([_basis(s, q, np.asarray(lam, complex)[others], np.asarray(L, complex)[:, others],
+                                   False, False), extra], axis=1)
+        sc = np.linalg.norm(B, axis=0)
+        sc[sc == 0] = 1.0
+        self.QB = np.linalg.qr(B / sc)[0]
+        Y = Y / ynorm
+        self.Yp = Y - self.QB @ (self.QB.T @ Y)                                  # data off B
 
     @staticmethod
-    def _pole(x):
+    def pole(x):
         w0, z0 = x
         return -z0 * w0 + 1j * w0 * np.sqrt(1 - z0 ** 2)
 
-    def _factor(self, x):
-        x = np.asarray(x, float)
-        if self._x is not None and np.array_equal(x, self._x):
-            return
-        lam = self.lam.copy()
-        lam[self.k_r] = self._pole(x)
-        A = np.concatenate([_basis(self.s, self.q, lam, self.L, False, False), self.extra], axis=1)
-        sc = np.linalg.norm(A, axis=0)
-        sc[sc == 0] = 1.0
-        Q, R = np.linalg.qr(A / sc)
-        QtY = Q.T @ self.Y
-        self._x, self._Q, self._R, self._sc, self._QtY, self._lam = x.copy(), Q, R, sc, QtY, lam
-        self._res = (self.Y - Q @ QtY) / self.ynorm
+    def _off_B(self, V):
+        """``(I − Q_B Q_Bᵀ) V``, twice (classical Gram–Schmidt with one re-orthogonalisation)."""
+        V = V - self.QB @ (self.QB.T @ V)
+        return V - self.QB @ (self.QB.T @ V)
+
+    def factor(self, x):
+        """Projection at ``x``: the state used by :meth:`normal` (``cost`` is ``‖r‖²``)."""
+        lam = self.pole(x)
+        a = _basis(self.s, self.q, np.array([lam]), self.l[:, None], False, False)      # (rows, 2)
+        qa, ra = np.linalg.qr(self._off_B(a))
+        QtY = qa.T @ self.Yp
+        res = self.Yp - qa @ QtY
+        return {"x": np.array(x, float), "lam": lam, "q": qa, "r": ra, "QtY": QtY, "res": res,
+                "cost": float(np.sum(res * res))}
 
     def residual(self, x):
-        self._factor(x)
-        return self._res.ravel()
+        """The residual vector (for checks; the solver uses :meth:`factor`)."""
+        return self.factor(x)["res"].ravel()
 
-    def jacobian(self, x):
-        self._factor(x)
-        m = self._lam.size
-        k = self.k_r
+    def _derivatives(self, st):
+        """``∂a/∂x_k`` as real vectors, columns (Re ψ: ∂ω_n, ∂ζ; Im ψ: ∂ω_n, ∂ζ), and the coefficients ``c``."""
         try:
-            X = np.linalg.solve(self._R, self._QtY) / self._sc[:, None]          # A⁺Y, unscaled columns
+            c = np.linalg.solve(st["r"], st["QtY"])                               # (2, n_out)
         except np.linalg.LinAlgError:
-            X = np.linalg.lstsq(self._R, self._QtY, rcond=None)[0] / self._sc[:, None]
-        lam = self._lam[k]
-        l = self.L[:, k][:, None]                                              # (n_in, 1)
+            c = np.linalg.lstsq(st["r"], st["QtY"], rcond=None)[0]
+        lam = st["lam"]
+        l = self.l[:, None]                                                    # (n_in, 1)
         g1 = l * (self.sq / (self.s - lam) ** 2)[None, :]                       # l ∂g/∂λ, (n_in, nf)
         g2 = l.conj() * (self.sq / (self.s - lam.conjugate()) ** 2)[None, :]   # l̄ ∂ḡ/∂λ̄
-        # ∂/∂σ and ∂/∂ω_d of the columns "Re ψ" (l g + l̄ gc) and "Im ψ" (i(l g − l̄ gc)) of the mode
-        cols = {"s_re": g1 + g2, "s_im": 1j * (g1 - g2), "w_re": 1j * (g1 - g2), "w_im": -(g1 + g2)}
-        real = {key: np.concatenate([v.real.ravel(), v.imag.ravel()]) for key, v in cols.items()}
-        w0, z0 = self._x
+        # ∂/∂σ and ∂/∂ω_d of the columns l g + l̄ gc ("Re ψ") and i(l g − l̄ gc) ("Im ψ")
+        re = lambda v: np.concatenate([v.real.ravel(), v.imag.ravel()])  # noqa: E731
+        s_re, s_im = re(g1 + g2), re(1j * (g1 - g2))
+        w_re, w_im = s_im, -s_re
+        w0, z0 = st["x"]
         sq = np.sqrt(1 - z0 ** 2)
         dsig = (-z0, -w0)                                                       # ∂σ/∂(ω_n, ζ)
         dwd = (sq, -w0 * z0 / sq)                                               # ∂ω_d/∂(ω_n, ζ)
-        J = np.empty((self._res.size, 2))
+        D = np.stack([dsig[j] * s_re + dwd[j] * w_re for j in range(2)]
+                     + [dsig[j] * s_im + dwd[j] * w_im for j in range(2)], axis=1)   # (rows, 4)
+        return D, c
+
+    def _project(self, st, V):
+        V = self._off_B(V)
+        return V - st["q"] @ (st["q"].T @ V)
+
+    def jacobian(self, x):
+        """Kaufman Jacobian of :meth:`residual` (formed explicitly; for checks)."""
+        st = self.factor(x)
+        D, c = self._derivatives(st)
+        J = np.empty((st["res"].size, 2))
         for j in range(2):
-            d_re = dsig[j] * real["s_re"] + dwd[j] * real["w_re"]
-            d_im = dsig[j] * real["s_im"] + dwd[j] * real["w_im"]
-            G = np.outer(d_re, X[k]) + np.outer(d_im, X[m + k])
-            G -= self._Q @ (self._Q.T @ G)
-            J[:, j] = -G.ravel() / self.ynorm
+            G = np.outer(D[:, j], c[0]) + np.outer(D[:, 2 + j], c[1])
+            J[:, j] = -self._project(st, G).ravel()
         return J
+
+    def normal(self, st):
+        """``JᵀJ`` (2×2) and ``Jᵀr`` (2) from inner products: ``J_k = −P⊥(d_re,k c_0ᵀ + d_im,k c_1ᵀ)``."""
+        D, c = self._derivatives(st)
+        Dp = self._project(st, D)
+        Dg = Dp.T @ Dp                                                          # <d_a, P⊥ d_b>
+        Cg = c @ c.T                                                            # <c_a, c_b>
+        JtJ = np.empty((2, 2))
+        for i in range(2):
+            for j in range(2):
+                JtJ[i, j] = (Dg[i, j] * Cg[0, 0] + Dg[i, 2 + j] * Cg[0, 1] + Dg[2 + i, j] * Cg[1, 0]
+                             + Dg[2 + i, 2 + j] * Cg[1, 1])
+        RC = st["res"] @ c.T                                                    # (rows, 2): r c_a
+        Jtr = -(D[:, :2].T @ RC[:, 0] + D[:, 2:].T @ RC[:, 1])
+        return JtJ, Jtr
+
+
+def _minimise_lm(vp, x0, lo, hi, x_scale, *, xtol=1e-10, ftol=1e-12, max_nfev=60):
+    """Box-constrained Levenberg–Marquardt on two variables (projected steps, scaled by ``x_scale``).
+
+    A variable on a bound whose gradient points out of the box is held there (active set).
+
+    Stops like ``scipy.optimize.least_squares``: when a step is shorter than
+    ``xtol·(xtol + ‖x‖)`` or an accepted step lowers the cost by less than ``ftol`` (relative), or
+    after ``max_nfev`` evaluations.  Returns the best point and the number of evaluations.
+    """
+    D = np.asarray(x_scale, float)
+    st = vp.factor(np.clip(x0, lo, hi))
+    nfev = 1
+    JtJ, Jtr = vp.normal(st)
+    mu = 1e-3 * max(float(np.max(np.diag(JtJ) * D ** 2)), 1e-300)
+    while nfev < max_nfev:
+        # variables on a bound that the gradient pushes outwards stay there (active set)
+        free = ~(((st["x"] <= lo) & (Jtr > 0)) | ((st["x"] >= hi) & (Jtr < 0)))
+        if not free.any():
+            break
+        Hs = (JtJ * np.outer(D, D))[np.ix_(free, free)]
+        gs = (Jtr * D)[free]
+        step = np.zeros(2)
+        try:
+            step[free] = -np.linalg.solve(Hs + mu * np.eye(gs.size), gs) * D[free]
+        except np.linalg.LinAlgError:
+            break
+        x_new = np.clip(st["x"] + step, lo, hi)
+        dx = x_new - st["x"]
+        if np.linalg.norm(dx) <= xtol * (xtol + np.linalg.norm(st["x"])):      # scipy's xtol test
+            break
+        new = vp.factor(x_new)
+        nfev += 1
+        if new["cost"] < st["cost"]:
+            small = st["cost"] - new["cost"] <= ftol * st["cost"]
+            st = new
+            if small:
+                break
+            JtJ, Jtr = vp.normal(st)
+            mu *= 0.3
+        else:
+            mu = max(mu * 10.0, 1e-12 * max(float(np.max(np.diag(Hs))), 1e-300))
+    return st["x"], nfev
 
 
 def refine_poles(frf: FRF, lam, participation, *, passes: int = 2, half_bandwidths: float = 12.0,
@@ -226,8 +307,6 @@ def refine_poles(frf: FRF, lam, participation, *, passes: int = 2, half_bandwidt
     This is the single-pole counterpart of the maximum-likelihood refinement of
     PolyMAX Plus; it reduces the noise bias of the linearised pLSCF damping.
     """
-    from scipy.optimize import least_squares
-
     lam = np.array(np.atleast_1d(lam), complex)
     L = np.asarray(participation, complex).reshape(frf.n_in, lam.size)
     m = lam.size
@@ -274,14 +353,9 @@ def refine_poles(frf: FRF, lam, participation, *, passes: int = 2, half_bandwidt
             extra = np.concatenate([extra.real, extra.imag], axis=0)
 
             vp = _LocalProjection(s, q, lam[inwin], L[:, inwin], k_r, extra, Y, ynorm)
-            try:
-                sol = least_squares(vp.residual, x0=[wn, zr], jac=vp.jacobian, bounds=([wlo, 1e-6], [whi, 0.5]),
-                                    x_scale=[max(zr * wn, 1e-3 * wn), max(zr, 1e-4)], xtol=1e-10, ftol=1e-12,
-                                    max_nfev=60)
-            except ValueError as e:  # noqa: PERF203 - a failed refinement keeps the linear estimate
-                log.debug("pole refinement at %.4g Hz skipped: %s", fr, e)
-                continue
-            w0, z0 = sol.x
+            x, _ = _minimise_lm(vp, np.array([wn, zr]), np.array([wlo, 1e-6]), np.array([whi, 0.5]),
+                                [max(zr * wn, 1e-3 * wn), max(zr, 1e-4)])
+            w0, z0 = x
             lam[r] = -z0 * w0 + 1j * w0 * np.sqrt(1 - z0 ** 2)
     return lam
 
