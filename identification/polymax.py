@@ -105,11 +105,6 @@ def frequency_weights(frf: FRF, weighting=None, *, normalise: bool = True) -> np
 
 
 # --------------------------------------------------------------------------- reduced matrix
-def _lag_matrix(theta: np.ndarray, lags: np.ndarray) -> np.ndarray:
-    """``Z[k, d] = exp(i θ_k d)`` for the given lags."""
-    return np.exp(1j * np.outer(theta, lags))
-
-
 def reduced_normal_matrix(H: np.ndarray, w: np.ndarray, theta: np.ndarray, max_order: int, *,
                           chunk: int = 16, rcond: float = 1e-12) -> np.ndarray:
     """Reduced normal matrix ``M`` of pLSCF for order ``p = max_order``.
@@ -129,57 +124,74 @@ def reduced_normal_matrix(H: np.ndarray, w: np.ndarray, theta: np.ndarray, max_o
     p = int(max_order)
     c = (p + 1) * n_in
     a = (w ** 2).astype(float)                                    # |w|², (n_out, nf)
-    lags = np.arange(-p, p + 1)
     D = np.arange(p + 1)[None, :] - np.arange(p + 1)[:, None]     # s - r
-    # --- lag sums, accumulated over chunks of lines so that memory does not scale with nf x order:
-    #     rho_o(d) = Σ_k a z^d,  sigma_oj(d) = Σ_k a H_oj z^d,  tau_ij(d) = Σ_o Σ_k a conj(H_oi) H_oj z^d
-    rho = np.zeros((n_out, 2 * p + 1), complex)
-    sig_all = np.zeros((n_out * n_in, 2 * p + 1), complex)
-    tau_pos = np.zeros((n_in * n_in, p + 1), complex)
-    f_chunk = max(16, int(2 ** 17 // max(2 * p + 1, 1)))          # lag matrix of at most ~2 MB
+    # --- lag sums, accumulated over chunks of lines so that memory does not scale with nf x order.
+    #     Only real parts enter R, S, T, so with C_kd = cos(θ_k d), S_kd = sin(θ_k d), d = 0..p:
+    #     Re rho_o(±d) = Σ_k a C,  Re sigma_oj(±d) = Σ_k a (Re H_oj C ∓ Im H_oj S),
+    #     Re tau_ij(d) = Σ_k (Re G_ij C − Im G_ij S),  G_ij = Σ_o a conj(H_oi) H_oj,  tau_ij(−d) = conj tau_ji(d)
+    rho_c = np.zeros((n_out, p + 1))
+    sig_c = np.zeros((n_out * n_in, p + 1))
+    sig_s = np.zeros((n_out * n_in, p + 1))
+    tau_pos = np.zeros((n_in * n_in, p + 1))
+    f_chunk = max(16, int(2 ** 17 // max(2 * p + 1, 1)))          # lag matrices of at most ~2 MB
     for k0 in range(0, nf, f_chunk):
         ks = slice(k0, min(k0 + f_chunk, nf))
-        Z = _lag_matrix(theta[ks], lags)                           # (chunk, 2p+1)
-        aH = a[:, None, ks] * H[:, :, ks]
-        rho += a[:, ks] @ Z
-        sig_all += aH.reshape(n_out * n_in, -1) @ Z
-        G = np.einsum("oik,ojk->ijk", H[:, :, ks].conj(), aH, optimize=True)
-        tau_pos += G.reshape(n_in * n_in, -1) @ Z[:, p:]
+        E = _powers(np.exp(1j * theta[ks]), p)                     # z_k^d, d = 0..p (chunk, p+1)
+        Cm = np.ascontiguousarray(E.real)
+        Sm = np.ascontiguousarray(E.imag)
+        aH = (a[:, None, ks] * H[:, :, ks]).reshape(n_out * n_in, -1)
+        rho_c += a[:, ks] @ Cm
+        sig_c += np.ascontiguousarray(aH.real) @ Cm
+        sig_s += np.ascontiguousarray(aH.imag) @ Sm
+        G = np.einsum("oik,ojk->ijk", H[:, :, ks].conj(), aH.reshape(n_out, n_in, -1), optimize=True)
+        G = G.reshape(n_in * n_in, -1)
+        tau_pos += np.ascontiguousarray(G.real) @ Cm - np.ascontiguousarray(G.imag) @ Sm
     tau_pos = tau_pos.reshape(n_in, n_in, p + 1)
-    tau = np.empty((n_in, n_in, 2 * p + 1), complex)
+    tau = np.empty((n_in, n_in, 2 * p + 1))
     tau[:, :, p:] = tau_pos
-    tau[:, :, :p] = np.conj(tau_pos.transpose(1, 0, 2)[:, :, :0:-1])   # tau_ij(-d) = conj(tau_ji(d))
-    T4 = tau.real[:, :, D + p]                                      # (i, j, r, s)
+    tau[:, :, :p] = tau_pos.transpose(1, 0, 2)[:, :, :0:-1]              # Re tau_ij(-d) = Re tau_ji(d)
+    T4 = tau[:, :, D + p]                                           # (i, j, r, s)
     M = T4.transpose(2, 0, 3, 1).reshape(c, c).copy()
     del T4, tau, tau_pos
+    rho = np.concatenate([rho_c[:, :0:-1], rho_c], axis=1)          # Re rho(d), d = -p..p
+    sig_re = np.concatenate([(sig_c + sig_s)[:, :0:-1], sig_c - sig_s], axis=1)   # Re sigma(d), d = -p..p
     # --- R and S per output, eliminated in chunks of outputs (a few tens of MB at most)
-    rho = rho.real
-    sig_all = sig_all.reshape(n_out, n_in, 2 * p + 1)
+    sig_all = sig_re.reshape(n_out, n_in, 2 * p + 1)
     chunk = max(1, min(int(chunk), int(1e6 // (8 * (p + 1) * c))))            # ~1 MB of S per chunk
     same_R = np.allclose(a, a[:1] * (a.sum(1, keepdims=True) / max(a[0].sum(), 1e-300)), rtol=1e-10, atol=0)
     if same_R:
-        Rinv0 = np.linalg.pinv(rho[0][D + p], rcond=rcond, hermitian=True)
+        # R_0⁺ = V Λ⁺ Vᵀ (pseudo-inverse with the same cut-off as pinv): S_oᵀ R_o⁺ S_o = W_oᵀ W_o with
+        # W_o = Λ^{-1/2} Vᵀ S_o / sqrt(scale), so the elimination is one product and one symmetric rank-k update
+        lam_r, V_r = np.linalg.eigh(rho[0][D + p])
+        keep = np.abs(lam_r) > rcond * np.abs(lam_r).max()
+        W0 = (V_r[:, keep] / np.sqrt(np.abs(lam_r[keep]))).T
+        sgn = np.sign(lam_r[keep])
     for o0 in range(0, n_out, chunk):
         sl = slice(o0, min(o0 + chunk, n_out))
         no = sl.stop - sl.start
         sig = sig_all[sl]
         # S_o[r, (s, j)] = -Re sigma_oj(s - r)
-        S = -sig.real[:, :, D + p]                                  # (no, j, r, s)
+        S = -sig[:, :, D + p]                                       # (no, j, r, s)
         S = S.transpose(0, 2, 3, 1).reshape(no, p + 1, c)
         if same_R:
             scale = rho[0, p] / rho[sl, p]                          # R_o = R_0 * rho_o(0)/rho_0(0)
-            X = np.einsum("rq,oqc->orc", Rinv0, S, optimize=True) * scale[:, None, None]
+            W = np.matmul(W0, S) * np.sqrt(scale)[:, None, None]     # (no, k, c)
+            if sgn.min() > 0:
+                W = W.reshape(-1, c)
+                M -= W.T @ W                                        # symmetric rank-k update
+            else:                                                   # indefinite R (not from positive weights)
+                M -= np.einsum("okc,k,okd->cd", W, sgn, W, optimize=True)
         else:
             R = rho[sl][:, D + p]                                   # (no, p+1, p+1)
             X = np.linalg.pinv(R, rcond=rcond, hermitian=True) @ S
-        M -= S.reshape(no * (p + 1), c).T @ X.reshape(no * (p + 1), c)
+            M -= S.reshape(no * (p + 1), c).T @ X.reshape(no * (p + 1), c)
     M = 0.5 * (M + M.T)
     return 2.0 * M
 
 
 # --------------------------------------------------------------------------- roots
 _EPS = np.finfo(float).eps
-_TRACK_MIN_DEGREE = 24          # below this the companion eigenvalues cost less than the iteration overhead
+_TRACK_MIN_DEGREE = 64          # below this the companion eigenvalues cost less than the iteration overhead
 _TRACK_MAX_NEW = 8              # at most this many roots more than the starting set (else eigenvalues)
 
 
@@ -240,12 +252,13 @@ def _newton_corrections(CC, rnd, z):
 
 
 def _aberth_step(z, upd, N):
-    """Aberth corrections ``N_i / (1 − N_i Σ_{j≠i} 1/(z_i − z_j))`` for the roots ``upd``."""
+    """Aberth corrections ``N_i / (1 − N_i S_i)``, ``S_i = Σ_{j≠i} 1/(z_i − z_j)``, for the roots ``upd``, and ``|S_i|``."""
     d = z[upd][:, None] - z[None, :]
     d[np.arange(upd.size), upd] = np.inf                     # 1/inf = 0: no self term
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         np.reciprocal(d, out=d)
-        return N / (1.0 - N * d.sum(axis=1))
+        S = d.sum(axis=1)
+        return N / (1.0 - N * S), np.abs(S)
 
 
 def aberth_roots(coeffs, start, *, max_iter: int = 50, tol: float = 1e-12):
@@ -285,6 +298,7 @@ def aberth_roots(coeffs, start, *, max_iter: int = 50, tol: float = 1e-12):
     active = np.ones(n, bool)
     rad = np.full(n, np.inf)
     n_prev = np.full(n, np.inf)                           # |Newton correction| at the previous visit
+    s_prev = np.full(n, np.inf)                           # |Σ_j 1/(z_i − z_j)| at the last Aberth step
     for _ in range(int(max_iter)):
         idx = np.flatnonzero(active)
         if idx.size == 0:
@@ -302,7 +316,14 @@ def aberth_roots(coeffs, start, *, max_iter: int = 50, tol: float = 1e-12):
         upd = idx[keep]
         if upd.size == 0:
             break
-        W = _aberth_step(z, upd, N[keep])
+        Nk = N[keep]
+        # near convergence the Aberth factor 1/(1 − N S) is 1 to within |N S|: a Newton step costs
+        # O(n) instead of O(n²) and keeps the quadratic convergence (S from this root's last visit)
+        newton = np.abs(Nk * s_prev[upd]) < 1e-3
+        W = Nk.copy()
+        ab = ~newton
+        if ab.any():
+            W[ab], s_prev[upd[ab]] = _aberth_step(z, upd[ab], Nk[ab])
         z[upd] -= W
         if not np.isfinite(z[upd]).all():
             return None
@@ -367,8 +388,13 @@ def denominator_roots(coeffs, start=None):
     return _companion_roots(a), "eigvals"
 
 
-def _denominator(M: np.ndarray, order: int, n_in: int) -> np.ndarray:
-    """``α_0..α_{n-1}`` (stacked, ``(n·n_in, n_in)``) of the model of ``order`` with ``α_n = I``."""
+def _denominator(M: np.ndarray, order: int, n_in: int, chol=None) -> np.ndarray:
+    """``α_0..α_{n-1}`` (stacked, ``(n·n_in, n_in)``) of the model of ``order`` with ``α_n = I``.
+
+    ``α = −A11⁻¹ A12`` with ``A11``, ``A12`` the leading blocks of ``M``.  With ``chol``, the lower
+    Cholesky factor ``L`` of ``M`` (or of a larger leading block), ``A11 = L_kk L_kkᵀ`` and
+    ``A12 = L_kk L_ckᵀ``, so ``α = −L_kk⁻ᵀ L_ckᵀ``: one triangular solve per order instead of a factorisation.
+    """
     n = int(order)
     if n < 1:
         raise ModalabValueError(f"model order {order} < 1; orders start at 1")
@@ -377,6 +403,10 @@ def _denominator(M: np.ndarray, order: int, n_in: int) -> np.ndarray:
         raise ModalabValueError(f"order {order} needs a reduced matrix of size {c}; got {M.shape[0]}. "
                                 "Build M for at least this order")
     k = n * n_in
+    if chol is not None and chol.shape[0] >= c:
+        from scipy.linalg import solve_triangular
+
+        return -solve_triangular(chol[:k, :k], chol[k:c, :k].T, trans="T", lower=True, check_finite=False)
     Mn = M[:c, :c]
     A11, A12 = Mn[:k, :k], Mn[:k, k:c]
     try:
@@ -385,10 +415,21 @@ def _denominator(M: np.ndarray, order: int, n_in: int) -> np.ndarray:
         return np.linalg.lstsq(A11, -A12, rcond=None)[0]
 
 
-def _roots_at_order(M: np.ndarray, order: int, n_in: int, start=None):
+def _cholesky(M: np.ndarray):
+    """Lower Cholesky factor of ``M``, or ``None`` when ``M`` is not numerically positive definite."""
+    try:
+        L = np.linalg.cholesky(M)
+    except np.linalg.LinAlgError:
+        return None
+    d = np.abs(np.diag(L))
+    # a pivot at the rounding level of the largest one: the factor would amplify noise, solve instead
+    return L if d.size and d.min() > 1e-7 * d.max() else None
+
+
+def _roots_at_order(M: np.ndarray, order: int, n_in: int, start=None, chol=None):
     """All roots ``z`` of the denominator of ``order``, participation vectors and the root method."""
     n = int(order)
-    alpha = _denominator(M, n, n_in)
+    alpha = _denominator(M, n, n_in, chol)
     k = n * n_in
     if n_in == 1:
         z, method = denominator_roots(np.append(alpha[:, 0], 1.0), start)
@@ -570,8 +611,9 @@ class PolyMAX:
         poles, parts = [], []
         methods = {"tracked": 0, "eigvals": 0}
         z = None
+        chol = _cholesky(M)
         for n in orders:
-            z, L, how = _roots_at_order(M, int(n), n_in, start=z)
+            z, L, how = _roots_at_order(M, int(n), n_in, start=z, chol=chol)
             methods[how] += 1
             lam, L = _to_poles(z, L, dt)
             up = lam.imag > 0
