@@ -318,8 +318,10 @@ def aberth_roots(coeffs, start, *, max_iter: int = 50, tol: float = 1e-12):
             break
         Nk = N[keep]
         # near convergence the Aberth factor 1/(1 − N S) is 1 to within |N S|: a Newton step costs
-        # O(n) instead of O(n²) and keeps the quadratic convergence (S from this root's last visit)
-        newton = np.abs(Nk * s_prev[upd]) < 1e-3
+        # O(n) instead of O(n²) and keeps the quadratic convergence (S from this root's last visit;
+        # Newton has no repulsion, so only when |N S| is tiny: at 1e-3 two approximations could
+        # settle on one root, which the disc test then rejects)
+        newton = np.abs(Nk * s_prev[upd]) < 1e-5
         W = Nk.copy()
         ab = ~newton
         if ab.any():
