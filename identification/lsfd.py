@@ -183,11 +183,26 @@ class _LocalProjection:
         V = V - self.QB @ (self.QB.T @ V)
         return V - self.QB @ (self.QB.T @ V)
 
+    def _columns(self, lam):
+        """The two real columns ("Re ψ", "Im ψ") of one pole, rows (reference, line) real then imaginary."""
+        lg = self.l[:, None] * (self.sq / (self.s - lam))[None, :]
+        lgc = self.l.conj()[:, None] * (self.sq / (self.s - lam.conjugate()))[None, :]
+        cre, cim = (lg + lgc).ravel(), (1j * (lg - lgc)).ravel()
+        return np.stack([np.concatenate([cre.real, cre.imag]), np.concatenate([cim.real, cim.imag])], axis=1)
+
     def factor(self, x):
         """Projection at ``x``: the state used by :meth:`normal` (``cost`` is ``‖r‖²``)."""
         lam = self.pole(x)
-        a = _basis(self.s, self.q, np.array([lam]), self.l[:, None], False, False)      # (rows, 2)
-        qa, ra = np.linalg.qr(self._off_B(a))
+        a = self._off_B(self._columns(lam))                                     # (rows, 2)
+        # QR of two columns by Gram–Schmidt with one re-orthogonalisation
+        r11 = np.linalg.norm(a[:, 0])
+        q1 = a[:, 0] / r11 if r11 > 0 else a[:, 0]
+        v = a[:, 1] - q1 * (q1 @ a[:, 1])
+        v -= q1 * (q1 @ v)
+        r22 = np.linalg.norm(v)
+        q2 = v / r22 if r22 > 0 else v
+        qa = np.stack([q1, q2], axis=1)
+        ra = np.array([[r11, q1 @ a[:, 1]], [0.0, r22]])
         QtY = qa.T @ self.Yp
         res = self.Yp - qa @ QtY
         return {"x": np.array(x, float), "lam": lam, "q": qa, "r": ra, "QtY": QtY, "res": res,
@@ -199,9 +214,11 @@ class _LocalProjection:
 
     def _derivatives(self, st):
         """``∂a/∂x_k`` as real vectors, columns (Re ψ: ∂ω_n, ∂ζ; Im ψ: ∂ω_n, ∂ζ), and the coefficients ``c``."""
-        try:
-            c = np.linalg.solve(st["r"], st["QtY"])                               # (2, n_out)
-        except np.linalg.LinAlgError:
+        (r11, r12), (_, r22) = st["r"]
+        if r11 > 0 and r22 > 0:
+            c1 = st["QtY"][1] / r22
+            c = np.stack([(st["QtY"][0] - r12 * c1) / r11, c1])                # (2, n_out): R c = QᵀY
+        else:
             c = np.linalg.lstsq(st["r"], st["QtY"], rcond=None)[0]
         lam = st["lam"]
         l = self.l[:, None]                                                    # (n_in, 1)
@@ -249,7 +266,7 @@ class _LocalProjection:
         return JtJ, Jtr
 
 
-def _minimise_lm(vp, x0, lo, hi, x_scale, *, xtol=1e-10, ftol=1e-12, max_nfev=60):
+def _minimise_lm(vp, x0, lo, hi, x_scale, *, xtol=1e-10, ftol=1e-12, max_nfev=25):
     """Box-constrained Levenberg–Marquardt on two variables (projected steps, scaled by ``x_scale``).
 
     A variable on a bound whose gradient points out of the box is held there (active set).
@@ -257,6 +274,9 @@ def _minimise_lm(vp, x0, lo, hi, x_scale, *, xtol=1e-10, ftol=1e-12, max_nfev=60
     Stops like ``scipy.optimize.least_squares``: when a step is shorter than
     ``xtol·(xtol + ‖x‖)`` or an accepted step lowers the cost by less than ``ftol`` (relative), or
     after ``max_nfev`` evaluations.  Returns the best point and the number of evaluations.
+    Physical poles converge in 3–8 evaluations; poles still creeping along a flat valley after
+    ``max_nfev`` = 25 are noise poles (their damping runs towards a bound), keep their last
+    estimate and are left to the damping and MPC tests of the selection.
     """
     D = np.asarray(x_scale, float)
     st = vp.factor(np.clip(x0, lo, hi))
@@ -271,10 +291,17 @@ def _minimise_lm(vp, x0, lo, hi, x_scale, *, xtol=1e-10, ftol=1e-12, max_nfev=60
         Hs = (JtJ * np.outer(D, D))[np.ix_(free, free)]
         gs = (Jtr * D)[free]
         step = np.zeros(2)
-        try:
-            step[free] = -np.linalg.solve(Hs + mu * np.eye(gs.size), gs) * D[free]
-        except np.linalg.LinAlgError:
-            break
+        Hm = Hs + mu * np.eye(gs.size)
+        if gs.size == 2:
+            det = Hm[0, 0] * Hm[1, 1] - Hm[0, 1] * Hm[1, 0]
+            if not det > 0:
+                break
+            sol = np.array([Hm[1, 1] * gs[0] - Hm[0, 1] * gs[1], Hm[0, 0] * gs[1] - Hm[1, 0] * gs[0]]) / det
+        else:
+            if not Hm[0, 0] > 0:
+                break
+            sol = gs / Hm[0, 0]
+        step[free] = -sol * D[free]
         x_new = np.clip(st["x"] + step, lo, hi)
         dx = x_new - st["x"]
         if np.linalg.norm(dx) <= xtol * (xtol + np.linalg.norm(st["x"])):      # scipy's xtol test
