@@ -72,7 +72,9 @@ class LSFDResult:
         with np.errstate(divide="ignore", invalid="ignore"):
             g = s[None, :] ** q / (s[None, :] - self.lam[:, None])          # (m, nf)
             gc = s[None, :] ** q / (s[None, :] - self.lam.conj()[:, None])
-            H = np.einsum("oir,rf->oif", A, g) + np.einsum("oir,rf->oif", A.conj(), gc)
+            n_o, n_i, m = A.shape
+            A2 = A.reshape(n_o * n_i, m)
+            H = (A2 @ g + A2.conj() @ gc).reshape(n_o, n_i, f.size)
             if residuals:
                 H = H + self.lower[:, :, None] * (s ** (q - 2))[None, None, :] \
                     + self.upper[:, :, None] * (s ** q)[None, None, :]
@@ -440,18 +442,17 @@ def modes_from_poles(frf: FRF, lam, participation, *, lower_residual: bool = Tru
              "MCF": ind.mcf(phi) if m else np.zeros(0), "MOV": mov}
     for k2, v in (extra_indicators or {}).items():
         indic[k2] = np.asarray(v)
-    # modal contribution to the synthesis, per mode (fraction of the synthesised energy)
+    # modal contribution to the synthesis, per mode (fraction of the synthesised energy):
+    # Σ_oif |A g + Ā gc|² = Σ_oi |A|² · Σ_f (|g|² + |gc|²) + 2 Re(Σ_oi A² · Σ_f g conj(gc))
     if m:
-        contrib = np.empty(m)
         tot = np.sum(np.abs(frf.H) ** 2)
         s = 2j * np.pi * frf.freq_hz
         q = _Q[frf.quantity]
-        for r in range(m):
-            g = s ** q / (s - res.lam[r])
-            gc = s ** q / (s - res.lam[r].conj())
-            Ar = res.residues[:, :, r]
-            Hr = Ar[..., None] * g + Ar.conj()[..., None] * gc
-            contrib[r] = np.sum(np.abs(Hr) ** 2) / tot
+        g = s[None, :] ** q / (s[None, :] - res.lam[:, None])                  # (m, nf)
+        gc = s[None, :] ** q / (s[None, :] - res.lam.conj()[:, None])
+        A = res.residues.reshape(-1, m)
+        contrib = (np.sum(np.abs(A) ** 2, axis=0) * np.sum(np.abs(g) ** 2 + np.abs(gc) ** 2, axis=1)
+                   + 2 * np.real(np.sum(A ** 2, axis=0) * np.sum(g * gc.conj(), axis=1))) / tot
         indic["contribution"] = contrib
     res.metadata.update({"frf_correlation": ind.frf_correlation(syn.H, frf.H),
                          "synthesis_error": ind.synthesis_error(syn.H, frf.H), "window_beta": float(window_beta)})

@@ -55,6 +55,9 @@ def mac_vectors(A, B):
     """MAC between the columns of ``A`` (n, a) and ``B`` (n, b): ``|aᴴb|² / (aᴴa · bᴴb)``."""
     A = np.asarray(A)
     B = np.asarray(B)
+    if A.shape[0] == 1 and B.shape[0] == 1:
+        # scalars (one reference): |ab|²/(|a|²|b|²) = 1 unless one of them is zero
+        return ((A[0] != 0)[:, None] & (B[0] != 0)[None, :]).astype(float)
     num = np.abs(A.conj().T @ B) ** 2
     den = np.real(np.sum(A.conj() * A, axis=0))[:, None] * np.real(np.sum(B.conj() * B, axis=0))[None, :]
     with np.errstate(divide="ignore", invalid="ignore"):

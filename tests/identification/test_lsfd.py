@@ -159,3 +159,20 @@ class TestRefinementJacobian:
             Jn = approx_derivative(vp.residual, x, method="3-point")
             r = vp.residual(x)
             np.testing.assert_allclose(J.T @ r, Jn.T @ r, rtol=1e-6)
+
+
+def test_contribution_equals_the_energy_of_each_mode_synthesis():
+    """The closed-form modal contribution equals Σ|A g + Ā gc|² / Σ|H|² summed explicitly."""
+    mm, _ = modal_system(np.array([40.0, 47.0, 90.0]), np.array([0.02, 0.01, 0.015]), 5, rng=1)
+    frf = mm.frf(np.linspace(10, 120, 300), references=[mm.dofs[0], mm.dofs[2]], quantity="mobility")
+    lam = -np.array([0.02, 0.01, 0.015]) * 2 * np.pi * np.array([40.0, 47.0, 90.0]) \
+        + 2j * np.pi * np.array([40.0, 47.0, 90.0]) * np.sqrt(1 - np.array([0.02, 0.01, 0.015]) ** 2)
+    modes, res = modes_from_poles(frf, lam, np.array([[1.0, 0.5, 0.2], [0.3, 1.0, -0.4]], complex))
+    s = 2j * np.pi * frf.freq_hz
+    tot = np.sum(np.abs(frf.H) ** 2)
+    for r in range(3):
+        g = s / (s - res.lam[r])
+        gc = s / (s - res.lam[r].conj())
+        Ar = res.residues[:, :, r]
+        Hr = Ar[..., None] * g + Ar.conj()[..., None] * gc
+        assert modes.indicators["contribution"][r] == pytest.approx(np.sum(np.abs(Hr) ** 2) / tot, rel=1e-10)
