@@ -120,6 +120,13 @@ def _split_block(blk, rel_gap, gap, max_block):
     return out
 
 
+def _segment_medians(x, starts, sizes):
+    """Medians of the sorted runs ``x[starts[i]:starts[i]+sizes[i]]`` (as ``np.median``: mean of the middle two)."""
+    starts = np.asarray(starts)
+    sizes = np.asarray(sizes)
+    return 0.5 * (x[starts + (sizes - 1) // 2] + x[starts + sizes // 2])
+
+
 def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = None, *, band_hz=None) -> SelectedPoles:
     """Automatic selection by hierarchical clustering of the stable, physical poles (module docs)."""
     from scipy.cluster.hierarchy import fcluster, linkage
@@ -159,11 +166,21 @@ def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = N
                        t=opts.distance, criterion="distance")
         lab[blk] = sub + next_label
         next_label += sub.max() + 1
+    # clusters as runs of one label: members[starts[c]:starts[c]+counts[c]]
+    by_lab = np.argsort(lab, kind="stable")
+    labels, starts, counts = np.unique(lab[by_lab], return_index=True, return_counts=True)
+    # poles per (cluster, order): the median over the cluster's orders says how many modes it holds
+    mult = int(od.max()) + 1
+    keys, cnt = np.unique(lab.astype(np.int64) * mult + od, return_counts=True)
+    klab = keys // mult
+    o2 = np.lexsort((cnt, klab))                                     # by cluster, then count
+    _, seg_starts, seg_sizes = np.unique(klab[o2], return_index=True, return_counts=True)
+    k_per = _segment_medians(cnt[o2].astype(float), seg_starts, seg_sizes)
+    k_all = np.round(k_per).astype(int)
     groups = []
-    for c in np.unique(lab):
-        members = np.flatnonzero(lab == c)
-        _, counts = np.unique(od[members], return_counts=True)
-        k = int(np.round(np.median(counts)))
+    for ci in range(labels.size):
+        members = by_lab[starts[ci]:starts[ci] + counts[ci]]
+        k = k_all[ci]
         if k >= 2 and members.size >= 2 * k:
             feat = np.column_stack([f[members] / f[members].mean(), 0.1 * z[members] / max(z[members].mean(), 1e-12)])
             sub = fcluster(linkage(feat, method="ward"), t=k, criterion="maxclust")
@@ -173,7 +190,10 @@ def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = N
     sizes = np.array([g.size for g in groups])
     keep = (sizes >= opts.min_poles) & (sizes >= opts.min_fraction * diag.orders.size)
     # one physical mode split into several clusters: keep the largest
-    centre = np.array([np.median(f[g]) for g in groups])
+    cat = np.concatenate(groups)
+    gid = np.repeat(np.arange(len(groups)), sizes)
+    o = np.lexsort((f[cat], gid))
+    centre = _segment_medians(f[cat][o], np.cumsum(sizes) - sizes, sizes)
     for a in np.argsort(-sizes):
         if not keep[a]:
             continue

@@ -146,8 +146,8 @@ def stabilise(orders, poles, participation, criteria: StabilisationCriteria | No
                 rf = np.abs(f[:, None] - fp[None, :]) / (crit.freq_tol * np.abs(fp[None, :]))
                 rd = np.abs(z[:, None] - zp[None, :]) / (crit.damping_tol * np.abs(zp[None, :]))
             rv = (1.0 - mac_vectors(L, Lp)) / max(1.0 - crit.mac_min, 1e-12)
-            rf = np.nan_to_num(rf, nan=np.inf)
-            rd = np.nan_to_num(rd, nan=np.inf)
+            rf[np.isnan(rf)] = np.inf                                      # 0/0: never stable
+            rd[np.isnan(rd)] = np.inf
             # each pole is tested against ONE partner of the previous order: the pole closest in the
             # combined normalised distance (so dense noise poles cannot pass by picking different
             # partners for different tests, and shadow poles of close modes pair correctly)
