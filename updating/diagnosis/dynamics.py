@@ -171,32 +171,75 @@ def condensed_residual(K, M, C, D, s, meas, x_meas, force, chunk: int = 32):
     return x_full, r, T, sigma
 
 
+class _Blocks:
+    """The four blocks of K, M, C, D split into measured (m) and slave (s) DOFs, built once per call.
+
+    ``Z_ss(s)`` is assembled on its own sparse pattern (a vectorised sum of data arrays); the thin blocks
+    ``Z_sm``, ``Z_ms`` and ``Z_mm`` are dense (n × n_meas) sums.  Avoids slicing a sparse matrix per line.
+    """
+
+    def __init__(self, K, M, C, D, meas, slave):
+        mats = [None if A is None else sp.csr_matrix(A) for A in (K, M, C, D)]
+
+        def blk(rows, cols, dense):
+            out = []
+            for A in mats:
+                if A is None:
+                    out.append(None)
+                    continue
+                B = A[rows][:, cols]
+                out.append(B.toarray() if dense else B)
+            return out
+        self.ss = _Pattern(*blk(slave, slave, False)) if slave.size else None
+        self.sm = blk(slave, meas, True)
+        self.ms = blk(meas, slave, True)
+        self.mm = blk(meas, meas, True)
+
+    @staticmethod
+    def dense(parts, s):
+        Kb, Mb, Cb, Db = parts
+        Z = Kb + (s * s) * Mb
+        if Cb is not None:
+            Z = Z + s * Cb
+        if Db is not None:
+            Z = Z + 1j * Db
+        return Z
+
+
 def _condensed_sparse(K, M, C, D, s, meas, slave, x_meas, F, x_full, r, T, sigma):
     """:func:`condensed_residual` with one sparse LU of Z_ss per line (large models)."""
-    pat = _Pattern(K, M, C, D)
+    blocks = _Blocks(K, M, C, D, meas, slave)
+    Fs = np.ascontiguousarray(F[slave])
+    Fm = F[meas]
+    # per-line buffers, line-major (contiguous writes); copied into the (n, ·, n_s) outputs at the end
+    nq = x_meas.shape[1]
+    Tsl = np.empty((s.size, slave.size, meas.size), complex)
+    Xsl = np.empty((s.size, slave.size, nq), complex)
     for f, sf in enumerate(s):
-        Z = pat.Z(sf).tocsr()
-        Zmm = Z[meas][:, meas].toarray()
-        Zms = Z[meas][:, slave]
+        Zmm = blocks.dense(blocks.mm, sf)
         xm = x_meas[:, :, f]
         if slave.size:
-            Zss = sp.csc_matrix(Z[slave][:, slave])
-            Zsm = Z[slave][:, meas].toarray()
-            lu = spla.splu(Zss)
-            Tsm = lu.solve(-Zsm)
-            xsF = lu.solve(np.ascontiguousarray(F[slave]))
+            Zms = blocks.dense(blocks.ms, sf)
+            Zsm = blocks.dense(blocks.sm, sf)
+            lu = spla.splu(blocks.ss.Z(sf))
+            sol = lu.solve(np.ascontiguousarray(np.concatenate([-Zsm, Fs], axis=1)))
+            Tsm = sol[:, :meas.size]
+            xsF = sol[:, meas.size:]
             xs = Tsm @ xm + xsF
-            T[slave, :, f] = Tsm
-            force_path = np.linalg.norm(np.abs(Zms.toarray()) @ np.abs(xsF), axis=0)
+            Tsl[f] = Tsm
+            Xsl[f] = xs
+            force_path = np.linalg.norm(np.abs(Zms) @ np.abs(xsF), axis=0)
             Zred = Zmm + Zms @ Tsm
+            rm = Zmm @ xm + Zms @ xs - Fm
         else:
             xs = np.zeros((0, xm.shape[1]), complex)
             force_path = 0.0
             Zred = Zmm
-        xf = np.zeros((K.shape[0], xm.shape[1]), complex)
-        xf[meas] = xm
-        xf[slave] = xs
-        x_full[:, :, f] = xf
-        r[:, :, f] = Z[meas] @ xf - F[meas]
+            rm = Zmm @ xm - Fm
+        r[:, :, f] = rm
         sigma[:, f] = np.linalg.norm(np.abs(Zred) @ np.abs(xm), axis=0) + force_path
+    x_full[meas] = x_meas
+    if slave.size:
+        x_full[slave] = Xsl.transpose(1, 2, 0)
+        T[slave] = Tsl.transpose(1, 2, 0)
     return x_full, r, T, sigma

@@ -55,7 +55,10 @@ def _column(T, x_full, A, factor, w):
         return None
     n, nq, ns = x_full.shape
     v = (A[rows] @ x_full.reshape(n, -1)).reshape(rows.size, nq, ns) * factor[None, None, :]
-    c = -np.einsum("smf,sqf->mqf", T[rows], v)
+    if rows.size <= 4:
+        c = -np.einsum("smf,sqf->mqf", T[rows], v)
+    else:   # one BLAS product per line
+        c = -np.matmul(T[rows].transpose(2, 1, 0), v.transpose(2, 0, 1)).transpose(1, 2, 0)
     c = c * w[None]
     return np.concatenate([c.real.ravel(), c.imag.ravel()])
 

@@ -1,0 +1,157 @@
+"""Receptance and its parameter Jacobian in a fixed Ritz basis (fast FRF fits of large models).
+
+A non-linear FRF fit evaluates the model's receptance and ``∂H/∂p`` some tens of times.  On the full
+model that is one sparse LU per line and evaluation.  Here the model is projected once on a Ritz basis
+
+    V = [Φ (normal modes up to ``mode_factor`` × the top of the band), K_σ⁻¹ E (static correction at the
+         measured and reference DOFs)]
+
+— the modal-truncation-augmentation (residual flexibility) basis, which makes the truncated receptance at
+the DOFs in ``E`` exact at low frequency and accurate through the band — M-orthonormalised.  At each
+parameter vector the full matrices are projected (``Vᵀ K(p) V`` …), the small undamped problem is solved
+(``eigh``), and the receptance follows from the modal form
+
+    H(s) = Q_m G(s) Q_rᵀ,   G(s) = [diag(ω² + s²) + s Qᵀ C Q + i Qᵀ D Q]⁻¹,   Q = V Ψ(p)
+
+(diagonal when the damping is proportional to the modes, e.g. a global loss factor; one small dense solve
+per line otherwise), and the Jacobian from ``∂H/∂p = −H ∂Z/∂p H`` (thesis eq. 3.69) in the same basis:
+``∂H/∂p = −(G Q_mᵀ)ᵀ (Qᵀ ∂Z/∂p Q) (G Q_rᵀ)``.
+
+The basis is built at one parameter vector and kept while the parameters move; a fit using it
+(:func:`~updating.diagnosis.fit.fit_frf`) checks its result against the exact (full) receptance and
+rebuilds the basis at the new parameters when they disagree.
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from modalab.errors import ModalabValueError
+
+log = logging.getLogger(__name__)
+__all__ = ["RitzBasis"]
+
+
+def _project(V, A):
+    return None if A is None else V.T @ (A @ V)
+
+
+class RitzBasis:
+    """A Ritz basis for the receptance at DOF indices ``cols`` of a structure, band top ``f_max_hz``.
+
+    Parameters
+    ----------
+    structure : :class:`~modalab.structure.Structure` (K, M, C, D on its constrained DOFs).
+    cols : indices of the DOFs whose receptance is needed (measured and reference DOFs).
+    f_max_hz : top of the frequency band.
+    mode_factor : normal modes up to ``mode_factor × f_max_hz`` are kept (at least ``min_modes``).
+    """
+
+    def __init__(self, structure, cols, f_max_hz: float, *, mode_factor: float = 3.0, min_modes: int = 12,
+                 max_modes: int = 200):
+        K, M = sp.csc_matrix(structure.K), sp.csc_matrix(structure.M)
+        n = K.shape[0]
+        cols = np.unique(np.asarray(cols, int))
+        if not f_max_hz > 0:
+            raise ModalabValueError(f"f_max_hz={f_max_hz!r}: the band top must be positive")
+        omega, phi = structure.normal_modes(min(n, max(max_modes, min_modes)))
+        keep = omega <= 2 * np.pi * mode_factor * f_max_hz
+        keep[: min(min_modes, omega.size)] = True
+        phi = phi[:, keep]
+        # static correction (residual flexibility) at the DOFs of interest, with a small positive shift so
+        # that free or suspended structures (singular K) are handled: K_σ = K + σ M, σ = (0.1 · 2π f_max)²
+        sigma = (0.2 * np.pi * f_max_hz) ** 2
+        E = np.zeros((n, cols.size))
+        E[cols, np.arange(cols.size)] = 1.0
+        R = spla.splu((K + sigma * M).tocsc()).solve(E)
+        for _ in range(2):                                            # M-orthogonal to the kept modes
+            R = R - phi @ (phi.T @ (M @ R))
+        mn = np.sqrt(np.abs(np.einsum("ij,ij->j", R, M @ R)))
+        R = R[:, mn > 0] / mn[mn > 0]
+        V = np.hstack([phi, R])
+        # M-orthonormalise the whole basis and diagonalise K on it (drops directions without mass)
+        Mr = V.T @ (M @ V)
+        Mr = 0.5 * (Mr + Mr.T)
+        mu, U = np.linalg.eigh(Mr)
+        ok = mu > 1e-10 * mu.max()
+        V = V @ (U[:, ok] / np.sqrt(mu[ok]))
+        Kr = V.T @ (K @ V)
+        w2, Psi = np.linalg.eigh(0.5 * (Kr + Kr.T))
+        self.V = np.ascontiguousarray(V @ Psi)
+        self.n_modes = int(phi.shape[1])
+        self.size = int(self.V.shape[1])
+        self.cols = cols
+        self.f_max_hz = float(f_max_hz)
+        log.debug("Ritz basis: %d modes + %d static corrections -> %d vectors of %d DOFs", self.n_modes, cols.size,
+                  self.size, n)
+
+    # ---------------------------------------------------------------------------------------------
+    def modal(self, structure):
+        """``Q = V Ψ`` (n, m), ω² (m,), and the modal damping matrices ``Qᵀ C Q``, ``Qᵀ D Q`` (or None)."""
+        V = self.V
+        Kr, Mr = _project(V, structure.K), _project(V, structure.M)
+        w2, Psi = sla.eigh(0.5 * (Kr + Kr.T), 0.5 * (Mr + Mr.T))
+        Q = V @ Psi
+        Cq = None if structure.C is None else Psi.T @ _project(V, structure.C) @ Psi
+        Dq = None if structure.D is None else Psi.T @ _project(V, structure.D) @ Psi
+        return Q, Psi, np.clip(w2, 0.0, None), Cq, Dq
+
+    def responses(self, structure, s, rows, refs, want_jac_rows: bool = True):
+        """``H`` (n_rows, n_refs, n_s) and the factors of the Jacobian for :meth:`jacobian`.
+
+        Returns ``(H, ctx)``; ``ctx`` holds ``Yr = G Q_refsᵀ`` and ``Ym = G Q_rowsᵀ`` (m, ·, n_s), Ψ and the
+        projected basis.
+        """
+        s = np.asarray(s, complex)
+        Q, Psi, w2, Cq, Dq = self.modal(structure)
+        Qm, Qr = Q[rows], Q[refs]                                     # (n_m, m), (n_r, m)
+        m = w2.size
+        diag_only = True
+        for A in (Cq, Dq):
+            if A is not None and np.abs(A - np.diag(np.diag(A))).max(initial=0.0) > \
+                    1e-10 * max(np.abs(np.diag(A)).max(initial=0.0), 1e-300):
+                diag_only = False
+        if diag_only:
+            z = w2[:, None] + (s ** 2)[None, :]                       # (m, n_s)
+            if Cq is not None:
+                z = z + np.diag(Cq)[:, None] * s[None, :]
+            if Dq is not None:
+                z = z + 1j * np.diag(Dq)[:, None]
+            g = 1.0 / z
+            Yr = g[:, None, :] * Qr.T[:, :, None]                      # (m, n_r, n_s)
+            Ym = g[:, None, :] * Qm.T[:, :, None] if want_jac_rows else None
+        else:
+            Z = np.zeros((s.size, m, m), complex)
+            Z[:, np.arange(m), np.arange(m)] = w2[None, :] + (s ** 2)[:, None]
+            if Cq is not None:
+                Z += s[:, None, None] * Cq[None]
+            if Dq is not None:
+                Z += 1j * Dq[None]
+            rhs = np.concatenate([Qr.T, Qm.T], axis=1) if want_jac_rows else Qr.T
+            Y = np.linalg.solve(Z, np.broadcast_to(rhs, (s.size,) + rhs.shape)).transpose(1, 2, 0)
+            Yr = Y[:, : Qr.shape[0]]
+            Ym = Y[:, Qr.shape[0]:] if want_jac_rows else None
+        H = np.einsum("mk,krf->mrf", Qm, Yr, optimize=True)
+        return H, (Q, Yr, Ym)
+
+    @staticmethod
+    def jacobian(ctx, derivative, s) -> np.ndarray:
+        """``∂H/∂p`` (n_rows, n_refs, n_s) for one :class:`~updating.parametric.Derivative`."""
+        Q, Yr, Ym = ctx
+        m, nr, ns = Yr.shape
+        out = np.zeros((Ym.shape[1], nr, ns), complex)
+        A = np.zeros((ns, m, nr), complex)
+        YrT = Yr.transpose(2, 0, 1)                                   # (n_s, m, n_r)
+        for mat, fac in ((derivative.dK, None), (derivative.dM, s ** 2), (derivative.dC, s),
+                         (derivative.dD, 1j * np.ones_like(s))):
+            if mat is None:
+                continue
+            P = Q.T @ (mat @ Q)                                       # (m, m)
+            PY = np.matmul(P[None], YrT)                              # (n_s, m, n_r)
+            A += PY if fac is None else PY * fac[:, None, None]
+        out = -np.matmul(Ym.transpose(2, 1, 0), A).transpose(1, 2, 0)
+        return out
