@@ -78,6 +78,7 @@ class Candidate:
     G: sp.spmatrix | None = field(repr=False, default=None)
     initial: float = 0.0
     key: str = ""
+    upper: float = np.inf            # largest plausible value (in ``unit``); the fits are bounded by it
 
     def __post_init__(self):
         if not self.key:
@@ -111,6 +112,32 @@ def _fix_foreign(m: FEModel, node: int, comps) -> None:
         m.add_spc(node, "".join(map(str, foreign)))
 
 
+#: an omitted mass (sensors, cables, fixtures) is at most this fraction of the structure's own mass
+PLAUSIBLE_MASS_FRACTION = 0.5
+
+
+def _plausible_inertia(model: FEModel) -> tuple[float, float]:
+    """Upper bounds of an omitted point mass and rotary inertia: ``PLAUSIBLE_MASS_FRACTION`` of the model's
+    mass (its largest rigid translational mass over x, y, z, on the free DOFs) and of that mass times the
+    square of the model's largest dimension.  A very heavy mass pins its node like a support would, so
+    without the bound it competes with springs to ground on physically absurd terms."""
+    try:
+        st = model.structure()
+        M = st.M
+        mass = 0.0
+        for ax in (1, 2, 3):
+            u = np.array([1.0 if d.axis == ax else 0.0 for d in st.dofs])
+            mass = max(mass, float(u @ (M @ u)))
+        xyz = np.array([nd.xyz for nd in model.nodes.values()], float)
+        size = float(np.max(np.ptp(xyz, axis=0))) if len(xyz) > 1 else 1.0
+    except Exception as e:  # noqa: BLE001 - a bound is a refinement; without it the fit is unbounded
+        log.debug("no plausibility bound for masses: %s", e)
+        return np.inf, np.inf
+    if not mass > 0:
+        return np.inf, np.inf
+    return PLAUSIBLE_MASS_FRACTION * mass, PLAUSIBLE_MASS_FRACTION * mass * max(size, 1e-3) ** 2
+
+
 def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, group_size: int = 2,
                   stiffness_scale: float | None = None) -> list[Candidate]:
     """All candidates of the requested ``kinds`` for ``model``.
@@ -132,6 +159,7 @@ def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, g
     fixed = {(d.node, d.axis) for d in red.fixed}
     sel_nodes = sorted(present) if nodes is None else [n for n in nodes if n in present]
     cands: list[Candidate] = []
+    m_max, j_max = _plausible_inertia(model)
     Kdiag = None
 
     def dof_G(keys):
@@ -170,7 +198,7 @@ def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, g
                     _fix_foreign(m, n, present[n])
                     return m, Parameter(f"J_{n}_{c}", "inertia", elements=(eid,), mode="factor"), guess
                 cands.append(Candidate("added_mass", f"rotary inertia at {lbl}", (n,), (lbl,), (), "J",
-                                       _unit("added_mass", c), "M", True, add_inertia, G))
+                                       _unit("added_mass", c), "M", True, add_inertia, G, upper=j_max))
         trans = [c for c in comps if c <= 3]
         if "added_mass" in kinds and trans:
             G = dof_G([(n, c) for c in trans])
@@ -182,7 +210,7 @@ def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, g
                     return m, Parameter(f"m_{n}", "mass", elements=(eid,), mode="value"), 1.0
                 cands.append(Candidate("added_mass", f"point mass at node {n}", (n,),
                                        tuple(f"{n}+{DIRECTION_NAMES[c]}" for c in trans), (), "m",
-                                       _unit("added_mass", 1), "M", True, add_mass, G))
+                                       _unit("added_mass", 1), "M", True, add_mass, G, upper=m_max))
 
     # ---------------------------------------------------------------- local damping on element groups
     if "local_damping" in kinds:

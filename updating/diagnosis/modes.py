@@ -31,7 +31,7 @@ from ..fe import FEModel, ParametricFEModel
 from .fit import FitResult, FRFData
 from .library import build_library
 from .screen import mci_update, rank_candidates
-from .workflow import Diagnosis, Finding, _augment, _bounds, default_parameters, statement
+from .workflow import Diagnosis, Finding, _augment, _bounds, _upper, default_parameters, statement
 
 log = logging.getLogger(__name__)
 __all__ = ["diagnose_modes", "modes_data", "fit_modes", "mode_errors"]
@@ -144,7 +144,7 @@ def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
             m_aug, cpar, scales = _augment(model, current + [c])
             pm_aug = ParametricFEModel(m_aug, params + cpar)
             clo = np.concatenate([lo, np.zeros(len(cpar))])
-            chi = np.concatenate([hi, np.full(len(cpar), np.inf)])
+            chi = np.concatenate([hi, _upper(current + [c], scales)])
             start = np.concatenate([p_cur, [th / scales[-1]]])
             try:
                 pa, ra, _ = mci_update(pm_aug, start, data, clo, chi, weights=W, reg=1e-3,

@@ -1,0 +1,137 @@
+"""Ritz-basis receptance (fast FRF fits of large models) and the exact single-candidate FRF screening."""
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from modalab.frf import FRF
+from updating.diagnosis.dynamics import solve_columns
+from updating.diagnosis.fit import fit_frf, frf_data, frf_error, model_frf
+from updating.diagnosis.frfscreen import frf_screen
+from updating.diagnosis.library import build_library
+from updating.diagnosis.ritz import RitzBasis
+from updating.fe import Damper, Parameter, ParametricFEModel, Spring
+from updating.models.beams import thesis_beam
+from updating.models.garteur import garteur_model
+
+
+@pytest.fixture(scope="module")
+def frame():
+    m = garteur_model(suspension=True)
+    m.global_ge = 0.02
+    m._changed()
+    return m
+
+
+def _rows(st_, n=24, seed=0, axes=(2, 3)):
+    """Z and Y DOFs of some nodes (the directions a test measures; in-plane X of a free frame is ~0)."""
+    cand = [i for i, d in enumerate(st_.dofs) if d.axis in axes]
+    rng = np.random.default_rng(seed)
+    return np.sort(rng.choice(cand, n, replace=False))
+
+
+@pytest.mark.parametrize("local_damper", [False, True])
+def test_ritz_receptance_matches_the_full_solve(frame, local_damper):
+    m = frame.copy()
+    if local_damper:             # non-proportional damping: the dense path of the reduced solve
+        m.add_element(Damper(99002, (204, 3), None, 50.0))
+        m._changed()
+    st_ = m.structure()
+    assert st_.n_dof > 300
+    rows = _rows(st_)
+    refs = rows[:3]
+    s = 2j * np.pi * np.linspace(1.0, 100.0, 120)
+    rb = RitzBasis(st_, np.r_[rows, refs], 100.0)
+    assert rb.size < st_.n_dof / 4
+    H, _ = rb.responses(st_, s, rows, refs)
+    X = solve_columns(st_.K, st_.M, st_.C, st_.D, s, refs)[rows]
+    # relative to each reference's response level (structurally zero cross terms, e.g. Y to a Z force on the
+    # symmetric frame, are numerical noise in both)
+    scale = np.sqrt(np.mean(np.abs(X) ** 2, axis=(0, 2), keepdims=True))
+    err = np.abs(H - X) / (np.abs(X) + 0.01 * scale)
+    assert np.median(err) < 1e-4 and err.max() < 2e-2
+
+
+def test_ritz_jacobian_matches_finite_differences(frame):
+    pm = ParametricFEModel(frame, [Parameter("E_wing", "E", properties=("wing",)),
+                                   Parameter("rho_fin", "rho", properties=("fin",))])
+    st0 = pm.structure(pm.p0)
+    rows = _rows(st0, 10, seed=1)
+    refs = rows[:2]
+    s = 2j * np.pi * np.linspace(3.0, 80.0, 40)
+    rb = RitzBasis(st0, np.r_[rows, refs], 80.0)
+    H0, ctx = rb.responses(st0, s, rows, refs)
+    ders = pm.derivatives(pm.p0)
+    for k in range(2):
+        h = 1e-6
+        p = np.array(pm.p0, float)
+        p[k] += h
+        H1, _ = rb.responses(pm.structure(p), s, rows, refs)
+        fd = (H1 - H0) / h
+        an = RitzBasis.jacobian(ctx, ders[k], s)
+        assert np.linalg.norm(an - fd) < 1e-3 * np.linalg.norm(fd)
+
+
+def test_reduced_fit_recovers_the_parameter_and_reports_the_exact_error(frame):
+    truth = frame.copy()
+    pm = ParametricFEModel(frame, [Parameter("E_wing", "E", properties=("wing",))])
+    pt = ParametricFEModel(truth, [Parameter("E_wing", "E", properties=("wing",))])
+    st_t = pt.structure([1.06])
+    labels = [str(st_t.dofs[i]) for i in _rows(st_t, 12, seed=2, axes=(3,))]
+    f = np.linspace(2.0, 90.0, 300)
+    H = st_t.frf(f, labels, labels[:2], quantity="receptance")
+    meas = FRF(freq_hz=f, H=H.H, responses=H.responses, references=H.references,
+               coherence=np.ones(H.H.shape), quantity="receptance")
+    data = frf_data(meas, max_lines=100)
+    res = fit_frf(pm, data, [1.0], lower=[0.5], upper=[2.0], reduced=True)
+    assert "Ritz" in res.message
+    assert res.p[0] == pytest.approx(1.06, rel=2e-3)
+    assert res.error == pytest.approx(frf_error(model_frf(pm.structure(res.p), data), data), rel=1e-12)
+    assert res.error < 1e-2
+
+
+# --------------------------------------------------------------------------- FRF screening (exact path)
+def _beam_case(k_true, node, noise=0.0):
+    nominal = thesis_beam()
+    nominal.global_ge = 0.01                     # lightly damped, as measured structures are
+    nominal._changed()
+    truth = nominal.copy()
+    truth.add_element(Spring(99001, (node, 3), None, k_true))
+    truth._changed()
+    labels = [str(d) for d in nominal.structure().dofs if d.axis == 3]
+    f = np.linspace(0.5, 60.0, 240)
+    H = truth.frf(f, labels, [labels[2]], quantity="receptance")
+    rng = np.random.default_rng(3)
+    Hn = H.H * (1 + noise * rng.standard_normal(H.H.shape))
+    meas = FRF(freq_hz=f, H=Hn, responses=H.responses, references=H.references,
+               coherence=np.ones(H.H.shape), quantity="receptance")
+    return nominal, frf_data(meas, max_lines=120)
+
+
+@settings(max_examples=6, deadline=None)
+@given(k=st.floats(min_value=50.0, max_value=5000.0), node=st.sampled_from([1, 4, 7, 10]))
+def test_frf_screen_names_and_sizes_an_omitted_spring_exactly(k, node):
+    nominal, data = _beam_case(k, node)
+    lib = build_library(nominal, kinds=("ground_spring", "added_mass"))
+    ranked = frf_screen(nominal.structure(), lib, data, loss_factor=nominal.global_ge)
+    c, value, gain = ranked[0]
+    assert c.physics == "ground_spring" and c.nodes == (node,) and c.dofs == (f"{node}+Z",)
+    assert value == pytest.approx(k, rel=1e-2)              # fine grid, refined, polished by Brent
+    assert gain > 0.97
+
+
+def test_frf_screen_finds_nothing_to_gain_on_a_correct_model():
+    nominal, data = _beam_case(0.0, 4)
+    lib = build_library(nominal, kinds=("ground_spring", "added_mass"))
+    ranked = frf_screen(nominal.structure(), lib, data)
+    assert all(g < 1e-3 for _, _, g in ranked)
+
+
+def test_added_mass_candidates_are_bounded_by_a_plausible_size():
+    m = garteur_model(suspension=True)
+    lib = build_library(m, kinds=("added_mass",))
+    st_ = m.structure()
+    u = np.array([1.0 if d.axis == 3 else 0.0 for d in st_.dofs])
+    total = float(u @ (st_.M @ u))
+    masses = [c for c in lib if c.value_name == "m"]
+    assert masses and all(c.upper == pytest.approx(0.5 * total) for c in masses)
+    assert 30.0 < total < 60.0                              # the GARTEUR test bed is about 44 kg
