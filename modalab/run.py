@@ -18,7 +18,8 @@ sha256 of (options, input-file hashes, the output hashes of the stages it depend
   resumes hit by hit through the session's store) and continues with the rest.
 
 Dependencies: acquire ← plan; frf ← acquire (or the project's FRF file); identify ← frf;
-correlate ← identify + model; update ← identify + model + parameters; diagnose ← frf + model + parameters;
+correlate ← identify + model; update ← identify + model + parameters; diagnose ← frf + identify (the test
+modes of its frequency and MAC columns) + model + parameters;
 report ← everything.
 
 :func:`run_project` is the library entry point; ``progress`` (a callable ``(stage, event, text)`` with event
@@ -40,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ModalabValueError, PlanError
+from .errors import ModalabError, ModalabValueError, PlanError
 from .project import STAGES, Project, load_parameters, load_project
 
 log = logging.getLogger(__name__)
@@ -49,7 +50,7 @@ __all__ = ["run_project", "RunResult", "Manifest", "stage_key", "sha256_file", "
 
 #: upstream stages of each stage
 DEPENDS = {"acquire": (), "frf": ("acquire",), "identify": ("frf",), "correlate": ("identify",),
-           "update": ("identify",), "diagnose": ("frf",),
+           "update": ("identify",), "diagnose": ("frf", "identify"),
            "report": ("acquire", "frf", "identify", "correlate", "update", "diagnose")}
 #: project sections each stage reads (its options)
 SECTIONS = {"acquire": ("test",), "frf": ("frf", "test"), "identify": ("identify",), "correlate": ("correlate", "model"),
@@ -481,8 +482,14 @@ def stage_diagnose(ctx: _Context) -> tuple[list, dict]:
     if o["parameters"]:
         params = load_parameters(ctx.project.resolve(o["parameters"]))[0]
     frf = _band(ctx.frf(), o["band_hz"] or ctx.project.options["identify"]["band_hz"])
+    try:        # the identified modes (not peak picking) for the frequency and MAC columns of the fit blocks
+        test_modes = ctx.test_modes()
+    except (ModalabError, OSError) as e:
+        log.info("diagnosis without identified modes (%s): peak picking on the FRFs", e)
+        test_modes = None
     diag = diagnose(ctx.model(), frf, parameters=params, max_lines=o["max_lines"], max_findings=o["max_findings"],
-                    max_nfev=o["max_nfev"], holdout=o["holdout"], kinds=o["kinds"], progress=lambda s: ctx.info("diagnose", s))
+                    max_nfev=o["max_nfev"], holdout=o["holdout"], kinds=o["kinds"], test_modes=test_modes,
+                    progress=lambda s: ctx.info("diagnose", s))
     outs = []
     dd = diag.to_dict()
     dd["steps"] = {k: (v if not isinstance(v, tuple) else list(v)) for k, v in diag.steps.items()}
