@@ -268,7 +268,10 @@ class _LocalProjection:
         return JtJ, Jtr
 
 
-def _minimise_lm(vp, x0, lo, hi, x_scale, *, xtol=1e-10, ftol=1e-12, max_nfev=25):
+_MAX_NFEV = 25
+
+
+def _minimise_lm(vp, x0, lo, hi, x_scale, *, xtol=1e-10, ftol=1e-12, max_nfev=_MAX_NFEV):
     """Box-constrained Levenberg–Marquardt on two variables (projected steps, scaled by ``x_scale``).
 
     A variable on a bound whose gradient points out of the box is held there (active set).
@@ -335,6 +338,10 @@ def refine_poles(frf: FRF, lam, participation, *, passes: int = 2, half_bandwidt
     the damping stays in ``(0, 0.5)``, so a pole never jumps to a neighbour.
     This is the single-pole counterpart of the maximum-likelihood refinement of
     PolyMAX Plus; it reduces the noise bias of the linearised pLSCF damping.
+
+    Each pole is minimised by :func:`_minimise_lm` (analytic Kaufman Jacobian, at most 25
+    evaluations); a pole that uses them all is a noise pole creeping along a flat valley and is
+    not swept again.
     """
     lam = np.array(np.atleast_1d(lam), complex)
     L = np.asarray(participation, complex).reshape(frf.n_in, lam.size)
@@ -345,9 +352,12 @@ def refine_poles(frf: FRF, lam, participation, *, passes: int = 2, half_bandwidt
     q = _Q[frf.quantity]
     df = float(np.median(np.diff(f))) if f.size > 1 else 1.0
     Yall = frf.H.transpose(1, 2, 0)                                   # (n_in, nf, n_out)
+    unsettled = np.zeros(m, bool)           # hit the evaluation cap: a noise pole creeping along a valley
     for _ in range(int(passes)):
         order = np.argsort(lam.imag)
         for r in order:
+            if unsettled[r]:
+                continue
             wn = abs(lam[r])
             fr = wn / (2 * np.pi)
             zr = -lam[r].real / wn
@@ -382,8 +392,9 @@ def refine_poles(frf: FRF, lam, participation, *, passes: int = 2, half_bandwidt
             extra = np.concatenate([extra.real, extra.imag], axis=0)
 
             vp = _LocalProjection(s, q, lam[inwin], L[:, inwin], k_r, extra, Y, ynorm)
-            x, _ = _minimise_lm(vp, np.array([wn, zr]), np.array([wlo, 1e-6]), np.array([whi, 0.5]),
-                                [max(zr * wn, 1e-3 * wn), max(zr, 1e-4)])
+            x, nfev = _minimise_lm(vp, np.array([wn, zr]), np.array([wlo, 1e-6]), np.array([whi, 0.5]),
+                                   [max(zr * wn, 1e-3 * wn), max(zr, 1e-4)], max_nfev=_MAX_NFEV)
+            unsettled[r] = nfev >= _MAX_NFEV
             w0, z0 = x
             lam[r] = -z0 * w0 + 1j * w0 * np.sqrt(1 - z0 ** 2)
     return lam
