@@ -209,27 +209,54 @@ def _powers(b: np.ndarray, n: int) -> np.ndarray:
     return P
 
 
+def _blocked(CC: np.ndarray) -> np.ndarray:
+    """The columns of ``CC`` (n+1 coefficients each) cut into ``B`` blocks of ``m ≈ √(n+1)``: ``(m, B·k)``."""
+    n1, k = CC.shape
+    m = int(np.ceil(np.sqrt(n1)))
+    B = -(-n1 // m)
+    C = np.zeros((B * m, k))
+    C[:n1] = CC
+    return C.reshape(B, m, k).transpose(1, 0, 2).reshape(m, B * k)
+
+
+def _evaluate(b: np.ndarray, Cb: np.ndarray, k: int) -> np.ndarray:
+    """``Σ_j c_j b^j`` for every column of the coefficients blocked by :func:`_blocked`, ``(b.size, k)``.
+
+    ``p(b) = Σ_J (b^m)^J q_J(b)`` with ``q_J`` of degree ``m − 1``: the block polynomials are one matrix
+    product with the powers ``b^0..b^(m−1)``, then combined with the powers of ``b^m`` — about
+    ``n^(1/2)`` instead of ``n`` complex products per point (|b| <= 1, so no power exceeds one).
+    """
+    m = Cb.shape[0]
+    B = Cb.shape[1] // k
+    Pm = _powers(b, m)
+    Q = (Pm[:, :m] @ Cb).reshape(b.size, B, k)
+    W = _powers(Pm[:, m], B - 1)
+    return np.einsum("nb,nbk->nk", W, Q)
+
+
 def _newton_corrections(CC, rnd, z):
     """Newton corrections ``p(z)/p'(z)``, inclusion radii and a "residual at rounding level" flag.
 
     ``CC`` holds, in four columns, the coefficients (ascending), their reversal and the derivative
-    coefficients of both (``k·c_k`` shifted down by one, zero last row).  For ``|z| <= 1`` the
+    coefficients of both (``k·c_k`` shifted down by one, zero last row), blocked by :func:`_blocked`
+    (``CC[0]``), and the plain array (``CC[1]``) for the rounding bound.  For ``|z| <= 1`` the
     polynomial is evaluated in powers of ``z``; outside the unit circle in powers of ``w = 1/z``
     through the reversed polynomial ``q(w) = w^n p(1/w)`` (``p/p' = z q / (n q − w q')``), so no
     power exceeds one in modulus.  The disc ``|ζ − z| ≤ n (|p(z)| + e) / |p'(z)|`` contains a root
     of every polynomial within the rounding error ``e`` of the evaluation (Henrici 1974, Thm 6.4e);
     ``rnd`` is a bound of ``e``.
     """
+    Cb, CC = CC
     n = CC.shape[0] - 1
     az = np.abs(z)
     inside = az <= 1.0
     if inside.all():
-        V = _powers(z, n) @ CC
+        V = _evaluate(z, Cb, 4)
         val, den = V[:, 0], V[:, 2]
         num, b, scl = val, z, 1.0
     else:
         b = np.where(inside, z, 1.0 / np.where(inside, 1.0, z))
-        V = _powers(b, n) @ CC
+        V = _evaluate(b, Cb, 4)
         val = np.where(inside, V[:, 0], V[:, 1])
         den = np.where(inside, V[:, 2], n * V[:, 1] - b * V[:, 3])
         num = np.where(inside, val, z * val)
@@ -294,6 +321,7 @@ def aberth_roots(coeffs, start, *, max_iter: int = 50, tol: float = 1e-12):
     CC = np.zeros((n + 1, 4))
     CC[:, :2] = C
     CC[:-1, 2:] = np.arange(1, n + 1)[:, None] * C[1:]
+    CC = (_blocked(CC), CC)
     rnd = 4 * (n + 1) * _EPS * np.abs(a).sum()          # |b| <= 1: a bound of the evaluation error
     active = np.ones(n, bool)
     rad = np.full(n, np.inf)
