@@ -279,12 +279,24 @@ def _newton_corrections(CC, rnd, z):
 
 
 def _aberth_step(z, upd, N):
-    """Aberth corrections ``N_i / (1 − N_i S_i)``, ``S_i = Σ_{j≠i} 1/(z_i − z_j)``, for the roots ``upd``, and ``|S_i|``."""
-    d = z[upd][:, None] - z[None, :]
-    d[np.arange(upd.size), upd] = np.inf                     # 1/inf = 0: no self term
+    """Aberth corrections ``N_i / (1 − N_i S_i)``, ``S_i = Σ_{j≠i} 1/(z_i − z_j)``, for the roots ``upd``, and ``|S_i|``.
+
+    ``S`` only shapes the step (the fixed point ``p(z_i) = 0`` is set by ``N`` in double precision), so
+    it is summed in single precision: twice the throughput, and an error of 1e-7·|S| changes a step
+    near convergence by ~1e-7·|N|²|S|.
+    """
+    zr = z.real.astype(np.float32)
+    zi = z.imag.astype(np.float32)
+    dr = np.subtract.outer(zr[upd], zr)
+    di = np.subtract.outer(zi[upd], zi)
+    r2 = dr * dr
+    r2 += di * di
+    r2[np.arange(upd.size), upd] = np.inf                    # no self term
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        np.reciprocal(d, out=d)
-        S = d.sum(axis=1)
+        np.reciprocal(r2, out=r2)                             # 1/(z_i − z_j) = conj(z_i − z_j)/|z_i − z_j|²
+        dr *= r2
+        di *= r2
+        S = dr.sum(axis=1).astype(float) - 1j * di.sum(axis=1).astype(float)
         return N / (1.0 - N * S), np.abs(S)
 
 
