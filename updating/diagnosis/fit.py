@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.optimize as so
 
-from modalab.dof import locate, parse_dofs
+from modalab.dof import locate
 from modalab.errors import ModalabValueError
 from modalab.frf import FRF
 
