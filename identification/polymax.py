@@ -374,9 +374,15 @@ def aberth_roots(coeffs, start, *, max_iter: int = 50, tol: float = 1e-12):
         active[upd[small]] = False
     if active.any():
         return None
-    d2 = np.abs(z[:, None] - z[None, :])
+    # r_i + r_j < |z_i − z_j| for every pair: nearest-neighbour distances in single precision, less
+    # the error of rounding the roots to it (|δz| <= 2^-24 |z| per part)
+    zr = z.real.astype(np.float32)
+    zi = z.imag.astype(np.float32)
+    d2 = np.square(np.subtract.outer(zr, zr))
+    d2 += np.square(np.subtract.outer(zi, zi))
     np.fill_diagonal(d2, np.inf)
-    if not np.all(rad < 0.5 * d2.min(axis=1)):         # r_i + r_j < |z_i - z_j| for every pair
+    nn = np.sqrt(d2.min(axis=1).astype(float)) * (1 - 1e-6) - 4e-7 * np.abs(z).max()
+    if not np.all(rad < 0.5 * nn):
         return None
     return z, rad
 
