@@ -262,18 +262,16 @@ def _newton_corrections(CC, rnd, z):
         num = np.where(inside, val, z * val)
         scl = np.where(inside, 1.0, az)
     aval = np.abs(val)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        N = num / den
-        aden = np.abs(den)
-        rad = n * (aval + rnd) * scl / aden
+    N = num / den                                      # (floating-point errors are silenced by the caller)
+    aden = np.abs(den)
+    rad = n * (aval + rnd) * scl / aden
     at_round = aval <= rnd
     if at_round.any():
         # sharper rounding bound 4(n+1) eps sum |c_k| |b|^k for the candidates only (also in their radius)
         B = _powers(np.abs(b[at_round]), n) @ np.abs(CC[:, :2])
         ins = inside[at_round]
         e = 4 * (n + 1) * _EPS * np.where(ins, B[:, 0], B[:, 1])
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            rad[at_round] = n * (aval[at_round] + e) * np.where(ins, 1.0, az[at_round]) / aden[at_round]
+        rad[at_round] = n * (aval[at_round] + e) * np.where(ins, 1.0, az[at_round]) / aden[at_round]
         at_round[at_round] = aval[at_round] <= e
     return N, rad, at_round
 
@@ -292,12 +290,51 @@ def _aberth_step(z, upd, N):
     r2 = dr * dr
     r2 += di * di
     r2[np.arange(upd.size), upd] = np.inf                    # no self term
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        np.reciprocal(r2, out=r2)                             # 1/(z_i − z_j) = conj(z_i − z_j)/|z_i − z_j|²
-        dr *= r2
-        di *= r2
-        S = dr.sum(axis=1).astype(float) - 1j * di.sum(axis=1).astype(float)
-        return N / (1.0 - N * S), np.abs(S)
+    np.reciprocal(r2, out=r2)                                 # 1/(z_i − z_j) = conj(z_i − z_j)/|z_i − z_j|²
+    dr *= r2
+    di *= r2
+    S = dr.sum(axis=1).astype(float) - 1j * di.sum(axis=1).astype(float)
+    return N / (1.0 - N * S), np.abs(S)
+
+
+def _aberth_loop(z, CC, rnd, n, tol, max_iter, active, rad):
+    """The iteration of :func:`aberth_roots` (updates ``z``, ``active``, ``rad`` in place; ``None`` on overflow)."""
+    n_prev = np.full(n, np.inf)                           # |Newton correction| at the previous visit
+    s_prev = np.full(n, np.inf)                           # |Σ_j 1/(z_i − z_j)| at the last Aberth step
+    for _ in range(int(max_iter)):
+        idx = np.flatnonzero(active)
+        if idx.size == 0:
+            break
+        zi = z[idx]
+        N, r, at_round = _newton_corrections(CC, rnd, zi)
+        scale = np.maximum(np.abs(zi), 1.0)
+        aN = np.abs(N)
+        # converged: small inclusion radius, or residual at the rounding level and no longer shrinking
+        done = (r <= tol * scale) | (at_round & (aN >= 0.5 * n_prev[idx]))
+        n_prev[idx] = aN
+        rad[idx[done]] = r[done]
+        active[idx[done]] = False
+        keep = ~done
+        upd = idx[keep]
+        if upd.size == 0:
+            break
+        Nk = N[keep]
+        # near convergence the Aberth factor 1/(1 − N S) is 1 to within |N S|: a Newton step costs
+        # O(n) instead of O(n²) and keeps the quadratic convergence (S from this root's last visit;
+        # Newton has no repulsion, so only when |N S| is tiny: at 1e-3 two approximations could
+        # settle on one root, which the disc test then rejects)
+        newton = np.abs(Nk * s_prev[upd]) < 1e-5
+        W = Nk.copy()
+        ab = ~newton
+        if ab.any():
+            W[ab], s_prev[upd[ab]] = _aberth_step(z, upd[ab], Nk[ab])
+        z[upd] -= W
+        if not np.isfinite(z[upd]).all():
+            return None
+        small = np.abs(W) <= 1e-8 * scale[keep]
+        rad[upd[small]] = r[keep][small] + np.abs(W[small])
+        active[upd[small]] = False
+    return z
 
 
 def aberth_roots(coeffs, start, *, max_iter: int = 50, tol: float = 1e-12):
@@ -337,54 +374,25 @@ def aberth_roots(coeffs, start, *, max_iter: int = 50, tol: float = 1e-12):
     rnd = 4 * (n + 1) * _EPS * np.abs(a).sum()          # |b| <= 1: a bound of the evaluation error
     active = np.ones(n, bool)
     rad = np.full(n, np.inf)
-    n_prev = np.full(n, np.inf)                           # |Newton correction| at the previous visit
-    s_prev = np.full(n, np.inf)                           # |Σ_j 1/(z_i − z_j)| at the last Aberth step
-    for _ in range(int(max_iter)):
-        idx = np.flatnonzero(active)
-        if idx.size == 0:
-            break
-        zi = z[idx]
-        N, r, at_round = _newton_corrections(CC, rnd, zi)
-        scale = np.maximum(np.abs(zi), 1.0)
-        aN = np.abs(N)
-        # converged: small inclusion radius, or residual at the rounding level and no longer shrinking
-        done = (r <= tol * scale) | (at_round & (aN >= 0.5 * n_prev[idx]))
-        n_prev[idx] = aN
-        rad[idx[done]] = r[done]
-        active[idx[done]] = False
-        keep = ~done
-        upd = idx[keep]
-        if upd.size == 0:
-            break
-        Nk = N[keep]
-        # near convergence the Aberth factor 1/(1 − N S) is 1 to within |N S|: a Newton step costs
-        # O(n) instead of O(n²) and keeps the quadratic convergence (S from this root's last visit;
-        # Newton has no repulsion, so only when |N S| is tiny: at 1e-3 two approximations could
-        # settle on one root, which the disc test then rejects)
-        newton = np.abs(Nk * s_prev[upd]) < 1e-5
-        W = Nk.copy()
-        ab = ~newton
-        if ab.any():
-            W[ab], s_prev[upd[ab]] = _aberth_step(z, upd[ab], Nk[ab])
-        z[upd] -= W
-        if not np.isfinite(z[upd]).all():
+    with np.errstate(all="ignore"):
+        z = _aberth_loop(z, CC, rnd, n, tol, max_iter, active, rad)
+        if z is None or active.any() or not _discs_disjoint(z, rad):
             return None
-        small = np.abs(W) <= 1e-8 * scale[keep]
-        rad[upd[small]] = r[keep][small] + np.abs(W[small])
-        active[upd[small]] = False
-    if active.any():
-        return None
-    # r_i + r_j < |z_i − z_j| for every pair: nearest-neighbour distances in single precision, less
-    # the error of rounding the roots to it (|δz| <= 2^-24 |z| per part)
+    return z, rad
+
+
+def _discs_disjoint(z, rad) -> bool:
+    """``r_i + r_j < |z_i − z_j|`` for every pair, via ``r_i`` < half the nearest-neighbour distance.
+
+    Distances in single precision, less the error of rounding the roots to it (``|δz| <= 2^-24 |z|`` per part).
+    """
     zr = z.real.astype(np.float32)
     zi = z.imag.astype(np.float32)
     d2 = np.square(np.subtract.outer(zr, zr))
     d2 += np.square(np.subtract.outer(zi, zi))
     np.fill_diagonal(d2, np.inf)
     nn = np.sqrt(d2.min(axis=1).astype(float)) * (1 - 1e-6) - 4e-7 * np.abs(z).max()
-    if not np.all(rad < 0.5 * nn):
-        return None
-    return z, rad
+    return bool(np.all(rad < 0.5 * nn))
 
 
 def _companion_roots(a: np.ndarray) -> np.ndarray:
