@@ -29,9 +29,17 @@ product over the frequency lines for all outputs at once.  ``M`` is built
 once, for the highest order ``p``; the reduced matrix of a lower order ``n`` is
 taken as its leading ``(n+1)·n_in`` block (the denominator of order ``n`` with
 the numerators kept at order ``p``), so no order rebuilds anything.  The
-constraint ``α_n = I`` (PolyMAX) gives ``α_0..α_{n-1}`` from a linear solve,
+constraint ``α_n = I`` (PolyMAX) gives ``α_0..α_{n-1}`` from a linear solve —
+for all orders from one Cholesky factor of ``M`` (one triangular solve per order) —,
 the poles are the eigenvalues of the block companion matrix and each modal
 participation vector ``l`` spans the left null space of ``A(z_pole)``.
+
+With one reference the denominator is a scalar polynomial, and from degree 64 on its
+roots are tracked from the previous evaluated order instead (:func:`denominator_roots`):
+a simultaneous Aberth–Ehrlich iteration started at the previous roots, whose result is
+accepted only when disjoint Newton inclusion discs prove that every root was found once
+(else the companion eigenvalues are taken).  It costs O(n²) per order instead of the
+O(n³) of the eigenvalues, which dominate a sweep to high orders.
 
 Memory holds the lag sums (accumulated over chunks of lines), one chunk of
 ``S_o`` blocks (bounded to a few tens of MB) and ``M``: it does not grow with the
@@ -347,10 +355,11 @@ def aberth_roots(coeffs, start, *, max_iter: int = 50, tol: float = 1e-12):
 
     (Aberth 1973; Bini 1996, "Numerical computation of polynomial zeros by means of Aberth's
     method"), and a root stops (is frozen) when its Newton inclusion radius falls below
-    ``tol·max(1, |z_i|)`` or its residual reaches the rounding level of the evaluation; a root whose
-    correction is already below ``1e-8·max(1, |z_i|)`` is frozen after that update (the
-    iteration converges cubically, so it is then at rounding level; its radius is widened by the
-    step).  Real starting points of a real polynomial stay real (and conjugate pairs stay pairs)
+    ``tol·max(1, |z_i|)`` or its residual has reached the rounding level of the evaluation and
+    stopped shrinking; a root whose correction is already below ``1e-8·max(1, |z_i|)`` is frozen
+    after that update (the iteration converges cubically, so it is then at rounding level; its
+    radius is widened by the step).  Once ``|N_i S_i| < 1e-5`` the step is Newton's (the sum
+    ``S_i`` only matters far from convergence).  Real starting points of a real polynomial stay real (and conjugate pairs stay pairs)
     under the iteration, so real and complex roots cannot trade places: callers break the
     symmetry of their starting points (see :func:`denominator_roots`).
 
@@ -409,7 +418,7 @@ def denominator_roots(coeffs, start=None):
     """Roots of a real polynomial (ascending coefficients), tracked from ``start`` when possible.
 
     With ``start`` (the roots of a nearby polynomial, e.g. the previous model order) and degree
-    at least 24, the roots are found by :func:`aberth_roots` from ``start`` plus one new starting
+    at least 64 (below, the eigenvalues cost less than the iteration overhead), the roots are found by :func:`aberth_roots` from ``start`` plus one new starting
     point in each of the widest angular gaps for every extra root; the starting points are rotated
     by 1e-4 rad so that real roots may become complex pairs and back (and roots whose inclusion
     disc reaches the real axis are returned exactly real).  Otherwise, or when the
