@@ -156,14 +156,21 @@ def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = N
             next_label += 1
             continue
         fb, zb, Lb = f[blk], z[blk], L[:, blk]
-        df = np.abs(fb[:, None] - fb[None, :]) / np.maximum(fb[:, None], fb[None, :])
-        dz = np.abs(zb[:, None] - zb[None, :]) / np.maximum(zb[:, None], zb[None, :])
-        dm = 1.0 - mac_vectors(Lb, Lb)
-        d = df + opts.damping_weight * dz + opts.mac_weight * dm
-        d = 0.5 * (d + d.T)
-        np.fill_diagonal(d, 0.0)
-        sub = fcluster(linkage(squareform(np.clip(d, 0, None), checks=False), method="average"),
-                       t=opts.distance, criterion="distance")
+        if n_in == 1:
+            # scalar participations: MAC = 1, the distance is symmetric by construction; build
+            # the condensed form (pairs i < j, the order of squareform) directly
+            i, j = np.triu_indices(blk.size, 1)
+            dvec = (np.abs(fb[i] - fb[j]) / np.maximum(fb[i], fb[j])
+                    + opts.damping_weight * (np.abs(zb[i] - zb[j]) / np.maximum(zb[i], zb[j])))
+        else:
+            df = np.abs(fb[:, None] - fb[None, :]) / np.maximum(fb[:, None], fb[None, :])
+            dz = np.abs(zb[:, None] - zb[None, :]) / np.maximum(zb[:, None], zb[None, :])
+            dm = 1.0 - mac_vectors(Lb, Lb)
+            d = df + opts.damping_weight * dz + opts.mac_weight * dm
+            d = 0.5 * (d + d.T)
+            np.fill_diagonal(d, 0.0)
+            dvec = squareform(np.clip(d, 0, None), checks=False)
+        sub = fcluster(linkage(dvec, method="average"), t=opts.distance, criterion="distance")
         lab[blk] = sub + next_label
         next_label += sub.max() + 1
     # clusters as runs of one label: members[starts[c]:starts[c]+counts[c]]
