@@ -145,17 +145,23 @@ def stabilise(orders, poles, participation, criteria: StabilisationCriteria | No
             with np.errstate(divide="ignore", invalid="ignore"):
                 rf = np.abs(f[:, None] - fp[None, :]) / (crit.freq_tol * np.abs(fp[None, :]))
                 rd = np.abs(z[:, None] - zp[None, :]) / (crit.damping_tol * np.abs(zp[None, :]))
-            rv = (1.0 - mac_vectors(L, Lp)) / max(1.0 - crit.mac_min, 1e-12)
+            # scalar, nonzero participations (one reference): MAC = 1, the vector term is zero
+            scalar = L.shape[0] == 1 and np.all(L != 0) and np.all(Lp != 0)
+            rv = None if scalar else (1.0 - mac_vectors(L, Lp)) / max(1.0 - crit.mac_min, 1e-12)
             rf[np.isnan(rf)] = np.inf                                      # 0/0: never stable
             rd[np.isnan(rd)] = np.inf
             # each pole is tested against ONE partner of the previous order: the pole closest in the
             # combined normalised distance (so dense noise poles cannot pass by picking different
             # partners for different tests, and shadow poles of close modes pair correctly)
-            j = np.argmin(np.minimum(rf, 1e6) + np.minimum(rd, 1e6) + np.minimum(rv, 1e6), axis=1)
+            tot = np.minimum(rf, 1e6)
+            tot += np.minimum(rd, 1e6)
+            if rv is not None:
+                tot += np.minimum(rv, 1e6)
+            j = np.argmin(tot, axis=1)
             i = np.arange(m)
             sf = rf[i, j] <= 1.0
             sd = sf & (rd[i, j] <= 1.0)
-            sv = sf & (rv[i, j] <= 1.0)
+            sv = sf.copy() if rv is None else sf & (rv[i, j] <= 1.0)
         cols["order"].append(np.full(m, n))
         cols["lam"].append(lam)
         cols["f"].append(f)
