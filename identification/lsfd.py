@@ -186,16 +186,21 @@ class _LocalProjection:
         return V - self.QB @ (self.QB.T @ V)
 
     def _columns(self, lam):
-        """The two real columns ("Re ψ", "Im ψ") of one pole, rows (reference, line) real then imaginary."""
-        lg = self.l[:, None] * (self.sq / (self.s - lam))[None, :]
-        lgc = self.l.conj()[:, None] * (self.sq / (self.s - lam.conjugate()))[None, :]
+        """The two real columns ("Re ψ", "Im ψ") of one pole, rows (reference, line) real then imaginary,
+        and ``l g``, ``l̄ gc``, ``1/(s − λ)``, ``1/(s − λ̄)`` for the derivatives."""
+        inv = 1.0 / (self.s - lam)
+        invc = 1.0 / (self.s - lam.conjugate())
+        lg = self.l[:, None] * (self.sq * inv)[None, :]
+        lgc = self.l.conj()[:, None] * (self.sq * invc)[None, :]
         cre, cim = (lg + lgc).ravel(), (1j * (lg - lgc)).ravel()
-        return np.stack([np.concatenate([cre.real, cre.imag]), np.concatenate([cim.real, cim.imag])], axis=1)
+        a = np.stack([np.concatenate([cre.real, cre.imag]), np.concatenate([cim.real, cim.imag])], axis=1)
+        return a, (lg, lgc, inv, invc)
 
     def factor(self, x):
         """Projection at ``x``: the state used by :meth:`normal` (``cost`` is ``‖r‖²``)."""
         lam = self.pole(x)
-        a = self._off_B(self._columns(lam))                                     # (rows, 2)
+        a, parts = self._columns(lam)
+        a = self._off_B(a)                                                     # (rows, 2)
         # QR of two columns by Gram–Schmidt with one re-orthogonalisation
         r11 = np.linalg.norm(a[:, 0])
         q1 = a[:, 0] / r11 if r11 > 0 else a[:, 0]
@@ -208,7 +213,7 @@ class _LocalProjection:
         QtY = qa.T @ self.Yp
         res = self.Yp - qa @ QtY
         return {"x": np.array(x, float), "lam": lam, "q": qa, "r": ra, "QtY": QtY, "res": res,
-                "cost": float(np.sum(res * res))}
+                "cost": float(np.sum(res * res)), "parts": parts}
 
     def residual(self, x):
         """The residual vector (for checks; the solver uses :meth:`factor`)."""
@@ -222,10 +227,9 @@ class _LocalProjection:
             c = np.stack([(st["QtY"][0] - r12 * c1) / r11, c1])                # (2, n_out): R c = QᵀY
         else:
             c = np.linalg.lstsq(st["r"], st["QtY"], rcond=None)[0]
-        lam = st["lam"]
-        l = self.l[:, None]                                                    # (n_in, 1)
-        g1 = l * (self.sq / (self.s - lam) ** 2)[None, :]                       # l ∂g/∂λ, (n_in, nf)
-        g2 = l.conj() * (self.sq / (self.s - lam.conjugate()) ** 2)[None, :]   # l̄ ∂ḡ/∂λ̄
+        lg, lgc, inv, invc = st["parts"]
+        g1 = lg * inv[None, :]                                                 # l ∂g/∂λ = l s^q/(s − λ)², (n_in, nf)
+        g2 = lgc * invc[None, :]                                               # l̄ ∂ḡ/∂λ̄
         # ∂/∂σ and ∂/∂ω_d of the columns l g + l̄ gc ("Re ψ") and i(l g − l̄ gc) ("Im ψ")
         re = lambda v: np.concatenate([v.real.ravel(), v.imag.ravel()])  # noqa: E731
         s_re, s_im = re(g1 + g2), re(1j * (g1 - g2))
@@ -258,11 +262,8 @@ class _LocalProjection:
         Dp = self._project(st, D)
         Dg = Dp.T @ Dp                                                          # <d_a, P⊥ d_b>
         Cg = c @ c.T                                                            # <c_a, c_b>
-        JtJ = np.empty((2, 2))
-        for i in range(2):
-            for j in range(2):
-                JtJ[i, j] = (Dg[i, j] * Cg[0, 0] + Dg[i, 2 + j] * Cg[0, 1] + Dg[2 + i, j] * Cg[1, 0]
-                             + Dg[2 + i, 2 + j] * Cg[1, 1])
+        # JtJ[i, j] = Σ_ab <d_a,i, P⊥ d_b,j> <c_a, c_b>, D columns ordered (a, i)
+        JtJ = np.einsum("aibj,ab->ij", Dg.reshape(2, 2, 2, 2), Cg)
         RC = st["res"] @ c.T                                                    # (rows, 2): r c_a
         Jtr = -(D[:, :2].T @ RC[:, 0] + D[:, 2:].T @ RC[:, 1])
         return JtJ, Jtr
