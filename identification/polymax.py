@@ -655,7 +655,8 @@ class PolyMAX:
         """Estimate poles for every order, stabilise, select, and fit shapes by LSFD."""
         from .stabilisation import StabilisationCriteria, stabilise
         from .selection import SelectionOptions, select_poles
-        from .lsfd import modes_from_poles, refine_poles
+        from .indicators import mpc
+        from .lsfd import lsfd, modes_from_poles, refine_poles
         from .stabilisation import pole_freq_damping
 
         self._check_params(frf)
@@ -715,13 +716,12 @@ class PolyMAX:
                 lam_sel = lam_sel[ok]
         self.refined_poles_ = lam_sel
         beta = float(data.metadata.get("exp_window_beta", 0.0) or 0.0) if self.window_correction else 0.0
-        extra = {"cluster_size": self.selected_.cluster_size, "order": self.selected_.order}
-        self.modes_, self.lsfd_ = modes_from_poles(
-            data, lam_sel, self.selected_.participation, lower_residual=self.lower_residual,
-            upper_residual=self.upper_residual, window_beta=beta, extra_indicators=extra)
-        if self.selected_.source == "auto" and opts.min_mpc > 0 and self.modes_.n_modes:
+        if self.selected_.source == "auto" and opts.min_mpc > 0 and lam_sel.size:
             # noise modes fitted by LSFD have scattered phases: drop automatic picks with a low MPC
-            ok = ~(self.modes_.indicators["MPC"] < opts.min_mpc)
+            # (MPC is invariant to the complex scaling of a shape: taken on the raw LSFD shapes ψ)
+            psi = lsfd(data, lam_sel, self.selected_.participation, lower_residual=self.lower_residual,
+                       upper_residual=self.upper_residual).psi
+            ok = ~(mpc(psi) < opts.min_mpc)
             if not ok.all():
                 log.info("dropped %d automatic pick(s) with MPC < %g as noise", int((~ok).sum()), opts.min_mpc)
                 sp = self.selected_
@@ -729,10 +729,10 @@ class PolyMAX:
                                           sp.source)
                 lam_sel = lam_sel[ok]
                 self.refined_poles_ = lam_sel
-                extra = {"cluster_size": self.selected_.cluster_size, "order": self.selected_.order}
-                self.modes_, self.lsfd_ = modes_from_poles(
-                    data, lam_sel, self.selected_.participation, lower_residual=self.lower_residual,
-                    upper_residual=self.upper_residual, window_beta=beta, extra_indicators=extra)
+        extra = {"cluster_size": self.selected_.cluster_size, "order": self.selected_.order}
+        self.modes_, self.lsfd_ = modes_from_poles(
+            data, lam_sel, self.selected_.participation, lower_residual=self.lower_residual,
+            upper_residual=self.upper_residual, window_beta=beta, extra_indicators=extra)
         self.modes_.metadata.update({"method": "pLSCF (PolyMAX-style) + LSFD", "max_order": p,
                                      "band_hz": list(band), "exp_window_beta": beta,
                                      "weighting": self.weighting or "none"})
