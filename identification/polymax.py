@@ -34,7 +34,7 @@ for all orders from one Cholesky factor of ``M`` (one triangular solve per order
 the poles are the eigenvalues of the block companion matrix and each modal
 participation vector ``l`` spans the left null space of ``A(z_pole)``.
 
-With one reference the denominator is a scalar polynomial, and from degree 64 on its
+With one reference the denominator is a scalar polynomial, and from degree 76 on its
 roots are tracked from the previous evaluated order instead (:func:`denominator_roots`):
 a simultaneous Aberth–Ehrlich iteration started at the previous roots, whose result is
 accepted only when disjoint Newton inclusion discs prove that every root was found once
@@ -199,7 +199,7 @@ def reduced_normal_matrix(H: np.ndarray, w: np.ndarray, theta: np.ndarray, max_o
 
 # --------------------------------------------------------------------------- roots
 _EPS = np.finfo(float).eps
-_TRACK_MIN_DEGREE = 64          # below this the companion eigenvalues cost less than the iteration overhead
+_TRACK_MIN_DEGREE = 76          # eigenvalues are cheaper below (LAPACK switches to multishift QR above 75)
 _TRACK_MAX_NEW = 8              # at most this many roots more than the starting set (else eigenvalues)
 
 
@@ -418,7 +418,7 @@ def denominator_roots(coeffs, start=None):
     """Roots of a real polynomial (ascending coefficients), tracked from ``start`` when possible.
 
     With ``start`` (the roots of a nearby polynomial, e.g. the previous model order) and degree
-    at least 64 (below, the eigenvalues cost less than the iteration overhead), the roots are found by :func:`aberth_roots` from ``start`` plus one new starting
+    at least 76 (below, the eigenvalues cost less than the iteration), the roots are found by :func:`aberth_roots` from ``start`` plus one new starting
     point in each of the widest angular gaps for every extra root; the starting points are rotated
     by 1e-4 rad so that real roots may become complex pairs and back (and roots whose inclusion
     disc reaches the real axis are returned exactly real).  Otherwise, or when the
