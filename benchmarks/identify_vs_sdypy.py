@@ -14,8 +14,9 @@ same number of roots at the top order (with one reference on the same even order
 case B its 222 FRFs enter as 222 "locations" with a common denominator.
 
 Printed per run: wall time (s) of an untraced fit, then the time of a second fit
-under tracemalloc and its peak traced memory (MiB), number of modes, max |frequency error| (%), max |damping error| (%), min MAC of the shapes
-against the true shapes, and the speed-up.  Accuracy of sdypy-EMA is taken with
+under tracemalloc and its peak traced memory (MiB), number of modes, max |frequency
+error| (%), max |damping error| (%), min MAC of the shapes against the true shapes,
+and the speed-up.  Accuracy of sdypy-EMA is taken with
 ``select_closest_poles`` given the TRUE frequencies (its only non-interactive
 selection) — a favour modalab does not get: it selects automatically.  Each run is a
 subprocess with one BLAS thread; a run over the cap (``--cap`` seconds) is stopped

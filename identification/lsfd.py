@@ -220,7 +220,7 @@ class _LocalProjection:
         return self.factor(x)["res"].ravel()
 
     def _derivatives(self, st):
-        """``∂a/∂x_k`` as real vectors, columns (Re ψ: ∂ω_n, ∂ζ; Im ψ: ∂ω_n, ∂ζ), and the coefficients ``c``."""
+        """``∂a/∂x_k`` as real vectors (columns Re ψ: ∂ω_n, ∂ζ; Im ψ: ∂ω_n, ∂ζ), coefficients ``c``."""
         (r11, r12), (_, r22) = st["r"]
         if r11 > 0 and r22 > 0:
             c1 = st["QtY"][1] / r22
@@ -228,7 +228,7 @@ class _LocalProjection:
         else:
             c = np.linalg.lstsq(st["r"], st["QtY"], rcond=None)[0]
         lg, lgc, inv, invc = st["parts"]
-        g1 = lg * inv[None, :]                                                 # l ∂g/∂λ = l s^q/(s − λ)², (n_in, nf)
+        g1 = lg * inv[None, :]                                   # l ∂g/∂λ = l s^q/(s − λ)², (n_in, nf)
         g2 = lgc * invc[None, :]                                               # l̄ ∂ḡ/∂λ̄
         # ∂/∂σ and ∂/∂ω_d of the columns l g + l̄ gc ("Re ψ") and i(l g − l̄ gc) ("Im ψ")
         re = lambda v: np.concatenate([v.real.ravel(), v.imag.ravel()])  # noqa: E731

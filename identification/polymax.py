@@ -285,7 +285,7 @@ def _newton_corrections(CC, rnd, z):
 
 
 def _aberth_step(z, upd, N):
-    """Aberth corrections ``N_i / (1 − N_i S_i)``, ``S_i = Σ_{j≠i} 1/(z_i − z_j)``, for the roots ``upd``, and ``|S_i|``.
+    """Aberth corrections ``N_i/(1 − N_i S_i)`` of the roots ``upd`` and ``|S_i|``, ``S_i = Σ_{j≠i} 1/(z_i − z_j)``.
 
     ``S`` only shapes the step (the fixed point ``p(z_i) = 0`` is set by ``N`` in double precision), so
     it is summed in single precision: twice the throughput, and an error of 1e-7·|S| changes a step
@@ -359,9 +359,10 @@ def aberth_roots(coeffs, start, *, max_iter: int = 50, tol: float = 1e-12):
     stopped shrinking; a root whose correction is already below ``1e-8·max(1, |z_i|)`` is frozen
     after that update (the iteration converges cubically, so it is then at rounding level; its
     radius is widened by the step).  Once ``|N_i S_i| < 1e-5`` the step is Newton's (the sum
-    ``S_i`` only matters far from convergence).  Real starting points of a real polynomial stay real (and conjugate pairs stay pairs)
-    under the iteration, so real and complex roots cannot trade places: callers break the
-    symmetry of their starting points (see :func:`denominator_roots`).
+    ``S_i`` only matters far from convergence).  Real starting points of a real polynomial stay
+    real (and conjugate pairs stay pairs) under the iteration, so real and complex roots cannot
+    trade places: callers break the symmetry of their starting points (see
+    :func:`denominator_roots`).
 
     Returns ``(z, radius)``: every disc ``|ζ − z_i| ≤ radius_i`` holds a root; the result is
     returned only when these discs are pairwise disjoint, which proves that each holds exactly
@@ -418,8 +419,9 @@ def denominator_roots(coeffs, start=None):
     """Roots of a real polynomial (ascending coefficients), tracked from ``start`` when possible.
 
     With ``start`` (the roots of a nearby polynomial, e.g. the previous model order) and degree
-    at least 76 (below, the eigenvalues cost less than the iteration), the roots are found by :func:`aberth_roots` from ``start`` plus one new starting
-    point in each of the widest angular gaps for every extra root; the starting points are rotated
+    at least 76 (below, the eigenvalues cost less than the iteration), the roots are found by
+    :func:`aberth_roots` from ``start`` plus one new starting point in each of the widest
+    angular gaps for every extra root; the starting points are rotated
     by 1e-4 rad so that real roots may become complex pairs and back (and roots whose inclusion
     disc reaches the real axis are returned exactly real).  Otherwise, or when the
     iteration cannot certify all roots, the eigenvalues of the companion matrix are used.
@@ -458,7 +460,8 @@ def _denominator(M: np.ndarray, order: int, n_in: int, chol=None) -> np.ndarray:
 
     ``α = −A11⁻¹ A12`` with ``A11``, ``A12`` the leading blocks of ``M``.  With ``chol``, the lower
     Cholesky factor ``L`` of ``M`` (or of a larger leading block), ``A11 = L_kk L_kkᵀ`` and
-    ``A12 = L_kk L_ckᵀ``, so ``α = −L_kk⁻ᵀ L_ckᵀ``: one triangular solve per order instead of a factorisation.
+    ``A12 = L_kk L_ckᵀ``, so ``α = −L_kk⁻ᵀ L_ckᵀ``: one triangular solve per order instead of a
+    factorisation.
     """
     n = int(order)
     if n < 1:
