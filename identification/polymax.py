@@ -247,15 +247,15 @@ def _newton_corrections(CC, rnd, z):
 
     ``CC`` holds, in four columns, the coefficients (ascending), their reversal and the derivative
     coefficients of both (``k·c_k`` shifted down by one, zero last row), blocked by :func:`_blocked`
-    (``CC[0]``), and the plain array (``CC[1]``) for the rounding bound.  For ``|z| <= 1`` the
+    (``CC[0]``), the moduli of the first two blocked likewise (``CC[1]``, for the rounding bound)
+    and the degree (``CC[2]``).  For ``|z| <= 1`` the
     polynomial is evaluated in powers of ``z``; outside the unit circle in powers of ``w = 1/z``
     through the reversed polynomial ``q(w) = w^n p(1/w)`` (``p/p' = z q / (n q − w q')``), so no
     power exceeds one in modulus.  The disc ``|ζ − z| ≤ n (|p(z)| + e) / |p'(z)|`` contains a root
     of every polynomial within the rounding error ``e`` of the evaluation (Henrici 1974, Thm 6.4e);
     ``rnd`` is a bound of ``e``.
     """
-    Cb, CC = CC
-    n = CC.shape[0] - 1
+    Cb, Cabs, n = CC
     az = np.abs(z)
     inside = az <= 1.0
     if inside.all():
@@ -276,7 +276,7 @@ def _newton_corrections(CC, rnd, z):
     at_round = aval <= rnd
     if at_round.any():
         # sharper rounding bound 4(n+1) eps sum |c_k| |b|^k for the candidates only (also in their radius)
-        B = _powers(np.abs(b[at_round]), n) @ np.abs(CC[:, :2])
+        B = _evaluate(np.abs(b[at_round]), Cabs, 2)
         ins = inside[at_round]
         e = 4 * (n + 1) * _EPS * np.where(ins, B[:, 0], B[:, 1])
         rad[at_round] = n * (aval[at_round] + e) * np.where(ins, 1.0, az[at_round]) / aden[at_round]
@@ -380,7 +380,7 @@ def aberth_roots(coeffs, start, *, max_iter: int = 50, tol: float = 1e-12):
     CC = np.zeros((n + 1, 4))
     CC[:, :2] = C
     CC[:-1, 2:] = np.arange(1, n + 1)[:, None] * C[1:]
-    CC = (_blocked(CC), CC)
+    CC = (_blocked(CC), _blocked(np.abs(C)), n)
     rnd = 4 * (n + 1) * _EPS * np.abs(a).sum()          # |b| <= 1: a bound of the evaluation error
     active = np.ones(n, bool)
     rad = np.full(n, np.inf)
