@@ -204,9 +204,16 @@ _TRACK_MAX_NEW = 8              # at most this many roots more than the starting
 
 
 def _powers(b: np.ndarray, n: int) -> np.ndarray:
-    """``P[i, k] = b_i**k`` for ``k = 0..n`` by doubling (log2(n) vector products, error O(log n) ulp)."""
+    """``P[i, k] = b_i**k`` for ``k = 0..n`` by doubling (log2(n) vector products, error O(log n) ulp).
+
+    For a few points and low powers a running product (one call) costs less than the doubling steps.
+    """
     P = np.empty((b.size, n + 1), b.dtype)
     P[:, 0] = 1.0
+    if b.size <= 32 and n <= 32:
+        P[:, 1:] = b[:, None]
+        np.cumprod(P[:, 1:], axis=1, out=P[:, 1:])
+        return P
     if n:
         P[:, 1] = b
     k = 2
