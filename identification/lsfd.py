@@ -269,7 +269,7 @@ class _LocalProjection:
         return JtJ, Jtr
 
 
-_MAX_NFEV = 25
+_MAX_NFEV = 20
 
 
 def _minimise_lm(vp, x0, lo, hi, x_scale, *, xtol=1e-10, ftol=1e-12, max_nfev=_MAX_NFEV):
@@ -281,7 +281,7 @@ def _minimise_lm(vp, x0, lo, hi, x_scale, *, xtol=1e-10, ftol=1e-12, max_nfev=_M
     ``xtol·(xtol + ‖x‖)`` or an accepted step lowers the cost by less than ``ftol`` (relative), or
     after ``max_nfev`` evaluations.  Returns the best point and the number of evaluations.
     Physical poles converge in 3–8 evaluations; poles still creeping along a flat valley after
-    ``max_nfev`` = 25 are noise poles (their damping runs towards a bound), keep their last
+    ``max_nfev`` = 20 are noise poles (their damping runs towards a bound), keep their last
     estimate and are left to the damping and MPC tests of the selection.
     """
     D = np.asarray(x_scale, float)
@@ -340,7 +340,7 @@ def refine_poles(frf: FRF, lam, participation, *, passes: int = 2, half_bandwidt
     This is the single-pole counterpart of the maximum-likelihood refinement of
     PolyMAX Plus; it reduces the noise bias of the linearised pLSCF damping.
 
-    Each pole is minimised by :func:`_minimise_lm` (analytic Kaufman Jacobian, at most 25
+    Each pole is minimised by :func:`_minimise_lm` (analytic Kaufman Jacobian, at most 20
     evaluations); a pole that uses them all is a noise pole creeping along a flat valley and is
     not swept again.
     """
