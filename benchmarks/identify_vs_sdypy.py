@@ -13,14 +13,14 @@ same number of roots at the top order (with one reference on the same even order
 2, 4, ..., 2N as sdypy-EMA; with three references every order 1..p).  sdypy-EMA is single-reference, so in
 case B its 222 FRFs enter as 222 "locations" with a common denominator.
 
-Printed per run: wall time (s) of an untraced fit, then the time of a second fit
-under tracemalloc and its peak traced memory (MiB), number of modes, max |frequency
+Printed per run: wall time (s) of an untraced fit (the best of ``--repeat`` runs,
+default 3, like timeit), then the time of one more fit under tracemalloc and its peak traced memory (MiB), number of modes, max |frequency
 error| (%), max |damping error| (%), min MAC of the shapes against the true shapes,
 and the speed-up.  Accuracy of sdypy-EMA is taken with
 ``select_closest_poles`` given the TRUE frequencies (its only non-interactive
 selection) — a favour modalab does not get: it selects automatically.  Each run is a
-subprocess with one BLAS thread; a run over the cap (``--cap`` seconds) is stopped
-and reported as capped.
+subprocess with one BLAS thread; a worker over the cap (``--cap`` seconds for all its
+runs) is stopped and reported as capped (at the cap shared by its runs).
 
 The speed-up is taken on the untraced times.  Tables before 2026-11-24 timed the traced
 run: tracemalloc records a traceback for every allocation, and its cost grows with the
@@ -28,7 +28,7 @@ position of the allocating line in its function, so it inflated sdypy-EMA's case
 at N=150 from ~6 s to ~15 s and modalab's by another factor; the traced time is still
 printed for comparison.
 
-Usage: python benchmarks/identify_vs_sdypy.py [--orders 50 100 150] [--cap 600] [--cases A B]
+Usage: python benchmarks/identify_vs_sdypy.py [--orders 50 100 150] [--cap 600] [--cases A B] [--repeat 3]
 """
 from __future__ import annotations
 
@@ -109,7 +109,7 @@ def _fit_sdypy(frf, order):
     return (model.nat_freq, model.nat_xi, shapes), {"model_order": int(order), "roots_at_top": 2 * int(order)}
 
 
-def worker(method, case, order):
+def worker(method, case, order, repeat=3):
     import tracemalloc
 
     frf, phi = _data(case)
@@ -121,10 +121,14 @@ def worker(method, case, order):
     import identification  # noqa: F401
     fit = _fit_modalab if method == "modalab" else _fit_sdypy
     # 1) wall time, untraced (tracemalloc charges every allocation a traceback: it inflates the
-    #    time of allocation-heavy Python code 1.5-3x, unequally between the two programs)
-    t0 = time.perf_counter()
-    (freq, damp, shapes), extra = fit(frf, order)
-    dt = time.perf_counter() - t0
+    #    time of allocation-heavy Python code 1.5-3x, unequally between the two programs); the best
+    #    of `repeat` runs, as timeit does, so that load from other processes counts less
+    times = []
+    for _ in range(max(1, int(repeat))):
+        t0 = time.perf_counter()
+        (freq, damp, shapes), extra = fit(frf, order)
+        times.append(time.perf_counter() - t0)
+    dt = min(times)
     # 2) peak traced memory (and the traced time, for comparison with earlier tables) in a second run
     tracemalloc.start()
     t0 = time.perf_counter()
@@ -133,22 +137,22 @@ def worker(method, case, order):
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
     acc = _accuracy(freq, damp, shapes, phi)
-    out = {"method": method, "case": case, "order": order, "time_s": dt, "traced_time_s": dt_traced,
-           "peak_mib": peak / 2 ** 20}
+    out = {"method": method, "case": case, "order": order, "time_s": dt, "times_s": times,
+           "traced_time_s": dt_traced, "peak_mib": peak / 2 ** 20}
     out.update(acc)
     out.update(extra)
     print("RESULT " + json.dumps(out))
 
 
-def run(method, case, order, cap):
+def run(method, case, order, cap, repeat=3):
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
     here = os.path.dirname(os.path.abspath(__file__))
     env["PYTHONPATH"] = os.path.dirname(here) + os.pathsep + env.get("PYTHONPATH", "")
-    cmd = [sys.executable, os.path.abspath(__file__), "--worker", method, case, str(order)]
+    cmd = [sys.executable, os.path.abspath(__file__), "--worker", method, case, str(order), "--repeat", str(repeat)]
     try:
         p = subprocess.run(cmd, capture_output=True, text=True, timeout=cap, env=env)
     except subprocess.TimeoutExpired:
-        return {"method": method, "case": case, "order": order, "capped": cap}
+        return {"method": method, "case": case, "order": order, "capped": cap / (max(1, repeat) + 1)}
     for line in p.stdout.splitlines():
         if line.startswith("RESULT "):
             return json.loads(line[7:])
@@ -170,11 +174,13 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--orders", type=int, nargs="+", default=[50, 100, 150])
     ap.add_argument("--cases", nargs="+", default=["A", "B"], choices=sorted(CASES))
-    ap.add_argument("--cap", type=float, default=600.0, help="seconds allowed per sdypy-EMA run")
+    ap.add_argument("--cap", type=float, default=600.0,
+                    help="seconds allowed per sdypy-EMA worker (its --repeat runs and the traced one)")
+    ap.add_argument("--repeat", type=int, default=3, help="untraced runs per method; the best is reported")
     ap.add_argument("--worker", nargs=3, metavar=("METHOD", "CASE", "ORDER"), help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.worker:
-        worker(a.worker[0], a.worker[1], int(a.worker[2]))
+        worker(a.worker[0], a.worker[1], int(a.worker[2]), a.repeat)
         return 0
     print(__doc__.split("\n\n")[0])
     print("(one BLAS thread per run; sdypy-EMA gets the true frequencies for its pole selection)\n")
@@ -182,15 +188,15 @@ def main(argv=None):
         c = CASES[case]
         print(f"case {case}: {c['n_out']} outputs x {c['n_in']} references, {c['n_lines']} lines")
         for order in a.orders:
-            ours = run("modalab", case, order, cap=max(a.cap, 600.0))
-            base = run("sdypy", case, order, cap=a.cap)
+            ours = run("modalab", case, order, cap=max(a.cap, 600.0), repeat=a.repeat)
+            base = run("sdypy", case, order, cap=a.cap, repeat=a.repeat)
             print(f"  order {order:4d}  modalab (p={ours.get('model_order', '?')}) {_fmt(ours)}")
             print(f"  {'':10s}  sdypy-EMA (N={order})   {_fmt(base)}")
             if "time_s" in ours and "time_s" in base:
                 print(f"  {'':10s}  speed-up {base['time_s'] / ours['time_s']:.1f}x "
                       f"(traced runs {base['traced_time_s'] / ours['traced_time_s']:.1f}x), "
                       f"memory ratio {base['peak_mib'] / max(ours['peak_mib'], 1e-9):.2f}")
-            elif "time_s" in ours and "capped" in base:  # the cap covers both sdypy-EMA runs
+            elif "time_s" in ours and "capped" in base:  # the cap covers all runs of the worker
                 print(f"  {'':10s}  speed-up > {base['capped'] / ours['time_s']:.1f}x (sdypy-EMA capped)")
             sys.stdout.flush()
         print()
