@@ -255,10 +255,9 @@ def _newton_corrections(CC, rnd, z):
     ``CC`` holds, in four columns, the coefficients (ascending), their reversal and the derivative
     coefficients of both (``k·c_k`` shifted down by one, zero last row), blocked by :func:`_blocked`
     (``CC[0]``), the moduli of the first two blocked likewise (``CC[1]``, for the rounding bound)
-    and the degree (``CC[2]``).  For ``|z| <= 1`` the
-    polynomial is evaluated in powers of ``z``; outside the unit circle in powers of ``w = 1/z``
-    through the reversed polynomial ``q(w) = w^n p(1/w)`` (``p/p' = z q / (n q − w q')``), so no
-    power exceeds one in modulus.  The disc ``|ζ − z| ≤ n (|p(z)| + e) / |p'(z)|`` contains a root
+    and the degree (``CC[2]``).  For ``|z| <= 1`` the polynomial is evaluated in powers of ``z``;
+    outside the unit circle in powers of ``w = 1/z`` through the reversed polynomial
+    ``q(w) = w^n p(1/w)`` (``p/p' = z q / (n q − w q')``), so no power exceeds one in modulus.  The disc ``|ζ − z| ≤ n (|p(z)| + e) / |p'(z)|`` contains a root
     of every polynomial within the rounding error ``e`` of the evaluation (Henrici 1974, Thm 6.4e);
     ``rnd`` is a bound of ``e``.
     """
