@@ -2,7 +2,8 @@
 
 The fit minimises the coherence-weighted relative complex FRF difference
 
-    e_ijf = √c_ijf · (H_model,ij(s_f) − H_meas,ij(s_f)) / (|H_meas,ij(s_f)| + 0.2·rms_f|H_meas,ij|)
+    e_ijf = √c_ijf · (H_model,ij(s_f) − H_meas,ij(s_f)) / (|H_meas,ij(s_f)| + 0.2·rms_f|H_meas,ij|
+                                                           + 10⁻⁴·rms_i,f|H_meas,ij|)
 
 over the parameters of a :class:`~updating.parametric.ParametricModel`
 (``scipy.optimize.least_squares``, bounded, with the analytic Jacobian
@@ -44,9 +45,13 @@ class FRFData:
 
     def __post_init__(self):
         if self.den is None:
+            # |H| + 0.2 × the pair's RMS over lines + 10⁻⁴ × the reference column's RMS: the last term keeps
+            # structurally zero pairs (a response orthogonal to the force, e.g. out-of-plane to in-plane on
+            # a symmetric structure: numerical noise in model and data alike) from counting as large errors
             a = np.abs(self.H)
             rms = np.sqrt(np.mean(a ** 2, axis=2, keepdims=True))
-            self.den = a + 0.2 * rms + 1e-300
+            col = np.sqrt(np.mean(a ** 2, axis=(0, 2), keepdims=True)) if a.size else 0.0
+            self.den = a + 0.2 * rms + 1e-4 * col + 1e-300
 
     @property
     def quality(self) -> np.ndarray:

@@ -173,6 +173,47 @@ def _bounds(params, p0):
     return np.array(lo), np.array(hi)
 
 
+def _fit_continued(pm, train, p_start, damp_mask, lo, hi, max_nfev, *, levels=(0.08,)):
+    """FRF fit with continuation in damping: the parameters are first fitted with the damping raised to
+    each of ``levels`` (a smoother error surface: a resonance shifted by more than its half-power
+    bandwidth leaves a plain FRF fit in a local minimum), then everything from there with the damping
+    back at its start; the better of this and a direct fit is returned."""
+    direct = fit_frf(pm, train, p_start, lower=lo, upper=hi, max_nfev=max_nfev)
+    damp_mask = np.asarray(damp_mask, bool)
+    if not damp_mask.any():
+        return direct
+    p = np.asarray(p_start, float).copy()
+    for level in levels:
+        ps = p.copy()
+        ps[damp_mask] = np.maximum(ps[damp_mask], level)
+        try:
+            sm = fit_frf(pm, train, ps, lower=lo, upper=hi, free=~damp_mask, max_nfev=max_nfev)
+        except (np.linalg.LinAlgError, ModalabValueError) as e:  # pragma: no cover - keep the direct fit
+            log.info("damping continuation failed: %s", e)
+            return direct
+        p[~damp_mask] = sm.p[~damp_mask]
+    cont = fit_frf(pm, train, p, lower=lo, upper=hi, max_nfev=max_nfev)
+    log.info("parameter fit: direct %.4g, with damping continuation %.4g", direct.error, cont.error)
+    return cont if cont.error < direct.error else direct
+
+
+def _dof_stiffness(structure, c) -> float:
+    """The diagonal stiffness at a candidate's DOF (at its first node, or its partner across a rigid link;
+    else the median over DOFs of the same kind, translational or rotational)."""
+    from modalab.dof import parse_dofs
+    d = parse_dofs(c.dofs)[0] if c.dofs else None
+    diag = np.abs(structure.K.diagonal())
+    if d is not None:
+        for n in (d.node,) + tuple(c.nodes):
+            for i, x in enumerate(structure.dofs):
+                if x.node == n and x.axis == d.axis and diag[i] > 0:
+                    return float(diag[i])
+        same = [diag[i] for i, x in enumerate(structure.dofs) if (x.axis >= 4) == (d.axis >= 4)]
+        if same:
+            return float(np.median(same)) or 1.0
+    return float(np.median(diag)) or 1.0
+
+
 def _upper(cands: list, scales: list) -> np.ndarray:
     """Upper bounds of the candidates' parameters (their plausible values over the parameter scales)."""
     return np.array([getattr(c, "upper", np.inf) / sc for c, sc in zip(cands, scales)], float)
@@ -293,7 +334,7 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
     # 2. parameter-only updating
     say("step 2/6: updating the declared parameters (baseline)")
     t1 = time.perf_counter()
-    upd = fit_frf(pm, train, p_nomd, lower=lo, upper=hi, max_nfev=max_nfev)
+    upd = _fit_continued(pm, train, p_nomd, free_d, lo, hi, max_nfev)
     timings["2 parameters"] = time.perf_counter() - t1
     st_upd = pm.structure(upd.p)
     # 3-5. localise, name and model, one term at a time, on the MCI (thesis 3.2.4): the parameters are
@@ -382,18 +423,15 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
             chi = np.concatenate([hi, _upper(current + [c], scales)])
             prev = list(p_cur[len(params):])
             try:
-                if th is None:
+                if th is None and use_mci:
                     kd = float(np.median(np.abs(pm_cur.structure(p_cur).K.diagonal())) or 1.0)
                     trials = []
                     for v in kd * np.logspace(-3, 2, 6):
-                        st_ = pm_aug.structure(np.concatenate([p_cur[:len(params)], prev, [v]]))
-                        if not use_mci:   # the FRF error (in a Ritz basis when large): a start value needs no more
-                            trials.append((quick_frf_error(st_, train), v))
-                        else:
-                            y = residual_system(st_, train, W).y
-                            trials.append((float(y @ y), v))
+                        y = residual_system(pm_aug.structure(np.concatenate([p_cur[:len(params)], prev, [v]])),
+                                           train, W).y
+                        trials.append((float(y @ y), v))
                     th = min(trials, key=lambda t: t[0])[1]
-                th = min(th, getattr(c, "upper", np.inf))
+                th0 = th
                 p_aug, rss_aug = None, np.inf
                 if use_mci:
                     starts = (p_cur[:len(params)], p_nom[:len(params)]) if it == 0 and not large else \
@@ -401,6 +439,22 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
                 else:
                     starts = (p_cur[:len(params)], p_nomd) if it == 0 else (p_cur[:len(params)],)
                 for p_par in starts:
+                    th = th0
+                    if th is None:
+                        # the FRF error (in a Ritz basis when large) over six decades around the stiffness of
+                        # the DOF concerned, for these parameters, then refined: a joint or support spring's
+                        # error is far from convex in its value
+                        def qerr(v, p_par=p_par):
+                            return quick_frf_error(pm_aug.structure(np.concatenate([p_par, prev, [v]])), train)
+                        kd = _dof_stiffness(pm_cur.structure(p_cur), c)
+                        grid = kd * np.logspace(-4, 2, 21)           # steps of 2: a resonance's basin is narrow
+                        errs = [qerr(v) for v in grid]
+                        k = int(np.argmin(errs))
+                        fine = np.geomspace(grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)], 7)
+                        errs_f = [qerr(v) for v in fine]
+                        th = float(fine[int(np.argmin(errs_f))]) if min(errs_f) < errs[k] else float(grid[k])
+                    th = min(th, getattr(c, "upper", np.inf))
+                    log.debug("candidate %s: start value %.4g", c.label, th)
                     start = np.concatenate([p_par, prev, [th / scales[-1]]])
                     if use_mci:
                         pa, ra, _ = mci_update(pm_aug, start, train, clo, chi, weights=W, iters=3 if large else 6,

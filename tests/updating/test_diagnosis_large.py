@@ -1,0 +1,71 @@
+"""Diagnosis of a GARTEUR-size model (396 DOFs): the FRF criterion, the Ritz-basis fits, the FRF screening.
+
+The truth is the nominal frame with background errors on E (±4 %) and ρ (±2 %) of every property group, a
+different loss factor, and one concealed effect; 30 response DOFs (Z and Y of 15 nodes), references at the
+wing tips (Z) and the fin tip (Y), 1.5 % complex noise.  ``benchmarks/diagnose_timing.py`` runs the
+2000-line timing case; these cases are not used to tune anything.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from modalab.frf import FRF
+from updating.diagnosis import diagnose
+from updating.fe import LumpedMass, Spring
+from updating.models.garteur import garteur_model
+
+
+def _case(effect, seed=7, n_lines=600):
+    nominal = garteur_model(suspension=True)
+    truth = garteur_model(suspension=True)
+    rng = np.random.default_rng(seed)
+    for mid, mat in list(truth.materials.items()):
+        truth.materials[mid] = dataclasses.replace(mat, E=mat.E * (1 + rng.uniform(-0.04, 0.04)),
+                                                   rho=mat.rho * (1 + rng.uniform(-0.02, 0.02)))
+    truth.global_ge = 0.015
+    effect(truth)
+    truth._changed()
+    pts = truth.metadata["points"]
+    free = {str(d) for d in nominal.structure().dofs}
+    nodes = sorted(n for n in truth.nodes if f"{n}+Z" in free and f"{n}+Y" in free)
+    pick = [nodes[i] for i in np.linspace(0, len(nodes) - 1, 15).astype(int)]
+    refs = [f"{pts['right_tip']}+Z", f"{pts['left_tip']}+Z", f"{pts['fin_tip']}+Y"]
+    resp = [f"{n}+Z" for n in pick] + [f"{n}+Y" for n in pick]
+    for r in refs:
+        if r not in resp:
+            resp[-1 - refs.index(r)] = r
+    f = np.linspace(1.0, 100.0, n_lines)
+    H = truth.frf(f, resp, refs, quantity="receptance")
+    noise = (rng.standard_normal(H.H.shape) + 1j * rng.standard_normal(H.H.shape)) / np.sqrt(2)
+    meas = FRF(freq_hz=f, H=H.H * (1 + 0.015 * noise), responses=H.responses, references=H.references,
+               coherence=np.ones(H.H.shape), quantity="receptance")
+    return nominal, meas
+
+
+def test_a_concealed_fin_spring_is_named_located_and_sized():
+    nominal, meas = _case(lambda t: t.add_element(Spring(99001, (505, 2), None, 3.0e3)))
+    d = diagnose(nominal, meas)
+    assert [f.candidate.physics for f in d.findings] == ["ground_spring"], d.statement
+    f = d.findings[0]
+    assert f.candidate.dofs[0].endswith("+Y") and abs(f.candidate.nodes[0] - 505) <= 1
+    assert f.value == pytest.approx(3.0e3, rel=0.3)
+    assert d.fit["with_physics"]["frf_error_held_out"] < d.fit["parameters_only"]["frf_error_held_out"] / 3
+
+
+def test_a_concealed_fuselage_mass_is_named_located_and_sized():
+    nominal, meas = _case(lambda t: t.add_element(LumpedMass(99001, 112, mass=1.5)))
+    d = diagnose(nominal, meas)
+    assert [f.candidate.physics for f in d.findings] == ["added_mass"], d.statement
+    assert abs(d.findings[0].candidate.nodes[0] - 112) <= 1
+    assert d.findings[0].value == pytest.approx(1.5, rel=0.3)
+    assert d.fit["with_physics"]["frf_error_held_out"] < d.fit["parameters_only"]["frf_error_held_out"] / 3
+
+
+def test_parameter_error_only_gives_no_finding_on_the_large_model():
+    nominal, meas = _case(lambda t: None)
+    d = diagnose(nominal, meas)
+    assert d.findings == [], d.statement
+    assert d.fit["parameters_only"]["frf_error_held_out"] < 0.03          # the baseline itself fits
