@@ -6,7 +6,7 @@ from pathlib import Path
 
 
 def diagnose_files(model_path, measured_path, *, modes=None, params=None, json_path=None, report_dir=None,
-                   progress=None):
+                   progress=None, criterion: str = "auto"):
     """Diagnose one configuration from files; returns the :class:`~updating.diagnosis.Diagnosis`."""
     from updating.diagnosis import diagnose
 
@@ -24,11 +24,7 @@ def diagnose_files(model_path, measured_path, *, modes=None, params=None, json_p
         d = diagnose_modes(model, kw["test_modes"], parameters=plist)
     else:
         measured = FRF.from_uff(measured_path)
-        try:
-            d = diagnose(model, measured, parameters=plist, progress=progress, **kw)
-        except TypeError:
-            kw.pop("test_modes", None)
-            d = diagnose(model, measured, parameters=plist, progress=progress)
+        d = diagnose(model, measured, parameters=plist, progress=progress, criterion=criterion, **kw)
     if report_dir is not None:
         if hasattr(d, "save"):
             d.save(report_dir)
@@ -49,7 +45,7 @@ def cmd_diagnose(a):
 
         raise PlanError("give measured FRFs (MEASURED.uff) or --modes MODES.uff (a GVT's modes alone)")
     d = diagnose_files(a.model, a.measured, modes=a.modes, params=a.params, json_path=a.json,
-                       report_dir=a.report, progress=lambda m: _print(m))
+                       report_dir=a.report, progress=lambda m: _print(m), criterion=a.criterion)
     dd = d.to_dict()
     for f in dd["findings"]:
         vals = ", ".join(f"{v['name']} = {v['value']:.4g} {v['unit']} (± {v['std']:.2g})" for v in f["values"])
@@ -70,4 +66,7 @@ def register(sub):
     s.add_argument("--params", help="TOML [[parameter]] file (default: E and rho multipliers per property group)")
     s.add_argument("--json", help="diagnosis.json path (schema in the README)")
     s.add_argument("--report", help="folder for diagnosis.json, MCI maps, FRF overlays and the augmented model")
+    s.add_argument("--criterion", choices=("auto", "mci", "frf"), default="auto",
+                   help="how candidate physics is judged with the parameters re-fitted: by the MCI (thesis 3.2.4) "
+                        "or by the FRF fit; auto: MCI up to 200 DOFs, FRF fit above (default: auto)")
     s.set_defaults(func=cmd_diagnose)
