@@ -359,46 +359,61 @@ def refine_poles(frf: FRF, lam, participation, *, passes: int = 2, half_bandwidt
         for r in order:
             if unsettled[r]:
                 continue
-            wn = abs(lam[r])
-            fr = wn / (2 * np.pi)
-            zr = -lam[r].real / wn
-            hw = max(min(half_bandwidths * zr, 0.1) * fr, 4 * df)
-            sel = np.abs(f - fr) <= hw
-            if sel.sum() < 6:
+            loc = _local_problem(frf, f, q, df, Yall, lam, L, r, half_bandwidths)
+            if loc is None:
                 continue
-            s = 2j * np.pi * f[sel]
-            Y = Yall[:, sel, :].reshape(-1, frf.n_out)
-            Y = np.concatenate([Y.real, Y.imag], axis=0)
-            ynorm = np.linalg.norm(Y)
-            others = np.abs(lam.imag - lam[r].imag)
-            others[r] = np.inf
-            gap = others.min() if m > 1 else wn
-            wlo, whi = max(wn - 0.5 * gap, 0.5 * wn), min(wn + 0.5 * gap, 1.5 * wn)
-            if not (wlo < wn < whi):
-                continue
-
-            # local basis: the modes inside the window plus, per reference, a complex quadratic in
-            # frequency standing for every mode outside it (well conditioned on a short band)
-            inwin = np.flatnonzero(np.abs(np.abs(lam) / (2 * np.pi) - fr) <= hw)
-            k_r = int(np.flatnonzero(inwin == r)[0])
-            x_loc = (f[sel] - fr) / hw
-            n_in = frf.n_in
-            extra = np.zeros((n_in, x_loc.size, 3 * n_in), complex)
-            for i in range(n_in):
-                extra[i, :, 3 * i] = 1.0
-                extra[i, :, 3 * i + 1] = x_loc
-                extra[i, :, 3 * i + 2] = x_loc ** 2
-            extra = extra.reshape(n_in * x_loc.size, 3 * n_in)
-            extra = np.concatenate([extra, 1j * extra], axis=1)
-            extra = np.concatenate([extra.real, extra.imag], axis=0)
-
-            vp = _LocalProjection(s, q, lam[inwin], L[:, inwin], k_r, extra, Y, ynorm)
+            vp, wn, zr, wlo, whi = loc["vp"], loc["wn"], loc["zr"], loc["wlo"], loc["whi"]
             x, nfev = _minimise_lm(vp, np.array([wn, zr]), np.array([wlo, 1e-6]), np.array([whi, 0.5]),
                                    [max(zr * wn, 1e-3 * wn), max(zr, 1e-4)], max_nfev=_MAX_NFEV)
             unsettled[r] = nfev >= _MAX_NFEV
             w0, z0 = x
             lam[r] = -z0 * w0 + 1j * w0 * np.sqrt(1 - z0 ** 2)
     return lam
+
+
+def _local_problem(frf, f, q, df, Yall, lam, L, r, half_bandwidths):
+    """The local variable-projection problem of pole ``r`` used by :func:`refine_poles` (and by
+    :func:`pole_uncertainty` at the refined pole): window, bounds and :class:`_LocalProjection`.
+
+    ``None`` when the window holds fewer than 6 lines or the neighbours leave no room.
+    """
+    m = lam.size
+    wn = abs(lam[r])
+    fr = wn / (2 * np.pi)
+    zr = -lam[r].real / wn
+    hw = max(min(half_bandwidths * zr, 0.1) * fr, 4 * df)
+    sel = np.abs(f - fr) <= hw
+    if sel.sum() < 6:
+        return None
+    s = 2j * np.pi * f[sel]
+    Y = Yall[:, sel, :].reshape(-1, frf.n_out)
+    Y = np.concatenate([Y.real, Y.imag], axis=0)
+    ynorm = np.linalg.norm(Y)
+    others = np.abs(lam.imag - lam[r].imag)
+    others[r] = np.inf
+    gap = others.min() if m > 1 else wn
+    wlo, whi = max(wn - 0.5 * gap, 0.5 * wn), min(wn + 0.5 * gap, 1.5 * wn)
+    if not (wlo < wn < whi):
+        return None
+
+    # local basis: the modes inside the window plus, per reference, a complex quadratic in
+    # frequency standing for every mode outside it (well conditioned on a short band)
+    inwin = np.flatnonzero(np.abs(np.abs(lam) / (2 * np.pi) - fr) <= hw)
+    k_r = int(np.flatnonzero(inwin == r)[0])
+    x_loc = (f[sel] - fr) / hw
+    n_in = frf.n_in
+    extra = np.zeros((n_in, x_loc.size, 3 * n_in), complex)
+    for i in range(n_in):
+        extra[i, :, 3 * i] = 1.0
+        extra[i, :, 3 * i + 1] = x_loc
+        extra[i, :, 3 * i + 2] = x_loc ** 2
+    extra = extra.reshape(n_in * x_loc.size, 3 * n_in)
+    extra = np.concatenate([extra, 1j * extra], axis=1)
+    extra = np.concatenate([extra.real, extra.imag], axis=0)
+
+    vp = _LocalProjection(s, q, lam[inwin], L[:, inwin], k_r, extra, Y, ynorm)
+    return {"vp": vp, "wn": wn, "zr": zr, "wlo": wlo, "whi": whi, "sel": sel, "ynorm": ynorm,
+            "n_lin": 2 * inwin.size + extra.shape[1]}
 
 
 def driving_points(frf: FRF):
