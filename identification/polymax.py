@@ -593,6 +593,12 @@ class PolyMAX:
         (:func:`~identification.lsfd.refine_poles`) before the final LSFD.
     window_correction : bool
         Subtract ``frf.metadata['exp_window_beta']`` (1/s) from the decay rates.
+    uncertainty : bool
+        Standard deviations of the refined frequencies and damping ratios
+        (:func:`~identification.lsfd.pole_uncertainty`, first order, one Jacobian per mode) in
+        ``modes_.indicators`` as ``freq_std_hz``, ``damping_std`` and ``chi2_ratio``; the noise model
+        used is ``modes_.metadata['pole_std_source']``.  NaN with ``refine=False`` (the std describes
+        the refined estimate).
 
     Fitted attributes
     -----------------
@@ -619,7 +625,8 @@ class PolyMAX:
 
     def __init__(self, max_order: int = 64, *, min_order: int = 1, order_step: int = 1, weighting=None,
                  band_hz=None, criteria=None, select="auto", selection=None, lower_residual: bool = True,
-                 upper_residual: bool = True, window_correction: bool = True, refine: bool = True):
+                 upper_residual: bool = True, window_correction: bool = True, refine: bool = True,
+                 uncertainty: bool = True):
         self.max_order = max_order
         self.min_order = min_order
         self.order_step = order_step
@@ -632,6 +639,7 @@ class PolyMAX:
         self.upper_residual = upper_residual
         self.window_correction = window_correction
         self.refine = refine
+        self.uncertainty = uncertainty
 
     # ------------------------------------------------------------------ helpers
     def _check_params(self, frf):
@@ -651,12 +659,20 @@ class PolyMAX:
 
     @staticmethod
     def prepare(frf: FRF, band_hz=None) -> FRF:
-        """Band-limit and drop lines at 0 Hz or with non-finite data."""
+        """Band-limit and drop lines at 0 Hz or with non-finite data (``metadata['H_variance']`` too)."""
+        var = frf.metadata.get("H_variance")
+        if var is not None and np.shape(var) != frf.H.shape:
+            raise ShapeError(f"FRF.metadata['H_variance'] has shape {np.shape(var)}; expected {frf.H.shape} "
+                             "(n_out, n_in, n_freq) like H. Store one variance per FRF line (or drop the key)")
         f = frf if band_hz is None else frf.band(*band_hz)
+        if var is not None and f is not frf:                   # band() copies the metadata unsliced
+            f.metadata["H_variance"] = np.asarray(var)[..., np.isin(frf.freq_hz, f.freq_hz)]
         good = (f.freq_hz > 0) & np.all(np.isfinite(f.H), axis=(0, 1))
         if not good.all():
             coh = None if f.coherence is None else f.coherence[..., good]
             f = f._replace(freq_hz=f.freq_hz[good], H=f.H[..., good], coherence=coh)
+            if var is not None:
+                f.metadata["H_variance"] = np.asarray(f.metadata["H_variance"])[..., good]
         return f
 
     # ------------------------------------------------------------------ fit
@@ -665,7 +681,7 @@ class PolyMAX:
         from .stabilisation import StabilisationCriteria, stabilise
         from .selection import SelectionOptions, select_poles
         from .indicators import mpc
-        from .lsfd import lsfd, modes_from_poles, refine_poles
+        from .lsfd import lsfd, modes_from_poles, pole_uncertainty, refine_poles
         from .stabilisation import pole_freq_damping
 
         self._check_params(frf)
@@ -739,12 +755,23 @@ class PolyMAX:
                 lam_sel = lam_sel[ok]
                 self.refined_poles_ = lam_sel
         extra = {"cluster_size": self.selected_.cluster_size, "order": self.selected_.order}
+        std_source = None
+        if self.uncertainty:
+            if self.refine:
+                unc = pole_uncertainty(data, lam_sel, self.selected_.participation, window_beta=beta)
+                std_source = unc["source"]
+            else:
+                unc = {k: np.full(lam_sel.size, np.nan) for k in ("freq_std_hz", "damping_std", "chi2_ratio")}
+                std_source = "not computed (refine=False)"
+            extra.update({k: unc[k] for k in ("freq_std_hz", "damping_std", "chi2_ratio")})
         self.modes_, self.lsfd_ = modes_from_poles(
             data, lam_sel, self.selected_.participation, lower_residual=self.lower_residual,
             upper_residual=self.upper_residual, window_beta=beta, extra_indicators=extra)
         self.modes_.metadata.update({"method": "pLSCF (PolyMAX-style) + LSFD", "max_order": p,
                                      "band_hz": list(band), "exp_window_beta": beta,
                                      "weighting": self.weighting or "none"})
+        if std_source is not None:
+            self.modes_.metadata["pole_std_source"] = std_source
         log.info("PolyMAX: %d outputs x %d references x %d lines, orders %d..%d, %d modes",
                  n_out, n_in, nf, orders[0], orders[-1], self.modes_.n_modes)
         return self
