@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from modalab.dof import locate
 from modalab.errors import ModalabValueError, fmt_error
 from modalab.frf import FRF
 from modalab.modes import ModeSet
@@ -46,6 +47,11 @@ class IdentificationReport:
     figures : name -> saved file.
     settings : the parameters used.
     elapsed_s : wall time of the identification.
+    modes : per-mode summary of the identified (window-corrected) modes: ``freq_hz``, ``damping``
+        and, with ``uncertainty=True``, their first-order standard deviations ``freq_std_hz``,
+        ``damping_std``, the chi-square ratio ``chi2_ratio`` of the local fit and ``std_source``
+        (the FRF noise model: 'H_variance', 'coherence' or 'residual'; see
+        :func:`~identification.lsfd.pole_uncertainty`).  NaN is written as null.
     """
 
     diagram: StabilisationDiagram
@@ -57,6 +63,7 @@ class IdentificationReport:
     figures: dict = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
     elapsed_s: float = 0.0
+    modes: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         """JSON-ready summary (the diagram is summarised per order, not pole by pole)."""
@@ -75,6 +82,7 @@ class IdentificationReport:
                     "correlation": np.round(self.frf_correlation, 6).tolist(),
                     "synthesis_error": np.round(self.synthesis_error, 6).tolist(),
                     "mean_correlation": float(np.nanmean(self.frf_correlation))},
+            "modes": self.modes,
             "figures": {k: str(v) for k, v in self.figures.items()},
         }
 
@@ -87,7 +95,7 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
              plots_dir=None, weighting=None, criteria: StabilisationCriteria | None = None,
              selection: SelectionOptions | None = None, min_order: int = 1, order_step: int = 1,
              lower_residual: bool = True, upper_residual: bool = True, window_correction: bool = True,
-             refine: bool = True):
+             refine: bool = True, uncertainty: bool = True):
     """Identify modes from FRFs with poly-reference pLSCF, stabilisation, pole selection and LSFD.
 
     Parameters
@@ -110,6 +118,12 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
     lower_residual, upper_residual : residual terms of LSFD.
     window_correction : subtract ``frf.metadata['exp_window_beta']`` from the decay rates.
     refine : refine the selected poles by local variable-projection least squares (default True).
+    uncertainty : first-order standard deviations of the refined frequencies and damping ratios
+        (default True; about one Jacobian per mode, a few % of the fit): from
+        ``frf.metadata['H_variance']`` (variance across averages, shape of H), else from coherence
+        and ``metadata['n_averages']``, else from the residual of the local fit
+        (:func:`~identification.lsfd.pole_uncertainty`; first order, noise uncorrelated across
+        lines, references and outputs).
 
     Returns
     -------
@@ -117,7 +131,9 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
         Natural frequencies (Hz, undamped), damping ratios, complex shapes on the
         response DOFs (unit modal mass when a driving point exists, else unit
         maximum), participation on the references (``A_r = φ_r L_rᵀ``) and per-mode
-        indicators MPC, MPD, MCF, MOV, contribution, cluster_size, order.
+        indicators MPC, MPD, MCF, MOV, contribution, cluster_size, order and, with
+        ``uncertainty``, freq_std_hz, damping_std, chi2_ratio (noise model in
+        ``metadata['pole_std_source']``).
     report : IdentificationReport
 
     Example
@@ -130,11 +146,16 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
                                           "Read one with FRF.from_uff(path)"))
     t0 = time.perf_counter()
     data = frf if references is None else frf.select(references=references)
+    var = frf.metadata.get("H_variance")
+    if references is not None and var is not None and np.shape(var) == frf.H.shape:
+        # select() copies the metadata as is: keep the variances of the chosen references
+        jj, _ = locate(frf.references, references, "reference DOF")
+        data.metadata["H_variance"] = np.asarray(var)[:, list(jj), :]
     n_order = default_max_order(data.n_in) if max_order is None else max_order
     pm = PolyMAX(max_order=n_order, min_order=min_order, order_step=order_step, weighting=weighting,
                  band_hz=band_hz, criteria=criteria, select=select, selection=selection,
                  lower_residual=lower_residual, upper_residual=upper_residual,
-                 window_correction=window_correction, refine=refine).fit(data)
+                 window_correction=window_correction, refine=refine, uncertainty=uncertainty).fit(data)
     modes: ModeSet = pm.modes_
     synth = pm.lsfd_.synthesise(pm.frf_)
     report = IdentificationReport(
@@ -142,6 +163,7 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
         frf_correlation=pm.lsfd_.metadata["frf_correlation"], synthesis_error=pm.lsfd_.metadata["synthesis_error"],
         settings={"band_hz": [float(pm.frf_.freq_hz[0]), float(pm.frf_.freq_hz[-1])], "max_order": int(n_order),
                   "min_order": int(min_order), "order_step": int(order_step), "weighting": weighting or "none", "refine": bool(refine),
+                  "uncertainty": bool(uncertainty),
                   "select": (str(select) if isinstance(select, (str, os.PathLike))
                              else [float(x) for x in np.atleast_1d(select)]),
                   "references": [str(r) for r in pm.frf_.references], "n_responses": pm.frf_.n_out,
@@ -160,6 +182,13 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
         plot_synthesis(pm.frf_, synth, path=report.figures["synthesis"])
         report.figures["automac"] = out / "automac.png"
         plot_automac(modes, path=report.figures["automac"])
+    def _list(v):
+        return [None if not np.isfinite(x) else float(x) for x in np.asarray(v, float)]
+
+    report.modes = {"freq_hz": _list(modes.freq_hz), "damping": _list(modes.damping)}
+    if uncertainty:
+        report.modes.update({k: _list(modes.indicators[k]) for k in ("freq_std_hz", "damping_std", "chi2_ratio")})
+        report.modes["std_source"] = modes.metadata.get("pole_std_source")
     report.elapsed_s = time.perf_counter() - t0
     log.info("identified %d modes in %.2f s (mean FRF correlation %.4f)", modes.n_modes, report.elapsed_s,
              float(np.nanmean(report.frf_correlation)) if report.frf_correlation.size else float("nan"))
