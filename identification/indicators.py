@@ -16,6 +16,11 @@ the pole by ``dλ = −λ² R_oo dm``; a physically consistent response lowers t
 frequency (``Im dλ < 0``).  MOV is the |R_oo|-weighted fraction of responses
 that do; defined only for scaled modes.
 
+Pole uncertainty (``freq_std_hz``, ``damping_std``, ``chi2_ratio`` in ``ModeSet.indicators``):
+first-order standard deviations of the refined natural frequency (Hz) and damping ratio and the
+chi-square ratio of the local fit (about 1 when the FRF noise model fits the scatter), computed
+by :func:`identification.lsfd.pole_uncertainty` from the variance of the FRF lines.
+
 FRF correlation: ``|H_sᴴH_m|² / (H_sᴴH_s · H_mᴴH_m)`` per FRF (FRAC) and the
 relative synthesis error ``‖H_s − H_m‖ / ‖H_m‖``.
 """
