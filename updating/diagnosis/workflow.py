@@ -309,7 +309,8 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
              kinds=None, max_findings: int = 3, min_gain: float = 0.05, min_holdout_gain: float = 0.10,
              penalty: float = 10.0,
              band_hz=None, progress=None, max_nfev: int = 30, n_try: int = 5,
-             min_term_gain: float = 0.15, test_modes: ModeSet | None = None, criterion: str = "auto") -> Diagnosis:
+             min_term_gain: float = 0.15, test_modes: ModeSet | None = None, criterion: str = "auto",
+             min_extra_gain: float = 0.25) -> Diagnosis:
     """Locate what an FE model leaves out, name it, model it and prove it on held-out data (module docstring)."""
     t0 = time.perf_counter()
     timings = {}
@@ -478,7 +479,10 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
         if best is None or not (best[1] < rss_cur and n_eq * np.log(rss_cur / max(best[1], 1e-300))
                                 > penalty * np.log(n_eq)):
             break
-        if not use_mci and np.sqrt(best[1]) > np.sqrt(rss_cur) * (1 - min_gain):
+        # a further term must do more: model-form error (a finer truth mesh, per-element scatter) is what a
+        # small second term would otherwise absorb
+        if not use_mci and np.sqrt(best[1]) > np.sqrt(rss_cur) * (1 - (min_gain if not current else
+                                                                       max(min_gain, min_extra_gain))):
             break
         c, rss_cur, pm_cur, p_cur, lo_cur, hi_cur = best
         current.append(c)
