@@ -456,7 +456,7 @@ def frf_noise_variance(frf: FRF):
             idx = tuple(int(k) for k in np.argwhere(bad)[0])
             raise ModalabValueError(
                 f"FRF.metadata['H_variance'] holds {int(bad.sum())} negative or non-finite value(s), the first "
-                f"{v[idx]!r} at (response, reference, line) {idx}; expected variances >= 0. "
+                f"{float(v[idx])!r} at (response, reference, line) {idx}; expected variances >= 0. "
                 "Store E|H_k - mean H|^2 over the averages")
         return v, "H_variance"
     if frf.coherence is not None:
