@@ -18,7 +18,7 @@ from updating.fe import LumpedMass, Spring
 from updating.models.garteur import garteur_model
 
 
-def _case(effect, seed=7, n_lines=600):
+def _case(effect, seed=7, n_lines=600, replace=None):
     nominal = garteur_model(suspension=True)
     truth = garteur_model(suspension=True)
     rng = np.random.default_rng(seed)
@@ -37,6 +37,7 @@ def _case(effect, seed=7, n_lines=600):
     for r in refs:
         if r not in resp:
             resp[-1 - refs.index(r)] = r
+    resp = [(replace or {}).get(r, r) for r in resp]
     f = np.linspace(1.0, 100.0, n_lines)
     H = truth.frf(f, resp, refs, quantity="receptance")
     noise = (rng.standard_normal(H.H.shape) + 1j * rng.standard_normal(H.H.shape)) / np.sqrt(2)
@@ -69,3 +70,28 @@ def test_parameter_error_only_gives_no_finding_on_the_large_model():
     d = diagnose(nominal, meas)
     assert d.findings == [], d.statement
     assert d.fit["parameters_only"]["frf_error_held_out"] < 0.03          # the baseline itself fits
+
+
+def test_a_sensor_on_a_rigid_link_node_is_used_and_the_mass_there_found():
+    # 304 (drum centre) is the dependent node of a rigid link in the nominal model: the diagnosis reverses
+    # the link so that the measured node has DOFs of its own
+    nominal, meas = _case(lambda t: t.add_element(LumpedMass(99001, 304, mass=0.8)),
+                          replace={"217+Z": "304+Z", "217+Y": "304+Y"})
+    assert "304+Z" not in {str(d) for d in nominal.structure().dofs}
+    assert not any(r.node == 217 for r in meas.responses)          # the link's other end is not measured
+    d = diagnose(nominal, meas)
+    assert [f.candidate.physics for f in d.findings] == ["added_mass"], d.statement
+    assert d.findings[0].candidate.nodes[0] in (304, 217)
+    assert d.findings[0].value == pytest.approx(0.8, rel=0.3)
+
+
+def test_a_sensor_on_both_ends_of_a_rigid_link_is_left_out_with_a_warning(caplog):
+    from updating.diagnosis.workflow import _on_model_dofs, promote_measured
+    nominal = garteur_model(suspension=True)
+    f = np.linspace(5.0, 50.0, 20)
+    H = nominal.frf(f, ["304+Z", "217+Z", "110+Z"], ["110+Z"], quantity="receptance")
+    meas = FRF(freq_hz=f, H=H.H, responses=H.responses, references=H.references, quantity="receptance")
+    model = promote_measured(nominal, list(meas.responses) + list(meas.references))
+    kept = _on_model_dofs(model, meas)
+    assert [str(r) for r in kept.responses] == ["217+Z", "110+Z"]
+    assert "304+Z" in caplog.text

@@ -39,7 +39,8 @@ from modalab.modes import ModeSet
 from ..fe import FEModel, ParametricFEModel
 from .fit import FitResult, FRFData
 from .library import build_library
-from .workflow import Diagnosis, Finding, _augment, _bounds, _upper, default_parameters, statement
+from .workflow import (Diagnosis, Finding, _augment, _bounds, _upper, default_parameters, promote_measured,
+                       statement)
 
 log = logging.getLogger(__name__)
 __all__ = ["diagnose_modes", "modes_data", "fit_modes", "mode_errors"]
@@ -256,6 +257,13 @@ def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
     say = progress or (lambda msg: log.info(msg))
     if test_modes.n_modes < 2:
         raise ModalabValueError(f"{test_modes.n_modes} test mode(s); a modes-only diagnosis needs at least 2")
+    # measured nodes that a rigid link eliminates: reverse the link, or leave the DOF out (with a warning)
+    model = promote_measured(model, list(test_modes.dofs))
+    have = {(d.node, d.axis) for d in model.structure().dofs}
+    dropped = [str(d) for d in test_modes.dofs if (d.node, d.axis) not in have]
+    if dropped:
+        log.warning("test-mode DOF(s) %s are eliminated in the model and left out", ", ".join(dropped))
+        test_modes = test_modes.select_dofs([str(d) for d in test_modes.dofs if (d.node, d.axis) in have])
     params = list(parameters) if parameters is not None else default_parameters(model)
     pm = ParametricFEModel(model, params)
     p_nom = np.array(pm.p0, float)

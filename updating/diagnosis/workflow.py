@@ -197,6 +197,54 @@ def _fit_continued(pm, train, p_start, damp_mask, lo, hi, max_nfev, *, levels=(0
     return cont if cont.error < direct.error else direct
 
 
+def promote_measured(model: FEModel, dofs) -> FEModel:
+    """The model with every measured DOF independent: a one-to-one rigid link (RBE2, all six components)
+    whose dependent node is measured and whose independent node is not is reversed — the same constraint,
+    written the other way round, so the measured node keeps its own DOFs.  Returns ``model`` itself when
+    nothing needs changing; measured DOFs that stay eliminated are reported by the caller's DOF lookup."""
+    from modalab.dof import parse_dofs
+    measured = {d.node for d in parse_dofs(list(dofs))}
+    st_dofs = {(d.node, d.axis) for d in model.structure().dofs}
+    out = model
+    for link in list(model.rbe2s.values()):
+        if len(link.dependents) != 1 or set(link.components) != {1, 2, 3, 4, 5, 6}:
+            continue
+        dep = link.dependents[0]
+        if dep in measured and link.independent not in measured and \
+                not any((dep, a) in st_dofs for a in range(1, 7)):
+            if out is model:
+                out = model.copy()
+            del out.rbe2s[link.eid]
+            out.add_rbe2(link.eid, dep, (link.independent,), "123456")
+            log.info("rigid link %d reversed: measured node %d made independent (node %d follows it)",
+                     link.eid, dep, link.independent)
+    if out is not model:
+        out._changed()
+    return out
+
+
+def _on_model_dofs(model: FEModel, measured: FRF) -> FRF:
+    """``measured`` without the response rows whose DOF the model eliminates (both ends of a rigid link
+    measured, a constrained component measured), with a warning naming them; a reference the model
+    eliminates is an error that says what to do."""
+    have = {(d.node, d.axis) for d in model.structure().dofs}
+    refs_out = [str(r) for r in measured.references if (r.node, r.axis) not in have]
+    if refs_out:
+        raise ModalabValueError(f"reference DOF(s) {', '.join(refs_out)} are not independent DOFs of the model "
+                                "(constrained, or the dependent end of a rigid link whose other end is measured "
+                                "too); remove those columns or model the link with stiff springs")
+    keep = [str(d) for d in measured.responses if (d.node, d.axis) in have]
+    dropped = [str(d) for d in measured.responses if (d.node, d.axis) not in have]
+    if dropped:
+        log.warning("measured DOF(s) %s are eliminated in the model (constrained or rigidly linked to another "
+                    "measured node) and are left out of the diagnosis", ", ".join(dropped))
+        if len(keep) < 2:
+            raise ModalabValueError(f"only {len(keep)} measured response DOF(s) are independent DOFs of the model "
+                                    f"(left out: {', '.join(dropped)}); check the node numbering")
+        return measured.select(responses=keep)
+    return measured
+
+
 def _dof_stiffness(structure, c) -> float:
     """The diagonal stiffness at a candidate's DOF (at its first node, or its partner across a rigid link;
     else the median over DOFs of the same kind, translational or rotational)."""
@@ -315,6 +363,8 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
     t0 = time.perf_counter()
     timings = {}
     say = progress or (lambda msg: log.info(msg))
+    model = promote_measured(model, list(measured.responses) + list(measured.references))
+    measured = _on_model_dofs(model, measured)
     params = list(parameters) if parameters is not None else default_parameters(model)
     damp, dstart = _with_damping(model, params)
     params = params + damp
