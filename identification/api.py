@@ -162,8 +162,8 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
         diagram=pm.stabilisation_, selected=pm.selected_, lsfd=pm.lsfd_, synthesis=synth,
         frf_correlation=pm.lsfd_.metadata["frf_correlation"], synthesis_error=pm.lsfd_.metadata["synthesis_error"],
         settings={"band_hz": [float(pm.frf_.freq_hz[0]), float(pm.frf_.freq_hz[-1])], "max_order": int(n_order),
-                  "min_order": int(min_order), "order_step": int(order_step), "weighting": weighting or "none", "refine": bool(refine),
-                  "uncertainty": bool(uncertainty),
+                  "min_order": int(min_order), "order_step": int(order_step), "weighting": weighting or "none",
+                  "refine": bool(refine), "uncertainty": bool(uncertainty),
                   "select": (str(select) if isinstance(select, (str, os.PathLike))
                              else [float(x) for x in np.atleast_1d(select)]),
                   "references": [str(r) for r in pm.frf_.references], "n_responses": pm.frf_.n_out,
