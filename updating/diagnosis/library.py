@@ -96,6 +96,14 @@ def _element_K(model: FEModel, red, el):
     return sp.csr_matrix(red.T.T @ K @ red.T)
 
 
+def _nodes_of(el) -> tuple:
+    """The element's grid ids (``nodes`` of the element API; empty for scalar elements to ground)."""
+    try:
+        return tuple(n for n in el.nodes if n is not None)
+    except (NotImplementedError, AttributeError, TypeError):
+        return ()
+
+
 def _next_id(model: FEModel) -> int:
     ids = list(model.elements) + list(model.rbe2s)
     return (max(ids) if ids else 0) + 1
@@ -214,13 +222,15 @@ def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, g
 
     # ---------------------------------------------------------------- local damping on element groups
     if "local_damping" in kinds:
-        beams = [e for e in model.elements.values() if hasattr(e, "pid") and hasattr(e, "n1")]
+        # structural elements with a property (beams, rods, shells): single elements and runs sharing a node
+        beams = [e for e in model.elements.values() if getattr(e, "pid", None) is not None
+                 and len(_nodes_of(e)) >= 2 and hasattr(model.properties.get(e.pid), "mid")]
         groups = [(e.eid,) for e in beams]
         if group_size > 1:
             by_node: dict[int, list] = {}
             for e in beams:
-                by_node.setdefault(e.n1, []).append(e.eid)
-                by_node.setdefault(e.n2, []).append(e.eid)
+                for n in _nodes_of(e):
+                    by_node.setdefault(n, []).append(e.eid)
             for n, eids in sorted(by_node.items()):
                 if len(eids) >= 2:
                     groups.append(tuple(sorted(eids))[:group_size + 1])
@@ -230,10 +240,10 @@ def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, g
                 continue
             seen.add(g)
             els = [model.elements[i] for i in g]
-            if nodes is not None and not any(e.n1 in nodes or e.n2 in nodes for e in els):
+            if nodes is not None and not any(n in nodes for e in els for n in _nodes_of(e)):
                 continue
             G = sum((_element_K(model, red, e) for e in els), sp.csr_matrix((red.n_dof, red.n_dof)))
-            enodes = tuple(sorted({e.n1 for e in els} | {e.n2 for e in els}))
+            enodes = tuple(sorted({n for e in els for n in _nodes_of(e)}))
 
             def add_group_damping(m, eid, g=g):
                 m = m.copy()

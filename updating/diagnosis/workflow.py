@@ -245,6 +245,13 @@ def _on_model_dofs(model: FEModel, measured: FRF) -> FRF:
     return measured
 
 
+def _element_nodes(el) -> tuple:
+    try:
+        return tuple(n for n in el.nodes if n is not None)
+    except (NotImplementedError, AttributeError, TypeError):
+        return ()
+
+
 def _dof_stiffness(structure, c) -> float:
     """The diagonal stiffness at a candidate's DOF (at its first node, or its partner across a rigid link;
     else the median over DOFs of the same kind, translational or rotational)."""
@@ -461,8 +468,8 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
                     listed.add(c.key)
         near = set(hot) | {n for c, _, _ in rk[:1] for n in c.nodes}
         # joints near the located nodes (within one element) and every support release (they are few)
-        near |= {b for e in pm_cur.model_at(p_cur).elements.values() if hasattr(e, "n1") and hasattr(e, "n2")
-                 for a, b in ((e.n1, e.n2), (e.n2, e.n1)) if a in near}
+        near |= {b for e in pm_cur.model_at(p_cur).elements.values()
+                 for b in _element_nodes(e) if near & set(_element_nodes(e))}
         options += [(c, None) for c in lib if not c.shared and c.physics == "joint_flexibility"
                     and near & set(c.nodes) and c.key not in have][:n_try]
         options += [(c, None) for c in lib if c.physics == "boundary_flexibility" and c.key not in have]
