@@ -52,7 +52,8 @@ much slower than one thread: set ``OPENBLAS_NUM_THREADS=1`` (or the equivalent) 
 """
 from .api import IdentificationReport, default_max_order, identify
 from .indicators import auto_mac, frf_correlation, mcf, mov, mpc, mpd, synthesis_error
-from .lsfd import LSFDResult, driving_points, lsfd, modes_from_poles, refine_poles
+from .lsfd import (LSFDResult, driving_points, frf_noise_variance, lsfd, modes_from_poles, pole_uncertainty,
+                   refine_poles, window_corrected_covariance)
 from .plots import plot_automac, plot_stabilisation, plot_synthesis
 from .polymax import PolyMAX, frequency_weights, poles_at_order, reduced_normal_matrix
 from .selection import (SelectedPoles, SelectionOptions, auto_select, load_selection_file, select_frequencies,
@@ -66,6 +67,7 @@ __all__ = [
     "StabilisationCriteria", "StabilisationDiagram", "stabilise", "mac_vectors", "pole_freq_damping",
     "SelectionOptions", "SelectedPoles", "select_poles", "auto_select", "select_frequencies", "load_selection_file",
     "LSFDResult", "lsfd", "refine_poles", "driving_points", "modes_from_poles",
+    "pole_uncertainty", "frf_noise_variance", "window_corrected_covariance",
     "mpc", "mpd", "mcf", "mov", "frf_correlation", "synthesis_error", "auto_mac",
     "plot_stabilisation", "plot_synthesis", "plot_automac", "modal_system", "noisy_frf",
 ]

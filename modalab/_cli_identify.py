@@ -34,10 +34,16 @@ def cmd_identify(a):
     if len(inputs) == 1:
         modes, report = _one(inputs[0], a.output, a.json, a.plots, band, a.max_order, a.references, a.select,
                              a.weighting)
-        _print(f"{'mode':>4} {'f [Hz]':>10} {'zeta [%]':>9} {'MPC':>6}")
-        mpc = modes.indicators.get("MPC", [float("nan")] * modes.n_modes)
+        nan = [float("nan")] * modes.n_modes
+        mpc = modes.indicators.get("MPC", nan)
+        fs, zs = modes.indicators.get("freq_std_hz", nan), modes.indicators.get("damping_std", nan)
+        _print(f"{'mode':>4} {'f [Hz]':>10} {'± [Hz]':>8} {'zeta [%]':>9} {'± [%]':>7} {'MPC':>6}")
         for k, (f, z) in enumerate(zip(modes.freq_hz, modes.damping)):
-            _print(f"{k + 1:>4} {f:>10.3f} {100 * z:>9.3f} {float(mpc[k]):>6.3f}")
+            _print(f"{k + 1:>4} {f:>10.3f} {float(fs[k]):>8.3f} {100 * z:>9.3f} {100 * float(zs[k]):>7.3f} "
+                   f"{float(mpc[k]):>6.3f}")
+        src = modes.metadata.get("pole_std_source")
+        if src:
+            _print(f"(± one standard deviation, first order, noise from {src})")
         _print(f"wrote {modes.n_modes} modes to {a.output}" + (f" and {a.json}" if a.json else ""))
         return 0
     # a campaign: one output folder per input, in parallel

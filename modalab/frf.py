@@ -10,7 +10,9 @@ metadata that later stages read:
     ``estimator`` ('H1', 'H2', 'Hv', 'exact'), ``n_averages`` (int),
     ``force_window`` (dict), ``exp_window_beta`` (added decay rate β in 1/s of
     the exponential window; identification subtracts it: σ_true = σ_meas − β),
-    ``source`` (free text).
+    ``H_variance`` (array of H's shape: the complex variance E|Ĥ − H|² per line,
+    e.g. across averages; :meth:`FRF.select` and :meth:`FRF.band` slice it with the
+    data), ``source`` (free text).
 """
 from __future__ import annotations
 
@@ -158,7 +160,19 @@ class FRF:
         coh = None if self.coherence is None else self.coherence[np.ix_(ii, jj)]
         rl = list(self.responses) if responses is None else parse_dofs(responses)
         rf = list(self.references) if references is None else parse_dofs(references)
-        return self._replace(H=H, coherence=coh, responses=rl, references=rf)
+        out = self._replace(H=H, coherence=coh, responses=rl, references=rf)
+        var = self._variance()
+        if var is not None:
+            out.metadata["H_variance"] = var[np.ix_(ii, jj)]
+        return out
+
+    def _variance(self):
+        """``metadata['H_variance']`` when it has H's shape (else None: left as it is)."""
+        v = self.metadata.get("H_variance")
+        if v is None:
+            return None
+        v = np.asarray(v)
+        return v if v.shape == self.H.shape else None
 
     def band(self, lo_hz: float | None = None, hi_hz: float | None = None) -> "FRF":
         """Lines with ``lo_hz <= f <= hi_hz``."""
@@ -171,7 +185,11 @@ class FRF:
             raise ModalabValueError(f"no frequency lines in {lo_hz}..{hi_hz} Hz; the data spans "
                                     f"{self.freq_hz[0]:.4g}..{self.freq_hz[-1]:.4g} Hz")
         coh = None if self.coherence is None else self.coherence[..., m]
-        return self._replace(freq_hz=self.freq_hz[m], H=self.H[..., m], coherence=coh)
+        out = self._replace(freq_hz=self.freq_hz[m], H=self.H[..., m], coherence=coh)
+        var = self._variance()
+        if var is not None:
+            out.metadata["H_variance"] = var[..., m]
+        return out
 
     def transpose(self) -> "FRF":
         """Swap responses and references: H_ij -> H_ji (Maxwell reciprocity)."""

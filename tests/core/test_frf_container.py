@@ -90,3 +90,20 @@ class TestQuantity:
         f = FRF(freq_hz=[0.0, 1.0], H=np.ones((1, 1, 2)), responses=["1+Z"], references=["1+Z"])
         r = f.to("receptance")
         assert np.isnan(r.H[0, 0, 0]) and np.isfinite(r.H[0, 0, 1])
+
+
+def test_select_and_band_slice_the_variance_with_the_data():
+    f = np.linspace(1.0, 10.0, 10)
+    H = np.arange(2 * 3 * 10, dtype=float).reshape(2, 3, 10) + 1j
+    var = np.abs(H) * 1e-3
+    frf = FRF(freq_hz=f, H=H, responses=["1+Z", "2+Z"], references=["1+Z", "3+Z", "4+Z"],
+              metadata={"H_variance": var})
+    sub = frf.select(responses=["2-Z"], references=["4+Z", "1+Z"]).band(3.0, 6.0)
+    m = (f >= 3.0) & (f <= 6.0)
+    assert sub.metadata["H_variance"].shape == sub.H.shape
+    np.testing.assert_array_equal(sub.metadata["H_variance"], var[1][[2, 0]][None][..., m])   # a variance keeps its sign
+    np.testing.assert_array_equal(sub.H, -H[1][[2, 0]][None][..., m])
+    # a variance of another shape is left as it was (not silently cut)
+    odd = FRF(freq_hz=f, H=H, responses=["1+Z", "2+Z"], references=["1+Z", "3+Z", "4+Z"],
+              metadata={"H_variance": np.ones(3)})
+    assert odd.band(3.0, 6.0).metadata["H_variance"].shape == (3,)
