@@ -23,6 +23,9 @@ Building a model (Python code or the Nastran bulk-data reader)
 ``m.add_element(Timoshenko3D(eid, n1, n2, pid, orientation))``                  CBEAM-like, shear + rotary inertia
 ``m.add_element(Beam2D(eid, n1, n2, pid, plane="xy"|"xz", axial=False))``       planar beam (w, θ)
 ``m.add_element(Rod(eid, n1, n2, pid))``                                         CROD
+``m.add_property(ShellProperty(pid, mid, t, nsm=0.0, name="", ge=None))``          PSHELL (MID2 = MID3 = MID1)
+``m.add_element(Quad4(eid, n1, n2, n3, n4, pid))``                                CQUAD4 (MITC4 flat shell)
+``m.add_element(Tria3(eid, n1, n2, n3, pid))``                                    CTRIA3 (DKT flat shell)
 ``m.add_element(Spring(eid, a=(node, comp), b=(node, comp) or None, k, ge=0.0, group=""))``   CELAS1/2
 ``m.add_element(Damper(eid, a=(node, comp), b=(node, comp) or None, c, group=""))``           CDAMP1/2
 ``m.add_element(LumpedMass(eid, node, mass, inertia=3×3 tensor|3 values, offset=(dx,dy,dz), axes=None, group=""))``
@@ -66,18 +69,19 @@ plus ``model_at(p)`` and ``system(p)``.
 from .assembly import Matrices, assemble
 from .constraints import RBE2, SPC, Reduction, build_reduction
 from .damping import ModalDampingTable, modal_damping_matrix, rayleigh, rayleigh_coefficients
-from .elements import (Beam2D, Beam3D, Damper, Element, ElementMatrices, LumpedMass, Rod, Spring,
-                       Timoshenko3D)
+from .elements import (Beam2D, Beam3D, Damper, Element, ElementMatrices, LumpedMass, Quad4, Rod, Spring,
+                       Timoshenko3D, Tria3)
 from .model import FEModel, FESystem, Node
 from .parameters import Parameter, ParametricFEModel
 from .properties import (BeamProperty, CircularSection, GeneralSection, Material, RectangularSection,
-                         RodProperty, TubeSection)
+                         RodProperty, ShellProperty, TubeSection)
 from .solvers import eigen_dense, eigen_sparse, frf_direct, frf_modal, modes_of, normal_modes
 
 __all__ = [
     "FEModel", "FESystem", "Node", "Matrices", "assemble", "RBE2", "SPC", "Reduction", "build_reduction",
     "Material", "GeneralSection", "RectangularSection", "TubeSection", "CircularSection", "BeamProperty",
-    "RodProperty", "Element", "ElementMatrices", "Beam3D", "Timoshenko3D", "Beam2D", "Rod", "Spring", "Damper",
+    "RodProperty", "ShellProperty", "Quad4", "Tria3",
+    "Element", "ElementMatrices", "Beam3D", "Timoshenko3D", "Beam2D", "Rod", "Spring", "Damper",
     "LumpedMass", "eigen_dense", "eigen_sparse", "normal_modes", "modes_of", "frf_direct", "frf_modal",
     "ModalDampingTable", "rayleigh", "rayleigh_coefficients", "modal_damping_matrix", "Parameter",
     "ParametricFEModel",

@@ -10,7 +10,8 @@ selector                        fields
                                 material is cloned for the group), ``ge``, ``nsm``, and the
                                 section's dimensions or properties: ``b``, ``h`` (rectangle,
                                 I ∝ h³), ``do``, ``di`` (tube), ``A``, ``Iy``, ``Iz``, ``J``
-                                (general section or rod)
+                                (general section or rod), ``t`` (shell thickness: membrane ∝ t,
+                                bending ∝ t³, mass ∝ t, rotary inertia ∝ t³)
 ``elements=(eid, ...)``,        ``k``, ``ge`` (springs), ``c`` (dampers), ``mass``,
 ``groups=(label, ...)``         ``inertia`` (lumped masses; factor mode only)
 (no selector)                   ``global_ge`` (PARAM G), ``rayleigh_alpha``, ``rayleigh_beta``
@@ -57,7 +58,7 @@ from .elements.damper import Damper
 from .elements.mass import LumpedMass
 from .elements.spring import Spring
 from .model import FEModel, FESystem
-from .properties import BeamProperty, RodProperty
+from .properties import BeamProperty, RodProperty, ShellProperty
 
 log = logging.getLogger(__name__)
 
@@ -127,10 +128,13 @@ def _targets(model: FEModel, par: Parameter):
                 ok = ok or _section_has(prop.section, f)
             elif isinstance(prop, RodProperty):
                 ok = ok or f in ("A", "J")
+            elif isinstance(prop, ShellProperty):
+                ok = ok or f == "t"
             if not ok:
                 sec = type(getattr(prop, "section", prop)).__name__
                 raise ModalabValueError(f"parameter {par.name!r}: property {pid} ({sec}) has no field {f!r}; use a "
-                                        f"material field {MATERIAL_FIELDS}, 'nsm', or a dimension of its section")
+                                        f"material field {MATERIAL_FIELDS}, 'nsm', a dimension of its section, "
+                                        "or 't' for a shell")
             if f in ("inertia", "k", "c", "mass"):
                 raise ModalabValueError(f"parameter {par.name!r}: {f!r} is an element field; select elements=")
         return [("property", p) for p in pids], model.elements_with_property(pids)
@@ -175,6 +179,8 @@ def _get(model, kind, key, field):
         return prop.nsm
     if isinstance(prop, RodProperty) and field in ("A", "J"):
         return getattr(prop, field)
+    if isinstance(prop, ShellProperty) and field == "t":
+        return prop.t
     if isinstance(prop, BeamProperty) and _section_has(prop.section, field):
         return getattr(prop.section, field)
     return mat.shear_modulus if field == "G" else getattr(mat, field)
@@ -195,7 +201,8 @@ def _set(model, kind, key, field, value, fresh_mid):
         model.elements[key] = dataclasses.replace(model.elements[key], **{field: value})
         return
     prop = model.properties[key]
-    if field in ("ge", "nsm") or (isinstance(prop, RodProperty) and field in ("A", "J")):
+    if field in ("ge", "nsm") or (isinstance(prop, RodProperty) and field in ("A", "J")) or \
+            (isinstance(prop, ShellProperty) and field == "t"):
         model.properties[key] = dataclasses.replace(prop, **{field: value})
     elif isinstance(prop, BeamProperty) and field not in MATERIAL_FIELDS:
         sec = prop.section

@@ -20,7 +20,7 @@ import numpy as np
 from modalab.errors import ModalabValueError
 
 __all__ = ["Material", "GeneralSection", "RectangularSection", "TubeSection", "CircularSection",
-           "BeamProperty", "RodProperty", "SECTION_FIELDS"]
+           "BeamProperty", "RodProperty", "ShellProperty", "SECTION_FIELDS"]
 
 
 def _re(x) -> float:
@@ -206,3 +206,35 @@ class RodProperty:
     nsm: float = 0.0
     name: str = ""
     ge: float | None = None
+
+
+@dataclass(frozen=True)
+class ShellProperty:
+    """Shell property (Nastran PSHELL) of :class:`~updating.fe.elements.shell.Quad4` / ``Tria3``.
+
+    pid : property id.  mid : material id (MID1; the bending material MID2 and
+    the transverse-shear material MID3 are taken equal to MID1, i.e. a
+    homogeneous isotropic plate — the bulk reader rejects a PSHELL whose MID2 or
+    MID3 differ).  t : thickness (m); bending stiffness ∝ t³, so a thickness
+    parameter is non-linear (exact complex-step derivatives).  nsm :
+    non-structural mass per area (kg/m²).  name : group name for parameters.
+    ge : structural damping of this group; None uses the material's ``ge``.
+    bending : 12I/T³ (bending inertia ratio, Nastran default 1.0).
+    shear : TS/T (transverse-shear thickness ratio, Nastran default 0.833333).
+    """
+
+    pid: int
+    mid: int
+    t: float
+    nsm: float = 0.0
+    name: str = ""
+    ge: float | None = None
+    bending: float = 1.0
+    shear: float = 0.833333
+
+    def __post_init__(self):
+        if not _re(self.t) > 0:
+            raise ModalabValueError(f"shell property {self.pid}: thickness t = {self.t!r}; expected t > 0 (m)")
+        if not (_re(self.bending) > 0 and _re(self.shear) > 0):
+            raise ModalabValueError(f"shell property {self.pid}: 12I/T^3 = {self.bending!r}, TS/T = {self.shear!r};"
+                                    " expected both > 0")

@@ -8,6 +8,8 @@
 :class:`Spring`     scalar spring between two node components or to ground (CELAS)
 :class:`Damper`     scalar viscous damper (CDAMP)
 :class:`LumpedMass` point mass with rotary inertia and offset (CONM2)
+:class:`Quad4`      4-node flat shell, MITC4 bending + incompatible-mode membrane (CQUAD4/PSHELL)
+:class:`Tria3`      3-node flat shell, DKT bending + CST membrane (CTRIA3/PSHELL)
 =================  ==============================================================
 """
 from .base import AssemblyContext, Element, ElementMatrices
@@ -16,8 +18,9 @@ from .beam3d import Beam3D
 from .damper import Damper
 from .mass import LumpedMass
 from .rod import Rod
+from .shell import Quad4, Tria3
 from .spring import Spring
 from .timoshenko3d import Timoshenko3D
 
 __all__ = ["Element", "ElementMatrices", "AssemblyContext", "Beam3D", "Timoshenko3D", "Beam2D", "Rod",
-           "Spring", "Damper", "LumpedMass"]
+           "Spring", "Damper", "LumpedMass", "Quad4", "Tria3"]

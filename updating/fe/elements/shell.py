@@ -1,0 +1,378 @@
+"""Flat shell elements (Nastran CQUAD4 / CTRIA3 with PSHELL): :class:`Quad4` and :class:`Tria3`.
+
+Both are *flat* facet shells with 6 DOFs per node (basic system): a membrane
+part (u, v), a plate-bending part (w, θx, θy) and a small drilling stiffness
+on θz, uncoupled in the element frame (isotropic material, no offset), then
+rotated to the basic system.
+
+Element frame (documented convention).  Local z is the unit normal: for the
+quadrilateral the direction of (G3 − G1) × (G4 − G2) (the diagonals, as
+Nastran), for the triangle (G2 − G1) × (G3 − G1).  Local x is the G1→G2 edge
+projected on the element plane (Nastran's reference direction for THETA = 0),
+y = z × x.  Nastran's CQUAD4 *element* system bisects the diagonals instead;
+with an isotropic material and THETA = 0 the stiffness and mass do not depend
+on the in-plane direction of x, so both conventions give the same matrices in
+basic.  The nodes of a (slightly) warped quadrilateral are projected on the
+mean plane through their centroid; the warp ratio ``max|h| / √A`` (h: node
+distance to the mean plane, A: area) must not exceed :attr:`Quad4.warp_tol`.
+
+Quad4 (4 nodes, 2×2 Gauss):
+
+* membrane: bilinear displacements plus Wilson's incompatible modes
+  (1 − ξ², 1 − η²) with the Taylor–Beresford–Wilson modification (derivatives
+  of the incompatible modes from the centre Jacobian, scaled by det J₀/det J)
+  so that the element passes the constant-strain patch test on distorted
+  meshes (Taylor, Beresford & Wilson, IJNME 10, 1976); the internal modes are
+  condensed statically;
+* bending: Mindlin–Reissner plate with the MITC4 transverse-shear
+  interpolation (covariant shear strains tied at the mid-edges A, B, C, D:
+  Bathe & Dvorkin, IJNME 21, 1985, "A four-node plate bending element based
+  on Mindlin/Reissner plate theory and a mixed interpolation") — no shear
+  locking in the thin limit; shear correction TS/T (default 5/6).
+
+Tria3 (3 nodes):
+
+* membrane: constant-strain triangle (CST);
+* bending: the discrete Kirchhoff triangle DKT (Batoz, Bathe & Ho, IJNME 15,
+  1980, "A study of three-node triangular plate bending elements", explicit
+  form of H_x, H_y and of B, eqs. (40)–(44) of that paper); a Kirchhoff element,
+  no transverse shear and hence no shear locking.
+
+Drilling (both): a penalty ``α G t ∫ (θz − ω)² dA`` with ω = ½(∂v/∂x − ∂u/∂y)
+the in-plane rotation of the membrane field (Hughes & Brezzi, CMAME 72,
+1989), α = :attr:`drill` = 10⁻³; it vanishes for rigid motions (six exact
+rigid-body modes) and stops the in-plane rotation from being singular.
+
+Mass (``ctx.coupled_mass`` True): consistent with the bilinear / linear
+interpolation of u, v, w (ρt + nsm per area) and of the rotations, with rotary
+inertia ρt³/12 on θx, θy and θz (the DKT's translational mass uses the linear
+interpolation, as is common for DKT facets).  Lumped: a quarter / third of
+the mass and of the rotary inertia at each node.
+
+Stiffness constants (PSHELL with MID1 = MID2 = MID3): membrane E t/(1−ν²),
+bending ``bending · E t³/(12(1−ν²))`` with ``bending`` = 12I/T³ (default 1),
+transverse shear ``shear · G t`` with ``shear`` = TS/T (default 5/6).  Every
+value may be complex (complex-step derivatives, :mod:`updating.fe.parameters`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from modalab.errors import ModalabValueError
+
+from .base import Element, ElementMatrices, six_dofs
+from ..properties import ShellProperty
+
+__all__ = ["Quad4", "Tria3"]
+
+_g = 1.0 / np.sqrt(3.0)
+_GAUSS2 = ((-_g, -_g), (_g, -_g), (_g, _g), (-_g, _g))
+_XI = np.array([-1.0, 1.0, 1.0, -1.0])
+_ETA = np.array([-1.0, -1.0, 1.0, 1.0])
+
+
+def _q4(xi, eta):
+    """Bilinear shape functions and their (ξ, η) derivatives (2×4)."""
+    N = 0.25 * (1 + _XI * xi) * (1 + _ETA * eta)
+    dN = np.array([0.25 * _XI * (1 + _ETA * eta), 0.25 * _ETA * (1 + _XI * xi)])
+    return N, dN
+
+
+def _constants(el, ctx):
+    prop = ctx.prop(el.pid)
+    if not isinstance(prop, ShellProperty):
+        raise ModalabValueError(f"element {el.eid} ({type(el).__name__}) refers to property {el.pid}, a "
+                                f"{type(prop).__name__}; a shell element needs a ShellProperty (PSHELL)")
+    mat = ctx.material(prop.mid)
+    t = prop.t
+    if not np.real(t) > 0:
+        raise ModalabValueError(f"element {el.eid} ({type(el).__name__}): property {prop.pid} has thickness "
+                                f"t = {t!r}; expected t > 0 m")
+    E, nu, G = mat.E, mat.nu, mat.shear_modulus
+    if nu is None:
+        nu = E / (2.0 * G) - 1.0
+    c = 1.0 / (1.0 - nu * nu)
+    iso = np.array([[1.0, nu, 0.0], [nu, 1.0, 0.0], [0.0, 0.0, (1.0 - nu) / 2.0]], dtype=np.result_type(nu, float))
+    Dm = E * t * c * iso
+    Db = prop.bending * E * t ** 3 / 12.0 * c * iso
+    Gs = prop.shear * G * t
+    rho_a = mat.rho * t + prop.nsm          # mass per area
+    rot = mat.rho * t ** 3 / 12.0           # rotary inertia per area
+    ge = prop.ge if prop.ge is not None else mat.ge
+    return Dm, Db, Gs, G * t, rho_a, rot, ge
+
+
+def _frame(el, X):
+    """(λ rows = local axes in basic, local 2-D node coordinates (n×2), area, warp ratio)."""
+    X = np.asarray(X, float)
+    c = X.mean(axis=0)
+    if len(X) == 4:
+        n = np.cross(X[2] - X[0], X[3] - X[1])
+    else:
+        n = np.cross(X[1] - X[0], X[2] - X[0])
+    nn = np.linalg.norm(n)
+    scale = max(np.abs(X - c).max(), 1e-300)
+    if nn <= 1e-12 * scale * scale:
+        raise ModalabValueError(f"element {el.eid} ({type(el).__name__}) on nodes {el.nodes} has zero area "
+                                "(coincident or collinear nodes); check the node coordinates and order")
+    ez = n / nn
+    d = X[1] - X[0]
+    d = d - (d @ ez) * ez
+    ex = d / np.linalg.norm(d)
+    ey = np.cross(ez, ex)
+    lam = np.array([ex, ey, ez])
+    loc = (X - c) @ lam.T
+    xy = loc[:, :2]
+    if len(X) == 4:
+        area = 0.5 * nn
+        warp = float(np.abs(loc[:, 2]).max() / np.sqrt(area))
+    else:
+        area = 0.5 * nn
+        warp = 0.0
+    return lam, xy, area, warp
+
+
+def _to_basic(Kl, lam, n_nodes):
+    T = np.kron(np.eye(2 * n_nodes), lam)
+    return T.T @ Kl @ T
+
+
+def _scatter(n_nodes):
+    """Index arrays of the local 6-per-node DOFs: membrane (u, v), bending (w, θx, θy), drilling θz."""
+    mem = [6 * i + k for i in range(n_nodes) for k in (0, 1)]
+    ben = [6 * i + k for i in range(n_nodes) for k in (2, 3, 4)]
+    drl = [6 * i + 5 for i in range(n_nodes)]
+    return mem, ben, drl
+
+
+class _Shell(Element):
+    frame = "basic"
+    #: drilling penalty factor α (K_drill = α G t ∫ (θz − ω)² dA)
+    drill = 1e-3
+
+    def dofs(self) -> list:
+        return six_dofs(self.nodes)
+
+    def matrices(self, ctx) -> ElementMatrices:
+        X = [ctx.xyz(n) for n in self.nodes]
+        lam, xy, area, warp = _frame(self, X)
+        consts = _constants(self, ctx)
+        Kl, Ml = self._local(xy, area, consts, ctx.coupled_mass)
+        n = len(self.nodes)
+        return ElementMatrices(self.dofs(), K=_to_basic(Kl, lam, n), M=_to_basic(Ml, lam, n), ge=consts[-1])
+
+
+@dataclass
+class Quad4(_Shell):
+    """Four-node flat shell (CQUAD4): MITC4 bending, incompatible-mode membrane, drilling penalty.
+
+    eid : element id.  n1..n4 : corner nodes in order around the element.
+    pid : id of a :class:`~updating.fe.properties.ShellProperty`.  group : label for parameters.
+    See the module docstring for the formulation and the element frame.
+    """
+
+    eid: int
+    n1: int
+    n2: int
+    n3: int
+    n4: int
+    pid: int
+    group: str = ""
+
+    #: largest accepted warp ratio max|h|/√A (h: node distance to the mean plane)
+    warp_tol = 0.05
+
+    @property
+    def nodes(self) -> tuple:
+        return (self.n1, self.n2, self.n3, self.n4)
+
+    def matrices(self, ctx) -> ElementMatrices:
+        if len(set(self.nodes)) != 4:
+            raise ModalabValueError(f"element {self.eid} (Quad4) has repeated nodes {self.nodes}; a quadrilateral "
+                                    "needs four different nodes (use a Tria3 for a triangle)")
+        X = [ctx.xyz(n) for n in self.nodes]
+        lam, xy, area, warp = _frame(self, X)
+        if warp > self.warp_tol:
+            raise ModalabValueError(f"element {self.eid} (Quad4) on nodes {self.nodes} is warped: ratio "
+                                    f"max|h|/sqrt(A) = {warp:.4g} > {self.warp_tol}; split it into two Tria3 "
+                                    "or make the four nodes coplanar")
+        consts = _constants(self, ctx)
+        Kl, Ml = self._local(xy, area, consts, ctx.coupled_mass)
+        return ElementMatrices(self.dofs(), K=_to_basic(Kl, lam, 4), M=_to_basic(Ml, lam, 4), ge=consts[-1])
+
+    def _local(self, xy, area, consts, coupled):
+        Dm, Db, Gs, Gt, rho_a, rot, _ = consts
+        dt = np.result_type(Dm, Db, Gs, rho_a, rot, float)
+        # Jacobian at the centre (incompatible modes, Taylor's modification)
+        _, dN0 = _q4(0.0, 0.0)
+        J0 = dN0 @ xy
+        detJ0 = np.linalg.det(J0)
+        J0inv = np.linalg.inv(J0)
+        for (xi, eta) in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+            _, dN = _q4(xi, eta)
+            if np.linalg.det(dN @ xy) <= 1e-10 * abs(detJ0):
+                raise ModalabValueError(f"element {self.eid} (Quad4) on nodes {self.nodes} is not convex or its "
+                                        f"nodes are not ordered around it (Jacobian <= 0 at corner ({xi}, {eta})); "
+                                        "reorder the nodes or split it into two Tria3")
+        Kmm = np.zeros((8, 8), dt)
+        Kma = np.zeros((8, 4), dt)
+        Kaa = np.zeros((4, 4), dt)
+        Kb = np.zeros((12, 12), dt)
+        Ks = np.zeros((12, 12), dt)
+        Kd = np.zeros((12, 12), dt)       # (u, v, θz) per node
+        NN = np.zeros((4, 4))
+
+        # MITC4 tying points: γ_ξ at A (0, 1), C (0, −1); γ_η at B (−1, 0), D (1, 0)
+        def cov(xi, eta):
+            N, dN = _q4(xi, eta)
+            J = dN @ xy
+            rx = np.zeros(12)
+            re = np.zeros(12)
+            rx[0::3], rx[1::3], rx[2::3] = dN[0], -N * J[0, 1], N * J[0, 0]
+            re[0::3], re[1::3], re[2::3] = dN[1], -N * J[1, 1], N * J[1, 0]
+            return rx, re
+
+        gA, _ = cov(0.0, 1.0)
+        gC, _ = cov(0.0, -1.0)
+        _, gB = cov(-1.0, 0.0)
+        _, gD = cov(1.0, 0.0)
+        for xi, eta in _GAUSS2:
+            N, dN = _q4(xi, eta)
+            J = dN @ xy
+            detJ = np.linalg.det(J)
+            dNx = np.linalg.solve(J, dN)          # rows: ∂N/∂x, ∂N/∂y
+            Bm = np.zeros((3, 8))
+            Bm[0, 0::2] = dNx[0]
+            Bm[1, 1::2] = dNx[1]
+            Bm[2, 0::2] = dNx[1]
+            Bm[2, 1::2] = dNx[0]
+            dP = (detJ0 / detJ) * (J0inv @ np.array([[-2.0 * xi, 0.0], [0.0, -2.0 * eta]]))
+            Ba = np.zeros((3, 4))             # (a1u, a2u, a1v, a2v)
+            Ba[0, 0:2] = dP[0]
+            Ba[1, 2:4] = dP[1]
+            Ba[2, 0:2] = dP[1]
+            Ba[2, 2:4] = dP[0]
+            Kmm += Bm.T @ Dm @ Bm * detJ
+            Kma += Bm.T @ Dm @ Ba * detJ
+            Kaa += Ba.T @ Dm @ Ba * detJ
+            Bb = np.zeros((3, 12))            # (w, θx, θy) per node
+            Bb[0, 2::3] = dNx[0]
+            Bb[1, 1::3] = -dNx[1]
+            Bb[2, 1::3] = -dNx[0]
+            Bb[2, 2::3] = dNx[1]
+            Kb += Bb.T @ Db @ Bb * detJ
+            g_xi = 0.5 * (1 + eta) * gA + 0.5 * (1 - eta) * gC
+            g_eta = 0.5 * (1 + xi) * gD + 0.5 * (1 - xi) * gB
+            Bs = np.linalg.solve(J, np.array([g_xi, g_eta]))
+            Ks += Gs * (Bs.T @ Bs) * detJ
+            bd = np.zeros(12)                 # θz − ½(v,x − u,y)
+            bd[0::3] = 0.5 * dNx[1]
+            bd[1::3] = -0.5 * dNx[0]
+            bd[2::3] = N
+            Kd += np.outer(bd, bd) * detJ
+            NN += np.outer(N, N) * detJ
+        Km = Kmm - Kma @ np.linalg.solve(Kaa, Kma.T)
+        return _assemble_local(4, Km, Kb + Ks, self.drill * Gt * Kd, NN, area, rho_a, rot, coupled, dt)
+
+
+def _assemble_local(n, Km, Kb, Kd, NN, area, rho_a, rot, coupled, dt):
+    mem, ben, _ = _scatter(n)
+    K = np.zeros((6 * n, 6 * n), dt)
+    K[np.ix_(mem, mem)] += Km
+    K[np.ix_(ben, ben)] += Kb
+    uvr = [6 * i + k for i in range(n) for k in (0, 1, 5)]
+    K[np.ix_(uvr, uvr)] += Kd
+    M = np.zeros((6 * n, 6 * n), dt)
+    if not coupled:
+        NN = np.diag(np.full(n, area / n))
+    for k in range(6):
+        idx = [6 * i + k for i in range(n)]
+        M[np.ix_(idx, idx)] += (rho_a if k < 3 else rot) * NN
+    return K, M
+
+
+# ------------------------------------------------------------------ DKT
+def _dkt_B(xy, xi, eta):
+    """DKT curvature matrix B (3×9) at area coordinates (ξ = L2, η = L3); DOFs (w, θx, θy) per node.
+
+    Batoz, Bathe & Ho (1980): β_x = H_xᵀ U, β_y = H_yᵀ U with θx = ∂w/∂y, θy = −∂w/∂x.
+    """
+    x, y = xy[:, 0], xy[:, 1]
+    x23, x31, x12 = x[1] - x[2], x[2] - x[0], x[0] - x[1]
+    y23, y31, y12 = y[1] - y[2], y[2] - y[0], y[0] - y[1]
+    L = {4: (x23, y23), 5: (x31, y31), 6: (x12, y12)}
+    P, q, r, t = {}, {}, {}, {}
+    for k, (a, b) in L.items():
+        l2 = a * a + b * b
+        P[k], q[k], r[k], t[k] = -6 * a / l2, 3 * a * b / l2, 3 * b * b / l2, -6 * b / l2
+    P4, P5, P6 = P[4], P[5], P[6]
+    q4, q5, q6 = q[4], q[5], q[6]
+    r4, r5, r6 = r[4], r[5], r[6]
+    t4, t5, t6 = t[4], t[5], t[6]
+    a, e = 1 - 2 * xi, 1 - 2 * eta
+    Hx_xi = np.array([P6 * a + (P5 - P6) * eta, q6 * a - (q5 + q6) * eta,
+                      -4 + 6 * (xi + eta) + r6 * a - eta * (r5 + r6),
+                      -P6 * a + eta * (P4 + P6), q6 * a - eta * (q6 - q4), -2 + 6 * xi + r6 * a + eta * (r4 - r6),
+                      -eta * (P5 + P4), eta * (q4 - q5), -eta * (r5 - r4)])
+    Hy_xi = np.array([t6 * a + eta * (t5 - t6), 1 + r6 * a - eta * (r5 + r6), -q6 * a + eta * (q5 + q6),
+                      -t6 * a + eta * (t4 + t6), -1 + r6 * a + eta * (r4 - r6), -q6 * a - eta * (q4 - q6),
+                      -eta * (t4 + t5), eta * (r4 - r5), -eta * (q4 - q5)])
+    Hx_eta = np.array([-P5 * e - xi * (P6 - P5), q5 * e - xi * (q5 + q6),
+                       -4 + 6 * (xi + eta) + r5 * e - xi * (r5 + r6),
+                       xi * (P4 + P6), xi * (q4 - q6), -xi * (r6 - r4),
+                       P5 * e - xi * (P4 + P5), q5 * e + xi * (q4 - q5), -2 + 6 * eta + r5 * e + xi * (r4 - r5)])
+    Hy_eta = np.array([-t5 * e - xi * (t6 - t5), 1 + r5 * e - xi * (r5 + r6), -q5 * e + xi * (q5 + q6),
+                       xi * (t4 + t6), xi * (r4 - r6), -xi * (q4 - q6),
+                       t5 * e - xi * (t4 + t5), -1 + r5 * e + xi * (r4 - r5), -q5 * e - xi * (q4 - q5)])
+    twoA = x31 * y12 - x12 * y31
+    return np.array([y31 * Hx_xi + y12 * Hx_eta,
+                     -x31 * Hy_xi - x12 * Hy_eta,
+                     -x31 * Hx_xi - x12 * Hx_eta + y31 * Hy_xi + y12 * Hy_eta]) / twoA
+
+
+@dataclass
+class Tria3(_Shell):
+    """Three-node flat shell (CTRIA3): CST membrane, DKT bending (Batoz et al. 1980), drilling penalty.
+
+    eid : element id.  n1, n2, n3 : corner nodes.  pid : id of a
+    :class:`~updating.fe.properties.ShellProperty`.  group : label for parameters.
+    """
+
+    eid: int
+    n1: int
+    n2: int
+    n3: int
+    pid: int
+    group: str = ""
+
+    @property
+    def nodes(self) -> tuple:
+        return (self.n1, self.n2, self.n3)
+
+    def _local(self, xy, area, consts, coupled):
+        Dm, Db, Gs, Gt, rho_a, rot, _ = consts
+        dt = np.result_type(Dm, Db, rho_a, rot, float)
+        x, y = xy[:, 0], xy[:, 1]
+        b = np.array([y[1] - y[2], y[2] - y[0], y[0] - y[1]]) / (2 * area)    # ∂L_i/∂x
+        c = np.array([x[2] - x[1], x[0] - x[2], x[1] - x[0]]) / (2 * area)    # ∂L_i/∂y
+        Bm = np.zeros((3, 6))
+        Bm[0, 0::2] = b
+        Bm[1, 1::2] = c
+        Bm[2, 0::2] = c
+        Bm[2, 1::2] = b
+        Km = Bm.T @ Dm @ Bm * area
+        Kb = np.zeros((9, 9), dt)
+        Kd = np.zeros((9, 9))
+        for xi, eta in ((0.5, 0.0), (0.5, 0.5), (0.0, 0.5)):
+            B = _dkt_B(xy, xi, eta)
+            Kb += B.T @ Db @ B * (area / 3.0)
+            Lq = np.array([1 - xi - eta, xi, eta])
+            bd = np.zeros(9)
+            bd[0::3] = 0.5 * c
+            bd[1::3] = -0.5 * b
+            bd[2::3] = Lq
+            Kd += np.outer(bd, bd) * (area / 3.0)
+        NN = area / 12.0 * (np.ones((3, 3)) + np.eye(3))
+        return _assemble_local(3, Km, Kb, self.drill * Gt * Kd, NN, area, rho_a, rot, coupled, dt)
