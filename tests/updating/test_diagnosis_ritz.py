@@ -135,3 +135,23 @@ def test_added_mass_candidates_are_bounded_by_a_plausible_size():
     masses = [c for c in lib if c.value_name == "m"]
     assert masses and all(c.upper == pytest.approx(0.5 * total) for c in masses)
     assert 30.0 < total < 60.0                              # the GARTEUR test bed is about 44 kg
+
+
+def test_ritz_basis_of_a_larger_model_uses_lanczos_and_stays_accurate():
+    from updating.diagnosis import ritz
+    m = garteur_model(16, suspension=True)
+    m.global_ge = 0.02
+    m._changed()
+    st_ = m.structure()
+    assert st_.n_dof > ritz.SPARSE_MODES_ABOVE
+    rows = _rows(st_, 20, seed=4)
+    refs = rows[:2]
+    s = 2j * np.pi * np.linspace(1.0, 100.0, 60)
+    rb = RitzBasis(st_, np.r_[rows, refs], 100.0)
+    w = np.sqrt(np.linalg.eigvalsh(rb.V.T @ (st_.K @ rb.V)).clip(0)) / (2 * np.pi)
+    assert rb.n_modes >= 12 and np.sort(w)[rb.n_modes - 1] > 100.0       # modes reach past the band
+    H, _ = rb.responses(st_, s, rows, refs)
+    X = solve_columns(st_.K, st_.M, st_.C, st_.D, s, refs)[rows]
+    scale = np.sqrt(np.mean(np.abs(X) ** 2, axis=(0, 2), keepdims=True))
+    err = np.abs(H - X) / (np.abs(X) + 0.01 * scale)
+    assert np.median(err) < 1e-4 and err.max() < 2e-2

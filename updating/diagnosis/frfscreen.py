@@ -209,7 +209,9 @@ def frf_screen(structure, candidates, data: FRFData, *, loss_factor: float = 0.0
                 t, err = t[o], err[o]
                 keep = np.r_[True, np.diff(t) > 1e-9 * t[1:]]                  # drop repeated values
                 t, err = t[keep], err[keep]
-            if Hll.shape[0] == 1:          # cheap: polish the best value by Brent's method in log θ
+            if Hll.shape[0] == 1 and len(work) > 400 and err.min() > 0.9 * e0:
+                pass                       # many candidates and this one barely helps: no polishing
+            elif Hll.shape[0] == 1:          # cheap: polish the best value by Brent's method in log θ
                 from scipy.optimize import minimize_scalar
                 k = int(np.argmin(err))
                 a, b = np.log(t[max(k - 1, 0)]), np.log(t[min(k + 1, t.size - 1)])

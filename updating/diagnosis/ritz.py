@@ -40,6 +40,29 @@ def _project(V, A):
     return None if A is None else V.T @ (A @ V)
 
 
+#: above this many DOFs the modes come from shift-invert Lanczos instead of a dense eigensolution
+SPARSE_MODES_ABOVE = 600
+
+
+def _lowest_modes(K, M, structure, omega_cut, min_modes, max_modes):
+    """Normal modes up to ``omega_cut`` (at least ``min_modes``, at most ``max_modes``): dense for small
+    models, shift-invert Lanczos (``eigsh``, a small negative shift so that rigid-body modes are found)
+    with a growing count for large ones."""
+    n = K.shape[0]
+    if n <= SPARSE_MODES_ABOVE:
+        return structure.normal_modes(min(n, max(max_modes, min_modes)))
+    scale = max(float(abs(K.diagonal()).max()) / max(float(abs(M.diagonal()).max()), 1e-300), 1.0)
+    sigma = -1e-6 * scale
+    k = min(max(min_modes, 24), n - 2)
+    while True:
+        w2, phi = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM")
+        o = np.argsort(w2)
+        w2, phi = np.clip(w2[o], 0, None), phi[:, o]
+        if np.sqrt(w2[-1]) > omega_cut or k >= min(max_modes, n - 2):
+            return np.sqrt(w2), phi
+        k = min(2 * k, max_modes, n - 2)
+
+
 class RitzBasis:
     """A Ritz basis for the receptance at DOF indices ``cols`` of a structure, band top ``f_max_hz``.
 
@@ -53,12 +76,13 @@ class RitzBasis:
 
     def __init__(self, structure, cols, f_max_hz: float, *, mode_factor: float = 3.0, min_modes: int = 12,
                  max_modes: int = 200):
+        # (modes: dense up to SPARSE_MODES_ABOVE DOFs, shift-invert Lanczos above)
         K, M = sp.csc_matrix(structure.K), sp.csc_matrix(structure.M)
         n = K.shape[0]
         cols = np.unique(np.asarray(cols, int))
         if not f_max_hz > 0:
             raise ModalabValueError(f"f_max_hz={f_max_hz!r}: the band top must be positive")
-        omega, phi = structure.normal_modes(min(n, max(max_modes, min_modes)))
+        omega, phi = _lowest_modes(K, M, structure, 2 * np.pi * mode_factor * f_max_hz, min_modes, max_modes)
         keep = omega <= 2 * np.pi * mode_factor * f_max_hz
         keep[: min(min_modes, omega.size)] = True
         phi = phi[:, keep]
