@@ -130,16 +130,16 @@ class TestDeckStructure:
 
 class TestUnsupported:
     def test_one_warning_with_counts(self):
-        deck = ("GRID    1\nGRID    2\nGRID    3\nCQUAD4  1       1       1       2       3       1\n"
-                "CQUAD4  2       1       1       2       3       1\nPSHELL  1       1       .01\nFORCE   1\n")
+        deck = ("GRID    1\nGRID    2\nGRID    3\nCQUAD8  1       1       1       2       3       1\n"
+                "CQUAD8  2       1       1       2       3       1\nPSOLID  1       1\nFORCE   1\n")
         with warnings.catch_warnings(record=True) as rec:
             warnings.simplefilter("always")
             b = read_bdf(deck)
         ours = [w for w in rec if issubclass(w.category, UnsupportedCardWarning)]
         assert len(ours) == 1
         msg = str(ours[0].message)
-        assert "CQUAD4 (2)" in msg and "PSHELL (1)" in msg and "FORCE (1)" in msg
-        assert [r.name for r in b.unsupported] == ["CQUAD4", "CQUAD4", "PSHELL", "FORCE"]
+        assert "CQUAD8 (2)" in msg and "PSOLID (1)" in msg and "FORCE (1)" in msg
+        assert [r.name for r in b.unsupported] == ["CQUAD8", "CQUAD8", "PSOLID", "FORCE"]
 
 
 def _err(deck, *patterns):

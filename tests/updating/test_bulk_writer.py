@@ -28,11 +28,11 @@ def test_round_trip_identity(deck, fmt):
 
 
 def test_unsupported_cards_are_written_back(recwarn):
-    deck = "GRID    1\nGRID    2\nGRID    3\nCTRIA3  5       1       1       2       3       .5\nPSHELL  1       1       .01\n"
+    deck = "GRID    1\nGRID    2\nGRID    3\nCTRIA6  5       1       1       2       3       .5\nPSOLID  1       1\n"
     a = read_bdf(deck)
     for fmt in FORMATS:
         b = read_bdf(write_bdf(a, format=fmt))
-        assert b == a and [r.name for r in b.unsupported] == ["CTRIA3", "PSHELL"]
+        assert b == a and [r.name for r in b.unsupported] == ["CTRIA6", "PSOLID"]
 
 
 def test_exact_promotes_to_large_field(tmp_path):

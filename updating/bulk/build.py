@@ -19,6 +19,11 @@ CBAR                :class:`~updating.fe.Beam3D` (:class:`~updating.fe.Timoshenk
                     their grid ('.G.') or basic ('.B.')
 CBEAM               :class:`~updating.fe.Timoshenko3D`
 CROD / CONROD       :class:`~updating.fe.Rod` (PROD; CONROD gets a private property ``-EID``)
+PSHELL              :class:`~updating.fe.ShellProperty` (t, NSM per area, 12I/T³, TS/T); MID2 and
+                    MID3 must equal MID1 (MID3 blank: the MID1 shear modulus is used, the thin-
+                    plate limit of Nastran's blank MID3 is matched by the locking-free elements)
+CQUAD4 / CTRIA3     :class:`~updating.fe.Quad4` (MITC4) / :class:`~updating.fe.Tria3` (DKT); THETA/MCID
+                    must be 0 or blank, ZOFFS 0, corner thicknesses T1.. blank
 CELAS1/2, PELAS     :class:`~updating.fe.Spring` with GE (group ``"PELAS <pid>"`` for CELAS1)
 CDAMP1/2, PDAMP     :class:`~updating.fe.Damper` (group ``"PDAMP <pid>"`` for CDAMP1)
 CONM2               :class:`~updating.fe.LumpedMass` (offset, inertia tensor with Nastran's
@@ -34,7 +39,9 @@ TABDMP1             :class:`~updating.fe.ModalDampingTable` (chosen by ``SDAMPIN
 ==================  =================================================================
 
 Not supported (a :class:`~modalab.errors.BulkDataError` names the card): pin
-flags, offsets in the element system (OFFT 'O'), I12 ≠ 0, tapered PBEAM/PBEAML, PBEAM NSI/CW/M/N terms,
+flags, shell offsets (ZOFFS), material orientation (THETA/MCID ≠ 0), corner thicknesses,
+membrane-only / plane-strain / coupled PSHELL (MID2 blank or −1, MID4), offsets in the element
+system (OFFT 'O'), I12 ≠ 0, tapered PBEAM/PBEAML, PBEAM NSI/CW/M/N terms,
 scalar points, superelements.  Property and material names come from a
 preceding comment ``$ name: wing`` (also Femap's ``$ Femap Property 2 : wing``
 and Patran's ``$ ... region : wing``), so that parameters can select groups by name.
@@ -48,15 +55,15 @@ import numpy as np
 
 from modalab.errors import BulkDataError, ModalabError
 from updating.fe import (Beam3D, BeamProperty, Damper, FEModel, GeneralSection, LumpedMass, Material,
-                         ModalDampingTable, RectangularSection, Rod, RodProperty, Spring, Timoshenko3D,
-                         TubeSection)
+                         ModalDampingTable, Quad4, RectangularSection, Rod, RodProperty, ShellProperty, Spring,
+                         Timoshenko3D, Tria3, TubeSection)
 
 from . import cards as C
 from .geometry import resolve_coord
 
 log = logging.getLogger(__name__)
 
-__all__ = ["build_model", "section_of", "card_name"]
+__all__ = ["build_model", "section_of", "shell_property", "card_name"]
 
 _NAME_RE = [re.compile(r"^\$\s*name\s*[:=]\s*(.+?)\s*$", re.IGNORECASE),
             re.compile(r"^\$\s*Femap\s+(?:with NX Nastran\s+)?(?:Property|Material)\s+\d+\s*:\s*(.+?)\s*$",
@@ -117,6 +124,32 @@ def section_of(card):
         p = card.section()
         return GeneralSection(A=p["A"], Iy=p["I2"], Iz=p["I1"], J=p["J"], ky=p["k1"], kz=p["k2"])
     raise BulkDataError(f"internal: {type(card).__name__} has no section")
+
+
+def shell_property(card, wtmass: float = 1.0) -> ShellProperty:
+    """The :class:`~updating.fe.ShellProperty` of a PSHELL card (NSM scaled by WTMASS)."""
+    if card.mid1 is None or card.mid1 <= 0:
+        raise card.error(f"MID1 = {card.mid1}: a PSHELL without membrane material is not supported by "
+                         "build_model; give MID1 = MID2 = MID3")
+    if card.t is None or not card.t > 0:
+        raise card.error(f"T = {card.t}: build_model needs the thickness on the PSHELL (> 0 m); corner "
+                         "thicknesses on the elements are not supported")
+    if card.mid2 is None or card.mid2 == -1:
+        kind = "blank (membrane only)" if card.mid2 is None else "-1 (plane strain)"
+        raise card.error(f"MID2 {kind} is not supported by build_model; give MID2 = MID1 = {card.mid1} for a "
+                         "plate with bending stiffness")
+    for what, m in (("MID2", card.mid2), ("MID3", card.mid3)):
+        if m is not None and m != card.mid1:
+            raise card.error(f"{what} = {m} differs from MID1 = {card.mid1}: build_model supports homogeneous "
+                             f"isotropic shells only; give {what} = {card.mid1} (or a blank MID3)")
+    if card.mid4 is not None and card.mid4 != 0:
+        raise card.error(f"MID4 = {card.mid4} (membrane-bending coupling) is not supported by build_model; "
+                         "leave MID4 blank")
+    if card.mid3 is None:
+        log.info("PSHELL %d: MID3 blank (thin-plate theory in Nastran); the MITC4/DKT elements use the MID1 "
+                 "shear modulus with TS/T = %g, which has the same thin-plate limit", card.pid, card.shear)
+    return ShellProperty(card.pid, card.mid1, t=card.t, nsm=card.nsm * wtmass, name=card_name(card),
+                         bending=card.bending, shear=card.shear)
 
 
 def _pick_set(what, chosen, available, card_kind):
@@ -216,6 +249,9 @@ def _build(bulk, spc_id, sdamping, name) -> FEModel:
         if isinstance(pc, C.Prod):
             m.add_property(RodProperty(pid, pc.mid, A=pc.A, J=pc.J, nsm=pc.nsm * wt, name=card_name(pc)))
             continue
+        if isinstance(pc, C.Pshell):
+            m.add_property(shell_property(pc, wt))
+            continue
         nsm = pc.nsm if not isinstance(pc, C.Pbeam) else pc.stations[0][7]
         m.add_property(BeamProperty(pid, pc.mid, section_of(pc), nsm=nsm * wt, name=card_name(pc)))
 
@@ -251,6 +287,12 @@ def _build(bulk, spc_id, sdamping, name) -> FEModel:
                 cls = Timoshenko3D if shear else Beam3D
             m.add_element(cls(eid, e.ga, e.gb, e.pid, orientation=orient,
                               offset_a=None if wa is None else tuple(wa), offset_b=None if wb is None else tuple(wb)))
+        elif isinstance(e, C.Cquad4):       # and CTRIA3
+            bad = e.unsupported_fields()
+            if bad:
+                raise e.error("not supported by build_model: " + "; ".join(bad))
+            cls = Tria3 if isinstance(e, C.Ctria3) else Quad4
+            m.add_element(cls(eid, *e.g, e.pid))
         elif isinstance(e, C.Crod):
             m.add_element(Rod(eid, e.ga, e.gb, e.pid))
         elif isinstance(e, C.Conrod):

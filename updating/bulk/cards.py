@@ -6,9 +6,12 @@ by ``from_raw`` (checking types, defaults and card length) and written back by
 location (``line``, ``path``) and preceding ``$`` comments travel with each
 card but do not take part in equality, so read → write → read compares values.
 
-Supported: GRID, CORD2R, CORD2C, CORD2S, CBAR, CBEAM, CROD, CONROD, PBAR,
-PBARL, PBEAM, PBEAML, PROD, MAT1, CONM2, CELAS1, CELAS2, PELAS, CDAMP1,
-CDAMP2, PDAMP, SPC, SPC1, SPCADD, RBE2, PARAM, TABDMP1, EIGRL.
+Supported: GRID, CORD2R, CORD2C, CORD2S, CBAR, CBEAM, CROD, CONROD, CQUAD4,
+CTRIA3, PBAR, PBARL, PBEAM, PBEAML, PROD, PSHELL, MAT1, CONM2, CELAS1, CELAS2,
+PELAS, CDAMP1, CDAMP2, PDAMP, SPC, SPC1, SPCADD, RBE2, PARAM, TABDMP1, EIGRL.
+Shell cards are read and written with all their fields; what build_model does
+not model (THETA/MCID, ZOFFS, corner thicknesses, MID4, MID2 ≠ MID1 ...) is
+rejected there, naming the card.
 
 Cross-section formulas for PBARL/PBEAML (:func:`section_properties`) follow
 the MSC/NX section library conventions: element y along DIM2 of BAR (so
@@ -26,7 +29,8 @@ from modalab.errors import BulkDataError
 from .fields import REQUIRED, RawCard
 
 __all__ = [
-    "Card", "Grid", "Coord", "Cbar", "Cbeam", "Crod", "Conrod", "Pbar", "Pbarl", "Pbeam", "Pbeaml", "Prod",
+    "Card", "Grid", "Coord", "Cbar", "Cbeam", "Crod", "Conrod", "Cquad4", "Ctria3", "Pshell", "Pbar", "Pbarl",
+    "Pbeam", "Pbeaml", "Prod",
     "Mat1", "Conm2", "Celas1", "Celas2", "Pelas", "Cdamp1", "Cdamp2", "Pdamp", "Spc", "Spc1", "Spcadd",
     "Rbe2", "Param", "Tabdmp1", "Eigrl", "CARD_TYPES", "SECTION_DIMS", "section_properties", "parse_card",
 ]
@@ -283,6 +287,97 @@ class Conrod(Card):
 
     def values(self):
         return [self.eid, self.ga, self.gb, self.mid, self.A, self.J or None, self.c or None, self.nsm or None]
+
+
+def _shell_grids(r, n, cls_name):
+    g = tuple(r.integer(3 + k, f"G{k + 1}") for k in range(n))
+    for k, gk in enumerate(g):
+        if gk <= 0:
+            raise r.error(f"G{k + 1} = {gk}; expected a grid id > 0", 3 + k)
+    if len(set(g)) != n:
+        raise r.error(f"grids {g} repeat a grid; a {cls_name} needs {n} different grids", 3)
+    return g
+
+
+@dataclass
+class Cquad4(Card):
+    """CQUAD4 EID PID G1 G2 G3 G4 THETA/MCID ZOFFS / blank TFLAG T1 T2 T3 T4.
+
+    ``theta`` is THETA (real, degrees) or MCID (integer); ``t`` the corner
+    thicknesses (None when blank).
+    """
+
+    NAME = "CQUAD4"
+    KEY = "eid"
+    eid: int
+    pid: int
+    g: tuple
+    theta: float | int = 0.0
+    zoffs: float = 0.0
+    tflag: int = 0
+    t: tuple = (None, None, None, None)
+    line: int | None = _meta()
+    path: str | None = _meta()
+    comment: list | None = _meta()
+
+    N_GRID = 4
+
+    @classmethod
+    def from_raw(cls, r):
+        n = cls.N_GRID
+        i_th = 3 + n                       # THETA/MCID, then ZOFFS
+        i_tf = 10                          # TFLAG on the continuation (after one blank / two for CTRIA3)
+        r.check_length(i_tf + n)
+        eid = r.integer(1, "EID")
+        if eid <= 0:
+            raise r.error(f"element id {eid}; expected an integer > 0", 1)
+        g = _shell_grids(r, n, cls.NAME)
+        theta = r.int_or_real(i_th, "THETA/MCID", 0.0)
+        zoffs = r.real(i_th + 1, "ZOFFS", 0.0)
+        for i in range(i_th + 2, i_tf):
+            if not r.blank(i):
+                raise r.error(f"field must be blank in {cls.NAME}", i)
+        c = cls(eid, r.integer(2, "PID", eid), g, theta, zoffs, r.integer(i_tf, "TFLAG", 0),
+                tuple(r.real(i_tf + 1 + k, f"T{k + 1}", None) for k in range(n)))
+        return c._set_meta(r)
+
+    @property
+    def nodes(self):
+        return tuple(self.g)
+
+    def values(self):
+        th = None if (isinstance(self.theta, float) and self.theta == 0.0) else self.theta
+        head = [self.eid, self.pid, *self.g, th, self.zoffs or None]
+        tail = [self.tflag or None, *self.t]
+        if all(v is None for v in tail):
+            return head
+        return head + [None] * (9 - len(head)) + tail     # blanks up to TFLAG (field index 10)
+
+    def unsupported_fields(self) -> list:
+        """Descriptions of the fields build_model cannot model ([] when none)."""
+        out = []
+        if self.theta != 0:
+            kind = "MCID" if isinstance(self.theta, int) else "THETA"
+            out.append(f"{kind} = {self.theta} (material orientation; leave the field blank — the material is "
+                       "isotropic MAT1 so it has no effect on the matrices)")
+        if self.zoffs:
+            out.append(f"ZOFFS = {self.zoffs} (offset of the reference plane; model the offset with a separate "
+                       "grid plane and RBE2 links, or move the grids to the mid-surface)")
+        if any(v is not None for v in self.t) or self.tflag:
+            out.append(f"TFLAG/T1.. = {self.tflag}, {self.t} (corner thicknesses; give the thickness on the "
+                       "PSHELL and leave T1.. blank)")
+        return out
+
+
+@dataclass
+class Ctria3(Cquad4):
+    """CTRIA3 EID PID G1 G2 G3 THETA/MCID ZOFFS blank / blank TFLAG T1 T2 T3."""
+
+    NAME = "CTRIA3"
+    g: tuple = (0, 0, 0)
+    t: tuple = (None, None, None)
+
+    N_GRID = 3
 
 
 def _grid_comp(r, i, what, required):
@@ -877,6 +972,47 @@ class Prod(Card):
 
 
 @dataclass
+class Pshell(Card):
+    """PSHELL PID MID1 T MID2 12I/T3 MID3 TS/T NSM / Z1 Z2 MID4 (blank MID2/MID3/MID4 are None)."""
+
+    NAME = "PSHELL"
+    KEY = "pid"
+    pid: int
+    mid1: int | None
+    t: float | None = None
+    mid2: int | None = None
+    bending: float = 1.0
+    mid3: int | None = None
+    shear: float = 0.833333
+    nsm: float = 0.0
+    z1: float | None = None
+    z2: float | None = None
+    mid4: int | None = None
+    line: int | None = _meta()
+    path: str | None = _meta()
+    comment: list | None = _meta()
+
+    @classmethod
+    def from_raw(cls, r):
+        r.check_length(11)
+        c = cls(r.integer(1, "PID"), r.integer(2, "MID1", None), r.real(3, "T", None), r.integer(4, "MID2", None),
+                r.real(5, "12I/T**3", 1.0), r.integer(6, "MID3", None), r.real(7, "TS/T", 0.833333),
+                r.real(8, "NSM", 0.0), r.real(9, "Z1", None), r.real(10, "Z2", None), r.integer(11, "MID4", None))
+        if c.t is not None and c.t < 0:
+            raise r.error(f"T = {c.t}; expected a thickness >= 0", 3)
+        return c._set_meta(r)
+
+    @property
+    def mid(self):
+        """MID1 (the material cross-referenced by :meth:`BulkData.check`)."""
+        return self.mid1
+
+    def values(self):
+        return [self.pid, self.mid1, self.t, self.mid2, None if self.bending == 1.0 else self.bending, self.mid3,
+                None if self.shear == 0.833333 else self.shear, self.nsm or None, self.z1, self.z2, self.mid4]
+
+
+@dataclass
 class Pelas(Card):
     """One PELAS property (a card may hold two): PID K GE S."""
 
@@ -1208,6 +1344,7 @@ def _single(cls):
 CARD_TYPES = {
     "GRID": _single(Grid), "CORD2R": _single(Coord), "CORD2C": _single(Coord), "CORD2S": _single(Coord),
     "CBAR": _single(Cbar), "CBEAM": _single(Cbeam), "CROD": _single(Crod), "CONROD": _single(Conrod),
+    "CQUAD4": _single(Cquad4), "CTRIA3": _single(Ctria3), "PSHELL": _single(Pshell),
     "PBAR": _single(Pbar), "PBARL": _single(Pbarl), "PBEAM": _single(Pbeam), "PBEAML": _single(Pbeaml),
     "PROD": _single(Prod), "MAT1": _single(Mat1), "CONM2": _single(Conm2),
     "CELAS1": _single(Celas1), "CELAS2": _single(Celas2), "PELAS": Pelas.from_raw_all,

@@ -81,8 +81,8 @@ class CaseControl:
 class BulkData:
     """Typed cards of a deck, keyed by id.
 
-    grids {nid: Grid}; coords {cid: Coord}; elements {eid: CBAR/CBEAM/CROD/CONROD/CELASi/CDAMPi/CONM2};
-    rigid {eid: RBE2}; properties {pid: PBAR/PBARL/PBEAM/PBEAML/PROD/PELAS/PDAMP};
+    grids {nid: Grid}; coords {cid: Coord}; elements {eid: CBAR/CBEAM/CROD/CONROD/CQUAD4/CTRIA3/CELASi/CDAMPi/
+    CONM2}; rigid {eid: RBE2}; properties {pid: PBAR/PBARL/PBEAM/PBEAML/PROD/PSHELL/PELAS/PDAMP};
     materials {mid: MAT1}; spcs {sid: [SPC/SPC1 ...]}; spcadds {sid: SPCADD};
     params {name: PARAM}; tables {tid: TABDMP1}; eigrls {sid: EIGRL};
     unsupported [RawCard]; case_control :class:`CaseControl`; path.
@@ -113,10 +113,10 @@ class BulkData:
         elif isinstance(card, C.Rbe2):
             self._unique_eid(card)
             self.rigid[card.eid] = card
-        elif isinstance(card, (C.Cbar, C.Crod, C.Conrod, C.Celas1, C.Celas2, C.Cdamp2, C.Conm2)):
+        elif isinstance(card, (C.Cbar, C.Crod, C.Conrod, C.Cquad4, C.Celas1, C.Celas2, C.Cdamp2, C.Conm2)):
             self._unique_eid(card)
             self.elements[card.eid] = card
-        elif isinstance(card, (C.Pbar, C.Pbarl, C.Pbeam, C.Pbeaml, C.Prod, C.Pelas, C.Pdamp)):
+        elif isinstance(card, (C.Pbar, C.Pbarl, C.Pbeam, C.Pbeaml, C.Prod, C.Pshell, C.Pelas, C.Pdamp)):
             self._put(self.properties, card.pid, card, "property id")
         elif isinstance(card, C.Mat1):
             self._put(self.materials, card.mid, card, "material id")
@@ -227,6 +227,10 @@ class BulkData:
             mid = getattr(p, "mid", None)
             if mid is not None and mid not in self.materials:
                 raise p.error(f"material {mid} is not defined; add a MAT1 card with MID {mid}")
+            if isinstance(p, C.Pshell):
+                for what, m in (("MID2", p.mid2), ("MID3", p.mid3), ("MID4", p.mid4)):
+                    if m is not None and m > 0 and m not in self.materials:
+                        raise p.error(f"{what} = {m} is not defined; add a MAT1 card with MID {m}")
         beam_props = (C.Pbar, C.Pbarl)
         for e in self.elements.values():
             for n in e.nodes:
@@ -239,6 +243,8 @@ class BulkData:
                 self._need_prop(e, e.pid, ok)
             elif isinstance(e, C.Crod):
                 self._need_prop(e, e.pid, (C.Prod,))
+            elif isinstance(e, C.Cquad4):           # and CTRIA3
+                self._need_prop(e, e.pid, (C.Pshell,))
             elif isinstance(e, C.Conrod):
                 if e.mid not in self.materials:
                     raise e.error(f"material {e.mid} is not defined; add a MAT1 card with MID {e.mid}")

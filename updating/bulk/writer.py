@@ -20,7 +20,9 @@ the deck the model was built from as ``template``, every card whose model
 object is unchanged is kept as it was (ids, coordinate systems, PBARL
 dimensions, comments, unsupported cards, case control) and only what changed
 is rewritten: MAT1 values, section properties (PBARL/PBEAML dimensions for
-rectangles and tubes, PBAR/PBEAM otherwise), spring/damper/mass values (as
+rectangles and tubes, PBAR/PBEAM otherwise), PSHELL thickness and NSM (with
+MID1 = MID2 = MID3, a blank MID3 of the template kept), CQUAD4/CTRIA3 (THETA,
+ZOFFS ... of the template kept), spring/damper/mass values (as
 CELAS2/CDAMP2/CONM2), new grids (split nodes), new elements, links and SPCs.
 """
 from __future__ import annotations
@@ -32,8 +34,9 @@ from pathlib import Path
 import numpy as np
 
 from modalab.errors import BulkDataError
-from updating.fe import (Beam3D, BeamProperty, Damper, FEModel, LumpedMass, Material,
-                         RectangularSection, Rod, RodProperty, Spring, Timoshenko3D, TubeSection)
+from updating.fe import (Beam3D, BeamProperty, Damper, FEModel, LumpedMass, Material, Quad4,
+                         RectangularSection, Rod, RodProperty, ShellProperty, Spring, Timoshenko3D, Tria3,
+                         TubeSection)
 
 from . import cards as C
 from .fields import Verbatim, card_lines, fits_exactly
@@ -286,12 +289,45 @@ class _Exporter:
         card.comment = list(tp.comment or []) if tp is not None else _name_comment(prop.name)
         self.b.add(card)
 
+    def own_material(self, prop) -> int:
+        """MID written for a property: a copy of its material when the property has its own GE."""
+        mat = self.m.material(prop.mid)
+        mid = prop.mid
+        if prop.ge is not None and prop.ge != mat.ge:
+            mid = self.next_mid
+            self.next_mid += 1
+            mat = dataclasses.replace(mat, ge=prop.ge)
+            log.info("property %d has its own GE: written with a copy of material %d as MID %d",
+                     prop.pid, prop.mid, mid)
+        return self.material(mat, mid)
+
+    def shell_property(self, prop: ShellProperty):
+        mid = self.own_material(prop)
+        tp = self.t.properties.get(prop.pid)
+        t, nsm = float(np.real(prop.t)), float(np.real(prop.nsm)) / self.wt
+        bending, shear = float(np.real(prop.bending)), float(np.real(prop.shear))
+        if isinstance(tp, C.Pshell):
+            card = dataclasses.replace(tp, mid1=mid, mid2=mid, mid3=None if tp.mid3 is None else mid,
+                                       t=tp.t if _same(tp.t, t) else t, nsm=tp.nsm if _same(tp.nsm, nsm) else nsm,
+                                       bending=tp.bending if _same(tp.bending, bending) else bending,
+                                       shear=tp.shear if _same(tp.shear, shear) else shear)
+            if card == tp:
+                card = tp
+            else:
+                card.comment = list(tp.comment or [])
+        else:
+            card = C.Pshell(prop.pid, mid, t, mid, bending, mid, shear, nsm)
+            card.comment = _name_comment(prop.name)
+        self.b.add(card)
+
     def properties(self):
         timo = {e.pid for e in self.m.elements.values() if isinstance(e, Timoshenko3D)}
         for pid in sorted(self.m.properties):
             prop = self.m.properties[pid]
             if isinstance(prop, BeamProperty):
                 self.beam_property(prop, pid in timo)
+            elif isinstance(prop, ShellProperty):
+                self.shell_property(prop)
             elif isinstance(prop, RodProperty):
                 if pid < 0:
                     continue  # CONROD
@@ -337,6 +373,13 @@ class _Exporter:
                                                wa=te.wa if _same(te.wa, wa) else wa,
                                                wb=te.wb if _same(te.wb, wb) else wb)
                 self.b.add(_meta_from(card, te))
+            elif isinstance(el, (Quad4, Tria3)):
+                cls = C.Ctria3 if isinstance(el, Tria3) else C.Cquad4
+                if type(te) is cls:
+                    card = dataclasses.replace(te, pid=el.pid, g=tuple(el.nodes))
+                else:
+                    card = cls(eid, el.pid, tuple(el.nodes))
+                self.b.add(_meta_from(card, te, el.group))
             elif isinstance(el, Rod):
                 prop = self.m.prop(el.pid)
                 if el.pid < 0:
