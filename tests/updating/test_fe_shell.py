@@ -14,7 +14,7 @@ E, NU, RHO = 210e9, 0.3, 7850.0
 
 
 def plate(n=12, a=0.5, b=0.5, t=0.005, tri=False, bc="ss", coupled=True, R=None, distort=0.0, seed=0,
-          origin=(0.0, 0.0, 0.0)):
+          origin=(0.0, 0.0, 0.0), cd_rng=None):
     """n×n mesh of an a×b plate (Quad4, or each quad split into two Tria3), optionally rotated by R and
     with interior nodes moved at random by up to ``distort`` times the element size.
 
@@ -35,7 +35,10 @@ def plate(n=12, a=0.5, b=0.5, t=0.005, tri=False, bc="ss", coupled=True, R=None,
             p = np.array([a * i / n, b * j / n, 0.0])
             if distort and 0 < i < n and 0 < j < n:
                 p[:2] += rng.uniform(-distort, distort, 2) * np.array([a, b]) / n
-            m.add_node(nid(i, j), R @ p + np.asarray(origin))
+            cd = None
+            if cd_rng is not None and nid(i, j) % 3 == 0:
+                cd = sla.expm(np.cross(np.eye(3), cd_rng.normal(size=3)))     # random CD axes
+            m.add_node(nid(i, j), R @ p + np.asarray(origin), cd=cd)
     eid = 1
     for j in range(n):
         for i in range(n):
@@ -127,6 +130,13 @@ def test_cantilever_in_a_rotated_plane_gives_the_same_frequencies():
         f0 = freqs(plate(n=6, tri=tri, bc="cant"), 8)
         f1 = freqs(plate(n=6, tri=tri, bc="cant", R=R), 8)
         np.testing.assert_allclose(f1, f0, rtol=1e-9)
+
+
+def test_nodes_with_displacement_systems_give_the_same_frequencies():
+    f0 = freqs(plate(n=4, bc="cant"), 8)
+    m = plate(n=4, bc="cant", cd_rng=np.random.default_rng(1))
+    assert sum(nd.cd is not None for nd in m.nodes.values()) == 8
+    np.testing.assert_allclose(freqs(m, 8), f0, rtol=1e-9)
 
 
 # ------------------------------------------------------- (c) thin-plate limit: no shear locking
