@@ -53,6 +53,9 @@ Stiffness constants (PSHELL with MID1 = MID2 = MID3): membrane E t/(1−ν²),
 bending ``bending · E t³/(12(1−ν²))`` with ``bending`` = 12I/T³ (default 1),
 transverse shear ``shear · G t`` with ``shear`` = TS/T (default 5/6).  Every
 value may be complex (complex-step derivatives, :mod:`updating.fe.parameters`).
+
+Both classes provide the vectorised ``batch_matrices`` (all elements of a
+class in one call); ``matrices`` is the same kernel on one element.
 """
 from __future__ import annotations
 
@@ -81,6 +84,7 @@ def _q4(xi, eta):
 
 
 def _constants(el, ctx):
+    """(Dm, Db, Gs, G t, ρt + nsm, ρt³/12, ge) of the element's property and material."""
     prop = ctx.prop(el.pid)
     if not isinstance(prop, ShellProperty):
         raise ModalabValueError(f"element {el.eid} ({type(el).__name__}) refers to property {el.pid}, a "
@@ -104,64 +108,105 @@ def _constants(el, ctx):
     return Dm, Db, Gs, G * t, rho_a, rot, ge
 
 
-def _frame(el, X):
-    """(λ rows = local axes in basic, local 2-D node coordinates (n×2), area, warp ratio)."""
-    X = np.asarray(X, float)
-    c = X.mean(axis=0)
-    if len(X) == 4:
-        n = np.cross(X[2] - X[0], X[3] - X[1])
+def _constants_batch(elements, ctx):
+    """Per-element arrays of :func:`_constants` (evaluated once per property)."""
+    pids = np.array([el.pid for el in elements])
+    uniq, inv = np.unique(pids, return_inverse=True)
+    per = []
+    for u in range(len(uniq)):
+        per.append(_constants(elements[int(np.flatnonzero(inv == u)[0])], ctx))
+    return tuple(np.asarray([v[k] for v in per])[inv] for k in range(7))
+
+
+def _frame(elements, X):
+    """Element frames of a batch: λ (n,3,3; rows = local axes in basic), local 2-D coordinates (n,k,2),
+    areas (n,) and warp ratios (n,)."""
+    k = X.shape[1]
+    c = X.mean(axis=1)
+    if k == 4:
+        nv = np.cross(X[:, 2] - X[:, 0], X[:, 3] - X[:, 1])
     else:
-        n = np.cross(X[1] - X[0], X[2] - X[0])
-    nn = np.linalg.norm(n)
-    scale = max(np.abs(X - c).max(), 1e-300)
-    if nn <= 1e-12 * scale * scale:
+        nv = np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0])
+    nn = np.linalg.norm(nv, axis=1)
+    scale = np.maximum(np.abs(X - c[:, None]).max(axis=(1, 2)), 1e-300)
+    d = X[:, 1] - X[:, 0]
+    dl = np.linalg.norm(d, axis=1)
+    bad = np.flatnonzero((nn <= 1e-12 * scale * scale) | (dl <= 1e-9 * scale))
+    if bad.size:
+        el = elements[int(bad[0])]
         raise ModalabValueError(f"element {el.eid} ({type(el).__name__}) on nodes {el.nodes} has zero area "
-                                "(coincident or collinear nodes); check the node coordinates and order")
-    ez = n / nn
-    d = X[1] - X[0]
-    d = d - (d @ ez) * ez
-    ex = d / np.linalg.norm(d)
+                                "or a zero-length edge G1-G2 (coincident or collinear nodes); check the node "
+                                "coordinates and order")
+    ez = nv / nn[:, None]
+    d = d - np.einsum("ni,ni->n", d, ez)[:, None] * ez
+    ex = d / np.linalg.norm(d, axis=1)[:, None]
     ey = np.cross(ez, ex)
-    lam = np.array([ex, ey, ez])
-    loc = (X - c) @ lam.T
-    xy = loc[:, :2]
-    if len(X) == 4:
-        area = 0.5 * nn
-        warp = float(np.abs(loc[:, 2]).max() / np.sqrt(area))
-    else:
-        area = 0.5 * nn
-        warp = 0.0
-    return lam, xy, area, warp
+    lam = np.stack([ex, ey, ez], axis=1)
+    loc = np.einsum("nkj,nij->nki", X - c[:, None], lam)
+    area = 0.5 * nn
+    warp = np.abs(loc[:, :, 2]).max(axis=1) / np.sqrt(area)
+    return lam, loc[:, :, :2], area, warp
 
 
-def _to_basic(Kl, lam, n_nodes):
-    T = np.kron(np.eye(2 * n_nodes), lam)
-    return T.T @ Kl @ T
+def _to_basic(A, lam):
+    """Tᵀ A T per element with T = blockdiag(λ, λ, ...) (local DOFs u_l = λ u_basic per triplet)."""
+    n, d, _ = A.shape
+    m = d // 3
+    A5 = A.reshape(n, m, 3, m, 3)
+    return np.einsum("nip,naibj,njq->napbq", lam, A5, lam).reshape(n, d, d)
 
 
-def _scatter(n_nodes):
-    """Index arrays of the local 6-per-node DOFs: membrane (u, v), bending (w, θx, θy), drilling θz."""
-    mem = [6 * i + k for i in range(n_nodes) for k in (0, 1)]
-    ben = [6 * i + k for i in range(n_nodes) for k in (2, 3, 4)]
-    drl = [6 * i + 5 for i in range(n_nodes)]
-    return mem, ben, drl
+def _assemble_local(k, Km, Kb, Kd, NN, rho_a, rot, dt):
+    """(n, 6k, 6k) local K and M from membrane (u, v), bending (w, θx, θy), drilling (u, v, θz) parts."""
+    n = Km.shape[0]
+    mem = np.array([6 * i + j for i in range(k) for j in (0, 1)])
+    ben = np.array([6 * i + j for i in range(k) for j in (2, 3, 4)])
+    uvr = np.array([6 * i + j for i in range(k) for j in (0, 1, 5)])
+    K = np.zeros((n, 6 * k, 6 * k), dt)
+    K[:, mem[:, None], mem[None, :]] += Km
+    K[:, ben[:, None], ben[None, :]] += Kb
+    K[:, uvr[:, None], uvr[None, :]] += Kd
+    M = np.zeros((n, 6 * k, 6 * k), dt)
+    for j in range(6):
+        idx = np.arange(j, 6 * k, 6)
+        coef = rho_a if j < 3 else rot
+        M[:, idx[:, None], idx[None, :]] += coef[:, None, None] * NN
+    return K, M
 
 
 class _Shell(Element):
     frame = "basic"
     #: drilling penalty factor α (K_drill = α G t ∫ (θz − ω)² dA)
     drill = 1e-3
+    #: largest accepted warp ratio max|h|/√A (h: node distance to the mean plane; quadrilaterals)
+    warp_tol = 0.05
 
     def dofs(self) -> list:
         return six_dofs(self.nodes)
 
     def matrices(self, ctx) -> ElementMatrices:
-        X = [ctx.xyz(n) for n in self.nodes]
-        lam, xy, area, warp = _frame(self, X)
-        consts = _constants(self, ctx)
-        Kl, Ml = self._local(xy, area, consts, ctx.coupled_mass)
-        n = len(self.nodes)
-        return ElementMatrices(self.dofs(), K=_to_basic(Kl, lam, n), M=_to_basic(Ml, lam, n), ge=consts[-1])
+        K, M, ge = type(self).batch_matrices([self], ctx)
+        return ElementMatrices(self.dofs(), K=K[0], M=M[0], ge=ge[0])
+
+    @classmethod
+    def batch_matrices(cls, elements, ctx):
+        """(K, M, ge) of many elements of this class: (n, 6k, 6k), (n, 6k, 6k), (n,) in basic axes."""
+        k = cls._n_nodes
+        for el in elements:
+            if len(set(el.nodes)) != k:
+                raise ModalabValueError(f"element {el.eid} ({cls.__name__}) has repeated nodes {el.nodes}; it "
+                                        f"needs {k} different nodes")
+        X = np.array([[ctx.xyz(nd) for nd in el.nodes] for el in elements], dtype=float)
+        lam, xy, area, warp = _frame(elements, X)
+        bad = np.flatnonzero(warp > cls.warp_tol)
+        if bad.size:
+            el = elements[int(bad[0])]
+            raise ModalabValueError(f"element {el.eid} ({cls.__name__}) on nodes {el.nodes} is warped: ratio "
+                                    f"max|h|/sqrt(A) = {warp[bad[0]]:.4g} > {cls.warp_tol}; split it into two "
+                                    "Tria3 or make the four nodes coplanar")
+        consts = _constants_batch(elements, ctx)
+        Kl, Ml = cls._local(elements, xy, area, consts, ctx.coupled_mass)
+        return _to_basic(Kl, lam), _to_basic(Ml, lam), consts[-1]
 
 
 @dataclass
@@ -181,57 +226,52 @@ class Quad4(_Shell):
     pid: int
     group: str = ""
 
-    #: largest accepted warp ratio max|h|/√A (h: node distance to the mean plane)
-    warp_tol = 0.05
+    _n_nodes = 4
 
     @property
     def nodes(self) -> tuple:
         return (self.n1, self.n2, self.n3, self.n4)
 
-    def matrices(self, ctx) -> ElementMatrices:
-        if len(set(self.nodes)) != 4:
-            raise ModalabValueError(f"element {self.eid} (Quad4) has repeated nodes {self.nodes}; a quadrilateral "
-                                    "needs four different nodes (use a Tria3 for a triangle)")
-        X = [ctx.xyz(n) for n in self.nodes]
-        lam, xy, area, warp = _frame(self, X)
-        if warp > self.warp_tol:
-            raise ModalabValueError(f"element {self.eid} (Quad4) on nodes {self.nodes} is warped: ratio "
-                                    f"max|h|/sqrt(A) = {warp:.4g} > {self.warp_tol}; split it into two Tria3 "
-                                    "or make the four nodes coplanar")
-        consts = _constants(self, ctx)
-        Kl, Ml = self._local(xy, area, consts, ctx.coupled_mass)
-        return ElementMatrices(self.dofs(), K=_to_basic(Kl, lam, 4), M=_to_basic(Ml, lam, 4), ge=consts[-1])
-
-    def _local(self, xy, area, consts, coupled):
+    @classmethod
+    def _local(cls, elements, xy, area, consts, coupled):
         Dm, Db, Gs, Gt, rho_a, rot, _ = consts
         dt = np.result_type(Dm, Db, Gs, rho_a, rot, float)
+        n = xy.shape[0]
+
+        def jac(dN):
+            return np.einsum("ak,nkb->nab", dN, xy)
+
         # Jacobian at the centre (incompatible modes, Taylor's modification)
-        _, dN0 = _q4(0.0, 0.0)
-        J0 = dN0 @ xy
+        J0 = jac(_q4(0.0, 0.0)[1])
         detJ0 = np.linalg.det(J0)
         J0inv = np.linalg.inv(J0)
         for (xi, eta) in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
-            _, dN = _q4(xi, eta)
-            if np.linalg.det(dN @ xy) <= 1e-10 * abs(detJ0):
-                raise ModalabValueError(f"element {self.eid} (Quad4) on nodes {self.nodes} is not convex or its "
+            bad = np.flatnonzero(np.linalg.det(jac(_q4(xi, eta)[1])) <= 1e-10 * np.abs(detJ0))
+            if bad.size:
+                el = elements[int(bad[0])]
+                raise ModalabValueError(f"element {el.eid} (Quad4) on nodes {el.nodes} is not convex or its "
                                         f"nodes are not ordered around it (Jacobian <= 0 at corner ({xi}, {eta})); "
                                         "reorder the nodes or split it into two Tria3")
-        Kmm = np.zeros((8, 8), dt)
-        Kma = np.zeros((8, 4), dt)
-        Kaa = np.zeros((4, 4), dt)
-        Kb = np.zeros((12, 12), dt)
-        Ks = np.zeros((12, 12), dt)
-        Kd = np.zeros((12, 12), dt)       # (u, v, θz) per node
-        NN = np.zeros((4, 4))
+        Kmm = np.zeros((n, 8, 8), dt)
+        Kma = np.zeros((n, 8, 4), dt)
+        Kaa = np.zeros((n, 4, 4), dt)
+        Kb = np.zeros((n, 12, 12), dt)
+        Ks = np.zeros((n, 12, 12), dt)
+        Kd = np.zeros((n, 12, 12))        # (u, v, θz) per node
+        NN = np.zeros((n, 4, 4))
 
-        # MITC4 tying points: γ_ξ at A (0, 1), C (0, −1); γ_η at B (−1, 0), D (1, 0)
+        # MITC4: covariant shear γ_ξ = ∂w/∂ξ + β·∂x/∂ξ tied at A (0, 1), C (0, −1); γ_η at B (−1, 0), D (1, 0)
         def cov(xi, eta):
             N, dN = _q4(xi, eta)
-            J = dN @ xy
-            rx = np.zeros(12)
-            re = np.zeros(12)
-            rx[0::3], rx[1::3], rx[2::3] = dN[0], -N * J[0, 1], N * J[0, 0]
-            re[0::3], re[1::3], re[2::3] = dN[1], -N * J[1, 1], N * J[1, 0]
+            J = jac(dN)
+            rx = np.zeros((n, 12))
+            re = np.zeros((n, 12))
+            rx[:, 0::3] = dN[0]
+            rx[:, 1::3] = -N * J[:, 0, 1, None]
+            rx[:, 2::3] = N * J[:, 0, 0, None]
+            re[:, 0::3] = dN[1]
+            re[:, 1::3] = -N * J[:, 1, 1, None]
+            re[:, 2::3] = N * J[:, 1, 0, None]
             return rx, re
 
         gA, _ = cov(0.0, 1.0)
@@ -240,71 +280,61 @@ class Quad4(_Shell):
         _, gD = cov(1.0, 0.0)
         for xi, eta in _GAUSS2:
             N, dN = _q4(xi, eta)
-            J = dN @ xy
+            J = jac(dN)
             detJ = np.linalg.det(J)
-            dNx = np.linalg.solve(J, dN)          # rows: ∂N/∂x, ∂N/∂y
-            Bm = np.zeros((3, 8))
-            Bm[0, 0::2] = dNx[0]
-            Bm[1, 1::2] = dNx[1]
-            Bm[2, 0::2] = dNx[1]
-            Bm[2, 1::2] = dNx[0]
-            dP = (detJ0 / detJ) * (J0inv @ np.array([[-2.0 * xi, 0.0], [0.0, -2.0 * eta]]))
-            Ba = np.zeros((3, 4))             # (a1u, a2u, a1v, a2v)
-            Ba[0, 0:2] = dP[0]
-            Ba[1, 2:4] = dP[1]
-            Ba[2, 0:2] = dP[1]
-            Ba[2, 2:4] = dP[0]
-            Kmm += Bm.T @ Dm @ Bm * detJ
-            Kma += Bm.T @ Dm @ Ba * detJ
-            Kaa += Ba.T @ Dm @ Ba * detJ
-            Bb = np.zeros((3, 12))            # (w, θx, θy) per node
-            Bb[0, 2::3] = dNx[0]
-            Bb[1, 1::3] = -dNx[1]
-            Bb[2, 1::3] = -dNx[0]
-            Bb[2, 2::3] = dNx[1]
-            Kb += Bb.T @ Db @ Bb * detJ
+            Jinv = np.linalg.inv(J)
+            w = detJ[:, None, None]
+            dNx = np.einsum("nab,bk->nak", Jinv, dN)          # rows: ∂N/∂x, ∂N/∂y
+            Bm = np.zeros((n, 3, 8))
+            Bm[:, 0, 0::2] = dNx[:, 0]
+            Bm[:, 1, 1::2] = dNx[:, 1]
+            Bm[:, 2, 0::2] = dNx[:, 1]
+            Bm[:, 2, 1::2] = dNx[:, 0]
+            dP = (detJ0 / detJ)[:, None, None] * np.einsum("nab,bc->nac", J0inv,
+                                                           np.array([[-2.0 * xi, 0.0], [0.0, -2.0 * eta]]))
+            Ba = np.zeros((n, 3, 4))             # (a1u, a2u, a1v, a2v)
+            Ba[:, 0, 0:2] = dP[:, 0]
+            Ba[:, 1, 2:4] = dP[:, 1]
+            Ba[:, 2, 0:2] = dP[:, 1]
+            Ba[:, 2, 2:4] = dP[:, 0]
+            DmBm = np.einsum("nij,njb->nib", Dm, Bm)
+            Kmm += np.einsum("nia,nib->nab", Bm, DmBm) * w
+            Kma += np.einsum("nia,nib->nab", DmBm, Ba) * w
+            Kaa += np.einsum("nia,nij,njb->nab", Ba, Dm, Ba) * w
+            Bb = np.zeros((n, 3, 12))            # (w, θx, θy) per node
+            Bb[:, 0, 2::3] = dNx[:, 0]
+            Bb[:, 1, 1::3] = -dNx[:, 1]
+            Bb[:, 2, 1::3] = -dNx[:, 0]
+            Bb[:, 2, 2::3] = dNx[:, 1]
+            Kb += np.einsum("nia,nij,njb->nab", Bb, Db, Bb) * w
             g_xi = 0.5 * (1 + eta) * gA + 0.5 * (1 - eta) * gC
             g_eta = 0.5 * (1 + xi) * gD + 0.5 * (1 - xi) * gB
-            Bs = np.linalg.solve(J, np.array([g_xi, g_eta]))
-            Ks += Gs * (Bs.T @ Bs) * detJ
-            bd = np.zeros(12)                 # θz − ½(v,x − u,y)
-            bd[0::3] = 0.5 * dNx[1]
-            bd[1::3] = -0.5 * dNx[0]
-            bd[2::3] = N
-            Kd += np.outer(bd, bd) * detJ
-            NN += np.outer(N, N) * detJ
-        Km = Kmm - Kma @ np.linalg.solve(Kaa, Kma.T)
-        return _assemble_local(4, Km, Kb + Ks, self.drill * Gt * Kd, NN, area, rho_a, rot, coupled, dt)
-
-
-def _assemble_local(n, Km, Kb, Kd, NN, area, rho_a, rot, coupled, dt):
-    mem, ben, _ = _scatter(n)
-    K = np.zeros((6 * n, 6 * n), dt)
-    K[np.ix_(mem, mem)] += Km
-    K[np.ix_(ben, ben)] += Kb
-    uvr = [6 * i + k for i in range(n) for k in (0, 1, 5)]
-    K[np.ix_(uvr, uvr)] += Kd
-    M = np.zeros((6 * n, 6 * n), dt)
-    if not coupled:
-        NN = np.diag(np.full(n, area / n))
-    for k in range(6):
-        idx = [6 * i + k for i in range(n)]
-        M[np.ix_(idx, idx)] += (rho_a if k < 3 else rot) * NN
-    return K, M
+            Bs = np.einsum("nab,nbk->nak", Jinv, np.stack([g_xi, g_eta], axis=1))
+            Ks += Gs[:, None, None] * np.einsum("nak,nal->nkl", Bs, Bs) * w
+            bd = np.zeros((n, 12))               # θz − ½(∂v/∂x − ∂u/∂y)
+            bd[:, 0::3] = 0.5 * dNx[:, 1]
+            bd[:, 1::3] = -0.5 * dNx[:, 0]
+            bd[:, 2::3] = N
+            Kd += np.einsum("nk,nl->nkl", bd, bd) * w
+            NN += np.outer(N, N)[None] * w
+        Km = Kmm - Kma @ np.linalg.solve(Kaa, np.swapaxes(Kma, 1, 2))
+        if not coupled:
+            NN = np.eye(4)[None] * (area / 4.0)[:, None, None]
+        return _assemble_local(4, Km, Kb + Ks, cls.drill * Gt[:, None, None] * Kd, NN, rho_a, rot, dt)
 
 
 # ------------------------------------------------------------------ DKT
 def _dkt_B(xy, xi, eta):
-    """DKT curvature matrix B (3×9) at area coordinates (ξ = L2, η = L3); DOFs (w, θx, θy) per node.
+    """DKT curvature matrices B (n×3×9) at area coordinates (ξ = L2, η = L3); DOFs (w, θx, θy) per node.
 
-    Batoz, Bathe & Ho (1980): β_x = H_xᵀ U, β_y = H_yᵀ U with θx = ∂w/∂y, θy = −∂w/∂x.
+    Batoz, Bathe & Ho (1980): β_x = H_xᵀ U, β_y = H_yᵀ U with θx = ∂w/∂y, θy = −∂w/∂x;
+    κ = [∂β_x/∂x, ∂β_y/∂y, ∂β_x/∂y + ∂β_y/∂x].
     """
-    x, y = xy[:, 0], xy[:, 1]
-    x23, x31, x12 = x[1] - x[2], x[2] - x[0], x[0] - x[1]
-    y23, y31, y12 = y[1] - y[2], y[2] - y[0], y[0] - y[1]
-    L = {4: (x23, y23), 5: (x31, y31), 6: (x12, y12)}
+    x, y = xy[:, :, 0], xy[:, :, 1]
+    x23, x31, x12 = x[:, 1] - x[:, 2], x[:, 2] - x[:, 0], x[:, 0] - x[:, 1]
+    y23, y31, y12 = y[:, 1] - y[:, 2], y[:, 2] - y[:, 0], y[:, 0] - y[:, 1]
     P, q, r, t = {}, {}, {}, {}
-    for k, (a, b) in L.items():
+    for k, (a, b) in {4: (x23, y23), 5: (x31, y31), 6: (x12, y12)}.items():
         l2 = a * a + b * b
         P[k], q[k], r[k], t[k] = -6 * a / l2, 3 * a * b / l2, 3 * b * b / l2, -6 * b / l2
     P4, P5, P6 = P[4], P[5], P[6]
@@ -327,9 +357,10 @@ def _dkt_B(xy, xi, eta):
                        xi * (t4 + t6), xi * (r4 - r6), -xi * (q4 - q6),
                        t5 * e - xi * (t4 + t5), -1 + r5 * e + xi * (r4 - r5), -q5 * e - xi * (q4 - q5)])
     twoA = x31 * y12 - x12 * y31
-    return np.array([y31 * Hx_xi + y12 * Hx_eta,
-                     -x31 * Hy_xi - x12 * Hy_eta,
-                     -x31 * Hx_xi - x12 * Hx_eta + y31 * Hy_xi + y12 * Hy_eta]) / twoA
+    B = np.array([y31 * Hx_xi + y12 * Hx_eta,
+                  -x31 * Hy_xi - x12 * Hy_eta,
+                  -x31 * Hx_xi - x12 * Hx_eta + y31 * Hy_xi + y12 * Hy_eta]) / twoA   # (3, 9, n)
+    return np.transpose(B, (2, 0, 1))
 
 
 @dataclass
@@ -347,32 +378,40 @@ class Tria3(_Shell):
     pid: int
     group: str = ""
 
+    _n_nodes = 3
+
     @property
     def nodes(self) -> tuple:
         return (self.n1, self.n2, self.n3)
 
-    def _local(self, xy, area, consts, coupled):
+    @classmethod
+    def _local(cls, elements, xy, area, consts, coupled):
         Dm, Db, Gs, Gt, rho_a, rot, _ = consts
         dt = np.result_type(Dm, Db, rho_a, rot, float)
-        x, y = xy[:, 0], xy[:, 1]
-        b = np.array([y[1] - y[2], y[2] - y[0], y[0] - y[1]]) / (2 * area)    # ∂L_i/∂x
-        c = np.array([x[2] - x[1], x[0] - x[2], x[1] - x[0]]) / (2 * area)    # ∂L_i/∂y
-        Bm = np.zeros((3, 6))
-        Bm[0, 0::2] = b
-        Bm[1, 1::2] = c
-        Bm[2, 0::2] = c
-        Bm[2, 1::2] = b
-        Km = Bm.T @ Dm @ Bm * area
-        Kb = np.zeros((9, 9), dt)
-        Kd = np.zeros((9, 9))
+        n = xy.shape[0]
+        x, y = xy[:, :, 0], xy[:, :, 1]
+        A2 = (2 * area)[:, None]
+        b = np.stack([y[:, 1] - y[:, 2], y[:, 2] - y[:, 0], y[:, 0] - y[:, 1]], axis=1) / A2   # ∂L_i/∂x
+        c = np.stack([x[:, 2] - x[:, 1], x[:, 0] - x[:, 2], x[:, 1] - x[:, 0]], axis=1) / A2   # ∂L_i/∂y
+        Bm = np.zeros((n, 3, 6))
+        Bm[:, 0, 0::2] = b
+        Bm[:, 1, 1::2] = c
+        Bm[:, 2, 0::2] = c
+        Bm[:, 2, 1::2] = b
+        w = area[:, None, None]
+        Km = np.einsum("nia,nij,njb->nab", Bm, Dm, Bm) * w
+        Kb = np.zeros((n, 9, 9), dt)
+        Kd = np.zeros((n, 9, 9))
         for xi, eta in ((0.5, 0.0), (0.5, 0.5), (0.0, 0.5)):
             B = _dkt_B(xy, xi, eta)
-            Kb += B.T @ Db @ B * (area / 3.0)
-            Lq = np.array([1 - xi - eta, xi, eta])
-            bd = np.zeros(9)
-            bd[0::3] = 0.5 * c
-            bd[1::3] = -0.5 * b
-            bd[2::3] = Lq
-            Kd += np.outer(bd, bd) * (area / 3.0)
-        NN = area / 12.0 * (np.ones((3, 3)) + np.eye(3))
-        return _assemble_local(3, Km, Kb, self.drill * Gt * Kd, NN, area, rho_a, rot, coupled, dt)
+            Kb += np.einsum("nia,nij,njb->nab", B, Db, B) * (w / 3.0)
+            bd = np.zeros((n, 9))
+            bd[:, 0::3] = 0.5 * c
+            bd[:, 1::3] = -0.5 * b
+            bd[:, 2::3] = np.array([1 - xi - eta, xi, eta])
+            Kd += np.einsum("nk,nl->nkl", bd, bd) * (w / 3.0)
+        if coupled:
+            NN = (np.ones((3, 3)) + np.eye(3))[None] * (area / 12.0)[:, None, None]
+        else:
+            NN = np.eye(3)[None] * (area / 3.0)[:, None, None]
+        return _assemble_local(3, Km, Kb, cls.drill * Gt[:, None, None] * Kd, NN, rho_a, rot, dt)
