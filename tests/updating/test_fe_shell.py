@@ -124,6 +124,23 @@ def test_cantilever_plate_vs_leissa(tri):
     assert np.all(np.abs(err) < 0.02), (lam, err)
 
 
+def test_mixed_quad_and_triangle_mesh():
+    # Quad4 (MITC4) and Tria3 (DKT) share w, θx, θy conventions: a mesh mixing them is as good as either
+    a, t, n = 0.5, 0.005, 12
+    m = plate(n=n, t=t, bc="cant")
+    quads = [e for e in m.elements.values() if (e.eid - 1) % n >= n // 2]     # right half → triangles
+    nxt = max(m.elements) + 1
+    for q in quads:
+        del m.elements[q.eid]
+        m.add_element(Tria3(q.eid, q.n1, q.n2, q.n3, 1))
+        m.add_element(Tria3(nxt, q.n1, q.n3, q.n4, 1))
+        nxt += 1
+    D = E * t ** 3 / (12 * (1 - NU ** 2))
+    lam = 2 * np.pi * freqs(m, 5) * a ** 2 * np.sqrt(RHO * t / D)
+    err = lam / LEISSA_CANTILEVER - 1
+    assert np.all(np.abs(err) < 0.02), (lam, err)
+
+
 def test_cantilever_in_a_rotated_plane_gives_the_same_frequencies():
     R = sla.expm(np.array([[0, -0.4, 0.7], [0.4, 0, -0.3], [-0.7, 0.3, 0]]))
     for tri in (False, True):
