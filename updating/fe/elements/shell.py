@@ -35,7 +35,7 @@ Tria3 (3 nodes):
 * membrane: constant-strain triangle (CST);
 * bending: the discrete Kirchhoff triangle DKT (Batoz, Bathe & Ho, IJNME 15,
   1980, "A study of three-node triangular plate bending elements", explicit
-  form of H_x, H_y and of B, eqs. (40)–(44) of that paper); a Kirchhoff element,
+  form of H_x, H_y and of B, as given in that paper); a Kirchhoff element,
   no transverse shear and hence no shear locking.
 
 Drilling (both): a penalty ``α G t ∫ (θz − ω)² dA`` with ω = ½(∂v/∂x − ∂u/∂y)
@@ -46,8 +46,9 @@ rigid-body modes) and stops the in-plane rotation from being singular.
 Mass (``ctx.coupled_mass`` True): consistent with the bilinear / linear
 interpolation of u, v, w (ρt + nsm per area) and of the rotations, with rotary
 inertia ρt³/12 on θx, θy and θz (the DKT's translational mass uses the linear
-interpolation, as is common for DKT facets).  Lumped: a quarter / third of
-the mass and of the rotary inertia at each node.
+interpolation, as is common for DKT facets).  Lumped (``coupled_mass`` False,
+Nastran's default COUPMASS): a quarter / third of the translational mass at
+each node and no rotary inertia, as Nastran's lumped mass and the beams here.
 
 Stiffness constants (PSHELL with MID1 = MID2 = MID3): membrane E t/(1−ν²),
 bending ``bending · E t³/(12(1−ν²))`` with ``bending`` = 12I/T³ (default 1),
@@ -205,6 +206,8 @@ class _Shell(Element):
                                     f"max|h|/sqrt(A) = {warp[bad[0]]:.4g} > {cls.warp_tol}; split it into two "
                                     "Tria3 or make the four nodes coplanar")
         consts = _constants_batch(elements, ctx)
+        if not ctx.coupled_mass:      # lumped: translational mass only (Nastran's lumped mass)
+            consts = consts[:5] + (np.zeros_like(consts[5]),) + consts[6:]
         Kl, Ml = cls._local(elements, xy, area, consts, ctx.coupled_mass)
         return _to_basic(Kl, lam), _to_basic(Ml, lam), consts[-1]
 
