@@ -206,8 +206,14 @@ def solve_modes(model, p=None, n_modes: int | None = None, *, sigma: float | Non
     if n <= _DENSE_LIMIT or (n_modes is not None and n_modes >= n - 1):
         try:
             lam, phi = sla.eigh(K.toarray(), M.toarray())
-        except np.linalg.LinAlgError as e:
-            raise ModalabValueError(f"the mass matrix is not positive definite ({e}); every DOF needs mass") from None
+        except np.linalg.LinAlgError:
+            # massless DOFs (lumped mass without rotary inertia: Nastran's default without COUPMASS): the
+            # finite eigenpairs of the shifted problem; the massless directions have infinite eigenvalues
+            from modalab.structure import _shifted_eigh
+            lam, phi = _shifted_eigh(K.toarray(), M.toarray())
+            if n_modes is not None and n_modes > lam.size:
+                raise ModalabValueError(f"n_modes={n_modes} but the model has only {lam.size} DOFs with mass; "
+                                        f"ask for at most {lam.size} modes") from None
         if n_modes is not None:
             lam, phi = lam[:n_modes], phi[:, :n_modes]
     else:

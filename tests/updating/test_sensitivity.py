@@ -228,3 +228,18 @@ def test_large_sparse_model_uses_arpack():
     sol = solve_modes(m, n_modes=3)
     np.testing.assert_allclose(S[:, 0], sol.lam, rtol=1e-8)     # λ linear in k-scale, homogeneous
     np.testing.assert_allclose(S[:, 1], -sol.lam, rtol=1e-8)
+
+
+def test_solve_modes_handles_massless_rotations_of_a_lumped_mass_model():
+    """Nastran's default (no PARAM COUPMASS) lumps translational mass only: M is singular in rotation."""
+    from updating.fe import ParametricFEModel, Parameter
+    from updating.models.beams import thesis_beam
+    from updating.sensitivity import solve_modes
+    lumped = thesis_beam(cord_stiffness=100.0)
+    lumped.coupled_mass = False
+    lumped._changed()
+    pm = ParametricFEModel(lumped, [Parameter("E_all", "E", properties=tuple(lumped.properties))])
+    sol = solve_modes(pm, n_modes=6)
+    w_ref = np.sort(lumped.structure().normal_modes(6)[0])
+    assert np.allclose(np.sqrt(np.clip(sol.lam, 0, None)), w_ref, rtol=1e-8, atol=1e-6)
+    assert np.allclose(sol.phi.T @ (sol.M @ sol.phi), np.eye(6), atol=1e-8)
