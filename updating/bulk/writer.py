@@ -240,15 +240,7 @@ class _Exporter:
         return mid
 
     def beam_property(self, prop: BeamProperty, beam_family: bool):
-        mat = self.m.material(prop.mid)
-        mid = prop.mid
-        if prop.ge is not None and prop.ge != mat.ge:
-            mid = self.next_mid
-            self.next_mid += 1
-            mat = dataclasses.replace(mat, ge=prop.ge)
-            log.info("property %d has its own GE: written with a copy of material %d as MID %d",
-                     prop.pid, prop.mid, mid)
-        self.material(mat, mid)
+        mid = self.own_material(prop)
         tp = self.t.properties.get(prop.pid)
         nsm = float(np.real(prop.nsm)) / self.wt
         if tp is not None and getattr(tp, "mid", None) == mid:
