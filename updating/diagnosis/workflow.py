@@ -198,14 +198,34 @@ def _fit_continued(pm, train, p_start, damp_mask, lo, hi, max_nfev, *, levels=(0
 
 
 def promote_measured(model: FEModel, dofs) -> FEModel:
-    """The model with every measured DOF independent: a one-to-one rigid link (RBE2, all six components)
+    """The model with every measured DOF independent and in basic directions.  A measured grid with a
+    displacement system of its own (CD) is put in basic (same physics; refused with a clear error when it
+    carries constraints in that system).  A one-to-one rigid link (RBE2, all six components)
     whose dependent node is measured and whose independent node is not is reversed — the same constraint,
     written the other way round, so the measured node keeps its own DOFs.  Returns ``model`` itself when
     nothing needs changing; measured DOFs that stay eliminated are reported by the caller's DOF lookup."""
     from modalab.dof import parse_dofs
     measured = {d.node for d in parse_dofs(list(dofs))}
-    st_dofs = {(d.node, d.axis) for d in model.structure().dofs}
     out = model
+    # measured directions are basic: a measured grid with its own displacement system is written in basic
+    # (the same physics) unless something is constrained in that system
+    spc_nodes = {sp_.node for sp_ in model.spcs}
+    partial = {n for link in model.rbe2s.values() if set(link.components) != {1, 2, 3, 4, 5, 6}
+               for n in (link.independent, *link.dependents)}
+    for n in sorted(measured):
+        node = model.nodes.get(n)
+        if node is None or node.cd is None or np.allclose(node.cd, np.eye(3)):
+            continue
+        if n in spc_nodes or n in partial:
+            raise ModalabValueError(f"measured grid {n} has its own displacement system (CD) and constraints in "
+                                    "it; give the measured directions in that system's node or remove the CD")
+        if out is model:
+            out = model.copy()
+        out.nodes[n] = type(node)(node.nid, node.xyz, None)
+        log.info("measured grid %d: its displacement system set to basic (measured directions are basic)", n)
+    if out is not model:
+        out._changed()
+    st_dofs = {(d.node, d.axis) for d in out.structure().dofs}
     for link in list(model.rbe2s.values()):
         if len(link.dependents) != 1 or set(link.components) != {1, 2, 3, 4, 5, 6}:
             continue
