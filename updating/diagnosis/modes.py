@@ -43,7 +43,8 @@ from .workflow import (Diagnosis, Finding, _augment, _bounds, _upper, default_pa
                        statement)
 
 log = logging.getLogger(__name__)
-__all__ = ["diagnose_modes", "modes_data", "fit_modes", "mode_errors"]
+__all__ = ["diagnose_modes", "modes_data", "fit_modes", "mode_errors", "modal_force_map", "ModalResidual",
+           "screen_modes", "fit_modal_residual"]
 
 
 def modes_data(test_modes: ModeSet, keep=None) -> FRFData:
@@ -375,7 +376,29 @@ def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
     held_desc = f"test modes {', '.join(str(i + 1) for i in keep_eval)}" + ("" if held.size else " (not held out)")
     blocks = {k: dict(v, frf_error_held_out=v["freq_error_rms_pct"] / 100) for k, v in fit.items()}
     text = statement(findings, blocks, held_desc).replace("held-out FRF error", "held-out frequency error")
+    maps = {}
+    try:       # localisation for the report: the modal force residual per measured DOF and mode
+        mdata = modes_data(test_modes, train)
+        maps = {"freq_hz": np.asarray(test_modes.freq_hz, float)[train],
+                "responses": [str(d) for d in test_modes.dofs],
+                "before": modal_force_map(pm.structure(upd.p), mdata),
+                "after": modal_force_map(best_pm.structure(best_fit.p), mdata)}
+    except (ModalabError, np.linalg.LinAlgError) as e:  # pragma: no cover - a figure is a by-product
+        log.info("modes: no residual map: %s", e)
     return Diagnosis(findings=findings, parameters=pars, fit=fit, statement=text,
                      model=best_pm.model_at(best_fit.p), parametric=best_pm, p=best_fit.p,
-                     steps={"held_out": held_desc, "source": "modes"}, ranking=ranking or [],
+                     steps={"held_out": held_desc, "source": "modes"}, ranking=ranking or [], maps=maps,
                      timings={"total": time.perf_counter() - t0})
+
+
+def modal_force_map(structure, data: FRFData) -> np.ndarray:
+    """|r| / σ per measured DOF and mode of the homogeneous condensed residual ``[Z(iω_j) x_j]_m`` (the
+    modal force residual: thesis eq. 3.89 with f = 0, unmeasured DOFs expanded by the model), (n_m, n_modes)."""
+    from modalab.dof import locate
+
+    from .dynamics import condensed_residual
+    mi, ms = locate(structure.dofs, data.responses, "test-mode DOF")
+    x = data.H * np.asarray(ms, float)[:, None, None]
+    F = np.zeros((structure.n_dof, 1))
+    _, r, _, sigma = condensed_residual(structure.K, structure.M, structure.C, structure.D, data.s, mi, x, F)
+    return np.abs(r[:, 0, :]) / (sigma[0][None, :] + 1e-300)
