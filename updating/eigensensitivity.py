@@ -395,6 +395,7 @@ class InverseEigensensitivity:
                 dx = _tikhonov(S, r, alpha)
             cost0 = float(r @ r) + (alpha ** 2 * float(d0 @ d0) if self.tikhonov == "initial" else 0.0)
             step = 1.0
+            best_tried = np.inf
             for _ls in range(10):
                 pn = p.copy()
                 pn[idx] = np.clip(p[idx] + step * dx * scale, lo, hi)
@@ -403,13 +404,24 @@ class InverseEigensensitivity:
                     dn = (pn[idx] - p0[idx]) / scale
                     cost = float(new.r @ new.r) + (alpha ** 2 * float(dn @ dn) if self.tikhonov == "initial" else 0.0)
                     ok = cost <= cost0 * (1 + 1e-12) and new.r.size >= r.size
+                    if new.r.size >= r.size:
+                        best_tried = min(best_tried, cost)
                 except ModalabValueError:
                     ok = False
                 if ok:
                     break
                 step *= 0.5
             else:
-                log.warning("inverse eigensensitivity: no step decreased the cost at iteration %d", it)
+                # no step lowers the cost: at a stationary point (the Gauss–Newton model predicts almost no
+                # decrease) that is convergence; elsewhere the linearisation has failed
+                res_lin = r - S @ dx
+                pred = float(r @ r) - float(res_lin @ res_lin)
+                if pred <= 1e-4 * max(cost0, 1e-300) or best_tried <= cost0 * (1 + 1e-5):
+                    log.info("inverse eigensensitivity: stationary at iteration %d (cost %.6g; the steps tried "
+                             "reach %.6g, the linear model predicts a decrease of %.3g)", it, cost0, best_tried, pred)
+                    self.converged_ = True
+                else:
+                    log.warning("inverse eigensensitivity: no step decreased the cost at iteration %d", it)
                 break
             change = float(np.max(np.abs(pn[idx] - p[idx]) / scale))
             p, sysm = pn, new

@@ -98,6 +98,7 @@ def test_end_to_end_artifacts_and_manifest(demo):
 
 def test_updating_moves_parameters_towards_the_truth(demo):
     upd = json.loads((demo["out"] / "update" / "update.json").read_text())
+    assert upd["converged"], upd["history"][-1]          # stationary at the end, not stalled
     truth = dict(zip(DEMO_PARAMETERS, _ERRORS))
     # the thicknesses are found; E_wing and rho_fuselage absorb part of what the model leaves out
     for name in ("t_fin", "t_wing"):
