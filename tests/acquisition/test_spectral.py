@@ -369,7 +369,8 @@ def _sdof_fit(freq_hz, H, f0_hz, half_width=0.06):
 # ------------------------------------------------------------------------------------------ averager
 class TestSpectralAverager:
     @pytest.fixture(scope="class")
-    def hits(self):
+    @classmethod
+    def hits(cls):
         s = chain([1.0, 2.0], [2e5, 1e5], alpha=5.0)
         rng = np.random.default_rng(14)
         return synth_hits(s.modal_model(), "1+Z", ["1+Z", "2+Z"], fs=FS, n=N, ti=TI,

@@ -21,7 +21,8 @@ def mac_diag(a, b):
 # ---------------------------------------------------------------------- GARTEUR
 class TestGarteur:
     @pytest.fixture(scope="class")
-    def models(self):
+    @classmethod
+    def models(cls):
         return build_model(read_bdf(GARTEUR_BDF)), garteur_model()
 
     def test_same_modes(self, models):
