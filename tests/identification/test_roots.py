@@ -46,7 +46,10 @@ def _exact_roots(a):
     for z0 in np.roots(a[::-1]):
         z = mpmath.mpc(z0)
         for _ in range(6):
-            p, dp = mpmath.polyval(c, z, derivative=True)
+            p, dp = mpmath.mpf(0), mpmath.mpf(0)
+            for ck in c:                           # Horner for p and p' (descending c), in 40 digits
+                dp = dp * z + p
+                p = p * z + ck
             z -= p / dp
         out.append(complex(z))
     return np.array(out)

@@ -93,7 +93,8 @@ class TestEigen:
 
 class TestFRF:
     @pytest.fixture(scope="class")
-    def damped(self):
+    @classmethod
+    def damped(cls):
         m = beam_model(16, kind="beam3d")
         m.global_ge = 0.02
         return m

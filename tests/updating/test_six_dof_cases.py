@@ -125,7 +125,8 @@ class TestResponseFunctionMethod:
     """Thesis 5.1.5: noisy FRFs (5 %), viscous dampers 0.0003·k, undamped initial model."""
 
     @pytest.fixture(scope="class")
-    def data(self):
+    @classmethod
+    def data(cls):
         X = six_dof_model("experimental", damping=True)
         A = six_dof_model("analytical", damping=True)
         f = np.arange(0.1, 140.01, 0.1)
@@ -152,7 +153,8 @@ class TestMCIMinimisation:
     """Thesis 5.1.6: only DOFs 2, 3, 4 measured, all 16 parameters updated."""
 
     @pytest.fixture(scope="class")
-    def data(self):
+    @classmethod
+    def data(cls):
         X, A = six_dof_pair()
         f = np.arange(0.1, 30.0, 0.1)
         frf = X.structure().frf(f, responses=["2+X", "3+X", "4+X"], references=["2+X", "3+X", "4+X"],
