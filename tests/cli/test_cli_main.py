@@ -85,3 +85,43 @@ def test_bad_input_is_a_message(args, needle, tmp_path, monkeypatch, capsys):
     err = capsys.readouterr().err
     assert code == 2
     assert needle in err and "Traceback" not in err
+
+
+def test_the_cli_limits_blas_threads(monkeypatch, tmp_path):
+    """Commands run with BLAS limited to MODALAB_BLAS_THREADS threads (default 1); a bad value is named."""
+    import contextlib
+
+    import threadpoolctl
+
+    from modalab import cli
+
+    limits, seen = [], []
+
+    def recorder(limits=None, user_api=None, _log=limits):
+        _log.append(limits)
+        return contextlib.nullcontext()
+    monkeypatch.setattr(threadpoolctl, "threadpool_limits", recorder)
+
+    def fake(a):
+        seen.append(len(limits))
+        return 0
+    parser = cli.build_parser
+    monkeypatch.setattr(cli, "build_parser", lambda: _with_func(parser(), fake))
+    monkeypatch.delenv("MODALAB_BLAS_THREADS", raising=False)
+    assert cli.main(["info", str(tmp_path / "x.uff")]) == 0
+    monkeypatch.setenv("MODALAB_BLAS_THREADS", "3")
+    assert cli.main(["info", str(tmp_path / "x.uff")]) == 0
+    assert limits == [1, 3] and seen == [1, 2]          # the limit is in force while the command runs
+    monkeypatch.setenv("MODALAB_BLAS_THREADS", "many")
+    assert cli.main(["info", str(tmp_path / "x.uff")]) == 2
+
+
+def _with_func(parser, func):
+    orig = parser.parse_args
+
+    def parse(args=None):
+        a = orig(args)
+        a.func = func
+        return a
+    parser.parse_args = parse
+    return parser
