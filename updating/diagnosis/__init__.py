@@ -1,8 +1,10 @@
 """Missing-physics diagnosis: locate the mismatch, name the physics, model it, prove it.
 
-:func:`diagnose` (workflow on measured FRFs), :func:`diagnose_modes` (from identified modes only),
-:func:`build_library` (candidate augmentations), :func:`screen` (MCI localisation and candidate ranking),
-:func:`fit_frf` (non-linear FRF fit), :func:`peak_modes` (test modes by peak picking),
+:func:`diagnose` (workflow on measured FRFs; ``criterion='auto'|'mci'|'frf'``), :func:`diagnose_modes` (from
+identified modes only), :func:`build_library` (candidate augmentations), :func:`screen` (MCI localisation and
+candidate ranking), :func:`frf_screen` (exact single-candidate FRF screening by low-rank updates),
+:func:`fit_frf` (non-linear FRF fit; in a :class:`RitzBasis` for large models), :func:`peak_modes` (test modes by
+peak picking),
 :mod:`~updating.diagnosis.report` (figures).  ``Diagnosis.save(dir)`` writes ``diagnosis.json``, the
 figures and ``augmented.bdf``.
 
@@ -26,10 +28,13 @@ figures and ``augmented.bdf``.
 ``std`` is the linearised standard deviation of the final joint fit.
 """
 from .fit import FRFData, fit_frf, frf_data, frf_error, model_frf
+from .frfscreen import frf_screen
+from .ritz import RitzBasis
 from .library import Candidate, build_library
 from .screen import ScreenResult, residual_map, screen
 from .workflow import Diagnosis, Finding, default_parameters, diagnose, peak_modes
 from .modes import diagnose_modes, fit_modes, modes_data
 
 __all__ = ["diagnose", "diagnose_modes", "fit_modes", "modes_data", "peak_modes", "Diagnosis", "Finding", "default_parameters", "build_library", "Candidate", "screen",
-           "ScreenResult", "residual_map", "fit_frf", "frf_data", "frf_error", "model_frf", "FRFData"]
+           "ScreenResult", "residual_map", "fit_frf", "frf_data", "frf_error", "model_frf", "FRFData", "frf_screen",
+           "RitzBasis"]
