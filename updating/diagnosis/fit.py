@@ -192,11 +192,6 @@ def _jacobian(pmodel, p, data: FRFData, free, ctx):
     return np.array(J).T
 
 
-def _residual_and_jac(pmodel, p, data: FRFData, free, want_jac=True):
-    res, ctx = _residual(pmodel, p, data)
-    return res, (_jacobian(pmodel, p, data, free, ctx) if want_jac else None)
-
-
 def _residual_ritz(pmodel, p, data: FRFData, basis):
     """:func:`_residual` in a fixed :class:`~updating.diagnosis.ritz.RitzBasis`."""
     st = pmodel.structure(p)
@@ -209,19 +204,15 @@ def _residual_ritz(pmodel, p, data: FRFData, basis):
 
 
 def _jacobian_ritz(pmodel, p, data: FRFData, free, ctx):
+    from .ritz import RitzBasis
     from .screen import derivatives
     rctx, sign, w = ctx
     ders = derivatives(pmodel, p)
     J = []
     for k in np.flatnonzero(free):
-        de = w * sign * _ritz_jac(rctx, ders[k], data.s)
+        de = w * sign * RitzBasis.jacobian(rctx, ders[k], data.s)
         J.append(np.concatenate([de.real.ravel(), de.imag.ravel()]))
     return np.array(J).T
-
-
-def _ritz_jac(rctx, derivative, s):
-    from .ritz import RitzBasis
-    return RitzBasis.jacobian(rctx, derivative, s)
 
 
 #: models above this many DOFs are fitted in a Ritz basis (:mod:`~updating.diagnosis.ritz`)

@@ -49,10 +49,6 @@ def _low_rank(G):
 def _value_grid(c, K, M, rows, L, n: int = 13) -> np.ndarray:
     """Candidate values to try: log-spaced around the structure's own stiffness or mass at the place
     (``n`` values per 6 decades)."""
-    return _value_range(c, K, M, rows, L, n)
-
-
-def _value_range(c, K, M, rows, L, n):
     kref = float(np.trace(L.T @ (K[rows][:, rows].toarray() @ L))) / max(L.shape[1], 1)
     mref = float(np.trace(L.T @ (M[rows][:, rows].toarray() @ L))) / max(L.shape[1], 1)
     nrm = float(np.sum(L * L)) / max(L.shape[1], 1)

@@ -42,7 +42,7 @@ from modalab.frf import FRF
 from ..fe import FEModel, Parameter, ParametricFEModel
 from .fit import RITZ_LIMIT, FRFData, fit_frf, frf_data, frf_error, model_frf, quick_frf_error
 from .frfscreen import frf_screen
-from .library import Candidate, build_library
+from .library import Candidate, _nodes_of, build_library
 from .screen import mci_update, rank_candidates, residual_map, residual_system
 
 log = logging.getLogger(__name__)
@@ -263,13 +263,6 @@ def _on_model_dofs(model: FEModel, measured: FRF) -> FRF:
                                     f"(left out: {', '.join(dropped)}); check the node numbering")
         return measured.select(responses=keep)
     return measured
-
-
-def _element_nodes(el) -> tuple:
-    try:
-        return tuple(n for n in el.nodes if n is not None)
-    except (NotImplementedError, AttributeError, TypeError):
-        return ()
 
 
 def _dof_stiffness(structure, c) -> float:
@@ -496,7 +489,7 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
         near = set(hot) | {n for c, _, _ in rk[:1] for n in c.nodes}
         # joints near the located nodes (within one element) and every support release (they are few)
         near |= {b for e in pm_cur.model_at(p_cur).elements.values()
-                 for b in _element_nodes(e) if near & set(_element_nodes(e))}
+                 if near & set(_nodes_of(e)) for b in _nodes_of(e)}
         options += [(c, None) for c in lib if not c.shared and c.physics == "joint_flexibility"
                     and near & set(c.nodes) and c.key not in have][:n_try]
         options += [(c, None) for c in lib if c.physics == "boundary_flexibility" and c.key not in have]
