@@ -267,8 +267,8 @@ def _split(line: Line) -> _Head:
                                     card=f1 or None)
             data = data[:nd]
         for p in data:
-            if " " in p:
-                raise BulkDataError(f"free field {p!r} contains a blank; separate fields with commas",
+            if any(c.isspace() for c in p):      # a blank or a tab: Nastran permits no embedded blanks
+                raise BulkDataError(f"free field {p!r} contains a blank or tab; separate fields with commas",
                                     path=line.path, line=line.lineno, card=f1 or None)
         data = data + [""] * (nd - len(data))
         free = True
