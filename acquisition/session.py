@@ -24,6 +24,10 @@ never reject a hit; they are counted in the per-point summary.  After each
 point every response channel's mean coherence is checked (a noisy or dead
 sensor shows as low coherence).
 
+Before each new hit the session calls the backend's optional ``seed_hit(point index, hit number at the
+point)``: the simulator then draws that hit from (seed, point, hit), so an interrupted and resumed
+session records exactly the hits of an uninterrupted one.
+
 Nothing is lost: every accepted (or candidate) hit is written and ``fsync``-ed
 by :class:`acquisition.store.HitStore` *before the next arm*.  ``resume=True``
 continues at the first unfinished point with all stored hits intact.  When the
@@ -71,15 +75,9 @@ LOW_COHERENCE = 0.8
 
 # ---------------------------------------------------------------------------- signal processing glue
 def _windows(plan: TestPlan):
-    from .windows import ExponentialWindow, ForceWindow
+    from .windows import ForceWindow
 
-    fw = ForceWindow(fraction=plan.force_fraction, taper=plan.force_taper)
-    ew = None
-    if plan.exp_beta is not None:
-        ew = ExponentialWindow(beta=plan.exp_beta)
-    elif plan.exp_end_level > 0:
-        ew = ExponentialWindow(end_level=plan.exp_end_level)
-    return fw, ew
+    return ForceWindow(fraction=plan.force_fraction, taper=plan.force_taper), plan.exp_window()
 
 
 def _averager(plan: TestPlan):
@@ -362,6 +360,16 @@ class AcquisitionSession:
             self.hammer.arm()
             self.hammer.fire(float(self.plan.hammer.get("force_n", 100.0)))
 
+    def _hits_at(self, k: int) -> int:
+        """Hits journalled at point ``k`` so far (any status): the number of the next hit there."""
+        return sum(1 for ev in self.store.events if ev["event"] == "hit" and int(ev.get("point", -1)) == k)
+
+    def _seed_hit(self, key) -> None:
+        """Tell a backend that can (the simulator's ``seed_hit``) which hit comes next; hardware ignores it."""
+        seed_hit = getattr(self.backend, "seed_hit", None)
+        if seed_hit is not None:
+            seed_hit(*key)
+
     def _acquire_one(self, point: str, timeouts: int) -> TimeRecord:
         if not self._armed or (timeouts and timeouts % self.waits_per_arm == 0):
             if self._armed:
@@ -430,6 +438,7 @@ class AcquisitionSession:
         except DeviceLostError as e:
             self._device_lost(point, e)
         timeouts = attempts = 0
+        seeded = None
         while True:
             if self.mode == "interactive" and len(kept) >= plan.averages:
                 return "done"
@@ -440,6 +449,10 @@ class AcquisitionSession:
                     break
                 self.store.skip_point(k, f"only {len(kept) + len(cands)} valid hits in {attempts} hits")
                 return "skip"
+            key = (k, self._hits_at(k))
+            if key != seeded:                  # a new hit: a simulator draws it from (seed, point, hit)
+                self._seed_hit(key)
+                seeded = key
             try:
                 rec = self._acquire_one(point, timeouts)
             except DeviceLostError as e:

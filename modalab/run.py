@@ -238,17 +238,10 @@ def _sim_lab(ctx: _Context, plan):
         from .pipeline import make_sim_backend
 
         return make_sim_backend(plan, seed=seed)
-    from hardware_sim.hammer import Hammer
-    from hardware_sim.lab import SimulatedLab
-    from hardware_sim.setup import FaultConfig
+    from hardware_sim.bench import lab_from_sim
 
-    st = load_truth(t["truth"])
-    faults = FaultConfig(**plan.sim["faults"]) if plan.sim.get("faults") else None
-    hk = {k: plan.sim[s] for k, s in (("force_n", "force_n"), ("tip", "hammer_tip"), ("mass_kg", "hammer_mass_kg"))
-          if s in plan.sim}
-    hammer = Hammer(**hk) if hk else None
-    return SimulatedLab(st, None, None, hammer=hammer, faults=faults, rng=np.random.default_rng(seed),
-                        hit_interval_s=float(plan.sim.get("hit_interval_s", 0.0)))
+    return lab_from_sim(plan.sim, load_truth(t["truth"]), channel_names=[c.name for c in plan.channels], seed=seed,
+                        source=plan.source)
 
 
 class _AcquireObserver:
