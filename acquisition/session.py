@@ -249,10 +249,12 @@ class SessionSummary:
     range_suggestions: dict = field(default_factory=dict)
     discarded: list = field(default_factory=list)
     stopped: str = ""
+    resume: list = field(default_factory=list)       # what resuming recovered (AcquisitionSession._recovered)
 
     def to_dict(self) -> dict:
         return {"complete": self.complete, "stopped": self.stopped, "points": [p.to_dict() for p in self.points],
-                "range_suggestions": self.range_suggestions, "discarded_on_resume": self.discarded}
+                "range_suggestions": self.range_suggestions, "discarded_on_resume": self.discarded,
+                "resume": self.resume}
 
     def table(self) -> str:
         lines = [f"{'point':>8} {'taken':>5} {'acc':>4} {'rej':>4} {'coh':>6}  why rejected / warnings"]
@@ -322,8 +324,10 @@ class AcquisitionSession:
         self.check_config = check_config
         self.reconnects = 0
         self.store = HitStore(self.out_dir, plan=plan.raw, resume=resume)
+        self.resume_report: list[str] = []
         if resume:
             self._check_same_plan()
+            self.resume_report = self._recovered()
         self.peaks: dict[str, float] = {}
         self.stopped = ""
         self._armed = False
@@ -333,10 +337,7 @@ class AcquisitionSession:
     RESUME_SECTIONS = ("acquisition", "trigger", "windows", "channels", "roving")
 
     def _check_same_plan(self) -> None:
-        try:
-            stored = json.loads((self.out_dir / "session.json").read_text()).get("plan") or {}
-        except (OSError, ValueError):
-            return
+        stored = self.store.plan        # from session.json, or rebuilt from the journal (acquisition.store)
         if not stored:
             return
         for key in self.RESUME_SECTIONS:
@@ -345,6 +346,28 @@ class AcquisitionSession:
                 raise PlanError(f"the plan's [{key}] differs from the one the session in {str(self.out_dir)!r} was "
                                 f"started with ({stored.get(key)!r} then, {now!r} now); resume with the original plan "
                                 "or start a new session directory")
+
+    def _point_finished(self, st) -> bool:
+        """A point is finished when skipped, or done with all its averages (never when a hit was lost since)."""
+        return st is not None and st.done and (bool(st.skipped) or len(st.accepted) >= self.plan.averages)
+
+    def _recovered(self) -> list[str]:
+        """What a resumed session found: points complete, hits kept, hits discarded and why (one line each)."""
+        states = self.store.points()
+        n = len(self.plan.points)
+        done = sum(self._point_finished(states.get(k)) for k in range(n))
+        acc = sum(len(states[k].accepted) for k in range(n) if k in states)
+        cand = sum(len(states[k].candidates) for k in range(n) if k in states)
+        rej = sum(len(states[k].rejected) for k in range(n) if k in states)
+        lines = [f"recovered {done} of {n} points complete, {acc + cand} hits kept ({acc} accepted, {cand} awaiting "
+                 f"selection), {rej} rejected before"]
+        lines += list(self.store.discarded)
+        for k in range(n):
+            st = states.get(k)
+            if st is not None and st.reopened:
+                lines.append(f"point {self.plan.points[k]} re-opened: {len(st.accepted)} of {self.plan.averages} "
+                             "accepted hits left after a lost hit; it is measured again")
+        return lines
 
     # ------------------------------------------------------------------ backend
     def _configure(self, point: str) -> None:
@@ -563,9 +586,12 @@ class AcquisitionSession:
     def summary(self) -> SessionSummary:
         states = self.store.points()
         pts = [self.point_summary(k, states) for k in range(len(self.plan.points))]
+        for k, p in enumerate(pts):       # done in the journal but short of averages (a lost hit): not finished
+            p.done = self._point_finished(states.get(k))
         complete = all(p.done for p in pts)
         return SessionSummary(points=pts, complete=complete, range_suggestions=self.range_suggestions(),
-                              discarded=list(self.store.discarded), stopped=self.stopped)
+                              discarded=list(self.store.discarded), stopped=self.stopped,
+                              resume=list(self.resume_report))
 
     # ------------------------------------------------------------------ run
     def run(self) -> SessionSummary:
@@ -574,11 +600,13 @@ class AcquisitionSession:
         n = len(plan.points)
         k = 0
         suggested = False
+        for line in self.resume_report:
+            self.observer.message(f"on resume: {line}")
         try:
             while k < n:
                 point = plan.points[k]
                 st = self.store.points().get(k)
-                if st is not None and st.done:
+                if self._point_finished(st):
                     k += 1
                     continue
                 self.observer.point_started(k, point, n)
