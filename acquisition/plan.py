@@ -392,7 +392,7 @@ class TestPlan:
             if stc != "demo":
                 path = Path(stc).expanduser()
                 if not path.is_absolute():
-                    path = Path(base_dir if base_dir is not None else ".") / path
+                    path = (Path(base_dir if base_dir is not None else ".") / path).resolve()
                 if not path.is_file():
                     raise PlanError(f"{source}: sim.structure = {stc!r}: no such file {str(path)!r} (a relative path "
                                     "is read from the plan's folder); give 'demo' or a Nastran bulk-data file")
