@@ -310,3 +310,22 @@ def test_lost_session_json_with_a_changed_plan_is_refused(tmp_path):
     _, summary, _ = acquire(plan_path, out, resume=True, prompter=ScriptedPrompter("q"))
     assert summary.points[0].accepted == 1
     assert "session.json was unreadable; rebuilt from the journal (the plan is checked against it)" in summary.resume
+
+
+def test_interrupted_and_resumed_session_gives_the_frfs_of_an_uninterrupted_one(tmp_path):
+    # issue 14 #14: resuming restarted the simulator's random stream, so resumed points replayed the same forces
+    plan_path = small_plan(tmp_path, points=("1+Z", "19+Z"))
+    _, s1, ref = acquire(plan_path, tmp_path / "one", prompter=ScriptedPrompter("aaaa"))
+    out = tmp_path / "two"
+    acquire(plan_path, out, prompter=ScriptedPrompter("aq"))                 # quit after the first hit
+    _, s2, exported = acquire(plan_path, out, resume=True, prompter=ScriptedPrompter("aq"))
+    assert not s2.complete
+    _, s3, exported = acquire(plan_path, out, resume=True, prompter=ScriptedPrompter("aa"))
+    assert s1.complete and s3.complete
+    assert s3.resume[0] == "recovered 1 of 2 points complete, 2 hits kept (2 accepted, 0 awaiting selection), " \
+                           "0 rejected before"
+    a, b = uff.read_frf(exported), uff.read_frf(ref)
+    np.testing.assert_array_equal(a.H, b.H)
+    np.testing.assert_array_equal(a.coherence, b.coherence)
+    forces = [r.data[0] for r in uff.read_records(exported)]
+    assert not any(np.array_equal(forces[i], forces[j]) for i in range(4) for j in range(i))   # no replayed hit
