@@ -208,10 +208,10 @@ class TestPlan:
                     raise PlanError(f"{source}: {section}.{key} is missing; add it (see the example in the README)")
                 return default
             v = sec[key]
-            if kind is not str and isinstance(v, (bool, str)) and kind is not bool:
+            if kind not in (str, bool) and isinstance(v, (bool, str)):
                 v = None                       # "3" or true where a number belongs: refuse, do not coerce
             try:
-                if kind is bool and not isinstance(v, bool):
+                if kind in (str, bool) and not isinstance(v, kind):
                     raise ValueError
                 out = kind(v)
                 if kind is float and not math.isfinite(out):

@@ -141,6 +141,7 @@ def test_misspelt_channel_key_and_section():
     ({"acquisition__sample_rate_hz": "2048"}, r"acquisition\.sample_rate_hz = '2048' is not a valid number"),
     ({"trigger__level": True}, r"trigger\.level = True is not a valid number"),
     ({"trigger__slope": "up"}, r"trigger\.slope = 'up'; expected 'rising' or 'falling'"),
+    ({"trigger__channel": 1}, r"trigger\.channel = 1 is not a valid string"),
     ({"acquisition__timeout_s": 0}, r"timeout_s = 0\.0 must be positive"),
 ])
 def test_wrong_types_are_errors_not_coerced(changes, match):
