@@ -189,6 +189,9 @@ class TestPlan:
         read (:func:`load_plan` passes the plan file's folder; default: the current directory)."""
         if not isinstance(d, dict):
             raise PlanError(f"{source}: a test plan is a TOML table of sections; got {type(d).__name__}")
+        if not d:
+            raise PlanError(f"{source}: the test plan is empty; write one after the example in the README or "
+                            "examples/plans/")
         _check_keys(source, None, d, SECTIONS)
         for sec in SECTIONS:
             if sec == "channels":
@@ -381,6 +384,18 @@ class TestPlan:
                     "double_hit_probability"):
             if key in sim:
                 sim[key] = get("sim", key)
+        if "realtime" in sim:
+            get("sim", "realtime", kind=bool)
+        if not isinstance(sim.get("dead", []), list) or not all(isinstance(x, str) for x in sim.get("dead", [])):
+            raise PlanError(f"{source}: sim.dead = {sim['dead']!r}; expected a list of channel names, e.g. ['acc1']")
+        noisy = sim.get("noisy", {})
+        if not isinstance(noisy, dict) or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                  and v >= 0 for v in noisy.values()):
+            raise PlanError(f"{source}: sim.noisy = {noisy!r}; expected a table of channel = extra noise in V rms "
+                            "(>= 0), e.g. { acc1 = 1e-3 }")
+        if not isinstance(sim.get("faults", {}), dict):
+            raise PlanError(f"{source}: sim.faults = {sim['faults']!r}; expected a table, e.g. "
+                            "{ double_hit_on = [2] }")
         if "hammer_tip" in sim:
             tip = get("sim", "hammer_tip", kind=str)
             if tip not in HAMMER_TIPS:

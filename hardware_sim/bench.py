@@ -21,7 +21,8 @@ import difflib
 import time
 from typing import Sequence
 
-from modalab.errors import PlanError
+from modalab.dof import locate
+from modalab.errors import DofError, PlanError
 
 from .hammer import Hammer
 from .lab import SimulatedLab
@@ -53,12 +54,13 @@ def _faults(spec, source: str) -> FaultConfig | None:
 
 
 def lab_from_sim(sim: dict, structure, *, channel_names: Sequence[str] = (), automatic: bool = False,
-                 seed: int | None = None, source: str = "plan") -> SimulatedLab:
+                 seed: int | None = None, source: str = "plan", dofs: Sequence = ()) -> SimulatedLab:
     """The simulated lab a plan's ``[sim]`` section describes, on ``structure`` (a Structure or ModalModel).
 
     ``channel_names``: the plan's channel names (``dead``/``noisy`` must name them); ``automatic``: the plan
     has an automatic hammer (``[hammer] url = "simhammer://..."``); ``seed`` overrides ``sim['seed']``;
-    ``source`` (the plan file) prefixes error messages.
+    ``source`` (the plan file) prefixes error messages; ``dofs`` (the plan's points and fixed sensor DOFs)
+    must exist in the structure, checked now so that a wrong label fails before a session folder is made.
     """
     names = list(channel_names)
     dead = set(sim.get("dead", []))
@@ -75,6 +77,14 @@ def lab_from_sim(sim: dict, structure, *, channel_names: Sequence[str] = (), aut
                        rng=int(sim.get("seed", 1) if seed is None else seed),
                        hit_interval_s=float(sim.get("hit_interval_s", 0.0)),
                        sleep=time.sleep if sim.get("realtime") else None)
+    for d in dofs:
+        try:
+            locate(lab.model.dofs, [d], "DOF")
+        except DofError:
+            nodes = sorted({x.node for x in lab.model.dofs})
+            raise PlanError(f"{source}: DOF {d} is not in the simulated structure (nodes {nodes[0]}..{nodes[-1]}, "
+                            f"{len(nodes)} in all); fix the label or set [sim] structure to the structure the plan "
+                            "was written for") from None
     if dead or noisy:
         base_configure = lab.configure
 

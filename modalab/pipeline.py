@@ -145,7 +145,7 @@ def make_sim_backend(plan, *, seed: int | None = None):
     st, _ = _demo_or_structure(plan.sim.get("structure", "demo"))
     automatic = str(plan.hammer.get("url", "")).startswith("simhammer://")
     lab = lab_from_sim(plan.sim, st, channel_names=[c.name for c in plan.channels], automatic=automatic, seed=seed,
-                       source=plan.source)
+                       source=plan.source, dofs=list(plan.points) + plan.fixed_dofs)
     if automatic:
         from hardware_sim import serial_devices
 

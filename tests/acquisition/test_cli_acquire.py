@@ -147,3 +147,46 @@ def test_cli_acquire_the_demo_project_plan_as_documented(tmp_path, capsys):
                  "-o", str(tmp_path / "s")])
     assert code == 0, capsys.readouterr().err
     assert "session complete" in capsys.readouterr().out
+
+
+def _corpus(tmp_path):
+    """Damaged copies of a valid plan: truncated at 10/50/99 % and mid-line, random bytes, empty, wrong types,
+    a DOF the simulated structure does not have."""
+    import random
+
+    def plan(name, edit=None):
+        return small_plan(tmp_path, points=("1+Z",), averages=1, max_hits=1, record_s=0.25, name=name,
+                          edit=edit).read_bytes()
+
+    src = plan("valid.toml")
+    text = src.decode()
+    mid = text.index("\n", len(text) // 3) + 5
+    rnd = random.Random(14)
+    yield "cut10", src[: len(src) // 10]
+    yield "cut50", src[: len(src) // 2]
+    yield "cut99", src[: len(src) * 99 // 100]
+    yield "midline", src[:mid]
+    yield "random", bytes(rnd.randrange(256) for _ in range(600))
+    yield "empty", b""
+    yield "nul", b"\x00" * 64
+    yield "rate_string", plan("x.toml", lambda d: d["acquisition"].update(sample_rate_hz="fast"))
+    yield "points_string", plan("x.toml", lambda d: d["roving"].update(points="1+Z"))
+    yield "noisy_string", plan("x.toml", lambda d: d["sim"].update(noisy={"acc_1Z": "loud"}))
+    yield "dead_string", plan("x.toml", lambda d: d["sim"].update(dead="acc_1Z"))
+    yield "faults_number", plan("x.toml", lambda d: d["sim"].update(faults=3))
+    yield "unknown_dof", plan("x.toml", lambda d: (d.pop("geometry"), d["roving"].update(points=["999+Z"])))
+
+
+def test_cli_acquire_bad_input_corpus(tmp_path, capsys):
+    # every damaged plan: exit 2, one line naming the file, no traceback, no session folder left behind
+    # (or, when a cut happens to leave a valid plan, a normal run)
+    for name, data in _corpus(tmp_path):
+        plan = tmp_path / f"{name}.toml"
+        plan.write_bytes(data)
+        out = tmp_path / f"out_{name}"
+        code = main(["acquire", str(plan), "--backend", "sim", "--auto", "--quiet", "-o", str(out)])
+        cap = capsys.readouterr()
+        assert "Traceback" not in cap.err + cap.out, name
+        assert code == 2, (name, code, cap.err)
+        assert len(cap.err.strip().splitlines()) == 1 and f"{name}.toml" in cap.err, (name, cap.err)
+        assert not out.exists(), name
