@@ -219,6 +219,7 @@ class PointSummary:
     warnings: dict = field(default_factory=dict)     # warning -> count
     skipped: str = ""
     done: bool = False
+    lost: int = 0                                    # accepted/candidate hits whose raw file was found damaged
 
     @property
     def taken(self) -> int:
@@ -239,7 +240,7 @@ class PointSummary:
                 "rejected_reasons": self.rejected_reasons, "warnings": dict(self.warnings),
                 "mean_coherence": None if nan else round(self.mean_coherence, 4),
                 "channel_coherence": {k: round(v, 4) for k, v in self.channel_coherence.items()},
-                "skipped": self.skipped, "done": self.done}
+                "skipped": self.skipped, "done": self.done, "lost": self.lost}
 
 
 @dataclass
@@ -250,6 +251,7 @@ class SessionSummary:
     discarded: list = field(default_factory=list)
     stopped: str = ""
     resume: list = field(default_factory=list)       # what resuming recovered (AcquisitionSession._recovered)
+    n_averages: int = 0                               # the plan's averages per point
 
     def to_dict(self) -> dict:
         return {"complete": self.complete, "stopped": self.stopped, "points": [p.to_dict() for p in self.points],
@@ -264,8 +266,12 @@ class SessionSummary:
             warn = ", ".join(f"{k} x{v}" for k, v in d["warnings"].items())
             if warn:
                 why = f"{why}; warnings: {warn}" if why else f"warnings: {warn}"
+            if p.lost:
+                why = f"LOST {p.lost} hit(s) (raw file damaged)" + (f"; {why}" if why else "")
             if p.skipped:
                 why = f"SKIPPED: {p.skipped}" + (f"; {why}" if why else "")
+            elif not p.done and p.lost:
+                why = f"re-opened, {p.accepted} of {self.n_averages} hits; {why}"
             elif not p.done:
                 why = "not measured yet" + (f"; {why}" if why else "")
             coh = "" if d["mean_coherence"] is None else f"{d['mean_coherence']:.3f}"
@@ -566,6 +572,7 @@ class AcquisitionSession:
         ps.rejected = [r for _, r in st.rejected]
         ps.skipped = st.skipped
         ps.done = st.done
+        ps.lost = len(st.lost)
         warns: dict[str, int] = {}
         for ev in self.store.events:
             if ev["event"] == "hit" and int(ev.get("point", -1)) == k and ev["hit"] in st.accepted:
@@ -591,7 +598,7 @@ class AcquisitionSession:
         complete = all(p.done for p in pts)
         return SessionSummary(points=pts, complete=complete, range_suggestions=self.range_suggestions(),
                               discarded=list(self.store.discarded), stopped=self.stopped,
-                              resume=list(self.resume_report))
+                              resume=list(self.resume_report), n_averages=self.plan.averages)
 
     # ------------------------------------------------------------------ run
     def run(self) -> SessionSummary:

@@ -277,6 +277,8 @@ def test_a_corrupted_accepted_hit_reopens_its_point_and_the_session_is_not_compl
     before = sess.summary()
     assert not before.complete and not before.points[1].done and before.points[1].accepted == 1
     assert before.points[0].done and before.points[0].accepted == 2
+    row = before.table().splitlines()[2]
+    assert row.split()[0] == "19+Z" and "re-opened, 1 of 2 hits; LOST 1 hit(s) (raw file damaged)" in row
     text = "\n".join(sess.resume_report)
     assert sess.resume_report[0].startswith("recovered 1 of 2 points complete, 3 hits kept (3 accepted")
     assert f"LOST hit {victim} (candidate, point index 1)" in text and "stray" not in text
