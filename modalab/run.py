@@ -321,7 +321,8 @@ def stage_frf(ctx: _Context) -> tuple[list, dict]:
         ff = o["force_fraction"] if o["force_fraction"] is not None else plan.force_fraction
         ee = o["exp_end_level"] if o["exp_end_level"] is not None else (plan.exp_end_level or None)
         out, frf = frf_from_file(ctx.out / "acquire" / "session.uff", d / "frf.uff", estimator=o["estimator"],
-                                 force_fraction=ff, exp_end_level=ee, exp_beta=plan.exp_beta,
+                                 force_fraction=ff, exp_end_level=ee,
+                                 exp_beta=plan.exp_beta if o["exp_end_level"] is None else None,   # override wins
                                  reciprocity=o["reciprocity"])
     rec = {}
     try:
