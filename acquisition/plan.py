@@ -43,8 +43,10 @@ Example (every key documented; the README carries the same example)::
     pattern = "hammer"          # or "accelerometer" (then `channel` names the roving sensor)
     points = ["1+Z", "2+Z", "3+Z"]
 
-    [geometry]                  # optional node coordinates in m
+    [geometry]                  # optional node coordinates in m (then every DOF's node needs them)
     1 = [0.0, 0.0, 0.0]
+    2 = [0.5, 0.0, 0.0]
+    3 = [1.0, 0.0, 0.0]
 
     [hammer]                    # optional automatic hammer (serial)
     url = "simhammer://bench"

@@ -234,3 +234,14 @@ def test_binary_or_directory_plan_is_a_clear_error(tmp_path):
         load_plan(f)
     with pytest.raises(PlanError, match="is a directory"):
         load_plan(tmp_path)
+
+
+def test_the_module_docstring_example_is_a_valid_plan():
+    import textwrap
+    import tomllib
+
+    import acquisition.plan as plan_mod
+
+    block = textwrap.dedent(plan_mod.__doc__.split("::\n", 1)[1].split("\nEvery section", 1)[0])
+    p = TestPlan.from_dict(tomllib.loads(block), source="acquisition.plan docstring")
+    assert p.sim["hammer_tip"] == "medium" and p.exp_window().end_level == 0.01 and p.hammer["url"]
