@@ -379,9 +379,8 @@ class TestPlan:
                 raise PlanError(f"{source}: hammer force_n = {fmax} N exceeds the force channel range {frange} N; "
                                 "raise the range or lower the force")
         sim = dict(d.get("sim", {}))
-        for key in ("seed",):
-            if key in sim:
-                get("sim", key, kind=int)
+        if "seed" in sim and get("sim", "seed", kind=int) < 0:
+            raise PlanError(f"{source}: sim.seed = {sim['seed']} must be a whole number >= 0")
         for key in ("hit_interval_s", "force_n", "hammer_mass_kg", "force_scatter", "placement_scatter_m",
                     "double_hit_probability"):
             if key in sim:

@@ -69,12 +69,15 @@ def lab_from_sim(sim: dict, structure, *, channel_names: Sequence[str] = (), aut
         if n not in names:
             raise PlanError(f"{source}: [sim] dead/noisy names channel {n!r}, which the plan does not have; use one of {names}")
     hkw = {field: sim[key] for key, field in HAMMER_KEYS.items() if key in sim}
+    seed = int(sim.get("seed", 1) if seed is None else seed)
+    if seed < 0:
+        raise PlanError(f"{source}: seed {seed} must be a whole number >= 0")
     try:
         hammer = Hammer(automatic=automatic, **hkw)
     except (TypeError, ValueError) as e:
         raise PlanError(f"{source}: [sim] hammer: {e}") from None
     lab = SimulatedLab(structure, None, None, hammer=hammer, faults=_faults(sim.get("faults"), source),
-                       rng=int(sim.get("seed", 1) if seed is None else seed),
+                       rng=seed,
                        hit_interval_s=float(sim.get("hit_interval_s", 0.0)),
                        sleep=time.sleep if sim.get("realtime") else None)
     for d in dofs:

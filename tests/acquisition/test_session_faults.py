@@ -154,6 +154,7 @@ def test_dead_accelerometer_is_reported_and_the_others_are_exact(tmp_path):
     ({"faults": {"double_hit_onn": [1]}}, r"sim\.faults\.double_hit_onn; did you mean sim\.faults\.double_hit_on\?"),
     ({"hammer_tip": "rubber"}, r"sim\.hammer_tip = 'rubber'; expected one of hard, medium, soft"),
     ({"hammer_mass_kg": 0}, r"sim\.hammer_mass_kg = 0\.0 must be positive"),
+    ({"seed": -3}, r"sim\.seed = -3 must be a whole number >= 0"),
 ])
 def test_sim_section_errors_are_clear(tmp_path, bad, match):
     from modalab.errors import PlanError
