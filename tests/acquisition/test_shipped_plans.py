@@ -88,10 +88,10 @@ def test_hammer_mass_and_tip_shape_the_force_pulse(tmp_path):
     # [sim] hammer_mass_kg / hammer_tip reach the simulator: contact time T = pi sqrt(m/k) (hardware_sim.hammer)
     from hardware_sim.hammer import TIP_STIFFNESS_N_PER_M
 
-    base = ROOT / "examples/demo_project/plan.toml"
+    base = ROOT / "examples/plans/demo_roving_hammer.toml"
     for tip, mass in (("soft", 1.0), ("hard", 0.16)):
         d = tomllib.loads(base.read_text())
-        d["sim"].update(hammer_tip=tip, hammer_mass_kg=mass, structure="demo")
+        d["sim"].update(hammer_tip=tip, hammer_mass_kg=mass)
         f = tmp_path / f"{tip}.toml"
         f.write_text(tomli_w.dumps(d))
         lab = make_sim_backend(load_plan(f))
