@@ -24,6 +24,10 @@ never reject a hit; they are counted in the per-point summary.  After each
 point every response channel's mean coherence is checked (a noisy or dead
 sensor shows as low coherence).
 
+Before each new hit the session calls the backend's optional ``seed_hit(point index, hit number at the
+point)``: the simulator then draws that hit from (seed, point, hit), so an interrupted and resumed
+session records exactly the hits of an uninterrupted one.
+
 Nothing is lost: every accepted (or candidate) hit is written and ``fsync``-ed
 by :class:`acquisition.store.HitStore` *before the next arm*.  ``resume=True``
 continues at the first unfinished point with all stored hits intact.  When the
@@ -71,15 +75,9 @@ LOW_COHERENCE = 0.8
 
 # ---------------------------------------------------------------------------- signal processing glue
 def _windows(plan: TestPlan):
-    from .windows import ExponentialWindow, ForceWindow
+    from .windows import ForceWindow
 
-    fw = ForceWindow(fraction=plan.force_fraction, taper=plan.force_taper)
-    ew = None
-    if plan.exp_beta is not None:
-        ew = ExponentialWindow(beta=plan.exp_beta)
-    elif plan.exp_end_level > 0:
-        ew = ExponentialWindow(end_level=plan.exp_end_level)
-    return fw, ew
+    return ForceWindow(fraction=plan.force_fraction, taper=plan.force_taper), plan.exp_window()
 
 
 def _averager(plan: TestPlan):
@@ -221,6 +219,7 @@ class PointSummary:
     warnings: dict = field(default_factory=dict)     # warning -> count
     skipped: str = ""
     done: bool = False
+    lost: int = 0                                    # accepted/candidate hits whose raw file was found damaged
 
     @property
     def taken(self) -> int:
@@ -241,7 +240,7 @@ class PointSummary:
                 "rejected_reasons": self.rejected_reasons, "warnings": dict(self.warnings),
                 "mean_coherence": None if nan else round(self.mean_coherence, 4),
                 "channel_coherence": {k: round(v, 4) for k, v in self.channel_coherence.items()},
-                "skipped": self.skipped, "done": self.done}
+                "skipped": self.skipped, "done": self.done, "lost": self.lost}
 
 
 @dataclass
@@ -251,10 +250,13 @@ class SessionSummary:
     range_suggestions: dict = field(default_factory=dict)
     discarded: list = field(default_factory=list)
     stopped: str = ""
+    resume: list = field(default_factory=list)       # what resuming recovered (AcquisitionSession._recovered)
+    n_averages: int = 0                               # the plan's averages per point
 
     def to_dict(self) -> dict:
         return {"complete": self.complete, "stopped": self.stopped, "points": [p.to_dict() for p in self.points],
-                "range_suggestions": self.range_suggestions, "discarded_on_resume": self.discarded}
+                "range_suggestions": self.range_suggestions, "discarded_on_resume": self.discarded,
+                "resume": self.resume}
 
     def table(self) -> str:
         lines = [f"{'point':>8} {'taken':>5} {'acc':>4} {'rej':>4} {'coh':>6}  why rejected / warnings"]
@@ -264,8 +266,12 @@ class SessionSummary:
             warn = ", ".join(f"{k} x{v}" for k, v in d["warnings"].items())
             if warn:
                 why = f"{why}; warnings: {warn}" if why else f"warnings: {warn}"
+            if p.lost:
+                why = f"LOST {p.lost} hit(s) (raw file damaged)" + (f"; {why}" if why else "")
             if p.skipped:
                 why = f"SKIPPED: {p.skipped}" + (f"; {why}" if why else "")
+            elif not p.done and p.lost:
+                why = f"re-opened, {p.accepted} of {self.n_averages} hits; {why}"
             elif not p.done:
                 why = "not measured yet" + (f"; {why}" if why else "")
             coh = "" if d["mean_coherence"] is None else f"{d['mean_coherence']:.3f}"
@@ -324,8 +330,10 @@ class AcquisitionSession:
         self.check_config = check_config
         self.reconnects = 0
         self.store = HitStore(self.out_dir, plan=plan.raw, resume=resume)
+        self.resume_report: list[str] = []
         if resume:
             self._check_same_plan()
+            self.resume_report = self._recovered()
         self.peaks: dict[str, float] = {}
         self.stopped = ""
         self._armed = False
@@ -335,10 +343,7 @@ class AcquisitionSession:
     RESUME_SECTIONS = ("acquisition", "trigger", "windows", "channels", "roving")
 
     def _check_same_plan(self) -> None:
-        try:
-            stored = json.loads((self.out_dir / "session.json").read_text()).get("plan") or {}
-        except (OSError, ValueError):
-            return
+        stored = self.store.plan        # from session.json, or rebuilt from the journal (acquisition.store)
         if not stored:
             return
         for key in self.RESUME_SECTIONS:
@@ -347,6 +352,28 @@ class AcquisitionSession:
                 raise PlanError(f"the plan's [{key}] differs from the one the session in {str(self.out_dir)!r} was "
                                 f"started with ({stored.get(key)!r} then, {now!r} now); resume with the original plan "
                                 "or start a new session directory")
+
+    def _point_finished(self, st) -> bool:
+        """A point is finished when skipped, or done with all its averages (never when a hit was lost since)."""
+        return st is not None and st.done and (bool(st.skipped) or len(st.accepted) >= self.plan.averages)
+
+    def _recovered(self) -> list[str]:
+        """What a resumed session found: points complete, hits kept, hits discarded and why (one line each)."""
+        states = self.store.points()
+        n = len(self.plan.points)
+        done = sum(self._point_finished(states.get(k)) for k in range(n))
+        acc = sum(len(states[k].accepted) for k in range(n) if k in states)
+        cand = sum(len(states[k].candidates) for k in range(n) if k in states)
+        rej = sum(len(states[k].rejected) for k in range(n) if k in states)
+        lines = [f"recovered {done} of {n} points complete, {acc + cand} hits kept ({acc} accepted, {cand} awaiting "
+                 f"selection), {rej} rejected before"]
+        lines += list(self.store.discarded)
+        for k in range(n):
+            st = states.get(k)
+            if st is not None and st.reopened:
+                lines.append(f"point {self.plan.points[k]} re-opened: {len(st.accepted)} of {self.plan.averages} "
+                             "accepted hits left after a lost hit; it is measured again")
+        return lines
 
     # ------------------------------------------------------------------ backend
     def _configure(self, point: str) -> None:
@@ -361,6 +388,16 @@ class AcquisitionSession:
         if self.hammer is not None:           # the DAQ is armed first, so the hit cannot come too early
             self.hammer.arm()
             self.hammer.fire(float(self.plan.hammer.get("force_n", 100.0)))
+
+    def _hits_at(self, k: int) -> int:
+        """Hits journalled at point ``k`` so far (any status): the number of the next hit there."""
+        return sum(1 for ev in self.store.events if ev["event"] == "hit" and int(ev.get("point", -1)) == k)
+
+    def _seed_hit(self, key) -> None:
+        """Tell a backend that can (the simulator's ``seed_hit``) which hit comes next; hardware ignores it."""
+        seed_hit = getattr(self.backend, "seed_hit", None)
+        if seed_hit is not None:
+            seed_hit(*key)
 
     def _acquire_one(self, point: str, timeouts: int) -> TimeRecord:
         if not self._armed or (timeouts and timeouts % self.waits_per_arm == 0):
@@ -430,6 +467,7 @@ class AcquisitionSession:
         except DeviceLostError as e:
             self._device_lost(point, e)
         timeouts = attempts = 0
+        seeded = None
         while True:
             if self.mode == "interactive" and len(kept) >= plan.averages:
                 return "done"
@@ -440,6 +478,10 @@ class AcquisitionSession:
                     break
                 self.store.skip_point(k, f"only {len(kept) + len(cands)} valid hits in {attempts} hits")
                 return "skip"
+            key = (k, self._hits_at(k))
+            if key != seeded:                  # a new hit: a simulator draws it from (seed, point, hit)
+                self._seed_hit(key)
+                seeded = key
             try:
                 rec = self._acquire_one(point, timeouts)
             except DeviceLostError as e:
@@ -530,6 +572,7 @@ class AcquisitionSession:
         ps.rejected = [r for _, r in st.rejected]
         ps.skipped = st.skipped
         ps.done = st.done
+        ps.lost = len(st.lost)
         warns: dict[str, int] = {}
         for ev in self.store.events:
             if ev["event"] == "hit" and int(ev.get("point", -1)) == k and ev["hit"] in st.accepted:
@@ -550,9 +593,12 @@ class AcquisitionSession:
     def summary(self) -> SessionSummary:
         states = self.store.points()
         pts = [self.point_summary(k, states) for k in range(len(self.plan.points))]
+        for k, p in enumerate(pts):       # done in the journal but short of averages (a lost hit): not finished
+            p.done = self._point_finished(states.get(k))
         complete = all(p.done for p in pts)
         return SessionSummary(points=pts, complete=complete, range_suggestions=self.range_suggestions(),
-                              discarded=list(self.store.discarded), stopped=self.stopped)
+                              discarded=list(self.store.discarded), stopped=self.stopped,
+                              resume=list(self.resume_report), n_averages=self.plan.averages)
 
     # ------------------------------------------------------------------ run
     def run(self) -> SessionSummary:
@@ -561,11 +607,13 @@ class AcquisitionSession:
         n = len(plan.points)
         k = 0
         suggested = False
+        for line in self.resume_report:
+            self.observer.message(f"on resume: {line}")
         try:
             while k < n:
                 point = plan.points[k]
                 st = self.store.points().get(k)
-                if st is not None and st.done:
+                if self._point_finished(st):
                     k += 1
                     continue
                 self.observer.point_started(k, point, n)

@@ -10,6 +10,8 @@ The lab
     ``configure`` / ``notify_point`` / ``arm`` / ``fire`` / ``wait`` / ``abort`` /
     ``reconnect`` / ``close``, and ``hit(point, force_n)``; ``exact_frf`` for checks.
     :func:`simulate_roving_test` — hits per point over a list of points.
+    :meth:`SimulatedLab.seed_hit` — draw the next hit from (seed, point, hit) (resumable sessions).
+    :func:`lab_from_sim` (:mod:`hardware_sim.bench`) — the lab a test plan's ``[sim]`` section describes.
 Configuration (frozen dataclasses)
     :class:`ChannelSetup` — DOF, role, sensitivity, ADC range (±V), IEPE AC coupling,
     noise, channel faults (dead, extra noise).
@@ -38,6 +40,7 @@ Example
 >>> rec.trigger_index, rec.units
 (128, ['N', 'm/s^2', 'm/s^2', 'm/s^2'])
 """
+from .bench import lab_from_sim
 from .demo import (DEMO_HAMMER, DEMO_POINTS, DEMO_REFERENCES, BeamSection, demo_channels, demo_lab, demo_setup,
                    demo_structure, grillage)
 from .hammer import TIP_STIFFNESS_N_PER_M, Hammer, Pulse, contact_time_s
@@ -46,7 +49,7 @@ from .setup import AcquisitionSetup, ChannelSetup, FaultConfig
 from .signal_chain import (antialias_response, half_sine, half_sine_spectrum, iepe_highpass, quantization_step,
                            quantize, synthesis_taper)
 
-__all__ = ["SimulatedLab", "simulate_roving_test", "ChannelSetup", "AcquisitionSetup", "FaultConfig", "Hammer",
+__all__ = ["SimulatedLab", "simulate_roving_test", "lab_from_sim", "ChannelSetup", "AcquisitionSetup", "FaultConfig", "Hammer",
            "Pulse", "TIP_STIFFNESS_N_PER_M", "contact_time_s", "half_sine", "half_sine_spectrum", "iepe_highpass",
            "antialias_response", "quantization_step", "quantize", "synthesis_taper", "demo_structure",
            "demo_channels", "demo_setup", "demo_lab", "grillage", "BeamSection", "DEMO_HAMMER", "DEMO_POINTS",

@@ -38,6 +38,10 @@ computes the exact FRF columns of many points in one batched call.
 
 All randomness comes from the one ``numpy.random.Generator`` passed in (or
 seeded from an int): the same seed and the same calls give the same records.
+:meth:`SimulatedLab.seed_hit` re-seeds that stream from (seed, point, hit): an
+acquisition session calls it before each new hit, so a session interrupted and
+resumed draws exactly the hits an uninterrupted one draws (faults scheduled by
+arm number still count the arms of this lab object).
 """
 from __future__ import annotations
 
@@ -120,6 +124,7 @@ class SimulatedLab:
         self.max_synthesis_s = float(max_synthesis_s)
         self.hit_interval_s = float(hit_interval_s)
         self._rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+        self._seed = None if rng is None or isinstance(rng, np.random.Generator) else int(rng)
         self._sleep = sleep
         self._state = "unconfigured"
         self._arms = 0
@@ -281,6 +286,20 @@ class SimulatedLab:
         self.channels[channel] = replace(self.channels[channel], dof=d)
         self._cache.clear()
         self._config_key = None
+
+    def seed_hit(self, *key: int) -> None:
+        """Draw the next hit (and its retries) from a stream of its own, seeded by (lab seed, ``*key``).
+
+        An acquisition session passes (point index, hit number at that point): the same key always gives
+        the same force pulse, placement, faults drawn by probability and noise, whatever happened before,
+        so resuming an interrupted session repeats no random stream.  A lab built from a Generator (or
+        None) draws its seed from that generator on the first call.
+        """
+        if any(int(k) < 0 for k in key):
+            raise ModalabValueError(f"seed_hit{key!r}: keys are non-negative integers (point index, hit number)")
+        if self._seed is None:
+            self._seed = int(self._rng.integers(2 ** 63))
+        self._rng = np.random.default_rng([self._seed, *(int(k) for k in key)])
 
     # ------------------------------------------------------------------ DAQ
     def arm(self, force_n: float | None = None) -> None:

@@ -221,7 +221,7 @@ def cmd_acquire(a):
     _print(summary.table())
     for name, s in summary.range_suggestions.items():
         _print(f"range suggestion: {name}: peak {s['peak']:g}, range {s['range']:g} -> {s['suggested']:g}")
-    for d in summary.discarded:
+    for d in summary.resume:
         _print(f"on resume: {d}")
     if summary.stopped:
         _print(summary.stopped)

@@ -118,7 +118,10 @@ def _plan_text(quick: bool) -> str:
     lines += ["[roving]", 'pattern = "hammer"', "points = [" + ", ".join(f'"{p}"' for p in pts) + "]", "",
               "[geometry]"]
     lines += [f"{n} = [{x[0]}, {x[1]}, {x[2]}]" for n, x in sorted(geo.items())]
-    lines += ["", "[sim]", "seed = 7", "force_n = 50.0", 'hammer_tip = "soft"', "hammer_mass_kg = 1.0", ""]
+    lines += ["", "[sim]                       # the simulated bench of `modalab acquire --backend sim` (`modalab run` "
+              "uses the",
+              'structure = "nominal.bdf"   # project\'s truth builder instead); a relative path is read from this folder',
+              "seed = 7", "force_n = 50.0", 'hammer_tip = "soft"', "hammer_mass_kg = 1.0", ""]
     return "\n".join(lines)
 
 

@@ -87,7 +87,8 @@ def frf_from_file(in_uff, out_uff, *, estimator: str = "H1", force_fraction: flo
     """
     from acquisition.reciprocity import reorder_by_reciprocity
     from acquisition.spectral import estimate_frf_roving
-    from acquisition.windows import ExponentialWindow, ForceWindow
+    from acquisition.plan import exponential_window
+    from acquisition.windows import ForceWindow
 
     from . import uff
 
@@ -96,11 +97,7 @@ def frf_from_file(in_uff, out_uff, *, estimator: str = "H1", force_fraction: flo
         raise ModalabValueError(f"{in_uff}: no time records (dataset 58, function type 1) to turn into FRFs; "
                                 "run 'modalab info' to see what the file holds")
     fw = ForceWindow(fraction=force_fraction) if force_fraction else None
-    ew = None
-    if exp_beta:
-        ew = ExponentialWindow(beta=exp_beta)
-    elif exp_end_level:
-        ew = ExponentialWindow(end_level=exp_end_level)
+    ew = exponential_window(exp_beta, exp_end_level)      # the one rule, as for a test plan
     frf = estimate_frf_roving(recs, estimator=estimator, force_window=fw, exp_window=ew)
     bw = bandwidth_hz or recs[0].sample_rate_hz / 2.56
     frf = frf.band(0.0, bw)
@@ -136,59 +133,19 @@ def file_info(path) -> dict:
 
 
 # ------------------------------------------------------------------------- acquisition
-_SIM_KEYS = {"structure", "seed", "faults", "hit_interval_s", "realtime", "force_n", "tip", "double_hit_probability",
-             "force_scatter", "placement_scatter_m", "dead", "noisy"}
-
-
 def make_sim_backend(plan, *, seed: int | None = None):
     """A simulated DAQ (:class:`hardware_sim.lab.SimulatedLab`) for a test plan, from the plan's ``[sim]`` section.
 
-    ``[sim]`` keys: ``structure`` ('demo' or a .bdf), ``seed``, ``hit_interval_s`` (simulated time from arm to
-    the operator's hit), ``realtime`` (waits take real time), the manual hammer's ``force_n``, ``tip``,
-    ``force_scatter``, ``placement_scatter_m``, ``double_hit_probability``; faults: ``[sim.faults]`` (the
-    fields of :class:`hardware_sim.setup.FaultConfig`), ``dead = ["channel name", ...]`` (dead sensors) and
-    ``noisy = {channel name = extra V rms}``.  With a ``[hammer] url = "simhammer://NAME"`` the lab's hammer
-    is automatic and the simulated serial hammer fires it.
+    The keys are read by :func:`hardware_sim.bench.lab_from_sim` (listed there); ``structure`` is 'demo' or
+    a bulk-data file, loaded here.  With a ``[hammer] url = "simhammer://NAME"`` the lab's hammer is
+    automatic and the simulated serial hammer fires it.
     """
-    import time
+    from hardware_sim.bench import lab_from_sim
 
-    from hardware_sim.hammer import Hammer
-    from hardware_sim.lab import SimulatedLab
-    from hardware_sim.setup import ChannelSetup, FaultConfig
-
-    sim = dict(plan.sim)
-    unknown = set(sim) - _SIM_KEYS
-    if unknown:
-        raise PlanError(f"[sim] has unknown key(s) {sorted(unknown)}; expected some of {sorted(_SIM_KEYS)}")
-    names = [c.name for c in plan.channels]
-    dead = set(sim.get("dead", []))
-    noisy = {str(k): float(v) for k, v in dict(sim.get("noisy", {})).items()}
-    for n in dead | set(noisy):
-        if n not in names:
-            raise PlanError(f"[sim] dead/noisy names channel {n!r}, which the plan does not have; use one of {names}")
-    st, _ = _demo_or_structure(sim.get("structure", "demo"))
-    try:
-        faults = FaultConfig(**sim["faults"]) if sim.get("faults") else None
-    except TypeError as e:
-        raise PlanError(f"[sim.faults]: {e}; see hardware_sim.setup.FaultConfig for the fields") from None
+    st, _ = _demo_or_structure(plan.sim.get("structure", "demo"))
     automatic = str(plan.hammer.get("url", "")).startswith("simhammer://")
-    hkw = {k: sim[k] for k in ("force_n", "tip", "force_scatter", "placement_scatter_m", "double_hit_probability")
-           if k in sim}
-    hammer = Hammer(automatic=automatic, **hkw)
-    rng = np.random.default_rng(sim.get("seed", 1) if seed is None else seed)
-    lab = SimulatedLab(st, None, None, hammer=hammer, faults=faults, rng=rng,
-                       hit_interval_s=float(sim.get("hit_interval_s", 0.0)),
-                       sleep=time.sleep if sim.get("realtime") else None)
-    if dead or noisy:
-        base_configure = lab.configure
-
-        def configure(channels, setup=None):
-            chans = [ChannelSetup.from_config(c, dead=getattr(c, "name", "") in dead,
-                                              extra_noise_v_rms=noisy.get(getattr(c, "name", ""), 0.0))
-                     for c in channels]
-            return base_configure(chans, setup)
-
-        lab.configure = configure
+    lab = lab_from_sim(plan.sim, st, channel_names=[c.name for c in plan.channels], automatic=automatic, seed=seed,
+                       source=plan.source, dofs=list(plan.points) + plan.fixed_dofs)
     if automatic:
         from hardware_sim import serial_devices
 

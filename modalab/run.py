@@ -238,17 +238,10 @@ def _sim_lab(ctx: _Context, plan):
         from .pipeline import make_sim_backend
 
         return make_sim_backend(plan, seed=seed)
-    from hardware_sim.hammer import Hammer
-    from hardware_sim.lab import SimulatedLab
-    from hardware_sim.setup import FaultConfig
+    from hardware_sim.bench import lab_from_sim
 
-    st = load_truth(t["truth"])
-    faults = FaultConfig(**plan.sim["faults"]) if plan.sim.get("faults") else None
-    hk = {k: plan.sim[s] for k, s in (("force_n", "force_n"), ("tip", "hammer_tip"), ("mass_kg", "hammer_mass_kg"))
-          if s in plan.sim}
-    hammer = Hammer(**hk) if hk else None
-    return SimulatedLab(st, None, None, hammer=hammer, faults=faults, rng=np.random.default_rng(seed),
-                        hit_interval_s=float(plan.sim.get("hit_interval_s", 0.0)))
+    return lab_from_sim(plan.sim, load_truth(t["truth"]), channel_names=[c.name for c in plan.channels], seed=seed,
+                        source=plan.source)
 
 
 class _AcquireObserver:
@@ -328,7 +321,8 @@ def stage_frf(ctx: _Context) -> tuple[list, dict]:
         ff = o["force_fraction"] if o["force_fraction"] is not None else plan.force_fraction
         ee = o["exp_end_level"] if o["exp_end_level"] is not None else (plan.exp_end_level or None)
         out, frf = frf_from_file(ctx.out / "acquire" / "session.uff", d / "frf.uff", estimator=o["estimator"],
-                                 force_fraction=ff, exp_end_level=ee, exp_beta=plan.exp_beta,
+                                 force_fraction=ff, exp_end_level=ee,
+                                 exp_beta=plan.exp_beta if o["exp_end_level"] is None else None,   # override wins
                                  reciprocity=o["reciprocity"])
     rec = {}
     try:

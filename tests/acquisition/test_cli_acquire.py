@@ -96,3 +96,97 @@ def test_cli_errors_are_one_clear_line(tmp_path, capsys):
     assert "99" in capsys.readouterr().err
     assert main(["acquire", str(tmp_path / "missing.toml"), "--auto", "-o", str(tmp_path / "u")]) == 2
     assert "cannot read test plan" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("case", ["typo", "binary", "directory", "output_is_a_file", "output_below_a_file"])
+def test_cli_acquire_bad_input_is_one_line_exit_2(tmp_path, capsys, case):
+    plan = small_plan(tmp_path, points=("14+Z",))
+    out = tmp_path / "s"
+    expect = str(plan)
+    if case == "typo":
+        plan = small_plan(tmp_path, points=("14+Z",), name="typo.toml",
+                          edit=lambda d: d["acquisition"].update(averges=4))
+        expect = "unknown key acquisition.averges; did you mean acquisition.averages?"
+    elif case == "binary":
+        plan = tmp_path / "random.toml"
+        plan.write_bytes(bytes(range(256)) * 4)
+        expect = "random.toml' is not a text file"
+    elif case == "directory":
+        plan, expect = tmp_path, "is a directory"
+    elif case == "output_is_a_file":
+        out.write_text("precious")
+        expect = "is a file"
+    else:
+        (tmp_path / "f").write_text("precious")
+        out = tmp_path / "f" / "s"
+        expect = "cannot create the session folder"
+    code = main(["acquire", str(plan), "--backend", "sim", "--auto", "--quiet", "-o", str(out)])
+    cap = capsys.readouterr()
+    assert code == 2
+    assert len(cap.err.strip().splitlines()) == 1 and expect in cap.err and "Traceback" not in cap.err
+    if case.startswith("output"):
+        assert (tmp_path / ("s" if case == "output_is_a_file" else "f")).read_text() == "precious"
+    else:
+        assert not out.exists()                      # nothing written for a bad plan
+
+
+def test_cli_acquire_the_demo_project_plan_as_documented(tmp_path, capsys):
+    # issue 14 #6: `modalab acquire examples/demo_project/plan.toml --backend sim --auto -o s` was rejected for
+    # its own [sim] keys; its structure (nominal.bdf beside it) is found from any working directory
+    import tomllib
+
+    import tomli_w
+
+    src = ROOT / "examples" / "demo_project" / "plan_quick.toml"
+    d = tomllib.loads(src.read_text())
+    d["roving"]["points"] = d["roving"]["points"][:1]
+    (tmp_path / "proj").mkdir()
+    (tmp_path / "proj" / "plan.toml").write_text(tomli_w.dumps(d))
+    (tmp_path / "proj" / "nominal.bdf").write_bytes((src.parent / "nominal.bdf").read_bytes())
+    code = main(["acquire", str(tmp_path / "proj" / "plan.toml"), "--backend", "sim", "--auto", "--quiet",
+                 "-o", str(tmp_path / "s")])
+    assert code == 0, capsys.readouterr().err
+    assert "session complete" in capsys.readouterr().out
+
+
+def _corpus(tmp_path):
+    """Damaged copies of a valid plan: truncated at 10/50/99 % and mid-line, random bytes, empty, wrong types,
+    a DOF the simulated structure does not have."""
+    import random
+
+    def plan(name, edit=None):
+        return small_plan(tmp_path, points=("1+Z",), averages=1, max_hits=1, record_s=0.25, name=name,
+                          edit=edit).read_bytes()
+
+    src = plan("valid.toml")
+    text = src.decode()
+    mid = text.index("\n", len(text) // 3) + 5
+    rnd = random.Random(14)
+    yield "cut10", src[: len(src) // 10]
+    yield "cut50", src[: len(src) // 2]
+    yield "cut99", src[: len(src) * 99 // 100]
+    yield "midline", src[:mid]
+    yield "random", bytes(rnd.randrange(256) for _ in range(600))
+    yield "empty", b""
+    yield "nul", b"\x00" * 64
+    yield "rate_string", plan("x.toml", lambda d: d["acquisition"].update(sample_rate_hz="fast"))
+    yield "points_string", plan("x.toml", lambda d: d["roving"].update(points="1+Z"))
+    yield "noisy_string", plan("x.toml", lambda d: d["sim"].update(noisy={"acc_1Z": "loud"}))
+    yield "dead_string", plan("x.toml", lambda d: d["sim"].update(dead="acc_1Z"))
+    yield "faults_number", plan("x.toml", lambda d: d["sim"].update(faults=3))
+    yield "unknown_dof", plan("x.toml", lambda d: (d.pop("geometry"), d["roving"].update(points=["999+Z"])))
+
+
+def test_cli_acquire_bad_input_corpus(tmp_path, capsys):
+    # every damaged plan: exit 2, one line naming the file, no traceback, no session folder left behind
+    # (or, when a cut happens to leave a valid plan, a normal run)
+    for name, data in _corpus(tmp_path):
+        plan = tmp_path / f"{name}.toml"
+        plan.write_bytes(data)
+        out = tmp_path / f"out_{name}"
+        code = main(["acquire", str(plan), "--backend", "sim", "--auto", "--quiet", "-o", str(out)])
+        cap = capsys.readouterr()
+        assert "Traceback" not in cap.err + cap.out, name
+        assert code == 2, (name, code, cap.err)
+        assert len(cap.err.strip().splitlines()) == 1 and f"{name}.toml" in cap.err, (name, cap.err)
+        assert not out.exists(), name

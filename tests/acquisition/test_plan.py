@@ -97,3 +97,151 @@ def test_load_plan_errors(tmp_path):
     (tmp_path / "x.toml").write_text("[acquisitio]\nsample_rate_hz=1\n")
     with pytest.raises(PlanError, match="unknown section"):
         load_plan(tmp_path / "x.toml")
+
+
+# ------------------------------------------------------------------ typos and wrong types (issue 14 #7)
+@pytest.mark.parametrize("section,typo,meant", [
+    ("acquisition", "sample_rte_hz", "sample_rate_hz"),
+    ("acquisition", "averges", "averages"),
+    ("trigger", "slop", "slope"),
+    ("windows", "exp_end_lvl", "exp_end_level"),
+    ("roving", "pointz", "points"),
+    ("hammer", "forc_n", "force_n"),
+    ("sim", "hammer_mas_kg", "hammer_mass_kg"),
+])
+def test_misspelt_key_names_file_section_key_and_the_closest_key(section, typo, meant):
+    d = copy.deepcopy(BASE)
+    d.setdefault(section, {})[typo] = 1.0
+    if section == "hammer":
+        d["hammer"]["url"] = "simhammer://x"
+    with pytest.raises(PlanError) as e:
+        TestPlan.from_dict(d, source="my_plan.toml")
+    assert str(e.value) == f"my_plan.toml: unknown key {section}.{typo}; did you mean {section}.{meant}?"
+
+
+def test_misspelt_channel_key_and_section():
+    d = copy.deepcopy(BASE)
+    d["channels"][1]["sensitivty"] = 100.0
+    with pytest.raises(PlanError, match=r"^p\.toml: unknown key channels\[2\]\.sensitivty; did you mean "
+                                        r"channels\.sensitivity\?$"):
+        TestPlan.from_dict(d, source="p.toml")
+    d = copy.deepcopy(BASE)
+    d["trigger_"] = {}
+    with pytest.raises(PlanError, match=r"unknown section \[trigger_\]; did you mean trigger\?"):
+        TestPlan.from_dict(d, source="p.toml")
+    d = copy.deepcopy(BASE)
+    d["acquisition"]["zzz"] = 1
+    with pytest.raises(PlanError, match=r"unknown key acquisition\.zzz; valid keys: averages, bandwidth_hz"):
+        TestPlan.from_dict(d, source="p.toml")
+
+
+@pytest.mark.parametrize("changes,match", [
+    ({"acquisition__averages": "three"}, r"acquisition\.averages = 'three' is not a valid whole number"),
+    ({"acquisition__averages": 2.5}, r"acquisition\.averages = 2\.5 is not a valid whole number"),
+    ({"acquisition__sample_rate_hz": "2048"}, r"acquisition\.sample_rate_hz = '2048' is not a valid number"),
+    ({"trigger__level": True}, r"trigger\.level = True is not a valid number"),
+    ({"trigger__slope": "up"}, r"trigger\.slope = 'up'; expected 'rising' or 'falling'"),
+    ({"trigger__channel": 1}, r"trigger\.channel = 1 is not a valid string"),
+    ({"acquisition__timeout_s": 0}, r"timeout_s = 0\.0 must be positive"),
+])
+def test_wrong_types_are_errors_not_coerced(changes, match):
+    with pytest.raises(PlanError, match=match):
+        TestPlan.from_dict(mod(**changes))
+
+
+def test_a_section_that_is_not_a_table():
+    d = copy.deepcopy(BASE)
+    d["windows"] = 3
+    with pytest.raises(PlanError, match=r"\[windows\] must be a table"):
+        TestPlan.from_dict(d)
+
+
+# ------------------------------------------------------------------ the one exponential-window rule (issue 15)
+@pytest.mark.parametrize("windows,beta,end", [
+    ({}, None, None), ({"exp_end_level": 0.0}, None, None), ({"exp_beta": 0.0}, None, None),
+    ({"exp_end_level": 0.01}, None, 0.01), ({"exp_beta": 2.5}, 2.5, None),
+])
+def test_exp_window_rule(windows, beta, end):
+    d = copy.deepcopy(BASE)
+    d["windows"] = windows
+    ew = TestPlan.from_dict(d).exp_window()
+    if beta is None and end is None:
+        assert ew is None
+    else:
+        assert ew.beta == beta and ew.end_level == end
+
+
+def test_exp_window_both_or_invalid_is_an_error():
+    for w, match in (({"exp_beta": 2.0, "exp_end_level": 0.01}, "both given; keep one"),
+                     ({"exp_beta": -1.0}, "exp_beta = -1.0 must be a decay rate >= 0"),
+                     ({"exp_end_level": 1.0}, r"exp_end_level = 1.0 must be in \[0, 1\)")):
+        d = copy.deepcopy(BASE)
+        d["windows"] = w
+        with pytest.raises(PlanError, match=match):
+            TestPlan.from_dict(d, source="p.toml")
+
+
+@pytest.mark.parametrize("beta", [0.0, 3.0])
+def test_session_and_modalab_frf_window_the_same_hits_alike(tmp_path, beta):
+    # one rule (exponential_window) for a plan's exp_beta and `modalab frf --exp-beta`; exp_beta = 0 used to
+    # build a beta-0 window in the session and none in frf_from_file
+    import numpy as np
+
+    from acquisition.session import frf_from_hits
+    from hardware_sim import demo_lab
+    from modalab import uff
+    from modalab.pipeline import frf_from_file
+
+    lab = demo_lab(rng=1)
+    recs = [lab.hit("14+Z", force_n=150.0) for _ in range(3)]
+    for k, r in enumerate(recs, start=1):
+        r.hit_id = k
+    uff.write_records(tmp_path / "hits.uff", recs)
+    d = copy.deepcopy(BASE)
+    d["windows"] = {"exp_beta": beta, "force_fraction": 0.05, "force_taper": 0.0}
+    plan = TestPlan.from_dict(d)
+    a = frf_from_hits(recs, plan)
+    _, b = frf_from_file(tmp_path / "hits.uff", tmp_path / "frf.uff", exp_beta=beta, reciprocity=False,
+                         bandwidth_hz=plan.bandwidth_hz)
+    assert a.H.shape == b.H.shape
+    np.testing.assert_allclose(b.H, a.H, rtol=1e-6, atol=1e-9 * np.abs(a.H).max())
+    assert float(a.metadata.get("exp_window_beta") or 0.0) == float(b.metadata.get("exp_window_beta") or 0.0)
+
+
+# ------------------------------------------------------------------ files (issue 14 #11 and the tracebacks)
+def test_relative_sim_structure_is_read_from_the_plans_folder(tmp_path, monkeypatch):
+    import tomli_w
+
+    (tmp_path / "plans").mkdir()
+    (tmp_path / "plans" / "frame.bdf").write_text("$ empty\n")
+    d = copy.deepcopy(BASE)
+    d["sim"] = {"structure": "frame.bdf"}
+    f = tmp_path / "plans" / "p.toml"
+    f.write_text(tomli_w.dumps(d))
+    monkeypatch.chdir(tmp_path)                  # not the plan's folder
+    assert load_plan(f).sim["structure"] == str(tmp_path / "plans" / "frame.bdf")
+    assert load_plan("plans/p.toml").sim["structure"] == str(tmp_path / "plans" / "frame.bdf")
+    d["sim"] = {"structure": "missing.bdf"}
+    f.write_text(tomli_w.dumps(d))
+    with pytest.raises(PlanError, match=r"p\.toml: sim\.structure = 'missing\.bdf': no such file .*plans/missing\.bdf"):
+        load_plan(f)
+
+
+def test_binary_or_directory_plan_is_a_clear_error(tmp_path):
+    f = tmp_path / "plan.toml"
+    f.write_bytes(bytes(range(256)))
+    with pytest.raises(PlanError, match=r"plan\.toml' is not a text file"):
+        load_plan(f)
+    with pytest.raises(PlanError, match="is a directory"):
+        load_plan(tmp_path)
+
+
+def test_the_module_docstring_example_is_a_valid_plan():
+    import textwrap
+    import tomllib
+
+    import acquisition.plan as plan_mod
+
+    block = textwrap.dedent(plan_mod.__doc__.split("::\n", 1)[1].split("\nEvery section", 1)[0])
+    p = TestPlan.from_dict(tomllib.loads(block), source="acquisition.plan docstring")
+    assert p.sim["hammer_tip"] == "medium" and p.exp_window().end_level == 0.01 and p.hammer["url"]

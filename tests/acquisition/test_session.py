@@ -258,3 +258,76 @@ def test_suggest_range_property(peak, current):
         assert s in STANDARD_RANGES and s >= 2 * peak
         smaller = [r for r in STANDARD_RANGES if r < s]
         assert not smaller or smaller[-1] < 2 * peak
+
+
+def test_a_corrupted_accepted_hit_reopens_its_point_and_the_session_is_not_complete(tmp_path):
+    # issue 14 #12: a damaged accepted hit was removed as a "stray file", the point kept 2 of 3 averages and
+    # the session still said complete
+    from acquisition.session import AcquisitionSession
+
+    plan_path = small_plan(tmp_path, points=("1+Z", "19+Z"))
+    out = tmp_path / "s"
+    _, summary, exported = acquire(plan_path, out, auto=True)
+    assert summary.complete and exported
+    victim = next(h for h, (p, _) in accepted_hits(journal(out)).items() if p == 1)
+    f = out / "hits" / f"hit_{victim:06d}.npz"
+    b = bytearray(f.read_bytes()); b[200] ^= 0xFF; f.write_bytes(bytes(b))
+    plan = load_plan(plan_path)
+    sess = AcquisitionSession(plan, make_sim_backend(plan), out, mode="auto", resume=True)
+    before = sess.summary()
+    assert not before.complete and not before.points[1].done and before.points[1].accepted == 1
+    assert before.points[0].done and before.points[0].accepted == 2
+    row = before.table().splitlines()[2]
+    assert row.split()[0] == "19+Z" and "re-opened, 1 of 2 hits; LOST 1 hit(s) (raw file damaged)" in row
+    text = "\n".join(sess.resume_report)
+    assert sess.resume_report[0].startswith("recovered 1 of 2 points complete, 3 hits kept (3 accepted")
+    assert f"LOST hit {victim} (candidate, point index 1)" in text and "stray" not in text
+    assert "point 19+Z re-opened: 1 of 2 accepted hits left after a lost hit" in text
+    rec = Recorder()
+    sess.observer = rec
+    after = sess.run()
+    assert after.complete and [p.accepted for p in after.points] == [2, 2]
+    assert rec.started == ["19+Z"]                                   # only the re-opened point is measured
+    assert any(m.startswith("on resume: LOST hit") for m in rec.messages)
+    final = accepted_hits(journal(out))
+    assert victim in final                         # the journal's own history still names it accepted ...
+    assert victim not in {h for k, s in sess.store.points().items() for h in s.accepted}   # ... the replay not
+    assert json.loads((out / "summary.json").read_text())["complete"] is True
+
+
+def test_lost_session_json_with_a_changed_plan_is_refused(tmp_path):
+    # issue 14 #13: without session.json the plan check was skipped and a changed plan (averages = 4) mixed in
+    from modalab.errors import PlanError
+
+    plan_path = small_plan(tmp_path, points=("1+Z", "19+Z"))
+    out = tmp_path / "s"
+    acquire(plan_path, out, prompter=ScriptedPrompter("aq"))
+    (out / "session.json").unlink()
+    changed = small_plan(tmp_path, points=("1+Z", "19+Z"), averages=4, max_hits=5, name="changed.toml")
+    with pytest.raises(PlanError, match=r"\[acquisition\] differs"):
+        acquire(changed, out, resume=True, prompter=ScriptedPrompter("q"))
+    # rebuilt from the journal's first line, with the plan the session was started with
+    assert json.loads((out / "session.json").read_text())["plan"]["acquisition"]["averages"] == 2
+    (out / "session.json").write_text("{ torn")
+    _, summary, _ = acquire(plan_path, out, resume=True, prompter=ScriptedPrompter("q"))
+    assert summary.points[0].accepted == 1
+    assert "session.json was unreadable; rebuilt from the journal (the plan is checked against it)" in summary.resume
+
+
+def test_interrupted_and_resumed_session_gives_the_frfs_of_an_uninterrupted_one(tmp_path):
+    # issue 14 #14: resuming restarted the simulator's random stream, so resumed points replayed the same forces
+    plan_path = small_plan(tmp_path, points=("1+Z", "19+Z"))
+    _, s1, ref = acquire(plan_path, tmp_path / "one", prompter=ScriptedPrompter("aaaa"))
+    out = tmp_path / "two"
+    acquire(plan_path, out, prompter=ScriptedPrompter("aq"))                 # quit after the first hit
+    _, s2, exported = acquire(plan_path, out, resume=True, prompter=ScriptedPrompter("aq"))
+    assert not s2.complete
+    _, s3, exported = acquire(plan_path, out, resume=True, prompter=ScriptedPrompter("aa"))
+    assert s1.complete and s3.complete
+    assert s3.resume[0] == "recovered 1 of 2 points complete, 2 hits kept (2 accepted, 0 awaiting selection), " \
+                           "0 rejected before"
+    a, b = uff.read_frf(exported), uff.read_frf(ref)
+    np.testing.assert_array_equal(a.H, b.H)
+    np.testing.assert_array_equal(a.coherence, b.coherence)
+    forces = [r.data[0] for r in uff.read_records(exported)]
+    assert not any(np.array_equal(forces[i], forces[j]) for i in range(4) for j in range(i))   # no replayed hit

@@ -146,10 +146,19 @@ def test_dead_accelerometer_is_reported_and_the_others_are_exact(tmp_path):
     _exact_ok(exported, sess.backend.model, references=["19+Z", "12+Z"])
 
 
-@pytest.mark.parametrize("bad", [{"dead": ["acc_9Z"]}, {"typo_key": 1}, {"faults": {"no_such_fault": [1]}}])
-def test_sim_section_errors_are_clear(tmp_path, bad):
+@pytest.mark.parametrize("bad,match", [
+    ({"dead": ["acc_9Z"]}, r"\[sim\] dead/noisy names channel 'acc_9Z'"),
+    ({"typo_key": 1}, r"unknown key sim\.typo_key; valid keys: "),
+    ({"hamer_tip": "soft"}, r"unknown key sim\.hamer_tip; did you mean sim\.hammer_tip\?"),
+    ({"faults": {"no_such_fault": [1]}}, r"unknown key sim\.faults\.no_such_fault"),
+    ({"faults": {"double_hit_onn": [1]}}, r"sim\.faults\.double_hit_onn; did you mean sim\.faults\.double_hit_on\?"),
+    ({"hammer_tip": "rubber"}, r"sim\.hammer_tip = 'rubber'; expected one of hard, medium, soft"),
+    ({"hammer_mass_kg": 0}, r"sim\.hammer_mass_kg = 0\.0 must be positive"),
+    ({"seed": -3}, r"sim\.seed = -3 must be a whole number >= 0"),
+])
+def test_sim_section_errors_are_clear(tmp_path, bad, match):
     from modalab.errors import PlanError
 
     plan = small_plan(tmp_path, points=("14+Z",), sim=bad)
-    with pytest.raises(PlanError, match=r"\[sim"):
+    with pytest.raises(PlanError, match=r"plan\.toml: .*" + match):
         acquire(plan, tmp_path / "s", auto=True)

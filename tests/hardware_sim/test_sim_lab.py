@@ -180,6 +180,29 @@ class TestDeterminism:
     def test_other_seed_other_records(self):
         assert not np.array_equal(demo_lab(1).hit("4+Z").data, demo_lab(2).hit("4+Z").data)
 
+    def test_seed_hit_draws_a_hit_from_its_key_whatever_came_before(self):
+        # what a resumed acquisition session relies on: hit (point 1, hit 2) is the same in a fresh lab
+        # and in one that has drawn other hits before
+        fresh = demo_lab(21)
+        fresh.seed_hit(1, 2)
+        a = fresh.hit("4+Z")
+        used = demo_lab(21)
+        for k in range(3):
+            used.seed_hit(0, k)
+            used.hit("11+Z")
+        used.seed_hit(1, 2)
+        b = used.hit("4+Z")
+        assert np.array_equal(a.data, b.data)
+        sa, sb = dict(a.metadata["sim"]), dict(b.metadata["sim"])
+        assert (sa.pop("arm"), sb.pop("arm")) == (1, 4) and sa == sb      # only the arm counter differs
+        used.seed_hit(1, 3)
+        assert not np.array_equal(used.hit("4+Z").data, a.data)
+        other = demo_lab(22)
+        other.seed_hit(1, 2)
+        assert not np.array_equal(other.hit("4+Z").data, a.data)          # the lab's seed is part of the key
+        with pytest.raises(ModalabValueError, match="non-negative"):
+            fresh.seed_hit(-1, 0)
+
     def test_probabilistic_faults_are_seeded_too(self):
         faults = FaultConfig(double_hit_probability=0.5, overload_storm_probability=0.3, no_trigger_probability=0.2)
 
