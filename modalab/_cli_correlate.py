@@ -22,7 +22,9 @@ def cmd_correlate(a):
         figs = save_correlation_plots(res, a.plots)
         _print("figures: " + ", ".join(str(v) for v in figs.values()))
     if a.json:
-        Path(a.json).write_text(json.dumps(res.to_dict(), indent=1, default=str))
+        from ._output import write_text
+
+        write_text(a.json, json.dumps(res.to_dict(), indent=1, default=str))
         _print(f"wrote {a.json}")
     return 0
 
