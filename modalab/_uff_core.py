@@ -107,7 +107,12 @@ def scan(raw: bytes, path) -> list[Block]:
         end = n if eol < 0 else eol
         first = raw[pos:end]
         if first.strip() != b"-1":
-            raise UffError(f"expected the '    -1' line that opens a dataset, found {_decode(first[:40]).strip()!r}. "
+            head = first[:40]
+            if any(c < 9 or 13 < c < 32 or c > 126 for c in head):
+                raise UffError("expected the '    -1' line that opens a dataset, found binary data: the file is not "
+                               "a universal file" + ("" if not blocks else " or an earlier dataset is corrupt"),
+                               path=path, line=line_no)
+            raise UffError(f"expected the '    -1' line that opens a dataset, found {_decode(head).strip()!r}. "
                            "The file is not a universal file or an earlier dataset is corrupt",
                            path=path, line=line_no)
         if eol < 0:

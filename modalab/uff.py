@@ -441,8 +441,10 @@ def read_frf(path, *, quantity: str | None = None, responses=None, references=No
         if not frfs:
             kinds = Counter(FUNC_TYPES.get(f.func_type, str(f.func_type)) for f in
                             _functions(blocks, cur, range(100), header_only=True))
-            raise UffError(f"no FRFs (dataset 58, function type 4) in the file; it holds "
-                           f"{dict(kinds) or 'no dataset 58'}. Use read_records for time data", path=path)
+            hint = (" (raw hits: make FRFs of them with 'modalab frf', or uff.read_records in Python)"
+                    if "time response" in kinds else "")
+            held = ", ".join(f"{v} {k}" for k, v in kinds.items()) or "no dataset 58"
+            raise UffError(f"no FRFs (dataset 58, function type 4) in the file; it holds {held}{hint}", path=path)
         first = frfs[0]
         rows: dict = {}
         cols: dict = {}
