@@ -1209,8 +1209,9 @@ def read_modes(path, *, dofs=None) -> ModeSet:
 _HZ_RE = None
 
 
-def _stated_hz(ids) -> float | None:
-    """A frequency an exporter wrote into the ID lines of a mode ("... 12.345 Hz" or "Freq 12.345")."""
+def _stated_hz(ids) -> tuple[float, float] | None:
+    """A frequency an exporter wrote into the ID lines of a mode ("... 12.345 Hz" or "Freq 12.345") and the
+    half-width of its last printed digit."""
     import re
 
     global _HZ_RE
@@ -1222,10 +1223,15 @@ def _stated_hz(ids) -> float | None:
             continue
         m = _HZ_RE.search(ln)
         if m:
+            txt = m.group(1) or m.group(2)
             try:
-                return float(m.group(1) or m.group(2))
+                v = float(txt)
             except ValueError:
                 return None
+            mant = txt.lower().split("e")[0]
+            decimals = len(mant.split(".")[1]) if "." in mant else 0
+            exp = int(txt.lower().split("e")[1]) if "e" in txt.lower() else 0
+            return v, 0.5 * 10.0 ** (exp - decimals)          # the value and its rounding half-width
     return None
 
 
@@ -1323,11 +1329,13 @@ def info(path, *, quantity: str | None = None) -> dict:
                 row.update(freq_undamped_hz=f, freq_damped_hz=fd)
                 stated = _stated_hz(s["ids"])
                 if stated is not None:
-                    tol = 1e-4 * max(abs(stated), 1e-9)
+                    stated, half = stated
+                    dd, du = abs(stated - fd), abs(stated - f)
+                    tol = 1.01 * half + 1e-5 * abs(stated)   # the header's digits (and our E13.5 reading)
                     row["header_hz"] = stated
-                    row["header_states"] = ("damped" if abs(stated - fd) <= max(tol, 5e-4 * abs(f - fd) + 1e-6)
-                                            and abs(stated - fd) < abs(stated - f) else
-                                            "undamped" if abs(stated - f) <= max(tol, 1e-6) else "neither")
+                    row["header_states"] = ("neither" if min(dd, du) > tol else
+                                            "either (they agree to the header's digits)" if abs(f - fd) <= tol
+                                            else "damped" if dd < du else "undamped")
             rows.append(row)
         out["modes"] = {"n_modes": ms.n_modes, "dofs": len(ms.dofs), "scaling": ms.scaling, "table": rows,
                         "frequency": ("complex modes: freq_hz is the undamped natural frequency |lambda|/2pi; "
