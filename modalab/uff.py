@@ -1002,7 +1002,8 @@ def write_modes(path, modes: ModeSet, *, append: bool = False, exact: bool = Tru
     if 0 in axes and len(axes) > 1:
         raise UffError("the mode set mixes scalar DOFs with directional ones; write them as two files",
                        path=path)
-    ndv = 1 if axes == {0} else (6 if max(axes) > 3 else 3)
+    # a frequency-only set (no DOFs) is written as modes with no node records
+    ndv = 3 if not axes else 1 if axes == {0} else (6 if max(axes) > 3 else 3)
     data_ch = {1: 1, 3: 2, 6: 3}[ndv]
     nodes: dict[int, int] = {}
     for d in modes.dofs:

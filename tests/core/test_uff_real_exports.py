@@ -249,3 +249,15 @@ def test_info_lists_modes_and_says_which_frequency(tmp_path, capsys):
     assert main(["info", str(real)]) == 0
     out = capsys.readouterr().out
     assert "f [Hz]" in out and "5.0000" in out and "9.0000" in out and "f_d" not in out
+
+
+def test_frequency_only_mode_set_round_trips(tmp_path):
+    """Issue 16 #12: writing a mode set without shapes raised 'max() arg is an empty sequence'."""
+    m = ModeSet(freq_hz=[3.5, 7.25], damping=[0.01, 0.02], shapes=np.zeros((0, 2)), dofs=[])
+    p = tmp_path / "f_only.uff"
+    uff.write_modes(p, m)
+    r = uff.read_modes(p)
+    np.testing.assert_array_equal(r.freq_hz, m.freq_hz)
+    np.testing.assert_array_equal(r.damping, m.damping)
+    assert r.dofs == [] and r.shapes.shape == (0, 2)
+    assert len(pyuff.UFF(str(p)).read_sets()) == 2
