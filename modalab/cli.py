@@ -204,6 +204,21 @@ def _g(v) -> str:
     return "-" if v is None else f"{v:g}"
 
 
+def _value(v) -> str:
+    """A metadata value as text (no Python reprs: no None, no brackets or quotes)."""
+    if v is None:
+        return "none"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        return f"{v:g}"
+    if isinstance(v, (list, tuple)):
+        return _join([_value(x) for x in v], 8)
+    if isinstance(v, dict):
+        return "(" + ", ".join(f"{k} {_value(x)}" for k, x in v.items()) + ")"
+    return str(v)
+
+
 def info_table(info: dict) -> list[str]:
     """The lines ``modalab info`` prints for a :func:`modalab.uff.info` dict."""
     rows = [("file", info["path"]),
@@ -220,8 +235,7 @@ def info_table(info: dict) -> list[str]:
                                + (f", df {_g(f['df_hz'])} Hz" if f["df_hz"] else " (uneven)"))]
         meta = f.get("metadata") or {}
         if meta:
-            rows.append(("processing", ", ".join(f"{k} {_join(v, 8) if isinstance(v, list) else v}"
-                                                 for k, v in meta.items())))
+            rows.append(("processing", ", ".join(f"{k.replace('_', ' ')} {_value(v)}" for k, v in meta.items())))
     h = info.get("hits")
     if h:
         rows += [("hits", f"{h['hits']} hits, {_join(h['channels_per_hit'])} channels each"),

@@ -1296,9 +1296,6 @@ def info(path, *, quantity: str | None = None) -> dict:
                       "df_hz": float(frf.freq_hz[1] - frf.freq_hz[0]) if even else None,
                       "coherence": frf.coherence is not None,
                       "metadata": {k: v for k, v in frf.metadata.items() if k != "source"}}
-    elif any(f.func_type == 6 for f in heads):
-        raise UffError("the file holds coherence (function type 6) but no FRFs (function type 4) to go with it",
-                       path=path, dataset=58)
     if any(f.func_type == 1 for f in heads):
         recs = read_records(path)
         hammer: dict = {}

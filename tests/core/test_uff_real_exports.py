@@ -261,3 +261,16 @@ def test_frequency_only_mode_set_round_trips(tmp_path):
     np.testing.assert_array_equal(r.damping, m.damping)
     assert r.dofs == [] and r.shapes.shape == (0, 2)
     assert len(pyuff.UFF(str(p)).read_sets()) == 2
+
+
+def test_info_table_of_frfs_has_no_python_reprs(tmp_path, capsys):
+    frf = FRF.from_arrays(np.linspace(0, 10, 11), np.ones((1, 2, 11)) * (1 + 1j), responses=["5+X"],
+                          references=["1+Z", "2-Z"], quantity="mobility",
+                          metadata={"estimator": "H1", "exp_window": None, "hit_ids": [1, 2, 3]})
+    p = tmp_path / "f.uff"
+    uff.write_frf(p, frf)
+    assert main(["info", str(p)]) == 0
+    out = capsys.readouterr().out
+    for repr_mark in ("None", "{", "[", "'"):
+        assert repr_mark not in out.replace("[m/s/N]", ""), out
+    assert "1 responses x 2 references, mobility" in out and "2-Z" in out
