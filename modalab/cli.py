@@ -12,6 +12,11 @@ Subcommands (each has ``--help`` with units):
   update     update an FE model to test modes or FRFs
   diagnose   locate and name missing physics
   run        the whole chain from a project file
+
+Outputs (:mod:`modalab._output`): an output is never written over an input (not even with ``--force``); an
+existing output file is replaced only with ``--force`` (``sim``: ``--overwrite``); files are written to a
+temporary file and renamed, with the user's umask, and what a failed command created is removed.  Bad input
+gives one line ``modalab COMMAND: error: ...`` naming the file (and line) and exit code 2.
 """
 from __future__ import annotations
 
@@ -250,7 +255,8 @@ def info_table(info: dict) -> list[str]:
         rows.append(("geometry", f"{info['nodes']} nodes"))
     if info.get("coordinate_systems"):
         rows.append(("frames", ", ".join(f"{k}: {v}" for k, v in info["coordinate_systems"].items())
-                     + " (dataset 2420; data in rotated frames are turned into the global frame when read)"))
+                     + " (dataset 2420; modes and FRF triads measured in rotated frames are read in the global "
+                       "frame, raw time records in them are refused)"))
     u = info.get("units")
     if u:
         rows.append(("unit system", f"{u['description'] or 'code ' + str(u['code'])}: length x{_g(u['length'])}, "
