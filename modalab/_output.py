@@ -79,7 +79,8 @@ def check_outputs(inputs=(), files=(), folders=(), *, force: bool = False, write
                 raise OutputError(f"output '{out}' is also an input of this command; an output never overwrites "
                                   "an input (not even with --force). Choose another output name")
         if out.is_dir():
-            raise OutputError(f"output '{out}' is a folder; expected a file name (e.g. '{out / 'out'}')")
+            raise OutputError(f"output '{out}' is a folder; expected a file name (a file inside it, or another "
+                              "name)")
         for parent in out.parents:
             if parent.exists():
                 if not parent.is_dir():

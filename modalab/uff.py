@@ -833,7 +833,8 @@ def _parse_2420(b: Block) -> dict[int, dict]:
     """Coordinate systems of dataset 2420: ``{label: {'type', 'name', 'rotation', 'origin', 'identity'}}``.
 
     The transformation matrix's rows 1-3 are the local X, Y, Z axes in global coordinates and row 4 the
-    origin (I-DEAS row-vector convention: ``x_global = x_local @ T[:3] + T[3]``).
+    origin (I-DEAS row-vector convention: ``x_global = x_local @ T[:3] + T[3]``, directions
+    ``v_global = T[:3].T @ v_local``; the convention of SDynPy's ``global_deflection`` too).
     """
     lines = b.lines
     if len(lines) < 2:
