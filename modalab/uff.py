@@ -102,6 +102,7 @@ from __future__ import annotations
 import contextvars
 import json
 import logging
+import os
 from collections import Counter
 from contextlib import contextmanager
 from pathlib import Path
@@ -340,12 +341,35 @@ _ASSUMED_QUANTITY = contextvars.ContextVar("modalab_assumed_quantity", default=N
 def assume_quantity(quantity: str | None):
     """Within the block, :func:`read_frf` takes FRFs whose file does not state their quantity (ordinate data
     type 0 or 1 without a recognised units label) as ``quantity``, and refuses files that state another one.
-    The command line's ``--quantity`` sets it for the whole command."""
-    token = _ASSUMED_QUANTITY.set(None if quantity is None else check_quantity(quantity))
+    The command line's ``--quantity`` sets it for the whole command.  It is also put in the environment
+    variable ``MODALAB_QUANTITY`` for the block, so that worker processes (campaigns) read alike; the
+    variable set by the user has the same effect."""
+    if quantity is None:
+        yield
+        return
+    q = check_quantity(quantity)
+    token = _ASSUMED_QUANTITY.set(q)
+    old = os.environ.get("MODALAB_QUANTITY")
+    os.environ["MODALAB_QUANTITY"] = q
     try:
         yield
     finally:
         _ASSUMED_QUANTITY.reset(token)
+        if old is None:
+            os.environ.pop("MODALAB_QUANTITY", None)
+        else:
+            os.environ["MODALAB_QUANTITY"] = old
+
+
+def _assumed_quantity() -> str | None:
+    q = _ASSUMED_QUANTITY.get()
+    if q is None and os.environ.get("MODALAB_QUANTITY"):
+        try:
+            q = check_quantity(os.environ["MODALAB_QUANTITY"])
+        except ModalabError:
+            raise UffError(f"MODALAB_QUANTITY={os.environ['MODALAB_QUANTITY']!r}; expected accelerance, mobility "
+                           "or receptance") from None
+    return q
 
 
 def _quantity_from_labels(fn: Fn58) -> str | None:
@@ -477,7 +501,7 @@ def read_frf(path, *, quantity: str | None = None, responses=None, references=No
                 raise UffError(f"FRF {Dof(f.rsp_node, f.rsp_dir)} has no reference DOF (reference node 0 or "
                                "negative): an FRF needs the excitation DOF", path=path, dataset=58, line=f.line + 6)
             q = _TYPE_QTY.get(f.axes[1].spec) or _quantity_from_labels(f)
-            assumed = _ASSUMED_QUANTITY.get()
+            assumed = _assumed_quantity()
             if quantity is None and assumed is not None and q is not None and q != assumed:
                 raise UffError(f"the FRFs are {q} (record 9 of the set at line {f.line}) but --quantity says "
                                f"{assumed}; drop --quantity or convert the FRFs", path=path, dataset=58,

@@ -7,6 +7,7 @@
 * ``info`` lists the modes of a dataset-55 file and says which frequency of a complex mode it prints.
 """
 import json
+import os
 
 import numpy as np
 import pytest
@@ -154,6 +155,26 @@ def test_general_ordinate_type_quantity_from_label_or_cli(tmp_path, capsys):
         with pytest.raises(UffError, match="says receptance"):
             uff.read_frf(labelled)                      # the file says accelerance: no silent relabelling
     assert main(["info", str(labelled), "--quantity", "mobility"]) == 2
+    assert "MODALAB_QUANTITY" not in os.environ          # restored after the command
+
+
+def test_quantity_reaches_worker_processes(tmp_path, monkeypatch):
+    import concurrent.futures as cf
+    import multiprocessing as mp
+
+    bare = _write(tmp_path / "bare.uff", [_frf_set(2, 3, 1, 3, np.ones(4) * 1j, spec=1, units="NONE")])
+    with uff.assume_quantity("mobility"):
+        with cf.ProcessPoolExecutor(1, mp_context=mp.get_context("spawn")) as ex:
+            assert ex.submit(_quantity_of, str(bare)).result(timeout=120) == "mobility"
+    monkeypatch.setenv("MODALAB_QUANTITY", "receptance")
+    assert uff.read_frf(bare).quantity == "receptance"
+    monkeypatch.setenv("MODALAB_QUANTITY", "accel")
+    with pytest.raises(UffError, match="MODALAB_QUANTITY"):
+        uff.read_frf(bare)
+
+
+def _quantity_of(path):
+    return uff.read_frf(path).quantity
 
 
 # ----------------------------------------------------------------------------- dataset 2420 frames
