@@ -244,7 +244,7 @@ def info_table(info: dict) -> list[str]:
     h = info.get("hits")
     if h:
         rows += [("hits", f"{h['hits']} hits, {_join(h['channels_per_hit'])} channels each"),
-                 ("hammer points", _join(f"{d} ({n} hits)" for d, n in h["hits_per_point"].items())),
+                 ("hammer points", _join(f"{d} ({n} hit{'s' if n != 1 else ''})" for d, n in h["hits_per_point"].items())),
                  ("responses", _join(h["responses"])),
                  ("sampling", f"{_join(_g(v) for v in h['sample_rate_hz'])} Hz, {_join(h['samples'])} samples, "
                               f"{_g(h['time_range_s'][0])} to {_g(h['time_range_s'][1])} s"),
@@ -265,7 +265,9 @@ def info_table(info: dict) -> list[str]:
     lines = [f"{k:<{w}}  {v}" for k, v in rows]
     m = info.get("modes")
     if m:
-        lines.append(f"{'modes':<{w}}  {m['n_modes']} modes on {m['dofs']} DOFs, scaling {m['scaling']}")
+        lines.append(f"{'modes':<{w}}  {m['n_modes']} modes "
+                     + (f"on {m['dofs']} DOFs, scaling {m['scaling']}" if m["dofs"] else
+                        "(frequencies and damping only, no shapes)"))
         cplx = any(r["complex"] for r in m["table"])
         if cplx:
             lines.append(f"{'':<{w}}  f_n: undamped natural frequency |lambda|/2pi; f_d: damped, Im(lambda)/2pi")

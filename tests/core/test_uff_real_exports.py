@@ -114,7 +114,7 @@ def test_info_table_separates_hammer_points_from_responses(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "{" not in out and "None" not in out           # no Python reprs
     rows = {ln.split("  ")[0].strip(): ln for ln in out.splitlines()}
-    assert "1+Z (2 hits), 4+Z (1 hits)" in rows["hammer points"]
+    assert "1+Z (2 hits), 4+Z (1 hit)" in rows["hammer points"]
     assert rows["responses"].split()[-2:] == ["19+Z,", "20+Y"]
     assert main(["info", str(p), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["hits"]["hits"] == 3
@@ -281,6 +281,7 @@ def test_frequency_only_mode_set_round_trips(tmp_path):
     np.testing.assert_array_equal(r.freq_hz, m.freq_hz)
     np.testing.assert_array_equal(r.damping, m.damping)
     assert r.dofs == [] and r.shapes.shape == (0, 2)
+    assert "2 modes (frequencies and damping only, no shapes)" in "\n".join(info_table(uff.info(p)))
     assert len(pyuff.UFF(str(p)).read_sets()) == 2
 
 
