@@ -244,7 +244,8 @@ def info_table(info: dict) -> list[str]:
     h = info.get("hits")
     if h:
         rows += [("hits", f"{h['hits']} hits, {_join(h['channels_per_hit'])} channels each"),
-                 ("hammer points", _join(f"{d} ({n} hit{'s' if n != 1 else ''})" for d, n in h["hits_per_point"].items())),
+                 ("hammer points", _join(f"{d} ({n} hit{'s' if n != 1 else ''})"
+                                         for d, n in h["hits_per_point"].items())),
                  ("responses", _join(h["responses"])),
                  ("sampling", f"{_join(_g(v) for v in h['sample_rate_hz'])} Hz, {_join(h['samples'])} samples, "
                               f"{_g(h['time_range_s'][0])} to {_g(h['time_range_s'][1])} s"),
