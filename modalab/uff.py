@@ -557,7 +557,7 @@ def read_frf(path, *, quantity: str | None = None, responses=None, references=No
         full_c = [cols[k] for k in ckeys]
         rot = _node_rotations(blocks, path, cur)
         if rot:
-            done = _rotate_frf(H, coh, full_r, full_c, rot, path)
+            done = _rotate_frf(H, coh, full_r, full_c, rot, path, seen)
             if done:
                 meta["rotated_to_global"] = done
         if responses is not None or references is not None:
@@ -574,7 +574,7 @@ def read_frf(path, *, quantity: str | None = None, responses=None, references=No
                    quantity=qty, units=QUANTITY_UNITS[qty], metadata=meta)
 
 
-def _rotate_frf(H, coh, rows, cols, rot, path) -> list[int]:
+def _rotate_frf(H, coh, rows, cols, rot, path, seen=None) -> list[int]:
     """Rotate FRF rows (responses) and columns (references) measured in local displacement frames into the
     global frame, in place; a node in a rotated frame needs its X, Y and Z all present (else UffError).
     Coherence of a rotated triad is the lowest of its three.  Returns the rotated nodes."""
@@ -591,6 +591,15 @@ def _rotate_frf(H, coh, rows, cols, rot, path) -> list[int]:
                                f"the file holds its directions {sorted(comp)} only; X, Y and Z are needed to rotate "
                                "it into the global frame. Export the FRFs in the global frame", path=path, dataset=58)
             idx = [comp[c][0] for c in (1, 2, 3)]
+            if seen is not None:
+                part = seen[idx] if axis == 0 else seen[:, idx].T
+                gaps = (part == 0).any(axis=0) & (part != 0).any(axis=0)
+                if gaps.any():
+                    other = cols if axis == 0 else rows
+                    raise UffError(f"node {node} is measured in a rotated displacement frame (dataset 2420) but "
+                                   f"not all of its X, Y, Z FRFs with {other[int(np.argmax(gaps))]} are in the "
+                                   "file; all three are needed to rotate them into the global frame",
+                                   path=path, dataset=58)
             sg = np.array([comp[c][1] for c in (1, 2, 3)], float)
             S = np.diag(sg)
             T = S @ rot[node].T @ S                    # label-signed local -> label-signed global
