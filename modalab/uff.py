@@ -560,6 +560,7 @@ def read_frf(path, *, quantity: str | None = None, responses=None, references=No
             done = _rotate_frf(H, coh, full_r, full_c, rot, path, seen)
             if done:
                 meta["rotated_to_global"] = done
+            missing = [(full_r[i], full_c[j]) for i, j in zip(*np.nonzero(seen == 0))]
         if responses is not None or references is not None:
             sub = _submatrix(full_r, full_c, responses, references, H, seen, coh)
             full_r, full_c, H, seen, coh = sub
@@ -595,11 +596,16 @@ def _rotate_frf(H, coh, rows, cols, rot, path, seen=None) -> list[int]:
                 part = seen[idx] if axis == 0 else seen[:, idx].T
                 gaps = (part == 0).any(axis=0) & (part != 0).any(axis=0)
                 if gaps.any():
+                    # a partial triad cannot be rotated: those FRFs count as missing (an error if they are read)
                     other = cols if axis == 0 else rows
-                    raise UffError(f"node {node} is measured in a rotated displacement frame (dataset 2420) but "
-                                   f"not all of its X, Y, Z FRFs with {other[int(np.argmax(gaps))]} are in the "
-                                   "file; all three are needed to rotate them into the global frame",
-                                   path=path, dataset=58)
+                    bad = [str(other[j]) for j in np.nonzero(gaps)[0]]
+                    log.warning("%s: node %d is in a rotated displacement frame (dataset 2420) but its X, Y, Z FRFs "
+                                "with %s are incomplete; they cannot be rotated into the global frame and are left "
+                                "out", path, node, ", ".join(bad[:10]))
+                    if axis == 0:
+                        seen[np.ix_(idx, np.nonzero(gaps)[0])] = 0
+                    else:
+                        seen[np.ix_(np.nonzero(gaps)[0], idx)] = 0
             sg = np.array([comp[c][1] for c in (1, 2, 3)], float)
             S = np.diag(sg)
             T = S @ rot[node].T @ S                    # label-signed local -> label-signed global
