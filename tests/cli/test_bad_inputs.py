@@ -109,6 +109,8 @@ def test_bad_input_is_one_line_exit_2_nothing_left(command, kind, argv, variant,
     lines = [ln for ln in err if ln.startswith(f"modalab {command}: error: ")]
     assert len(lines) == 1 and "Traceback" not in "\n".join(err), err
     assert bad.name in lines[0], lines[0]
+    if variant == "folder":
+        assert "folder" in lines[0] or "directory" in lines[0].lower(), lines[0]
     assert _tree(out) == [], f"left behind: {_tree(out)}"
     assert _tree(bad_dir) == before_in and _tree(good["hits"].parent) == before_good
 
