@@ -28,8 +28,18 @@ _PROTECTED: list[Path] = []
 
 
 def file_mode() -> int:
-    """Permission bits of a new file under the current umask (``0o666 & ~umask``)."""
-    mask = os.umask(0)
+    """Permission bits of a new file under the current umask (``0o666 & ~umask``).
+
+    The umask is read from ``/proc/self/status`` where it exists (setting it to read it, the portable way,
+    briefly changes it for every thread of the process)."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return 0o666 & ~int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o077)
     os.umask(mask)
     return 0o666 & ~mask
 
