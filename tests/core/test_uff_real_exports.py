@@ -301,3 +301,20 @@ def test_info_table_of_frfs_has_no_python_reprs(tmp_path, capsys):
     for repr_mark in ("None", "{", "[", "'"):
         assert repr_mark not in out.replace("[m/s/N]", ""), out
     assert "1 responses x 2 references, mobility" in out and "2-Z" in out
+
+
+def test_modes_json_of_identify_is_read_and_damage_is_named(tmp_path):
+    from modalab.errors import ModalabValueError
+
+    m = ModeSet(freq_hz=[4.0, 8.0], damping=[0.01, 0.03], shapes=[[1.0, 0.5], [0.2, -1.0]], dofs=["1+Z", "2+Y"])
+    p = tmp_path / "identify.json"
+    p.write_text(json.dumps({"input": "frf.uff", "modes": m.to_dict(), "report": {}}))
+    r = ModeSet.from_json(p)
+    np.testing.assert_array_equal(r.freq_hz, m.freq_hz)
+    assert [str(d) for d in r.dofs] == ["1+Z", "2+Y"]
+    for text, needle in (('{"modes": {"freq_hz": [1.0]', "not valid JSON"), ('{"a": 1}', "lacks the key 'freq_hz'"),
+                         ("[1, 2]", "does not hold a mode set")):
+        p.write_text(text)
+        with pytest.raises(ModalabValueError, match=needle) as ei:
+            ModeSet.from_json(p)
+        assert "identify.json" in str(ei.value)
