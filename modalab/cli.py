@@ -235,7 +235,10 @@ def info_table(info: dict) -> list[str]:
     if f:
         rows += [("FRFs", f"{len(f['responses'])} responses x {len(f['references'])} references, {f['quantity']} "
                           f"[{f['units']}], {'with' if f['coherence'] else 'without'} coherence"),
-                 ("responses", _join(f["responses"])), ("references", _join(f["references"])),
+                 ("responses", _join(f["responses"])),
+                 ("references", _join(f["references"]) + (
+                     "  (more references than responses: a roving-hammer export; by reciprocity the "
+                     "accelerometers can be the references)" if len(f["references"]) > len(f["responses"]) else "")),
                  ("frequency", f"{_g(f['freq_range_hz'][0])} - {_g(f['freq_range_hz'][1])} Hz, {f['lines']} lines"
                                + (f", df {_g(f['df_hz'])} Hz" if f["df_hz"] else " (uneven)"))]
         meta = f.get("metadata") or {}

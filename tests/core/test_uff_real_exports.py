@@ -301,6 +301,7 @@ def test_info_table_of_frfs_has_no_python_reprs(tmp_path, capsys):
     for repr_mark in ("None", "{", "[", "'"):
         assert repr_mark not in out.replace("[m/s/N]", ""), out
     assert "1 responses x 2 references, mobility" in out and "2-Z" in out
+    assert "roving-hammer export" in out
 
 
 def test_modes_json_of_identify_is_read_and_damage_is_named(tmp_path):
