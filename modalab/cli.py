@@ -522,14 +522,16 @@ def _prepare_outputs(a):
     return inputs, created
 
 
-def _remove_created(command, created):
-    """After a failure: remove the outputs this run created (a session/run folder only when empty)."""
+def _remove_created(a, created):
+    """After a failure: remove the outputs this run created (a session/run folder, or a campaign's folder
+    holding the results of the inputs that succeeded, only when empty)."""
     import shutil
 
+    keep = a.command in _KEEP_FOLDER or (a.command == "identify" and len(a.inputs) > 1)
     for p in created:
         try:
             if p.is_dir():
-                if command in _KEEP_FOLDER:
+                if keep:
                     p.rmdir()             # fails (kept) when not empty
                 else:
                     shutil.rmtree(p)
@@ -589,11 +591,11 @@ def main(args=None) -> int:
             pass
         return 2
     except KeyboardInterrupt:
-        _remove_created(a.command, created)
+        _remove_created(a, created)
         print(f"modalab {a.command}: interrupted", file=sys.stderr)
         return 130
     except (ModalabError, OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        _remove_created(a.command, created)
+        _remove_created(a, created)
         if isinstance(e, ModalabError):
             msg = str(e)
         elif isinstance(e, (UnicodeDecodeError, json.JSONDecodeError)):
