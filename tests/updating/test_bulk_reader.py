@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from modalab.errors import BulkDataError
-from updating.bulk import UnsupportedCardWarning, read_bdf
+from updating.bulk import read_bdf
 from updating.bulk import cards as C
 
 DATA = Path(__file__).parent / "data"
