@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 
 def cmd_correlate(a):
@@ -22,7 +21,9 @@ def cmd_correlate(a):
         figs = save_correlation_plots(res, a.plots)
         _print("figures: " + ", ".join(str(v) for v in figs.values()))
     if a.json:
-        Path(a.json).write_text(json.dumps(res.to_dict(), indent=1, default=str))
+        from ._output import write_text
+
+        write_text(a.json, json.dumps(res.to_dict(), indent=1, default=str))
         _print(f"wrote {a.json}")
     return 0
 

@@ -32,8 +32,9 @@ def diagnose_files(model_path, measured_path, *, modes=None, params=None, json_p
             Path(report_dir).mkdir(parents=True, exist_ok=True)
             (Path(report_dir) / "diagnosis.json").write_text(json.dumps(d.to_dict(), indent=1, default=str))
     if json_path is not None:
-        Path(json_path).parent.mkdir(parents=True, exist_ok=True)
-        Path(json_path).write_text(json.dumps(d.to_dict(), indent=1, default=str))
+        from ._output import write_text
+
+        write_text(json_path, json.dumps(d.to_dict(), indent=1, default=str))   # atomic, never over an input
     return d
 
 

@@ -16,13 +16,13 @@ def _one(path, out_uff, out_json, plots, band, max_order, references, select, we
         sel = [float(x) for x in select.split(",")]
     modes, report = identify(frf, band_hz=band, max_order=max_order, references=references, select=sel,
                              plots_dir=plots, weighting=weighting)
+    from ._output import write_text
+
     Path(out_uff).parent.mkdir(parents=True, exist_ok=True)
-    if Path(out_uff).exists():
-        Path(out_uff).unlink()
-    modes.to_uff(out_uff)
+    modes.to_uff(out_uff)                     # atomic; never over an input (modalab._output)
     summary = {"input": str(path), "modes": modes.to_dict(), "report": report.to_dict()}
     if out_json:
-        Path(out_json).write_text(json.dumps(summary, indent=1, default=str))
+        write_text(out_json, json.dumps(summary, indent=1, default=str))
     return modes, report
 
 

@@ -107,7 +107,12 @@ def scan(raw: bytes, path) -> list[Block]:
         end = n if eol < 0 else eol
         first = raw[pos:end]
         if first.strip() != b"-1":
-            raise UffError(f"expected the '    -1' line that opens a dataset, found {_decode(first[:40]).strip()!r}. "
+            head = first[:40]
+            if any(c < 9 or 13 < c < 32 or c > 126 for c in head):
+                raise UffError("expected the '    -1' line that opens a dataset, found binary data: the file is not "
+                               "a universal file" + ("" if not blocks else " or an earlier dataset is corrupt"),
+                               path=path, line=line_no)
+            raise UffError(f"expected the '    -1' line that opens a dataset, found {_decode(head).strip()!r}. "
                            "The file is not a universal file or an earlier dataset is corrupt",
                            path=path, line=line_no)
         if eol < 0:
@@ -466,12 +471,14 @@ def _parse_58_header(block: Block) -> Fn58:
     r6 = _record6(block)
     ord_type, n, spacing, x0, dx, z = _record7(block)
     axes = [_axis(block, k) for k in range(7, 11)]
+    if r6[8] <= 0:
+        # a zero or negative reference node (-1 in several exporters) means "no reference"
+        r6 = r6[:8] + (0, 0)
     for name, d in (("response", r6[6]), ("reference", r6[9])):
         if d < -6 or d > 6:
             raise block.error(f"{name} direction {d} is outside -6..6", 5)
-    for name, nd in (("response", r6[5]), ("reference", r6[8])):
-        if nd < 0:
-            raise block.error(f"{name} node {nd} is negative", 5)
+    if r6[5] < 0:
+        raise block.error(f"response node {r6[5]} is negative; expected a node id >= 0", 5)
     fn = Fn58(ids, *r6, ord_type, n, spacing == 1, x0, dx, z, axes, line=block.line, binary=block.binary,
               tags=parse_tags(ids))
     # exact abscissa written by modalab (record 7 holds it to 6-7 digits only)

@@ -12,6 +12,11 @@ Subcommands (each has ``--help`` with units):
   update     update an FE model to test modes or FRFs
   diagnose   locate and name missing physics
   run        the whole chain from a project file
+
+Outputs (:mod:`modalab._output`): an output is never written over an input (not even with ``--force``); an
+existing output file is replaced only with ``--force`` (``sim``: ``--overwrite``); files are written to a
+temporary file and renamed, with the user's umask, and what a failed command created is removed.  Bad input
+gives one line ``modalab COMMAND: error: ...`` naming the file (and line) and exit code 2.
 """
 from __future__ import annotations
 
@@ -163,12 +168,15 @@ class _ConsoleObserver:
 
 # ----------------------------------------------------------------------------- commands
 def cmd_sim(a):
+    from ._output import atomic_path
     from .pipeline import simulate_hits
 
-    out, recs, _ = simulate_hits(a.output, structure=a.structure, points=a.points, references=a.references,
-                                 hits=a.hits, seed=a.seed, force_n=a.force, double_hit_probability=a.double_hits,
-                                 sample_rate_hz=a.sample_rate, n_samples=a.samples,
-                                 plot_dir=None if a.no_plot else Path(a.output).parent)
+    out = Path(a.output)
+    with atomic_path(out) as tmp:              # no partial file on failure; never over an input
+        _, recs, _ = simulate_hits(tmp, structure=a.structure, points=a.points, references=a.references,
+                                   hits=a.hits, seed=a.seed, force_n=a.force, double_hit_probability=a.double_hits,
+                                   sample_rate_hz=a.sample_rate, n_samples=a.samples,
+                                   plot_dir=None if a.no_plot else out.parent)
     _print(f"wrote {len(recs)} hits x {recs[0].n_channels} channels to {out}")
     return 0
 
@@ -177,9 +185,13 @@ def cmd_frf(a):
     from .pipeline import frf_from_file
 
     plot = None if a.no_plot else (a.plot or str(Path(a.output).with_suffix(".png")))
-    out, frf = frf_from_file(a.input, a.output, estimator=a.estimator, force_fraction=a.force_window,
-                             exp_end_level=a.exp_end, exp_beta=a.exp_beta, reciprocity=not a.no_reciprocity,
-                             plot_path=plot, bandwidth_hz=a.bandwidth)
+    from ._output import atomic_path
+
+    out = Path(a.output)
+    with atomic_path(out) as tmp:              # no partial file on failure; never over an input
+        _, frf = frf_from_file(a.input, tmp, estimator=a.estimator, force_fraction=a.force_window,
+                               exp_end_level=a.exp_end, exp_beta=a.exp_beta, reciprocity=not a.no_reciprocity,
+                               plot_path=plot, bandwidth_hz=a.bandwidth)
     _print(f"wrote {frf.n_out} x {frf.n_in} {frf.metadata.get('estimator', a.estimator)} FRFs "
            f"({frf.n_freq} lines, {frf.freq_hz[0]:g}-{frf.freq_hz[-1]:g} Hz) with coherence to {out}")
     if plot:
@@ -187,17 +199,107 @@ def cmd_frf(a):
     return 0
 
 
-def cmd_info(a):
-    from .pipeline import file_info
+def _join(items, limit: int = 16) -> str:
+    items = [str(x) for x in items]
+    more = f" ... ({len(items)} in all)" if len(items) > limit else ""
+    return ", ".join(items[:limit]) + more if items else "none"
 
-    info = file_info(a.file)
+
+def _g(v) -> str:
+    return "-" if v is None else f"{v:g}"
+
+
+def _value(v) -> str:
+    """A metadata value as text (no Python reprs: no None, no brackets or quotes)."""
+    if v is None:
+        return "none"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        return f"{v:g}"
+    if isinstance(v, (list, tuple)):
+        return _join([_value(x) for x in v], 8)
+    if isinstance(v, dict):
+        return "(" + ", ".join(f"{k} {_value(x)}" for k, x in v.items()) + ")"
+    return str(v)
+
+
+def info_table(info: dict) -> list[str]:
+    """The lines ``modalab info`` prints for a :func:`modalab.uff.info` dict."""
+    rows = [("file", info["path"]),
+            ("datasets", ", ".join(f"{k} x{v}" for k, v in info["datasets"].items())),
+            ("functions", ", ".join(f"{k} x{v}" for k, v in info["functions"].items()))]
+    if not info["functions"]:
+        rows.pop()
+    f = info.get("frf")
+    if f:
+        rows += [("FRFs", f"{len(f['responses'])} responses x {len(f['references'])} references, {f['quantity']} "
+                          f"[{f['units']}], {'with' if f['coherence'] else 'without'} coherence"),
+                 ("responses", _join(f["responses"])),
+                 ("references", _join(f["references"]) + (
+                     "  (more references than responses: a roving-hammer export; by reciprocity the "
+                     "accelerometers can be the references)" if len(f["references"]) > len(f["responses"]) else "")),
+                 ("frequency", f"{_g(f['freq_range_hz'][0])} - {_g(f['freq_range_hz'][1])} Hz, {f['lines']} lines"
+                               + (f", df {_g(f['df_hz'])} Hz" if f["df_hz"] else " (uneven)"))]
+        meta = f.get("metadata") or {}
+        if meta:
+            rows.append(("processing", ", ".join(f"{k.replace('_', ' ')} {_value(v)}" for k, v in meta.items())))
+    h = info.get("hits")
+    if h:
+        rows += [("hits", f"{h['hits']} hits, {_join(h['channels_per_hit'])} channels each"),
+                 ("hammer points", _join(f"{d} ({n} hit{'s' if n != 1 else ''})"
+                                         for d, n in h["hits_per_point"].items())),
+                 ("responses", _join(h["responses"])),
+                 ("sampling", f"{_join(_g(v) for v in h['sample_rate_hz'])} Hz, {_join(h['samples'])} samples, "
+                              f"{_g(h['time_range_s'][0])} to {_g(h['time_range_s'][1])} s"),
+                 ("units", ", ".join(f"{k}: {_join(v)}" for k, v in h["units"].items()))]
+    if info.get("other_functions"):
+        rows.append(("other functions", _join(info["other_functions"])))
+    if "nodes" in info:
+        rows.append(("geometry", f"{info['nodes']} nodes"))
+    if info.get("coordinate_systems"):
+        rows.append(("frames", ", ".join(f"{k}: {v}" for k, v in info["coordinate_systems"].items())
+                     + " (dataset 2420; modes and FRF triads measured in rotated frames are read in the global "
+                       "frame, raw time records in them are refused)"))
+    u = info.get("units")
+    if u:
+        rows.append(("unit system", f"{u['description'] or 'code ' + str(u['code'])}: length x{_g(u['length'])}, "
+                                    f"force x{_g(u['force'])} (dataset 164)"))
+    w = max(len(k) for k, _ in rows)
+    lines = [f"{k:<{w}}  {v}" for k, v in rows]
+    m = info.get("modes")
+    if m:
+        lines.append(f"{'modes':<{w}}  {m['n_modes']} modes "
+                     + (f"on {m['dofs']} DOFs, scaling {m['scaling']}" if m["dofs"] else
+                        "(frequencies and damping only, no shapes)"))
+        cplx = any(r["complex"] for r in m["table"])
+        if cplx:
+            lines.append(f"{'':<{w}}  f_n: undamped natural frequency |lambda|/2pi; f_d: damped, Im(lambda)/2pi")
+            stated = any("header_hz" in r for r in m["table"])
+            lines.append(f"{'':<{w}}  {'mode':>4} {'f_n [Hz]':>11} {'f_d [Hz]':>11} {'zeta [%]':>9}"
+                         + ("  the file's header" if stated else ""))
+        else:
+            lines.append(f"{'':<{w}}  {'mode':>4} {'f [Hz]':>11} {'zeta [%]':>9}")
+        for r in m["table"]:
+            if cplx:
+                fd = r.get("freq_damped_hz", r["freq_hz"])
+                hdr = (f"states {r['header_hz']:g} Hz ({r['header_states']})" if "header_hz" in r else "")
+                lines.append(f"{'':<{w}}  {r['mode']:>4} {r['freq_hz']:>11.4f} {fd:>11.4f} "
+                             f"{100 * r['damping']:>9.3f}  {hdr}".rstrip())
+            else:
+                lines.append(f"{'':<{w}}  {r['mode']:>4} {r['freq_hz']:>11.4f} {100 * r['damping']:>9.3f}")
+    return lines
+
+
+def cmd_info(a):
+    from . import uff
+
+    info = uff.info(a.file, quantity=getattr(a, "quantity", None))
     if a.json:
         _print(json.dumps(info, indent=1, default=str))
     else:
-        for k, v in info.items():
-            if isinstance(v, (list, tuple)) and len(v) > 12:
-                v = f"{list(v[:12])} ... ({len(v)} in all)"
-            _print(f"{k:>18}: {v}")
+        for line in info_table(info):
+            _print(line)
     return 0
 
 
@@ -308,6 +410,19 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=cmd_acquire)
 
     _add_later_stages(sub)
+    for name in ("sim", "frf", "identify", "correlate", "diagnose"):
+        sp = sub.choices.get(name)
+        if sp is None:
+            continue
+        taken = any("--force" in act.option_strings for act in sp._actions)   # sim: --force is the hammer's
+        sp.add_argument(*(() if taken else ("--force",)), "--overwrite", dest="overwrite", action="store_true",
+                        help="replace existing output files (an input is never replaced)")
+    for name in ("info", "identify", "update", "diagnose"):
+        sp = sub.choices.get(name)
+        if sp is not None and not any("--quantity" in act.option_strings for act in sp._actions):
+            sp.add_argument("--quantity", choices=("accelerance", "mobility", "receptance"),
+                            help="what the FRFs are when the file does not say (ordinate data type 0/1 without "
+                                 "a units label); an error when the file says otherwise")
     for sp in sub.choices.values():
         sp.epilog = (sp.epilog + "\n" if sp.epilog else "") + UNITS_EPILOG
     return p
@@ -349,6 +464,105 @@ def blas_threads(n: int | None = None):
     return threadpool_limits(limits=n)
 
 
+#: per command: argparse attributes naming input files, output files and output folders
+_IO = {
+    "sim": (("structure",), ("output",), ()),
+    "frf": (("input",), ("output", "plot"), ()),
+    "info": (("file",), (), ()),
+    "identify": (("inputs", "select"), ("output", "json"), ("plots",)),
+    "correlate": (("model", "modes", "map"), ("json",), ("plots",)),
+    "update": (("model", "modes", "frf", "params", "map"), (), ("output",)),
+    "diagnose": (("model", "measured", "modes", "params"), ("json",), ("report",)),
+    "run": (("project",), (), ("output",)),
+    "demo": ((), (), ("output",)),
+}
+#: files a command writes into its output folder (checked against its inputs)
+_WRITES_INTO = {"update": ("output", ("updated.bdf", "update.json", "updated_matrices.npz", "mac_before.png",
+                                      "mac_after.png", "parameter_convergence.png")),
+                "diagnose": ("report", ("diagnosis.json", "augmented.bdf"))}
+#: commands whose output folder is a resumable session/run: kept on failure unless empty
+_KEEP_FOLDER = {"run", "demo", "acquire"}
+
+
+def _values(a, names):
+    out = []
+    for n in names:
+        v = getattr(a, n, None)
+        if v is None or v is False:
+            continue
+        out += [str(x) for x in v] if isinstance(v, (list, tuple)) else [str(v)]
+    return out
+
+
+def _io_plan(a):
+    """(inputs, output files, output folders) of the parsed command ``a``."""
+    ins, files, folders = _IO.get(a.command, ((), (), ()))
+    inputs = [p for p in _values(a, ins) if os.path.isfile(p)]
+    files, folders = _values(a, files), _values(a, folders)
+    if a.command == "frf" and not a.no_plot and not a.plot:
+        files.append(str(Path(a.output).with_suffix(".png")))
+    if a.command == "identify" and len(a.inputs) > 1:      # a campaign: -o names a folder
+        files.remove(a.output)
+        folders.append(a.output)
+    return inputs, files, folders
+
+
+def _prepare_outputs(a):
+    """Refuse unsafe outputs before any work; returns the outputs this run creates (removed on failure)."""
+    from ._output import check_outputs
+
+    inputs, files, folders = _io_plan(a)
+    into = {}
+    if a.command in _WRITES_INTO:
+        attr, names = _WRITES_INTO[a.command]
+        into = {getattr(a, attr, None): names}
+    check_outputs(inputs, files, folders, force=bool(getattr(a, "overwrite", False)),
+                  writes_into=into)
+    created = [Path(p) for p in files + folders if not os.path.lexists(p)]
+    return inputs, created
+
+
+def _remove_created(a, created):
+    """After a failure: remove the outputs this run created (a session/run folder, or a campaign's folder
+    holding the results of the inputs that succeeded, only when empty)."""
+    import shutil
+
+    keep = a.command in _KEEP_FOLDER or (a.command == "identify" and len(a.inputs) > 1)
+    for p in created:
+        try:
+            if p.is_dir():
+                if keep:
+                    p.rmdir()             # fails (kept) when not empty
+                else:
+                    shutil.rmtree(p)
+            elif os.path.lexists(p):
+                p.unlink()
+        except OSError:
+            pass
+
+
+def _decode_failure(a, exc) -> str:
+    """A one-line message for a text/JSON decoding error, naming the input file that fails to decode."""
+    ins = _IO.get(a.command, ((),))[0] + (("plan",) if a.command == "acquire" else ())
+    for p in _values(a, ins):
+        if not os.path.isfile(p):
+            continue
+        try:
+            text = Path(p).read_bytes().decode("utf-8")
+        except UnicodeDecodeError as e:
+            return (f"'{p}' is not a text file (byte {e.start} is not UTF-8); expected "
+                    f"{'a ' + Path(p).suffix + ' file' if Path(p).suffix else 'a text file'}. Check the argument")
+        except OSError:
+            continue
+        if isinstance(exc, json.JSONDecodeError) and Path(p).suffix.lower() == ".json":
+            try:
+                json.loads(text)
+            except json.JSONDecodeError as e:
+                return (f"'{p}' is not valid JSON (line {e.lineno}, column {e.colno}: {e.msg}); the file is "
+                        "truncated or not JSON. Write it again (e.g. with 'modalab identify --json')")
+    return f"an input could not be decoded ({exc}); check the file arguments"
+
+
 def main(args=None) -> int:
     parser = build_parser()
     a = parser.parse_args(args)
@@ -359,15 +573,39 @@ def main(args=None) -> int:
         parser.print_help()
         return 2
     os.environ.setdefault("MPLBACKEND", "Agg")
+    from ._output import protect
+
+    created = []
     try:
-        with blas_threads():
+        inputs, created = _prepare_outputs(a)
+        from .uff import assume_quantity
+
+        with blas_threads(), protect(inputs), assume_quantity(getattr(a, "quantity", None)):
             return int(a.func(a) or 0)
-    except ModalabError as e:
-        print(f"modalab {a.command}: error: {e}", file=sys.stderr)
+    except BrokenPipeError:
+        # the reader of our output went away (``modalab info x.uff | head -3``): stop quietly
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
         return 2
     except KeyboardInterrupt:
+        _remove_created(a, created)
         print(f"modalab {a.command}: interrupted", file=sys.stderr)
         return 130
+    except (ModalabError, OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        _remove_created(a, created)
+        if isinstance(e, ModalabError):
+            msg = str(e)
+        elif isinstance(e, (UnicodeDecodeError, json.JSONDecodeError)):
+            msg = _decode_failure(a, e)
+        else:
+            name = e.filename if e.filename is not None else "a file"
+            msg = f"cannot use '{name}': {e.strerror or e}" + (
+                "; expected a file, not a folder" if isinstance(e, IsADirectoryError) else "")
+        print(f"modalab {a.command}: error: {msg}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -24,6 +24,7 @@ __all__ = [
     "DeviceLostError",
     "SerialProtocolError",
     "StoreError",
+    "OutputError",
     "fmt_error",
 ]
 
@@ -108,3 +109,8 @@ class SerialProtocolError(ModalabError, RuntimeError):
 
 class StoreError(ModalabError, RuntimeError):
     """An acquisition store on disk is inconsistent."""
+
+
+class OutputError(ModalabValueError):
+    """An output path is unsafe or unwritable: it is an input, it exists (without ``--force``), it is a
+    folder where a file is expected (or the reverse), or its folder cannot be written."""

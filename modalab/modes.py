@@ -177,8 +177,27 @@ class ModeSet:
 
     @classmethod
     def from_json(cls, path) -> "ModeSet":
-        with open(path) as fh:
-            return cls.from_dict(json.load(fh))
+        """A mode set from JSON: :meth:`to_json` output or the summary ``modalab identify --json`` writes
+        (its ``modes`` entry).  A file that is not such JSON raises :class:`~modalab.errors.ModalabValueError`
+        naming it."""
+        from .errors import ModalabError, ModalabValueError
+
+        try:
+            with open(path, "rb") as fh:
+                d = json.loads(fh.read().decode("utf-8"))
+        except OSError as e:
+            raise ModalabValueError(f"cannot read modes file '{path}': {e.strerror or e}") from None
+        except (UnicodeDecodeError, ValueError) as e:
+            raise ModalabValueError(f"'{path}' is not valid JSON ({e}); the file is truncated or not JSON. Expected "
+                                    "the modes JSON 'modalab identify --json' writes") from None
+        if isinstance(d, dict) and "freq_hz" not in d and isinstance(d.get("modes"), dict):
+            d = d["modes"]
+        try:
+            return cls.from_dict(d)
+        except (ModalabError, KeyError, TypeError, ValueError, AttributeError) as e:
+            what = f"lacks the key {e.args[0]!r}" if isinstance(e, KeyError) else f"is inconsistent ({e})"
+            raise ModalabValueError(f"'{path}' does not hold a mode set: it {what}. Expected the modes JSON "
+                                    "'modalab identify --json' writes") from None
 
     @classmethod
     def from_uff(cls, path, **kw) -> "ModeSet":

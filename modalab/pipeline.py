@@ -33,7 +33,7 @@ def _demo_or_structure(structure):
         from updating.bulk import read_bdf
         from updating.bulk.build import build_model
 
-        model = build_model(read_bdf(path))
+        model = build_model(read_bdf(path, whole_model=True))
         return model.structure(), hdemo
     raise PlanError(f"structure {structure!r}: expected 'demo' or a Nastran bulk-data file (.bdf/.dat)")
 
@@ -276,7 +276,7 @@ def load_model(path):
     p = Path(path)
     if not p.exists():
         raise PlanError(f"model file {str(p)!r} does not exist; give a Nastran bulk-data file (.bdf)")
-    return build_model(read_bdf(p))
+    return build_model(read_bdf(p, whole_model=True))
 
 
 def load_params(path, model):

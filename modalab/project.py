@@ -138,6 +138,8 @@ def _check_type(src, section, key, value, kind):
 
 
 def _read_toml(path: Path, what: str) -> dict:
+    if path.is_dir():
+        raise PlanError(f"{what} {str(path)!r} is a folder; expected a TOML file")
     if not path.is_file():
         raise PlanError(f"{what} {str(path)!r} does not exist; check the path (relative paths are taken from the "
                         "project file's folder)")

@@ -99,10 +99,10 @@ the file, the dataset and the line.
 """
 from __future__ import annotations
 
+import contextvars
 import json
 import logging
 import os
-import tempfile
 from collections import Counter
 from contextlib import contextmanager
 from pathlib import Path
@@ -119,7 +119,8 @@ from .records import TimeRecord
 from .units import G, QUANTITY_UNITS, check_quantity
 
 __all__ = ["write_frf", "read_frf", "write_records", "read_records", "write_geometry", "read_geometry",
-           "write_modes", "read_modes", "write_units", "read_units", "info", "FUNC_TYPES"]
+           "write_modes", "read_modes", "write_units", "read_units", "read_frames", "assume_quantity", "info",
+           "FUNC_TYPES"]
 
 log = logging.getLogger(__name__)
 
@@ -193,30 +194,27 @@ def _blocks(path, cur) -> list[Block]:
 
 @contextmanager
 def _open_out(path, append: bool):
-    """Write to a temporary file then replace ``path`` (append: write in place)."""
+    """Write to a temporary file then replace ``path`` (append: write in place).
+
+    The file gets the user's umask permissions and is never a protected input (:mod:`modalab._output`).
+    """
+    from ._output import atomic_path, check_not_input
+
     path = Path(path)
-    try:
-        if append:
-            fh = open(path, "ab")
-        else:
-            fd, tmp = tempfile.mkstemp(dir=str(path.parent), prefix=path.name + ".", suffix=".tmp")
-    except OSError as exc:
-        raise UffError(f"cannot write the file ({exc.strerror or exc}); check that the folder exists and is "
-                       "writable", path=path) from None
     if append:
+        check_not_input(path)
+        try:
+            fh = open(path, "ab")
+        except OSError as exc:
+            raise UffError(f"cannot write the file ({exc.strerror or exc}); check that the folder exists and is "
+                           "writable", path=path) from None
         with fh:
             yield fh
         return
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            yield fh
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    if not path.parent.is_dir():
+        raise UffError("cannot write the file: its folder does not exist", path=path)
+    with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        yield fh
 
 
 def _even_axis(x: np.ndarray):
@@ -336,6 +334,56 @@ def _frf_scale(fn: Fn58, lf: float, ff: float) -> float:
     return fn_num / fn_den
 
 
+_ASSUMED_QUANTITY = contextvars.ContextVar("modalab_assumed_quantity", default=None)
+
+
+@contextmanager
+def assume_quantity(quantity: str | None):
+    """Within the block, :func:`read_frf` takes FRFs whose file does not state their quantity (ordinate data
+    type 0 or 1 without a recognised units label) as ``quantity``, and refuses files that state another one.
+    The command line's ``--quantity`` sets it for the whole command.  It is also put in the environment
+    variable ``MODALAB_QUANTITY`` for the block, so that worker processes (campaigns) read alike; the
+    variable set by the user has the same effect."""
+    if quantity is None:
+        yield
+        return
+    q = check_quantity(quantity)
+    token = _ASSUMED_QUANTITY.set(q)
+    old = os.environ.get("MODALAB_QUANTITY")
+    os.environ["MODALAB_QUANTITY"] = q
+    try:
+        yield
+    finally:
+        _ASSUMED_QUANTITY.reset(token)
+        if old is None:
+            os.environ.pop("MODALAB_QUANTITY", None)
+        else:
+            os.environ["MODALAB_QUANTITY"] = old
+
+
+def _assumed_quantity() -> str | None:
+    q = _ASSUMED_QUANTITY.get()
+    if q is None and os.environ.get("MODALAB_QUANTITY"):
+        try:
+            q = check_quantity(os.environ["MODALAB_QUANTITY"])
+        except ModalabError:
+            raise UffError(f"MODALAB_QUANTITY={os.environ['MODALAB_QUANTITY']!r}; expected accelerance, mobility "
+                           "or receptance") from None
+    return q
+
+
+def _quantity_from_labels(fn: Fn58) -> str | None:
+    """The quantity of an FRF set from its numerator units label when record 9's data type does not say
+    (types 0 and 1): 'm' receptance, 'm/s' mobility, 'm/s^2' (or 'g', 'mm/s^2'...) accelerance."""
+    if fn.axes[1].spec not in (0, 1):
+        return None
+    num = fn.axes[1].units
+    if "/" in num and fn.axes[2].units.strip().upper() in ("", "NONE"):
+        num = num.rsplit("/", 1)[0]
+    conv = _label_si(num)
+    return {"m": "receptance", "m/s": "mobility", "m/s^2": "accelerance"}.get(conv[1]) if conv else None
+
+
 # ----------------------------------------------------------------------------- FRF
 def write_frf(path, frf: FRF, *, binary: bool = True, append: bool = False) -> None:
     """Write FRFs (func_type 4) and coherence (func_type 6) as dataset 58b (58 with ``binary=False``).
@@ -417,8 +465,10 @@ def read_frf(path, *, quantity: str | None = None, responses=None, references=No
         if not frfs:
             kinds = Counter(FUNC_TYPES.get(f.func_type, str(f.func_type)) for f in
                             _functions(blocks, cur, range(100), header_only=True))
-            raise UffError(f"no FRFs (dataset 58, function type 4) in the file; it holds "
-                           f"{dict(kinds) or 'no dataset 58'}. Use read_records for time data", path=path)
+            hint = (" (raw hits: make FRFs of them with 'modalab frf', or uff.read_records in Python)"
+                    if "time response" in kinds else "")
+            held = ", ".join(f"{v} {k}" for k, v in kinds.items()) or "no dataset 58"
+            raise UffError(f"no FRFs (dataset 58, function type 4) in the file; it holds {held}{hint}", path=path)
         first = frfs[0]
         rows: dict = {}
         cols: dict = {}
@@ -447,12 +497,23 @@ def read_frf(path, *, quantity: str | None = None, responses=None, references=No
                 raise UffError(f"FRF {Dof(f.rsp_node, f.rsp_dir)}/{Dof(f.ref_node, f.ref_dir)} has denominator data "
                                f"type {den} (record 10), not force (13): it is not a response per unit force. "
                                "Pass quantity= to read it anyway", path=path, dataset=58, line=f.line + 10)
-            q = _TYPE_QTY.get(f.axes[1].spec)
+            if f.ref_node == 0 and f.ref_dir == 0:
+                raise UffError(f"FRF {Dof(f.rsp_node, f.rsp_dir)} has no reference DOF (reference node 0 or "
+                               "negative): an FRF needs the excitation DOF", path=path, dataset=58, line=f.line + 6)
+            q = _TYPE_QTY.get(f.axes[1].spec) or _quantity_from_labels(f)
+            assumed = _assumed_quantity()
+            if quantity is None and assumed is not None and q is not None and q != assumed:
+                raise UffError(f"the FRFs are {q} (record 9 of the set at line {f.line}) but --quantity says "
+                               f"{assumed}; drop --quantity or convert the FRFs", path=path, dataset=58,
+                               line=f.line + 9)
             if quantity is None:
+                q = q or assumed
                 if q is None:
-                    raise UffError(f"ordinate data type {f.axes[1].spec} (record 9) is not displacement (8), velocity "
-                                   "(11) or acceleration (12); pass quantity='accelerance' (or 'mobility', "
-                                   "'receptance') to read_frf", path=path, dataset=58, line=f.line + 9)
+                    raise UffError(f"ordinate data type {f.axes[1].spec} (record 9, units "
+                                   f"{f.axes[1].units!r}) is not displacement (8), velocity (11) or acceleration "
+                                   "(12); say what the FRFs are: on the command line --quantity accelerance (or "
+                                   "mobility, receptance), in Python read_frf(..., quantity='accelerance')",
+                                   path=path, dataset=58, line=f.line + 9)
                 if qty is None:
                     qty = q
                 elif q != qty:
@@ -494,6 +555,12 @@ def read_frf(path, *, quantity: str | None = None, responses=None, references=No
         meta.setdefault("source", str(path))
         full_r = [rows[k] for k in rkeys]
         full_c = [cols[k] for k in ckeys]
+        rot = _node_rotations(blocks, path, cur)
+        if rot:
+            done = _rotate_frf(H, coh, full_r, full_c, rot, path, seen)
+            if done:
+                meta["rotated_to_global"] = done
+            missing = [(full_r[i], full_c[j]) for i, j in zip(*np.nonzero(seen == 0))]
         if responses is not None or references is not None:
             sub = _submatrix(full_r, full_c, responses, references, H, seen, coh)
             full_r, full_c, H, seen, coh = sub
@@ -506,6 +573,55 @@ def read_frf(path, *, quantity: str | None = None, responses=None, references=No
                            path=path, dataset=58)
         return FRF(freq_hz=first.x.copy(), H=H, responses=full_r, references=full_c, coherence=coh,
                    quantity=qty, units=QUANTITY_UNITS[qty], metadata=meta)
+
+
+def _rotate_frf(H, coh, rows, cols, rot, path, seen=None) -> list[int]:
+    """Rotate FRF rows (responses) and columns (references) measured in local displacement frames into the
+    global frame, in place; a node in a rotated frame needs its X, Y and Z all present (else UffError).
+    Coherence of a rotated triad is the lowest of its three.  Returns the rotated nodes."""
+    done = []
+    for axis, labels in ((0, rows), (1, cols)):
+        by_node: dict = {}
+        for k, d in enumerate(labels):
+            if d.node in rot:
+                by_node.setdefault(d.node, {})[abs(d.direction)] = (k, 1 if d.direction > 0 else -1)
+        for node, comp in by_node.items():
+            if not all(c in comp for c in (1, 2, 3)) or any(c > 3 for c in comp):
+                what = "response" if axis == 0 else "reference"
+                raise UffError(f"{what} node {node} is measured in a rotated displacement frame (dataset 2420) but "
+                               f"the file holds its directions {sorted(comp)} only; X, Y and Z are needed to rotate "
+                               "it into the global frame. Export the FRFs in the global frame", path=path, dataset=58)
+            idx = [comp[c][0] for c in (1, 2, 3)]
+            if seen is not None:
+                part = seen[idx] if axis == 0 else seen[:, idx].T
+                gaps = (part == 0).any(axis=0) & (part != 0).any(axis=0)
+                if gaps.any():
+                    # a partial triad cannot be rotated: those FRFs count as missing (an error if they are read)
+                    other = cols if axis == 0 else rows
+                    bad = [str(other[j]) for j in np.nonzero(gaps)[0]]
+                    log.warning("%s: node %d is in a rotated displacement frame (dataset 2420) but its X, Y, Z FRFs "
+                                "with %s are incomplete; they cannot be rotated into the global frame and are left "
+                                "out", path, node, ", ".join(bad[:10]))
+                    if axis == 0:
+                        seen[np.ix_(idx, np.nonzero(gaps)[0])] = 0
+                    else:
+                        seen[np.ix_(np.nonzero(gaps)[0], idx)] = 0
+            sg = np.array([comp[c][1] for c in (1, 2, 3)], float)
+            S = np.diag(sg)
+            T = S @ rot[node].T @ S                    # label-signed local -> label-signed global
+            if axis == 0:
+                H[idx] = np.einsum("ij,jkf->ikf", T, H[idx])
+                if coh is not None:
+                    coh[idx] = np.min(coh[idx], axis=0, keepdims=True)
+            else:
+                H[:, idx] = np.einsum("ij,kjf->kif", T, H[:, idx])
+                if coh is not None:
+                    coh[:, idx] = np.min(coh[:, idx], axis=1, keepdims=True)
+            done.append(node)
+    if done:
+        log.info("%s: FRFs of node(s) %s rotated from their local displacement frames into the global frame",
+                 path, sorted(set(done))[:10])
+    return sorted(set(done))
 
 
 def _submatrix(rows, cols, responses, references, H, seen, coh):
@@ -591,6 +707,12 @@ def read_records(path) -> list[TimeRecord]:
         fns = _functions(blocks, cur, (1,))
         if not fns:
             raise UffError("no time records (dataset 58, function type 1) in the file", path=path)
+        rot = _node_rotations(blocks, path, cur)
+        local = sorted({f.rsp_node for f in fns if f.rsp_node in rot})
+        if local:
+            raise UffError(f"channels at nodes {local[:10]} are measured in rotated displacement frames "
+                           "(dataset 2420); modalab does not rotate raw time records. Export them in the global "
+                           "frame", path=path, dataset=58)
         hits: dict[int, list[Fn58]] = {}
         for f in fns:
             hits.setdefault(f.load_case, []).append(f)
@@ -708,8 +830,11 @@ def write_geometry(path, coords, *, append: bool = False, dataset: int = 2411) -
         fh.write("\n".join(lines).encode("latin-1"))
 
 
-def _parse_nodes(b: Block) -> dict[int, tuple]:
+def _parse_nodes(b: Block, cs: dict | None = None) -> dict[int, tuple]:
+    """``{node: (x, y, z)}`` as stored; ``cs`` (when given) receives ``{node: (definition CS, displacement CS)}``."""
     out = {}
+    if cs is None:
+        cs = {}
     body = [ln for ln in b.lines if ln.strip()]
     if b.number == 2411:
         if len(body) % 2:
@@ -723,6 +848,7 @@ def _parse_nodes(b: Block) -> dict[int, tuple]:
             if ints[0] in out:
                 raise b.error(f"node {ints[0]} is listed twice in one dataset", k)
             out[ints[0]] = tuple(float(v) for v in vals)
+            cs[ints[0]] = (ints[1] if len(ints) > 1 else 0, ints[2] if len(ints) > 2 else 0)
     else:
         for k, ln in enumerate(body):
             toks = tokens_exact(ln)
@@ -735,9 +861,106 @@ def _parse_nodes(b: Block) -> dict[int, tuple]:
             if int(node) in out:
                 raise b.error(f"node {int(node)} is listed twice in one dataset", k)
             out[int(node)] = tuple(float(t) for t in toks[4:7])
+            cs[int(node)] = (int(float(toks[1])), int(float(toks[2])))
     for node, xyz in out.items():
         if node < 0 or not np.all(np.isfinite(xyz)):
             raise b.error(f"node {node} has an invalid id or non-finite coordinates {xyz}")
+    return out
+
+
+def _parse_2420(b: Block) -> dict[int, dict]:
+    """Coordinate systems of dataset 2420: ``{label: {'type', 'name', 'rotation', 'origin', 'identity'}}``.
+
+    The transformation matrix's rows 1-3 are the local X, Y, Z axes in global coordinates and row 4 the
+    origin (I-DEAS row-vector convention: ``x_global = x_local @ T[:3] + T[3]``, directions
+    ``v_global = T[:3].T @ v_local``; the convention of SDynPy's ``global_deflection`` too).
+    """
+    lines = b.lines
+    if len(lines) < 2:
+        raise b.error("dataset 2420 needs a part UID and a part name line", len(lines))
+    out = {}
+    k = 2
+    while k < len(lines):
+        if not lines[k].strip():
+            k += 1
+            continue
+        if k + 6 > len(lines):
+            raise b.error(f"coordinate system record at line {b.line + 1 + k} has {len(lines) - k} of its 6 lines: "
+                          "the dataset is truncated", k)
+        label, typ = parse_ints(lines[k], 3, "coordinate system label/type/colour", b, k, minimum=2)[:2]
+        rows = []
+        for j in range(4):
+            toks = tokens_exact(lines[k + 2 + j])
+            if toks is None or len(toks) != 3:
+                raise b.error(f"transformation matrix row {j + 1} of coordinate system {label} must hold 3 numbers, "
+                              f"found {lines[k + 2 + j].strip()!r}", k + 2 + j)
+            rows.append([float(t) for t in toks])
+        T = np.array(rows)
+        if not np.all(np.isfinite(T)):
+            raise b.error(f"coordinate system {label} has non-finite numbers", k + 2)
+        R = T[:3]
+        if not np.allclose(R @ R.T, np.eye(3), atol=1e-5):
+            raise b.error(f"coordinate system {label}: rows 1-3 of the transformation matrix are not orthonormal "
+                          "axes", k + 2)
+        out[label] = {"type": typ, "name": lines[k + 1].strip(), "rotation": R, "origin": T[3],
+                      "identity": bool(np.allclose(R, np.eye(3), atol=1e-12))}
+        k += 6
+    return out
+
+
+def _frames(blocks, path, cur=None) -> dict[int, dict]:
+    """Coordinate systems of all datasets 2420 of a file (label -> :func:`_parse_2420` entry)."""
+    out: dict = {}
+    for b in blocks:
+        if b.number == 2420:
+            if cur is not None:
+                cur.block = b
+            out.update(_parse_2420(b))
+    if cur is not None:
+        cur.block = None
+    return out
+
+
+def read_frames(path) -> dict[int, dict]:
+    """Coordinate systems (dataset 2420) of a file: ``{label: {'type', 'name', 'rotation', 'origin', 'identity'}}``
+    with ``rotation`` rows = local axes in global coordinates; ``{}`` when the file defines none."""
+    with _guard(path) as cur:
+        return _frames(_blocks(path, cur), path, cur)
+
+
+def _node_rotations(blocks, path, cur=None) -> dict[int, np.ndarray]:
+    """``{node: R}`` for the nodes whose displacement coordinate system (dataset 2411/15 record 1 field 3)
+    is a rotated frame of dataset 2420: ``v_global = R.T @ v_local``.  Frames 0 and 1 without a 2420
+    definition are the global frame; an undefined other frame is assumed global with a warning; a
+    cylindrical or spherical displacement frame is refused."""
+    frames = _frames(blocks, path, cur)
+    out: dict = {}
+    undefined: dict = {}
+    for b in blocks:
+        if b.number not in (2411, 15):
+            continue
+        if cur is not None:
+            cur.block = b
+        cs: dict = {}
+        _parse_nodes(b, cs)
+        for nd, (_, disp) in cs.items():
+            fr = frames.get(disp)
+            if fr is None:
+                if disp not in (0, 1):
+                    undefined.setdefault(disp, []).append(nd)
+                continue
+            if fr["type"] != 0 and not fr["identity"]:
+                raise UffError(f"node {nd} uses displacement coordinate system {disp} ({fr['name'] or 'unnamed'}), "
+                               f"which is {'cylindrical' if fr['type'] == 1 else 'spherical'}: modalab applies "
+                               "Cartesian frames only. Export the data in the global frame",
+                               path=path, dataset=b.number, line=b.line)
+            if not fr["identity"]:
+                out[nd] = fr["rotation"]
+    if cur is not None:
+        cur.block = None
+    for disp, nodes in undefined.items():
+        log.warning("%s: nodes %s use displacement coordinate system %d, which the file does not define "
+                    "(dataset 2420); their directions are taken as global", path, nodes[:10], disp)
     return out
 
 
@@ -747,11 +970,18 @@ def read_geometry(path) -> dict[int, tuple[float, float, float]]:
         blocks = _blocks(path, cur)
         out: dict = {}
         found = False
+        frames = _frames(blocks, path, cur)
         for b in blocks:
             if b.number in (2411, 15):
                 cur.block = b
                 found = True
-                nodes = _parse_nodes(b)
+                cs: dict = {}
+                nodes = _parse_nodes(b, cs)
+                for nd, (def_cs, _) in cs.items():
+                    fr = frames.get(def_cs)
+                    if fr is not None and not fr["identity"]:
+                        xyz = fr["rotation"].T @ np.asarray(nodes[nd]) + fr["origin"]
+                        nodes[nd] = tuple(float(v) for v in xyz)
                 clash = [n for n in nodes if n in out and out[n] != nodes[n]]
                 if clash:
                     raise UffError(f"nodes {clash[:10]} are defined again with different coordinates; keep one "
@@ -812,7 +1042,8 @@ def write_modes(path, modes: ModeSet, *, append: bool = False, exact: bool = Tru
     if 0 in axes and len(axes) > 1:
         raise UffError("the mode set mixes scalar DOFs with directional ones; write them as two files",
                        path=path)
-    ndv = 1 if axes == {0} else (6 if max(axes) > 3 else 3)
+    # a frequency-only set (no DOFs) is written as modes with no node records
+    ndv = 3 if not axes else 1 if axes == {0} else (6 if max(axes) > 3 else 3)
     data_ch = {1: 1, 3: 2, 6: 3}[ndv]
     nodes: dict[int, int] = {}
     for d in modes.dofs:
@@ -915,7 +1146,8 @@ def read_modes(path, *, dofs=None) -> ModeSet:
     """
     with _guard(path) as cur:
         sets, all55 = [], []
-        for b in _blocks(path, cur):
+        blocks = _blocks(path, cur)
+        for b in blocks:
             if b.number == 55:
                 cur.block = b
                 s = _parse_55(b)
@@ -936,6 +1168,7 @@ def read_modes(path, *, dofs=None) -> ModeSet:
         table = np.zeros((len(node_order), ndv, len(sets)), complex if cplx else float)
         freq, damp, mm = np.zeros(len(sets)), np.zeros(len(sets)), np.zeros(len(sets))
         scaling = None
+        rot = _node_rotations(blocks, path, cur)
         for m, s in enumerate(sets):
             idx = [node_order[int(nd)] for nd in s["nodes"]]
             if len(set(idx)) != len(idx):
@@ -970,6 +1203,18 @@ def read_modes(path, *, dofs=None) -> ModeSet:
                 scaling = t["scaling"]
         if not np.all(np.isfinite(freq)) or not np.all(np.isfinite(damp)):
             raise UffError("mode frequencies or damping are not finite", path=path, dataset=55)
+        rotated = [nd for nd in node_order if nd in rot]
+        if rotated:
+            if ndv < 3:
+                raise UffError(f"nodes {rotated[:10]} use rotated displacement frames (dataset 2420) but the modes "
+                               f"hold {ndv} value(s) per node; the three components needed to rotate them into the "
+                               "global frame are missing. Export the shapes in the global frame", path=path, dataset=55)
+            for nd in rotated:
+                i, R = node_order[nd], rot[nd]
+                for c0 in range(0, 6 if ndv >= 6 else 3, 3):
+                    table[i, c0:c0 + 3] = R.T @ table[i, c0:c0 + 3]
+            log.info("%s: shapes of %d node(s) rotated from their local displacement frames (dataset 2420) into "
+                     "the global frame", path, len(rotated))
         indicators = {}
         if scaling is None:
             if np.all(mm == 1.0):
@@ -991,71 +1236,156 @@ def read_modes(path, *, dofs=None) -> ModeSet:
             keep = np.any(shapes != 0, axis=1)
             labels = [d for d, kk in zip(labels, keep) if kk]
             shapes = shapes[keep]
+        meta = {"source": str(path)}
+        if rotated:
+            meta["rotated_to_global"] = rotated
         ms = ModeSet(freq_hz=freq, damping=damp, shapes=shapes, dofs=labels, scaling=scaling,
-                     indicators=indicators, metadata={"source": str(path)})
+                     indicators=indicators, metadata=meta)
         if dofs is not None:
             ms = ms.select_dofs(dofs)
         return ms
 
 
 # ----------------------------------------------------------------------------- info
-def info(path) -> dict:
-    """What a universal file holds, for ``modalab info``.
+_HZ_RE = None
 
-    Returns ``{'path', 'datasets': {'58b': n, '2411': n, ...}, 'functions': {'FRF': n, ...},
-    'responses': [...], 'references': [...], 'hits': n, 'frequency_range_hz': (lo, hi) | None,
-    'time_range_s': (lo, hi) | None, 'sample_rate_hz': float | None, 'units': {...} (dataset 164) | None,
-    'unit_labels': [...] (ordinate/denominator unit labels of the 58 sets), 'quantity': str | None,
-    'nodes': n, 'modes': n}``.  Reads only the headers of 58/58b sets, so it is fast on large files.
+
+def _stated_hz(ids) -> tuple[float, float] | None:
+    """A frequency an exporter wrote into the ID lines of a mode ("... 12.345 Hz" or "Freq 12.345") and the
+    half-width of its last printed digit."""
+    import re
+
+    global _HZ_RE
+    if _HZ_RE is None:
+        _HZ_RE = re.compile(r"(?:freq\w*\s*[=:]?\s*([-+]?\d+\.?\d*(?:[eE][-+]?\d+)?))|"
+                            r"(?:([-+]?\d+\.?\d*(?:[eE][-+]?\d+)?)\s*hz\b)", re.IGNORECASE)
+    for ln in ids:
+        if ln.strip().startswith("modalab") or "modalab f=" in ln:
+            continue
+        m = _HZ_RE.search(ln)
+        if m:
+            txt = m.group(1) or m.group(2)
+            try:
+                v = float(txt)
+            except ValueError:
+                return None
+            mant = txt.lower().split("e")[0]
+            decimals = len(mant.split(".")[1]) if "." in mant else 0
+            exp = int(txt.lower().split("e")[1]) if "e" in txt.lower() else 0
+            return v, 0.5 * 10.0 ** (exp - decimals)          # the value and its rounding half-width
+    return None
+
+
+def info(path, *, quantity: str | None = None) -> dict:
+    """What a universal file holds, for ``modalab info``, validated by the readers themselves.
+
+    Every dataset is decoded in full by the same parsers :func:`read_frf`, :func:`read_records`,
+    :func:`read_modes`, :func:`read_geometry` and :func:`read_units` use, and the content is then read by
+    those functions: a file they refuse is refused here with the same :class:`~modalab.errors.UffError`
+    (truncated data, point counts, lost datasets...).  ``quantity``: what FRFs whose file does not state it
+    are (see :func:`assume_quantity`).
+
+    Returns a JSON-ready dict: ``path``, ``datasets`` (``{'58b': n, ...}``), ``functions`` (``{'FRF': n,
+    ...}``) and, for what the file holds, ``frf`` (responses, references, quantity, units, lines, band,
+    coherence, metadata), ``hits`` (hits, hammer points, response channels, sampling, units), ``modes``
+    (frequencies, damping; for complex modes both the undamped ``|lambda|/2pi`` and the damped
+    ``Im(lambda)/2pi`` frequency and which one the file's header states), ``nodes``, ``units``
+    (dataset 164).
     """
     with _guard(path) as cur:
         blocks = _blocks(path, cur)
         counts = Counter(b.label for b in blocks)
-        funcs = Counter()
-        resp, ref = {}, {}
-        hits = set()
-        frange = trange = None
-        fs = None
-        units = None
-        qty = None
-        nodes: set = set()
-        n_modes = 0
-        unit_labels = set()
+        heads, others = [], []
+        modes55 = []
         for b in blocks:
             cur.block = b
             if b.number == 58:
                 fn = parse_58(b, header_only=True)
-                funcs[FUNC_TYPES.get(fn.func_type, f"type {fn.func_type}")] += 1
-                resp.setdefault((fn.rsp_node, fn.rsp_dir), None)
-                if fn.ref_node or fn.ref_dir:
-                    ref.setdefault((fn.ref_node, fn.ref_dir), None)
-                lo = fn.x0 if fn.even else None
-                hi = fn.x0 + (fn.n - 1) * fn.dx if fn.even else None
-                if not fn.even:
-                    full = parse_58(b)
-                    lo, hi = float(full.x[0]), float(full.x[-1])
-                if fn.func_type == 1:
-                    hits.add(fn.load_case)
-                    trange = (lo, hi) if trange is None else (min(trange[0], lo), max(trange[1], hi))
-                    if fn.even and fn.dx > 0:
-                        fs = float(fn.tags["fs"]) if "fs" in fn.tags else 1.0 / fn.dx
-                else:
-                    frange = (lo, hi) if frange is None else (min(frange[0], lo), max(frange[1], hi))
-                    if fn.func_type == 4:
-                        qty = qty or _TYPE_QTY.get(fn.axes[1].spec)
-                for a in fn.axes[1:3]:
-                    if a.units.upper() != "NONE":
-                        unit_labels.add(a.units)
+                parse_58(b, header=fn)                # the data too: counts and numbers are checked
+                heads.append(fn)
             elif b.number in (2411, 15):
-                nodes.update(_parse_nodes(b))
+                _parse_nodes(b)
             elif b.number == 55:
-                s = _parse_55(b)
-                if s["analysis"] in (2, 3, 7):
-                    n_modes += 1
+                s55 = _parse_55(b)
+                s55["line"] = b.line
+                modes55.append(s55)
             elif b.number == 164:
-                units = _parse_164(b)
-        return {"path": str(path), "datasets": dict(counts), "functions": dict(funcs),
-                "responses": [str(Dof(n, d)) for n, d in resp], "references": [str(Dof(n, d)) for n, d in ref],
-                "hits": len(hits), "frequency_range_hz": frange, "time_range_s": trange, "sample_rate_hz": fs,
-                "units": units, "unit_labels": sorted(unit_labels), "quantity": qty, "nodes": len(nodes),
-                "modes": n_modes}
+                _parse_164(b)
+            elif b.number == 2420:
+                _parse_2420(b)
+        cur.block = None
+        check_groups([(f.tags, f.line, f.func_type in (4, 6)) for f in heads], path, "FRF/coherence", "f")
+        check_groups([(f.tags, f.line, f.func_type == 1) for f in heads], path, "time record", "r")
+        check_groups([(s["tags"], s["line"], s["analysis"] in (2, 3, 7)) for s in modes55], path, "mode", "m")
+        funcs = Counter(FUNC_TYPES.get(f.func_type, f"type {f.func_type}") for f in heads)
+        others = sorted({FUNC_TYPES.get(f.func_type, f"type {f.func_type}") for f in heads
+                         if f.func_type not in (1, 4, 6)})
+    out: dict = {"path": str(path), "datasets": dict(counts), "functions": dict(funcs)}
+    if others:
+        out["other_functions"] = others
+    if any(f.func_type == 4 for f in heads):
+        if quantity is not None:
+            with assume_quantity(quantity):
+                frf = read_frf(path)
+        else:
+            frf = read_frf(path)
+        even = frf.n_freq > 1 and _even_axis(frf.freq_hz)[0]
+        out["frf"] = {"responses": [str(d) for d in frf.responses], "references": [str(d) for d in frf.references],
+                      "quantity": frf.quantity, "units": frf.units, "lines": int(frf.n_freq),
+                      "freq_range_hz": [float(frf.freq_hz[0]), float(frf.freq_hz[-1])],
+                      "df_hz": float(frf.freq_hz[1] - frf.freq_hz[0]) if even else None,
+                      "coherence": frf.coherence is not None,
+                      "metadata": {k: v for k, v in frf.metadata.items() if k != "source"}}
+    if any(f.func_type == 1 for f in heads):
+        recs = read_records(path)
+        hammer: dict = {}
+        resp: dict = {}
+        units: dict = {}
+        for r in recs:
+            for d, role, u in zip(r.dofs, r.roles, r.units):
+                (hammer if role == "force" else resp).setdefault(str(d), 0)
+                units.setdefault(role, set()).add(str(u))
+            for d in r.force_dofs[:1]:
+                hammer[str(d)] = hammer.get(str(d), 0) + 1
+        t0 = min(-r.trigger_index / r.sample_rate_hz for r in recs)
+        t1 = max((r.n_samples - 1 - r.trigger_index) / r.sample_rate_hz for r in recs)
+        out["hits"] = {"hits": len(recs), "hammer_points": list(hammer), "hits_per_point": hammer,
+                       "responses": list(resp), "channels_per_hit": sorted({r.n_channels for r in recs}),
+                       "sample_rate_hz": sorted({float(r.sample_rate_hz) for r in recs}),
+                       "samples": sorted({int(r.n_samples) for r in recs}), "time_range_s": [t0, t1],
+                       "units": {k: sorted(v) for k, v in units.items()}}
+    if modes55:
+        ms = read_modes(path)
+        sets = [s for s in modes55 if s["analysis"] in (2, 3, 7)]
+        rows = []
+        for k, s in enumerate(sets):
+            f, z = float(ms.freq_hz[k]), float(ms.damping[k])
+            row = {"mode": k + 1, "freq_hz": f, "damping": z, "complex": s["analysis"] != 2}
+            if s["analysis"] != 2:
+                lam = complex(s["reals"][0], s["reals"][1])
+                fd = abs(lam.imag) / (2 * np.pi)
+                row.update(freq_undamped_hz=f, freq_damped_hz=fd)
+                stated = _stated_hz(s["ids"])
+                if stated is not None:
+                    stated, half = stated
+                    dd, du = abs(stated - fd), abs(stated - f)
+                    tol = 1.01 * half + 1e-5 * abs(stated)   # the header's digits (and our E13.5 reading)
+                    row["header_hz"] = stated
+                    row["header_states"] = ("neither" if min(dd, du) > tol else
+                                            "either (they agree to the header's digits)" if abs(f - fd) <= tol
+                                            else "damped" if dd < du else "undamped")
+            rows.append(row)
+        out["modes"] = {"n_modes": ms.n_modes, "dofs": len(ms.dofs), "scaling": ms.scaling, "table": rows,
+                        "frequency": ("complex modes: freq_hz is the undamped natural frequency |lambda|/2pi; "
+                                      "freq_damped_hz = Im(lambda)/2pi") if any(r["complex"] for r in rows)
+                        else "normal modes: freq_hz as stored in record 8"}
+    if counts.get("2411") or counts.get("15"):
+        geo = read_geometry(path)
+        out["nodes"] = len(geo)
+        frames = read_frames(path)
+        if frames:
+            out["coordinate_systems"] = {str(k): ("identity" if np.allclose(v["rotation"], np.eye(3)) else
+                                                  "rotated") for k, v in frames.items()}
+    if counts.get("164"):
+        out["units"] = read_units(path)
+    return out

@@ -173,9 +173,9 @@ class TestForeignFiles:
         d = uff.info(p)
         assert d["datasets"] == {"151": 1, "164": 1, "58": 3}
         assert d["functions"] == {"FRF": 2, "coherence": 1}
-        assert d["responses"] == ["2+Z", "3-Z"] and d["references"] == ["1+Z"]
-        assert d["frequency_range_hz"] == (0.0, 0.5)
-        assert d["units"]["code"] == 1 and d["quantity"] == "accelerance"
+        assert d["frf"]["responses"] == ["2+Z", "3-Z"] and d["frf"]["references"] == ["1+Z"]
+        assert d["frf"]["freq_range_hz"] == [0.0, 0.5]
+        assert d["units"]["code"] == 1 and d["frf"]["quantity"] == "accelerance"
 
     def test_mescope_free_format_g_per_newton(self, tmp_path):
         p = _write(tmp_path, "mescope.uff", MESCOPE_FRF)
@@ -431,7 +431,7 @@ class TestWriterSpeedShape:
                         append=True)
         d = uff.info(p)
         assert d["datasets"] == {"164": 1, "2411": 1, "58b": 12, "55": 1}
-        assert d["nodes"] == 2 and d["modes"] == 1
+        assert d["nodes"] == 2 and d["modes"]["n_modes"] == 1
         np.testing.assert_array_equal(uff.read_frf(p).H, frf.H)
         assert uff.read_geometry(p)[2] == (1.0, -2.0, 3.5)
         assert uff.read_units(p)["length"] == 1.0

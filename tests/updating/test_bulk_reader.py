@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from modalab.errors import BulkDataError
-from updating.bulk import UnsupportedCardWarning, read_bdf
+from updating.bulk import read_bdf
 from updating.bulk import cards as C
 
 DATA = Path(__file__).parent / "data"
@@ -129,16 +129,17 @@ class TestDeckStructure:
 
 
 class TestUnsupported:
-    def test_one_warning_with_counts(self):
+    def test_one_logged_warning_with_counts_and_lines(self, caplog):
         deck = ("GRID    1\nGRID    2\nGRID    3\nCQUAD8  1       1       1       2       3       1\n"
                 "CQUAD8  2       1       1       2       3       1\nPSOLID  1       1\nFORCE   1\n")
-        with warnings.catch_warnings(record=True) as rec:
-            warnings.simplefilter("always")
-            b = read_bdf(deck)
-        ours = [w for w in rec if issubclass(w.category, UnsupportedCardWarning)]
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")          # no raw Python warning any more
+            with caplog.at_level("WARNING", logger="updating.bulk.reader"):
+                b = read_bdf(deck)
+        ours = [r for r in caplog.records if "not modelled" in r.getMessage()]
         assert len(ours) == 1
-        msg = str(ours[0].message)
-        assert "CQUAD8 (2)" in msg and "PSOLID (1)" in msg and "FORCE (1)" in msg
+        msg = ours[0].getMessage()
+        assert "CQUAD8 (2: lines 4, 5)" in msg and "PSOLID (1: line 6)" in msg and "FORCE (1: line 7)" in msg
         assert [r.name for r in b.unsupported] == ["CQUAD8", "CQUAD8", "PSOLID", "FORCE"]
 
 

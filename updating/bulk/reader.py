@@ -11,8 +11,13 @@
 ``INCLUDE 'file'`` is honoured in every section (paths relative to the
 including file, then to the main file); reading stops at ``ENDDATA``.
 Cards this package does not model are kept in :attr:`BulkData.unsupported`
-(and written back by the writer) and listed, with counts, in ONE
-:class:`UnsupportedCardWarning`; nothing is dropped silently.
+(and written back by the writer) and listed, with counts and line numbers, in
+ONE logged warning (logger ``updating.bulk.reader``); nothing is dropped silently.
+
+A deck file that is empty, not text, or looks cut short (its last line has no
+line break and there is no ``ENDDATA``; grids but no elements without
+``ENDDATA``) raises :class:`modalab.errors.BulkDataError` naming the file and
+line and saying that it looks truncated.
 
 Cross-reference checks (``xref=True``): duplicate grid, element, property,
 material and coordinate-system ids; elements referring to unknown grids,
@@ -25,7 +30,6 @@ from __future__ import annotations
 import logging
 import os
 import re
-import warnings
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,7 +47,7 @@ __all__ = ["BulkData", "read_bdf", "UnsupportedCardWarning", "CaseControl"]
 
 
 class UnsupportedCardWarning(UserWarning):
-    """Some cards of a deck are not modelled by :mod:`updating.bulk` (they are kept, not interpreted)."""
+    """Kept for backward compatibility; unsupported cards are now reported by one logged warning."""
 
 
 @dataclass
@@ -286,13 +290,32 @@ _ASSIGN = re.compile(r"^\s*([A-Z][A-Z0-9]*)\s*(?:\([^)]*\))?\s*=\s*(.+?)\s*$", r
 _SOL = re.compile(r"^\s*SOL\s+([A-Z0-9]+)", re.IGNORECASE)
 
 
+class _Lines(list):
+    """The lines of a file, with whether the file ends with a line break (a cut file usually does not)."""
+
+    ends_with_newline = True
+
+
 def _file_lines(path: Path) -> list:
     try:
         raw = path.read_bytes()
+    except IsADirectoryError:
+        raise BulkDataError("the path is a folder; expected a Nastran bulk-data file (.bdf)", path=str(path)) from None
     except OSError as e:
-        raise BulkDataError(f"cannot read {str(path)!r}: {e.strerror or e}; check the path") from None
+        raise BulkDataError(f"cannot read the file: {e.strerror or e}; check the path", path=str(path)) from None
+    nul = raw.find(b"\x00")
+    if nul >= 0:
+        raise BulkDataError(f"the file is not text (a NUL byte at offset {nul}); expected Nastran bulk data",
+                            path=str(path), line=raw.count(b"\n", 0, nul) + 1)
     text = raw.decode("utf-8", errors="replace")
-    return [Line(t, i + 1, str(path)) for i, t in enumerate(text.splitlines())]
+    bad = text.count("\ufffd")
+    if bad > max(8, len(text) // 50):
+        first = text.index("\ufffd")
+        raise BulkDataError(f"the file is not text ({bad} bytes are neither UTF-8 nor ASCII); expected Nastran bulk "
+                            "data", path=str(path), line=text.count("\n", 0, first) + 1)
+    out = _Lines(Line(t, i + 1, str(path)) for i, t in enumerate(text.splitlines()))
+    out.ends_with_newline = not raw or raw.endswith((b"\n", b"\r"))
+    return out
 
 
 def _expand_includes(lines, base_dirs, stack, depth=0) -> list:
@@ -390,10 +413,12 @@ def _split_sections(lines, cc: CaseControl) -> list:
     return bulk
 
 
-def read_bdf(source, *, xref: bool = True, base_dir=None) -> BulkData:
+def read_bdf(source, *, xref: bool = True, base_dir=None, whole_model: bool = False) -> BulkData:
     """Read a Nastran deck (path, or text containing a newline) into :class:`BulkData`.
 
     xref : run the cross-reference checks (:meth:`BulkData.check`).
+    whole_model : the deck must be a whole model: a deck with grids but no elements or masses is an error
+    (it looks truncated when it has no ENDDATA), not a model with a zero mass matrix.
     base_dir : extra directory for INCLUDE files (default: the main file's directory
     or, for text, the current directory).
     """
@@ -410,26 +435,89 @@ def read_bdf(source, *, xref: bool = True, base_dir=None) -> BulkData:
         src_path = None
     else:
         raise BulkDataError(f"read_bdf needs a path or the text of a deck; got {type(source).__name__}")
+    ends_with_newline = getattr(lines, "ends_with_newline", True)
+    last_line = lines[-1].lineno if lines else 1
     lines = _expand_includes(lines, base, stack)
+    has_enddata = any(_ENDDATA.match(ln.text) for ln in lines)
     bulk = BulkData(path=src_path)
     bulk_lines = _split_sections(lines, bulk.case_control)
-    raw_cards = group_cards(bulk_lines)
-    for raw in raw_cards:
-        typed = C.parse_card(raw)
-        if typed is None:
-            bulk.unsupported.append(raw)
-            continue
-        for card in typed:
-            bulk.add(card)
+    cut = (src_path is not None and not has_enddata and not ends_with_newline)
+    try:
+        raw_cards = group_cards(bulk_lines)
+        for raw in raw_cards:
+            typed = C.parse_card(raw)
+            if typed is None:
+                bulk.unsupported.append(raw)
+                continue
+            for card in typed:
+                bulk.add(card)
+    except BulkDataError as e:
+        if cut:
+            raise BulkDataError(f"{_msg(e)}. The last line ({last_line}) has no line break and the deck no ENDDATA: "
+                                "the file looks truncated", path=e.path, line=e.line, card=e.card) from None
+        raise
+    if src_path is not None:
+        _check_complete(bulk, src_path, has_enddata, ends_with_newline, last_line, whole_model)
     if bulk.unsupported:
-        counts = Counter(r.name for r in bulk.unsupported)
-        listing = ", ".join(f"{k} ({v})" for k, v in sorted(counts.items()))
-        msg = (f"{sum(counts.values())} bulk-data card(s) of {len(counts)} type(s) are not modelled by "
-               f"updating.bulk and are ignored by build_model (kept in BulkData.unsupported and written back): "
-               f"{listing}")
-        log.debug(msg)
-        warnings.warn(msg, UnsupportedCardWarning, stacklevel=2)
+        _report_unsupported(bulk)
     if xref:
-        bulk.check()
+        try:
+            bulk.check()
+        except BulkDataError as e:
+            if src_path is None or has_enddata:
+                raise
+            raise BulkDataError(f"{_msg(e)} (the deck has no ENDDATA: if the file was cut short, the definition "
+                                "may have been lost; otherwise add the missing card)", path=e.path, line=e.line,
+                                card=e.card) from None
     log.info("read %s", bulk)
     return bulk
+
+
+def _msg(e: BulkDataError) -> str:
+    """The message of ``e`` without its 'file ..., line ...: ' prefix (to rebuild it with more text)."""
+    from modalab.errors import _where
+
+    prefix = _where(("file", e.path), ("line", e.line), ("card", e.card))
+    text = str(e)
+    return text[len(prefix):] if prefix and text.startswith(prefix) else text
+
+
+def _check_complete(bulk: BulkData, path: str, has_enddata: bool, ends_with_newline: bool, last_line: int,
+                    whole_model: bool = False) -> None:
+    """A deck file must hold bulk data, and not look cut short."""
+    n_typed = sum(len(t) for t in (bulk.grids, bulk.coords, bulk.elements, bulk.rigid, bulk.properties,
+                                   bulk.materials, bulk.params, bulk.tables, bulk.eigrls)) + len(bulk.spcs)
+    if n_typed == 0:
+        if not bulk.unsupported:
+            raise BulkDataError("the file holds no bulk-data cards (it is empty or holds only comments / case control"
+                                f"{'; it looks truncated' if not has_enddata else ''}); expected GRID, element, "
+                                "property and material cards", path=path, line=last_line)
+        names = sorted({r.name for r in bulk.unsupported})
+        raise BulkDataError(f"the file holds no bulk-data card modalab reads (found {', '.join(names[:6])}"
+                            f"{' ...' if len(names) > 6 else ''}); is it a Nastran bulk-data file?", path=path,
+                            line=bulk.unsupported[0].line)
+    if not has_enddata and not ends_with_newline:
+        raise BulkDataError(f"the last line ({last_line}) ends without a line break and the deck has no ENDDATA: "
+                            "the file looks truncated (cut inside that line). If the deck is complete, end it with "
+                            "ENDDATA", path=path, line=last_line)
+    if whole_model and not bulk.elements:
+        raise BulkDataError(f"the deck defines {len(bulk.grids)} GRID(s) but no elements or masses"
+                            + (", and has no ENDDATA: the file looks truncated" if not has_enddata else
+                               "; a model needs elements (CBAR, CQUAD4 ...) or CONM2 masses"),
+                            path=path, line=last_line)
+
+
+def _report_unsupported(bulk: BulkData) -> None:
+    """One logged warning listing the cards that are kept but not modelled, with their line numbers."""
+    by_name: dict = {}
+    for r in bulk.unsupported:
+        by_name.setdefault(r.name, []).append(r.line)
+    parts = []
+    for name in sorted(by_name):
+        ls = [str(v) for v in by_name[name] if v is not None]
+        shown = ", ".join(ls[:8]) + (f" ... ({len(ls)} in all)" if len(ls) > 8 else "")
+        parts.append(f"{name} ({len(by_name[name])}: line{'s' if len(ls) > 1 else ''} {shown})")
+    msg = (f"{bulk.path or 'deck'}: {len(bulk.unsupported)} bulk-data card(s) of {len(by_name)} type(s) are not "
+           f"modelled by updating.bulk and are ignored by build_model (kept in BulkData.unsupported and written "
+           f"back): {'; '.join(parts)}")
+    log.warning(msg)
