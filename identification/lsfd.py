@@ -22,7 +22,8 @@ The reported participation ``L_r = l_r / c_r`` keeps ``A_r = φ_r L_rᵀ``.
 
 Exponential-window correction: the window ``e^{−βt}`` moves every pole by
 ``−β`` and leaves the residues unchanged, so the fit uses the measured poles and
-the reported poles are ``λ_true = λ_meas + β`` (σ_true = σ_meas − β).
+the reported poles are ``λ_true = λ_meas + β`` (σ_true = σ_meas − β), by
+:func:`acquisition.windows.correct_poles` (the one implementation of that correction).
 """
 from __future__ import annotations
 
@@ -31,6 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from acquisition.windows import correct_poles
 from modalab.errors import ModalabValueError, ShapeError, fmt_error
 from modalab.frf import FRF
 from modalab.modes import ModeSet
@@ -424,7 +426,7 @@ def frf_noise_variance(frf: FRF):
     In order of preference:
 
     ``'H_variance'``
-        ``frf.metadata['H_variance']``, the variance across averages of each FRF line (real,
+        ``frf.variance``, the variance across averages of each FRF line (real,
         ``>= 0``, same shape as ``H``).
     ``'coherence'``
         From the ordinary coherence ``γ²`` and ``metadata['n_averages']`` = n >= 2: the random
@@ -435,29 +437,12 @@ def frf_noise_variance(frf: FRF):
         Neither is usable: returns ``None``; :func:`pole_uncertainty` then estimates the noise
         from the residual of the local fit (least reliable: model error counts as noise).
 
-    Raises ``ShapeError``/``ModalabValueError`` naming the bad value when ``H_variance`` has the
-    wrong shape, is not numeric, is negative or not finite, or when ``n_averages`` is not a
-    positive integer.
+    Raises ``ModalabValueError`` naming the bad value when ``n_averages`` is not a positive integer
+    (the variance itself is checked by :class:`~modalab.frf.FRF`: shape, finite, >= 0).
     """
     H = frf.H
-    var = frf.metadata.get("H_variance")
-    if var is not None:
-        try:
-            v = np.asarray(var, dtype=float)
-        except (TypeError, ValueError):
-            raise ModalabValueError(fmt_error("FRF.metadata['H_variance']", type(var).__name__,
-                                              f"a real array of shape {H.shape} like H",
-                                              "Store the variance across averages of every FRF line")) from None
-        if v.shape != H.shape:
-            raise ShapeError(f"FRF.metadata['H_variance'] has shape {v.shape}; expected {H.shape} "
-                             "(n_out, n_in, n_freq) like H. Store one variance per FRF line (or drop the key)")
-        bad = ~np.isfinite(v) | (v < 0)
-        if bad.any():
-            idx = tuple(int(k) for k in np.argwhere(bad)[0])
-            raise ModalabValueError(
-                f"FRF.metadata['H_variance'] holds {int(bad.sum())} negative or non-finite value(s), the first "
-                f"{float(v[idx])!r} at (response, reference, line) {idx}; expected variances >= 0. "
-                "Store E|H_k - mean H|^2 over the averages")
+    if frf.variance is not None:
+        v = frf.variance
         return v, "H_variance"
     if frf.coherence is not None:
         n = frf.metadata.get("n_averages")
@@ -495,7 +480,8 @@ def window_corrected_covariance(wn, zeta, cov, beta: float = 0.0):
         return wn, zeta, cov
     sq = np.sqrt(1.0 - zeta ** 2)
     T = np.array([[-zeta, -wn], [sq, -wn * zeta / sq]])                 # ∂(σ, ω_d)/∂(ω_n, ζ)
-    sig, wd = -zeta * wn + beta, wn * sq
+    lt = correct_poles(-zeta * wn + 1j * wn * sq, beta)
+    sig, wd = lt.real, lt.imag
     wt = np.hypot(sig, wd)
     G = np.array([[sig / wt, wd / wt], [-wd ** 2 / wt ** 3, sig * wd / wt ** 3]])   # ∂(ω_n, ζ)/∂(σ, ω_d)
     K = G @ T
@@ -616,7 +602,7 @@ def modes_from_poles(frf: FRF, lam, participation, *, lower_residual: bool = Tru
     """LSFD, window correction, scaling and indicators: returns ``(ModeSet, LSFDResult)``."""
     res = lsfd(frf, lam, participation, lower_residual=lower_residual, upper_residual=upper_residual)
     m = res.lam.size
-    lam_true = res.lam + float(window_beta)
+    lam_true = correct_poles(res.lam, window_beta)
     fn, zeta = pole_freq_damping(lam_true)
     psi = res.psi
     L = res.participation

@@ -71,7 +71,7 @@ def frequency_weights(frf: FRF, weighting=None, *, normalise: bool = True) -> np
         ``'coherence'`` — the mean ordinary coherence over the references
         (lines with poor coherence count less);
         ``'variance'`` — ``1/σ_H``, the inverse standard deviation of the FRF
-        estimate, from ``frf.metadata['H_variance']`` (same shape as ``H``) when
+        estimate, from ``frf.variance`` (same shape as ``H``) when
         present, else from coherence and ``n_averages`` with the H1 variance
         ``σ² ≈ (1−γ²)/(2 n_avg γ²)·|H|²`` (Bendat & Piersol, eq. 9.73).
 
@@ -90,14 +90,10 @@ def frequency_weights(frf: FRF, weighting=None, *, normalise: bool = True) -> np
                                     "pass weighting=None or estimate the FRFs with coherence")
         w = np.clip(np.nan_to_num(frf.coherence, nan=0.0), 0.0, 1.0).mean(axis=1)
     elif weighting == "variance":
-        var = frf.metadata.get("H_variance")
-        if var is not None:
-            var = np.asarray(var, dtype=float)
-            if var.shape != H.shape:
-                raise ShapeError(f"metadata['H_variance'] has shape {var.shape}; expected {H.shape} like H")
-        else:
+        var = frf.variance
+        if var is None:
             if frf.coherence is None:
-                raise ModalabValueError("weighting='variance' needs metadata['H_variance'] or coherence; "
+                raise ModalabValueError("weighting='variance' needs FRF.variance or coherence; "
                                         "neither is present. Use weighting=None")
             n_avg = float(frf.metadata.get("n_averages", 1) or 1)
             g2 = np.clip(frf.coherence, 1e-6, 1 - 1e-9)
@@ -592,7 +588,8 @@ class PolyMAX:
         Refine each selected pole by variable-projection least squares on the lines around it
         (:func:`~identification.lsfd.refine_poles`) before the final LSFD.
     window_correction : bool
-        Subtract ``frf.metadata['exp_window_beta']`` (1/s) from the decay rates.
+        Remove the exponential window's decay ``frf.window_beta_per_s`` (1/s) from the poles
+        (:func:`acquisition.windows.correct_poles`).
     uncertainty : bool
         Standard deviations of the refined frequencies and damping ratios
         (:func:`~identification.lsfd.pole_uncertainty`, first order, one Jacobian per mode) in
@@ -659,20 +656,11 @@ class PolyMAX:
 
     @staticmethod
     def prepare(frf: FRF, band_hz=None) -> FRF:
-        """Band-limit and drop lines at 0 Hz or with non-finite data (``metadata['H_variance']`` too)."""
-        var = frf.metadata.get("H_variance")
-        if var is not None and np.shape(var) != frf.H.shape:
-            raise ShapeError(f"FRF.metadata['H_variance'] has shape {np.shape(var)}; expected {frf.H.shape} "
-                             "(n_out, n_in, n_freq) like H. Store one variance per FRF line (or drop the key)")
+        """Band-limit and drop lines at 0 Hz or with non-finite data (coherence and variance with them)."""
         f = frf if band_hz is None else frf.band(*band_hz)
-        if var is not None and f is not frf:                   # band() copies the metadata unsliced
-            f.metadata["H_variance"] = np.asarray(var)[..., np.isin(frf.freq_hz, f.freq_hz)]
         good = (f.freq_hz > 0) & np.all(np.isfinite(f.H), axis=(0, 1))
         if not good.all():
-            coh = None if f.coherence is None else f.coherence[..., good]
-            f = f._replace(freq_hz=f.freq_hz[good], H=f.H[..., good], coherence=coh)
-            if var is not None:
-                f.metadata["H_variance"] = np.asarray(f.metadata["H_variance"])[..., good]
+            f = f.lines(good)
         return f
 
     # ------------------------------------------------------------------ fit
@@ -740,7 +728,7 @@ class PolyMAX:
                                           sp.source)
                 lam_sel = lam_sel[ok]
         self.refined_poles_ = lam_sel
-        beta = float(data.metadata.get("exp_window_beta", 0.0) or 0.0) if self.window_correction else 0.0
+        beta = float(data.window_beta_per_s) if self.window_correction else 0.0
         if self.selected_.source == "auto" and opts.min_mpc > 0 and lam_sel.size:
             # noise modes fitted by LSFD have scattered phases: drop automatic picks with a low MPC
             # (MPC is invariant to the complex scaling of a shape: taken on the raw LSFD shapes ψ)
@@ -768,7 +756,7 @@ class PolyMAX:
             data, lam_sel, self.selected_.participation, lower_residual=self.lower_residual,
             upper_residual=self.upper_residual, window_beta=beta, extra_indicators=extra)
         self.modes_.metadata.update({"method": "pLSCF (PolyMAX-style) + LSFD", "max_order": p,
-                                     "band_hz": list(band), "exp_window_beta": beta,
+                                     "band_hz": list(band), "window_beta_per_s": beta,
                                      "weighting": self.weighting or "none"})
         if std_source is not None:
             self.modes_.metadata["pole_std_source"] = std_source

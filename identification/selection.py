@@ -14,7 +14,11 @@ operational modal analysis using multi-stage clustering", MSSP 76)
 4. keep clusters holding stable poles from at least ``min_fraction`` of the evaluated
    orders and at least ``min_poles`` poles: spurious poles are rarely stable over many
    orders; of two kept clusters closer than ``distance/2`` in frequency only the larger
-   stays (one physical mode whose estimates wander);
+   stays (one physical mode whose estimates wander) — unless they are two modes: they
+   hold a pole each at the same orders (more than ``coexist_fraction`` of the orders of the
+   smaller: one model order cannot give one mode two poles) or, with several references,
+   their participation vectors differ (MAC < ``same_mode_mac``).  A close pair seen by two
+   of three references (0.3 % apart, issue 16) is two clusters coexisting at every order;
 5. (in :class:`~identification.polymax.PolyMAX`) after LSFD, automatic picks whose shape
    has an MPC below ``min_mpc`` are dropped as noise modes;
 6. represent each cluster by the median frequency and damping of its poles in the upper third of
@@ -57,6 +61,8 @@ class SelectionOptions:
     manual_tol: float = 0.02        # relative frequency window for manual picks
     min_mpc: float = 0.5            # after LSFD, automatic picks with a lower MPC are dropped as noise
     max_block: int = 600            # poles clustered at once (bounds the distance matrices to a few MB)
+    coexist_fraction: float = 0.5  # near clusters with poles at the same order in more of their orders are two modes
+    same_mode_mac: float = 0.9      # near clusters with less participation MAC are two modes (several references)
 
     def __post_init__(self):
         for name in ("distance", "max_damping", "manual_tol"):
@@ -125,6 +131,26 @@ def _segment_medians(x, starts, sizes):
     starts = np.asarray(starts)
     sizes = np.asarray(sizes)
     return 0.5 * (x[starts + (sizes - 1) // 2] + x[starts + sizes // 2])
+
+
+def _mean_participation(Lg):
+    """The dominant direction of a cluster's participation vectors (first left singular vector)."""
+    if Lg.shape[0] == 1:
+        return np.ones(1, complex)
+    u, _, _ = np.linalg.svd(Lg, full_matrices=False)
+    v = u[:, 0]
+    k = int(np.argmax(np.abs(v)))
+    return v * (abs(v[k]) / v[k])
+
+
+def _same_mode(orders_a, orders_b, la, lb, opts) -> bool:
+    """Two near clusters are one mode unless they coexist order by order or their participations differ."""
+    shared = len(orders_a & orders_b)
+    if shared > opts.coexist_fraction * min(len(orders_a), len(orders_b)):
+        return False
+    if la.size > 1 and mac_vectors(la[:, None], lb[:, None])[0, 0] < opts.same_mode_mac:
+        return False
+    return True
 
 
 def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = None, *, band_hz=None) -> SelectedPoles:
@@ -196,17 +222,29 @@ def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = N
             groups.append(members)
     sizes = np.array([g.size for g in groups])
     keep = (sizes >= opts.min_poles) & (sizes >= opts.min_fraction * diag.orders.size)
-    # one physical mode split into several clusters: keep the largest
+    # one physical mode split into several clusters: keep the largest — but only when the two clusters are
+    # one mode's wandering estimates: they rarely hold a pole at the same order (two modes coexist order by
+    # order) and, with several references, their participation vectors agree (MAC >= same_mode_mac)
     cat = np.concatenate(groups)
     gid = np.repeat(np.arange(len(groups)), sizes)
     o = np.lexsort((f[cat], gid))
     centre = _segment_medians(f[cat][o], np.cumsum(sizes) - sizes, sizes)
-    for a in np.argsort(-sizes):
+    orders_of = [set(od[g].tolist()) for g in groups]
+    told = set()                    # pairs of near clusters kept as two modes (logged once)
+
+    Lmean = [_mean_participation(L[:, g]) for g in groups]
+    for a in np.argsort(-sizes, kind="stable"):
         if not keep[a]:
             continue
-        dup = keep & (np.abs(centre - centre[a]) < 0.5 * opts.distance * centre[a])
-        dup[a] = False
-        keep[dup] = False
+        near = np.flatnonzero(keep & (np.abs(centre - centre[a]) < 0.5 * opts.distance * centre[a]))
+        for b in near[near != a]:
+            if _same_mode(orders_of[a], orders_of[b], Lmean[a], Lmean[b], opts):
+                keep[b] = False
+            elif (min(a, b), max(a, b)) not in told:
+                told.add((min(a, b), max(a, b)))
+                log.info("automatic selection: %.4g and %.4g Hz kept as two modes (they coexist at %d orders; "
+                         "participation MAC %.2f)", centre[a], centre[b], len(orders_of[a] & orders_of[b]),
+                         float(mac_vectors(Lmean[a][:, None], Lmean[b][:, None])[0, 0]))
     lam, parts, orders, csize = [], [], [], []
     for g, ok in zip(groups, keep):
         if not ok:
