@@ -53,8 +53,9 @@ class IdentificationReport:
     settings : the parameters used.
     elapsed_s : wall time of the identification.
     modes : per-mode summary of the identified (window-corrected) modes: ``freq_hz``, ``damping``
-        and, with ``uncertainty=True``, their first-order standard deviations ``freq_std_hz``,
-        ``damping_std``, the chi-square ratio ``chi2_ratio`` of the local fit and ``std_source``
+        and, with ``uncertainty=True``, their standard deviations ``freq_std_hz``, ``damping_std``
+        (FRF noise and spread over orders, :func:`~identification.polymax.combined_std`), those two
+        parts (``*_noise``, ``*_orders``), the chi-square ratio ``chi2_ratio`` of the local fit and ``std_source``
         (the FRF noise model: 'H_variance', 'coherence' or 'residual'; see
         :func:`~identification.lsfd.pole_uncertainty`).  NaN is written as null.
     """
@@ -118,6 +119,9 @@ def resolve_window(frf: FRF, exp_beta: float | None = None, *, force: bool = Fal
     ``'option (overrides the file's beta=...)'``.
     """
     carried = float(frf.window_beta_per_s)
+    if force and exp_beta is None:
+        raise ModalabValueError("force_window (--force-window) needs exp_beta (--exp-beta B): the beta to use "
+                                "instead of the file's")
     if exp_beta is None:
         return carried, ("file" if carried > 0 else "none")
     b = float(exp_beta)
@@ -171,8 +175,9 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
         the accelerometers become the references; True always transposes; False never does.
         What was done is in ``report.settings['reciprocity']``.
     refine : refine the selected poles by local variable-projection least squares (default True).
-    uncertainty : first-order standard deviations of the refined frequencies and damping ratios
-        (default True; about one Jacobian per mode, a few % of the fit): from
+    uncertainty : standard deviations of the refined frequencies and damping ratios (default True; about
+        one Jacobian per mode, a few % of the fit): the spread of the pole over the stable orders combined
+        with the first-order noise propagation (:func:`~identification.polymax.combined_std`), the noise from
         ``frf.variance`` (variance across averages, shape of H), else from coherence
         and ``metadata['n_averages']``, else from the residual of the local fit
         (:func:`~identification.lsfd.pole_uncertainty`; first order, noise uncorrelated across
@@ -260,7 +265,9 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
 
     report.modes = {"freq_hz": _list(modes.freq_hz), "damping": _list(modes.damping)}
     if uncertainty:
-        report.modes.update({k: _list(modes.indicators[k]) for k in ("freq_std_hz", "damping_std", "chi2_ratio")})
+        report.modes.update({k: _list(modes.indicators[k]) for k in (
+            "freq_std_hz", "damping_std", "freq_std_noise_hz", "damping_std_noise", "freq_std_orders_hz",
+            "damping_std_orders", "chi2_ratio")})
         report.modes["std_source"] = modes.metadata.get("pole_std_source")
     report.elapsed_s = time.perf_counter() - t0
     log.info("identified %d modes in %.2f s (mean FRF correlation %.4f)", modes.n_modes, report.elapsed_s,

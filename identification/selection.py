@@ -44,7 +44,7 @@ from .stabilisation import StabilisationDiagram, mac_vectors, pole_freq_damping
 log = logging.getLogger(__name__)
 
 __all__ = ["SelectionOptions", "SelectedPoles", "select_poles", "auto_select", "select_frequencies",
-           "load_selection_file"]
+           "load_selection_file", "order_spread"]
 
 
 @dataclass(frozen=True)
@@ -84,6 +84,20 @@ class SelectedPoles:
     order: np.ndarray              # model order of the representative pole
     cluster_size: np.ndarray       # number of stable poles behind each mode (0 for manual picks off-diagram)
     source: str = "auto"
+    # spread of the mode's stable poles over the upper third of its orders: standard deviations of their
+    # frequencies (Hz) and damping ratios and how many poles they are (:func:`order_spread`); NaN, 0 = none
+    freq_spread_hz: np.ndarray | None = None
+    damping_spread: np.ndarray | None = None
+    n_spread: np.ndarray | None = None
+
+    def __post_init__(self):
+        m = self.lam.size
+        if self.freq_spread_hz is None:
+            self.freq_spread_hz = np.full(m, np.nan)
+        if self.damping_spread is None:
+            self.damping_spread = np.full(m, np.nan)
+        if self.n_spread is None:
+            self.n_spread = np.zeros(m, int)
 
     @property
     def freq_hz(self):
@@ -96,9 +110,13 @@ class SelectedPoles:
     def __len__(self):
         return self.lam.size
 
+    def subset(self, idx) -> "SelectedPoles":
+        """The poles ``idx`` (indices or a boolean mask), every per-mode field with them."""
+        return SelectedPoles(self.lam[idx], self.participation[:, idx], self.order[idx], self.cluster_size[idx],
+                             self.source, self.freq_spread_hz[idx], self.damping_spread[idx], self.n_spread[idx])
+
     def _sorted(self):
-        o = np.argsort(self.freq_hz)
-        return SelectedPoles(self.lam[o], self.participation[:, o], self.order[o], self.cluster_size[o], self.source)
+        return self.subset(np.argsort(self.freq_hz, kind="stable"))
 
 
 def _empty(n_in, source):
@@ -131,6 +149,20 @@ def _segment_medians(x, starts, sizes):
     starts = np.asarray(starts)
     sizes = np.asarray(sizes)
     return 0.5 * (x[starts + (sizes - 1) // 2] + x[starts + sizes // 2])
+
+
+def order_spread(freq_hz, damping):
+    """``(std f, std ζ, n)`` of one mode's stable poles over the orders used for its estimate (ddof 1).
+
+    How much the estimate moves with the model order: :class:`~identification.polymax.PolyMAX` adds
+    ``spread/√n`` (the standard error of the representative over those orders) to the noise
+    standard deviation.  NaN with fewer than two poles.
+    """
+    f = np.asarray(freq_hz, float)
+    z = np.asarray(damping, float)
+    if f.size < 2:
+        return np.nan, np.nan, int(f.size)
+    return float(np.std(f, ddof=1)), float(np.std(z, ddof=1)), int(f.size)
 
 
 def _mean_participation(Lg):
@@ -245,7 +277,7 @@ def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = N
                 log.info("automatic selection: %.4g and %.4g Hz kept as two modes (they coexist at %d orders; "
                          "participation MAC %.2f)", centre[a], centre[b], len(orders_of[a] & orders_of[b]),
                          float(mac_vectors(Lmean[a][:, None], Lmean[b][:, None])[0, 0]))
-    lam, parts, orders, csize = [], [], [], []
+    lam, parts, orders, csize, spread = [], [], [], [], []
     for g, ok in zip(groups, keep):
         if not ok:
             continue
@@ -259,10 +291,13 @@ def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = N
         parts.append(L[:, best])
         orders.append(od[best])
         csize.append(g.size)
+        spread.append(order_spread(f[top], z[top]))
     log.info("automatic selection: %d stable poles in %d clusters, %d kept", idx.size, len(groups), len(lam))
     if not lam:
         return _empty(n_in, "auto")
-    return SelectedPoles(np.array(lam), np.array(parts).T, np.array(orders), np.array(csize), "auto")._sorted()
+    sp_ = np.array(spread, float).reshape(-1, 3)
+    return SelectedPoles(np.array(lam), np.array(parts).T, np.array(orders), np.array(csize), "auto",
+                         sp_[:, 0], sp_[:, 1], sp_[:, 2].astype(int))._sorted()
 
 
 def select_frequencies(diag: StabilisationDiagram, freqs_hz, options: SelectionOptions | None = None) -> SelectedPoles:
@@ -276,7 +311,7 @@ def select_frequencies(diag: StabilisationDiagram, freqs_hz, options: SelectionO
         raise ModalabValueError(fmt_error("selected frequencies", freqs_hz, "positive frequencies in Hz",
                                           "Give e.g. [12.5, 40.2]"))
     n_in = diag.participation.shape[0]
-    lam, parts, orders, csize = [], [], [], []
+    lam, parts, orders, csize, spread = [], [], [], [], []
     phys = (diag.damping > 0) & (diag.damping <= opts.max_damping)
     for ft in targets:
         near = np.abs(diag.freq_hz - ft) <= opts.manual_tol * ft
@@ -297,8 +332,26 @@ def select_frequencies(diag: StabilisationDiagram, freqs_hz, options: SelectionO
         parts.append(diag.participation[:, best])
         orders.append(diag.order[best])
         csize.append(int(np.sum(near & diag.stable)))
+        spread.append(_manual_spread(diag, phys, best, opts))
+    sp_ = np.array(spread, float).reshape(-1, 3)
     return SelectedPoles(np.array(lam), np.array(parts).T.reshape(n_in, -1), np.array(orders), np.array(csize),
-                         "manual")._sorted()
+                         "manual", sp_[:, 0], sp_[:, 1], sp_[:, 2].astype(int))._sorted()
+
+
+def _manual_spread(diag, phys, best, opts):
+    """:func:`order_spread` of a manual pick: per order, the stable pole nearest the picked one (within
+    ``distance/2``), over the upper third of the orders that have one."""
+    fb = diag.freq_hz[best]
+    cand = np.flatnonzero(diag.stable & phys & (np.abs(diag.freq_hz - fb) <= 0.5 * opts.distance * fb))
+    if cand.size < 2:
+        return order_spread([], [])
+    pick = []
+    for n in np.unique(diag.order[cand]):
+        c = cand[diag.order[cand] == n]
+        pick.append(c[np.argmin(np.abs(diag.freq_hz[c] - fb))])
+    pick = np.array(pick)
+    top = pick[diag.order[pick] >= np.percentile(diag.order[pick], 67)]
+    return order_spread(diag.freq_hz[top], diag.damping[top])
 
 
 def load_selection_file(path) -> list[float]:

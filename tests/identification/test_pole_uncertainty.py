@@ -54,8 +54,8 @@ def test_monte_carlo_std_matches_prediction(refs, beta):
         assert m.metadata["pole_std_source"] == "H_variance"
         f.append(m.freq_hz)
         z.append(m.damping)
-        pf.append(m.indicators["freq_std_hz"])
-        pz.append(m.indicators["damping_std"])
+        pf.append(m.indicators["freq_std_noise_hz"])
+        pz.append(m.indicators["damping_std_noise"])
         chi.append(m.indicators["chi2_ratio"])
     f, z = np.array(f), np.array(z)
     # the window correction is applied: the estimates scatter around the true (unwindowed) values
@@ -84,7 +84,7 @@ def test_std_scales_linearly_with_noise():
             var = (k * sd) ** 2 if source == "H_variance" else None
             m = _fit(clean._replace(H=clean.H + k * sd * e, variance=var, metadata={})).modes_
             assert m.metadata["pole_std_source"] == source
-            out[k, source] = np.concatenate([m.indicators["freq_std_hz"], m.indicators["damping_std"]])
+            out[k, source] = np.concatenate([m.indicators["freq_std_noise_hz"], m.indicators["damping_std_noise"]])
     for source in ("H_variance", "residual"):
         r = out[2.0, source] / out[1.0, source]
         assert np.all(np.abs(r / 2 - 1) < 0.2), f"{source}: std(2σ)/std(σ) = {r}, expected 2 within 20 %"
@@ -107,8 +107,8 @@ def test_coherence_model_equals_the_variance_it_implies():
     pm = _fit(with_coh)
     ref = pole_uncertainty(pm.frf_, pm.refined_poles_, pm.selected_.participation, noise_variance=sd ** 2)
     assert pm.modes_.metadata["pole_std_source"] == "coherence"
-    np.testing.assert_allclose(pm.modes_.indicators["freq_std_hz"], ref["freq_std_hz"], rtol=1e-8)
-    np.testing.assert_allclose(pm.modes_.indicators["damping_std"], ref["damping_std"], rtol=1e-8)
+    np.testing.assert_allclose(pm.modes_.indicators["freq_std_noise_hz"], ref["freq_std_hz"], rtol=1e-8)
+    np.testing.assert_allclose(pm.modes_.indicators["damping_std_noise"], ref["damping_std"], rtol=1e-8)
     # coherence of a single average is 1 by construction, and without n_averages nothing is known
     for meta in ({"n_averages": 1}, {}):
         assert frf_noise_variance(frf._replace(coherence=g2, metadata=meta)) == (None, "residual")
