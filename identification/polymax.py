@@ -545,6 +545,30 @@ _SVD_MAX_IN = 8            # up to this many references the null vectors come fr
 _CHUNK_BYTES = 32 * 2 ** 20   # bound of the (poles, n_in, n_in) work arrays
 
 
+def duplicate_shapes(freq_hz, psi, cluster_size, distance: float, mac_min: float) -> np.ndarray:
+    """True for automatic picks that repeat a nearby pick's shape: within ``distance`` in relative frequency
+    and shape MAC >= ``mac_min`` of a pick with a larger cluster (ties: the lower frequency stays)."""
+    from .stabilisation import mac_vectors
+
+    f = np.asarray(freq_hz, float)
+    m = f.size
+    dup = np.zeros(m, bool)
+    if m < 2:
+        return dup
+    mac = mac_vectors(psi, psi)
+    rank = np.lexsort((f, -np.asarray(cluster_size)))             # larger clusters first, then lower frequency
+    for a in rank:
+        if dup[a]:
+            continue
+        near = (np.abs(f - f[a]) < distance * f[a]) & (mac[a] >= mac_min) & ~dup
+        near[a] = False
+        if near.any():
+            log.info("automatic selection: %d pick(s) near %.4g Hz repeat its shape (MAC >= %g): one mode",
+                     int(near.sum()), f[a], mac_min)
+        dup |= near
+    return dup
+
+
 def combined_std(unc: dict, selected) -> dict:
     """Standard deviations of frequency and damping: FRF noise plus the spread of the pole over orders.
 
@@ -786,8 +810,13 @@ class PolyMAX:
             psi = lsfd(data, lam_sel, self.selected_.participation, lower_residual=self.lower_residual,
                        upper_residual=self.upper_residual).psi
             ok = ~(mpc(psi) < opts.min_mpc)
+            # one mode picked twice (two near clusters kept because they coexist at some orders): their
+            # shapes agree; a close pair has distinct shapes (MAC between candidate shapes)
+            ok &= ~duplicate_shapes(pole_freq_damping(lam_sel)[0], psi, self.selected_.cluster_size,
+                                    opts.distance, opts.same_mode_mac)
             if not ok.all():
-                log.info("dropped %d automatic pick(s) with MPC < %g as noise", int((~ok).sum()), opts.min_mpc)
+                log.info("dropped %d automatic pick(s): MPC < %g (noise) or a repeated shape", int((~ok).sum()),
+                         opts.min_mpc)
                 sp = self.selected_
                 self.selected_ = sp.subset(ok)
                 lam_sel = lam_sel[ok]

@@ -71,7 +71,8 @@ def cmd_identify(a):
                    f"{float(mpc[k]):>6.3f}")
         src = modes.metadata.get("pole_std_source")
         if src:
-            _print(f"(± one standard deviation, first order, noise from {src})")
+            _print(f"(± one standard deviation: FRF noise from {src}, first order, combined with the spread "
+                   "of the pole over the stable orders)")
         _print(f"wrote {modes.n_modes} modes to {a.output}" + (f" and {a.json}" if a.json else ""))
         return 0
     # a campaign: one output folder per input, in parallel
