@@ -277,6 +277,25 @@ class FRF:
     def copy(self) -> "FRF":
         return copy.deepcopy(self)
 
+    def __deepcopy__(self, memo):
+        new = FRF.__new__(FRF)
+        memo[id(self)] = new
+        for k, v in self.__dict__.items():
+            if k != "_metadata":
+                new.__dict__[k] = copy.deepcopy(v, memo)
+        new.metadata = copy.deepcopy(dict(self._metadata), memo)
+        return new
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state["_metadata"] = dict(self._metadata)
+        return state
+
+    def __setstate__(self, state):
+        meta = state.pop("_metadata", {})
+        self.__dict__.update(state)
+        self.metadata = meta
+
     def _replace(self, **kw) -> "FRF":
         """A new FRF with some fields replaced.  New ``H`` or ``freq_hz`` without a ``variance`` drops the
         variance (it described the old data)."""

@@ -147,6 +147,17 @@ class TestTypedWindow:
         frf.metadata = {"estimator": "H1", "exp_window_beta": 0.125}
         assert frf.window_beta_per_s == 0.125 and "exp_window_beta" not in dict(frf.metadata)
 
+    def test_copies_and_pickles_keep_the_fields(self):
+        import pickle
+
+        frf, _ = self._frf(beta=2.0, variance=np.full((1, 1, 50), 0.5), metadata={"n_averages": 3})
+        for other in (frf.copy(), pickle.loads(pickle.dumps(frf))):
+            assert other.window_beta_per_s == 2.0 and other.metadata == {"n_averages": 3}
+            np.testing.assert_array_equal(other.variance, frf.variance)
+            with pytest.warns(DeprecationWarning):
+                other.metadata["exp_window_beta"] = 1.0            # still the typed field, not a stray key
+            assert other.window_beta_per_s == 1.0 and frf.window_beta_per_s == 2.0
+
     @pytest.mark.parametrize("bad", [-0.1, float("nan"), "fast"])
     def test_bad_beta_is_refused(self, bad):
         with pytest.raises(ModalabValueError, match="window_beta_per_s"):
