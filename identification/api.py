@@ -158,7 +158,7 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
     select : 'auto' | sequence of Hz | path
         Automatic clustering, the analyst's frequencies, or a JSON/TOML selection file.
     references : DOF labels or None
-        Use only these references (columns of H).
+        Use only these references (columns of H; after a reciprocity transpose, the accelerometers).
     plots_dir : path or None
         Folder for ``stabilisation.png``, ``synthesis.png``, ``automac.png``.
     weighting : None | 'coherence' | 'variance'
