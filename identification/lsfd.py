@@ -245,7 +245,7 @@ class _LocalProjection:
         if V.size == 0:
             return V
         W = V.reshape(V.shape[0] // nl, nl, -1)
-        W = W - np.einsum("la,sak->slk", self.Q0, np.einsum("la,slk->sak", self.Q0, W))
+        W = W - self.Q0 @ (self.Q0.T @ W)                                     # batched over the segments
         return W.reshape(V.shape)
 
     def _off_B(self, V):
