@@ -593,14 +593,13 @@ class SpectralAverager:
             "hit_ids": self.hit_ids,
             "force_window": None if self.force_window is None else self.force_window.to_dict(),
             "exp_window": None if self.exp_window is None else self.exp_window.to_dict(),
-            "exp_window_beta": float(self._beta),
             "window_origin": "trigger",
             "coherence_kind": kind,
             "sample_rate_hz": L.fs,
             "n_samples": L.n_samples,
         }
         return FRF(freq_hz=cs.freq_hz, H=H, responses=list(L.responses), references=list(L.references),
-                   coherence=coh, quantity=L.quantity, metadata=meta)
+                   coherence=coh, quantity=L.quantity, metadata=meta, window_beta_per_s=float(self._beta))
 
 
 def _records_list(records) -> list[TimeRecord]:
@@ -631,7 +630,7 @@ def estimate_frf(records: Sequence[TimeRecord] | TimeRecord, *, estimator: str =
     -------
     FRF with ``responses`` = response-channel DOFs, ``references`` = force-channel DOFs, quantity
     from the response unit (m/s² → accelerance, m/s → mobility, m → receptance), coherence, and
-    metadata ``estimator``, ``n_averages``, ``force_window``, ``exp_window_beta`` (1/s; remove it
+    metadata ``estimator``, ``n_averages``, ``force_window``; ``FRF.window_beta_per_s`` (1/s; remove it
     with :func:`acquisition.windows.correct_damping`), ``hit_ids``, ``coherence_kind``.
     """
     avg = SpectralAverager(estimator=estimator, force_window=force_window, exp_window=exp_window, nfft=nfft)

@@ -284,7 +284,7 @@ def exponential_window(n_samples: int, sample_rate_hz: float, *, trigger_index: 
     Returns
     -------
     ExpWindowResult(window, beta) : the (n_samples,) window and β in 1/s, to be stored with the FRF
-        (``metadata['exp_window_beta']``) and removed by :func:`correct_damping`.
+        (``FRF.window_beta_per_s``) and removed by :func:`correct_damping`.
 
     Examples
     --------
@@ -316,7 +316,7 @@ def _check_beta(beta):
     b = float(beta)
     if not np.isfinite(b) or b < 0:
         raise ModalabValueError(f"beta={beta!r} must be the window's decay rate >= 0 in 1/s "
-                                "(FRF.metadata['exp_window_beta'])")
+                                "(FRF.window_beta_per_s)")
     return b
 
 
@@ -327,7 +327,7 @@ def correct_damping(freq_hz, damping, beta: float, *, exact: bool = True) -> np.
     ----------
     freq_hz : natural frequencies identified from the windowed data, Hz.
     damping : damping ratios ζ identified from the windowed data.
-    beta : the window's decay rate, 1/s (``FRF.metadata['exp_window_beta']``).
+    beta : the window's decay rate, 1/s (``FRF.window_beta_per_s``).
     exact : True applies the pole form: ``λ = −ζω_n + iω_n√(1−ζ²)``, ``σ_true = σ_meas − β``
         (σ = ζω_n the decay rate), ``ζ_true = σ_true/|λ_true|``; False applies the first-order
         form ``ζ_true = ζ_meas − β/ω_n`` with ``ω_n = 2π·freq_hz``.  They differ by O(ζβ/ω_n).

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from modalab.dof import locate
+from acquisition.reciprocity import reorder_by_reciprocity
 from modalab.errors import ModalabValueError, fmt_error
 from modalab.frf import FRF
 from modalab.modes import ModeSet
@@ -27,7 +27,12 @@ from .stabilisation import StabilisationCriteria, StabilisationDiagram
 
 log = logging.getLogger(__name__)
 
-__all__ = ["identify", "IdentificationReport", "default_max_order"]
+__all__ = ["identify", "IdentificationReport", "default_max_order", "roving_hammer_layout", "resolve_window",
+           "ROVING_RATIO"]
+
+#: an FRF with at least this many times more references than responses (and more than 3 references)
+#: is a roving-hammer export: fixed accelerometers as responses, the hammer points as references
+ROVING_RATIO = 2
 
 
 def default_max_order(n_in: int) -> int:
@@ -48,8 +53,9 @@ class IdentificationReport:
     settings : the parameters used.
     elapsed_s : wall time of the identification.
     modes : per-mode summary of the identified (window-corrected) modes: ``freq_hz``, ``damping``
-        and, with ``uncertainty=True``, their first-order standard deviations ``freq_std_hz``,
-        ``damping_std``, the chi-square ratio ``chi2_ratio`` of the local fit and ``std_source``
+        and, with ``uncertainty=True``, their standard deviations ``freq_std_hz``, ``damping_std``
+        (FRF noise and spread over orders, :func:`~identification.polymax.combined_std`), those two
+        parts (``*_noise``, ``*_orders``), the chi-square ratio ``chi2_ratio`` of the local fit and ``std_source``
         (the FRF noise model: 'H_variance', 'coherence' or 'residual'; see
         :func:`~identification.lsfd.pole_uncertainty`).  NaN is written as null.
     """
@@ -91,11 +97,54 @@ class IdentificationReport:
             json.dump(self.to_dict(), fh, indent=1)
 
 
+def roving_hammer_layout(frf: FRF) -> bool:
+    """True when ``frf`` looks like a roving-hammer export: references far more than responses.
+
+    An analyser stores a roving-hammer test with the fixed accelerometers as responses and the hit
+    points as references (e.g. 3 x 74).  Poly-reference identification wants the opposite: few
+    references (the accelerometers) and many responses, which Maxwell–Betti reciprocity gives by
+    transposing (thesis section 5.3).  The test: ``n_in >= ROVING_RATIO · n_out`` and ``n_in > 3``.
+    """
+    return frf.n_in >= ROVING_RATIO * frf.n_out and frf.n_in > 3
+
+
+def resolve_window(frf: FRF, exp_beta: float | None = None, *, force: bool = False) -> tuple[float, str]:
+    """The exponential-window decay β (1/s) to remove, and where it comes from.
+
+    ``frf.window_beta_per_s`` is what the file (or the acquisition) says.  ``exp_beta`` is the
+    analyst's value: used when the FRF carries none; when the FRF carries a different non-zero β
+    the call is refused unless ``force`` (then ``exp_beta`` wins and the source says so).
+
+    Returns ``(beta, source)`` with ``source`` one of ``'none'``, ``'file'``, ``'option'``,
+    ``'option (overrides the file's beta=...)'``.
+    """
+    carried = float(frf.window_beta_per_s)
+    if force and exp_beta is None:
+        raise ModalabValueError("force_window (--force-window) needs exp_beta (--exp-beta B): the beta to use "
+                                "instead of the file's")
+    if exp_beta is None:
+        return carried, ("file" if carried > 0 else "none")
+    b = float(exp_beta)
+    if not np.isfinite(b) or b < 0:
+        raise ModalabValueError(fmt_error("exp_beta", exp_beta, "the window's decay rate >= 0 in 1/s",
+                                          "e.g. --exp-beta 0.139 (the analyser's exponential window)"))
+    if carried > 0 and not np.isclose(b, carried, rtol=1e-6, atol=0.0):
+        if not force:
+            raise ModalabValueError(
+                f"the FRF already carries an exponential window beta={carried:g} 1/s but exp_beta={b:g} was given; "
+                "pass force_window=True (--force-window) to use the given value, or drop exp_beta")
+        return b, f"option (overrides the file's beta={carried:g} 1/s)"
+    if carried > 0:
+        return b, "file"
+    return b, ("option" if b > 0 else "none")
+
+
 def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="auto", references=None,
              plots_dir=None, weighting=None, criteria: StabilisationCriteria | None = None,
              selection: SelectionOptions | None = None, min_order: int = 1, order_step: int = 1,
              lower_residual: bool = True, upper_residual: bool = True, window_correction: bool = True,
-             refine: bool = True, uncertainty: bool = True):
+             refine: bool = True, uncertainty: bool = True, reciprocity: bool | None = None,
+             exp_beta: float | None = None, force_window: bool = False):
     """Identify modes from FRFs with poly-reference pLSCF, stabilisation, pole selection and LSFD.
 
     Parameters
@@ -109,18 +158,27 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
     select : 'auto' | sequence of Hz | path
         Automatic clustering, the analyst's frequencies, or a JSON/TOML selection file.
     references : DOF labels or None
-        Use only these references (columns of H).
+        Use only these references (columns of H; after a reciprocity transpose, the accelerometers).
     plots_dir : path or None
         Folder for ``stabilisation.png``, ``synthesis.png``, ``automac.png``.
     weighting : None | 'coherence' | 'variance'
     criteria, selection : stabilisation tolerances and selection settings (defaults if None).
     min_order, order_step : orders evaluated.
     lower_residual, upper_residual : residual terms of LSFD.
-    window_correction : subtract ``frf.metadata['exp_window_beta']`` from the decay rates.
+    window_correction : remove the exponential window's decay β from the poles
+        (:func:`acquisition.windows.correct_poles`): β from ``frf.window_beta_per_s`` or ``exp_beta``.
+    exp_beta, force_window : the window's β (1/s) when the file does not carry it; ``force_window``
+        lets ``exp_beta`` override a different β the FRF carries (:func:`resolve_window`).  The
+        correction applied is in ``report.settings['window_correction']``.
+    reciprocity : None (default) transposes a roving-hammer layout (:func:`roving_hammer_layout`:
+        references far more than responses) by Maxwell–Betti reciprocity, with a log message, so that
+        the accelerometers become the references; True always transposes; False never does.
+        What was done is in ``report.settings['reciprocity']``.
     refine : refine the selected poles by local variable-projection least squares (default True).
-    uncertainty : first-order standard deviations of the refined frequencies and damping ratios
-        (default True; about one Jacobian per mode, a few % of the fit): from
-        ``frf.metadata['H_variance']`` (variance across averages, shape of H), else from coherence
+    uncertainty : standard deviations of the refined frequencies and damping ratios (default True; about
+        one Jacobian per mode, a few % of the fit): the spread of the pole over the stable orders combined
+        with the first-order noise propagation (:func:`~identification.polymax.combined_std`), the noise from
+        ``frf.variance`` (variance across averages, shape of H), else from coherence
         and ``metadata['n_averages']``, else from the residual of the local fit
         (:func:`~identification.lsfd.pole_uncertainty`; first order, noise uncorrelated across
         lines, references and outputs).
@@ -145,12 +203,30 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
         raise ModalabValueError(fmt_error("frf", type(frf).__name__, "a modalab.FRF",
                                           "Read one with FRF.from_uff(path)"))
     t0 = time.perf_counter()
+    if reciprocity not in (None, True, False):
+        raise ModalabValueError(fmt_error("reciprocity", reciprocity, "None (automatic), True or False",
+                                          "Leave it None: a roving-hammer layout is transposed"))
+    roving = roving_hammer_layout(frf)
+    transpose = roving if reciprocity is None else bool(reciprocity)
+    if transpose:
+        why = ("forced" if reciprocity else
+               f"{frf.n_out} responses x {frf.n_in} references looks like a roving-hammer export")
+        log.info("reciprocity: %s; transposed to %d responses x %d references (the accelerometers are the "
+                 "references)", why, frf.n_in, frf.n_out)
+        recip = {"applied": True, "reason": why, "measured_shape": [frf.n_out, frf.n_in]}
+        frf = reorder_by_reciprocity(frf)
+    else:
+        recip = {"applied": False, "measured_shape": [frf.n_out, frf.n_in],
+                 "reason": "refused (reciprocity=False)" if roving else "layout already has few references"}
+        if roving:
+            log.warning("%d responses x %d references identified as given (reciprocity refused): every "
+                        "reference adds poles to each order; expect a slow, poor fit", frf.n_out, frf.n_in)
+    beta, beta_source = resolve_window(frf, exp_beta, force=force_window)
+    if not window_correction:
+        beta_source = "not applied (window_correction=False)"
+    if beta != frf.window_beta_per_s:
+        frf = frf._replace(window_beta_per_s=beta)
     data = frf if references is None else frf.select(references=references)
-    var = frf.metadata.get("H_variance")
-    if references is not None and var is not None and np.shape(var) == frf.H.shape:
-        # select() copies the metadata as is: keep the variances of the chosen references
-        jj, _ = locate(frf.references, references, "reference DOF")
-        data.metadata["H_variance"] = np.asarray(var)[:, list(jj), :]
     n_order = default_max_order(data.n_in) if max_order is None else max_order
     pm = PolyMAX(max_order=n_order, min_order=min_order, order_step=order_step, weighting=weighting,
                  band_hz=band_hz, criteria=criteria, select=select, selection=selection,
@@ -168,7 +244,9 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
                              else [float(x) for x in np.atleast_1d(select)]),
                   "references": [str(r) for r in pm.frf_.references], "n_responses": pm.frf_.n_out,
                   "n_lines": pm.frf_.n_freq, "quantity": pm.frf_.quantity,
-                  "exp_window_beta": float(modes.metadata.get("exp_window_beta", 0.0)),
+                  "window_correction": {"beta_per_s": float(beta) if window_correction else 0.0,
+                                        "source": beta_source},
+                  "reciprocity": recip,
                   "criteria": pm.stabilisation_.to_dict()["criteria"]})
     if plots_dir is not None:
         from .plots import plot_automac, plot_stabilisation, plot_synthesis
@@ -187,7 +265,9 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
 
     report.modes = {"freq_hz": _list(modes.freq_hz), "damping": _list(modes.damping)}
     if uncertainty:
-        report.modes.update({k: _list(modes.indicators[k]) for k in ("freq_std_hz", "damping_std", "chi2_ratio")})
+        report.modes.update({k: _list(modes.indicators[k]) for k in (
+            "freq_std_hz", "damping_std", "freq_std_noise_hz", "damping_std_noise", "freq_std_orders_hz",
+            "damping_std_orders", "chi2_ratio")})
         report.modes["std_source"] = modes.metadata.get("pole_std_source")
     report.elapsed_s = time.perf_counter() - t0
     log.info("identified %d modes in %.2f s (mean FRF correlation %.4f)", modes.n_modes, report.elapsed_s,

@@ -17,9 +17,11 @@ frequency (``Im dλ < 0``).  MOV is the |R_oo|-weighted fraction of responses
 that do; defined only for scaled modes.
 
 Pole uncertainty (``freq_std_hz``, ``damping_std``, ``chi2_ratio`` in ``ModeSet.indicators``):
-first-order standard deviations of the refined natural frequency (Hz) and damping ratio and the
-chi-square ratio of the local fit (about 1 when the FRF noise model fits the scatter), computed
-by :func:`identification.lsfd.pole_uncertainty` from the variance of the FRF lines.
+standard deviations of the refined natural frequency (Hz) and damping ratio — the first-order
+propagation of the variance of the FRF lines (:func:`identification.lsfd.pole_uncertainty`, parts
+``freq_std_noise_hz``/``damping_std_noise``) combined with the spread of the pole over the stable
+orders (parts ``freq_std_orders_hz``/``damping_std_orders``, :func:`identification.polymax.combined_std`)
+— and the chi-square ratio of the local fit (about 1 when the FRF noise model fits the scatter).
 
 FRF correlation: ``|H_sᴴH_m|² / (H_sᴴH_s · H_mᴴH_m)`` per FRF (FRAC) and the
 relative synthesis error ``‖H_s − H_m‖ / ‖H_m‖``.

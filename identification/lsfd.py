@@ -22,7 +22,8 @@ The reported participation ``L_r = l_r / c_r`` keeps ``A_r = φ_r L_rᵀ``.
 
 Exponential-window correction: the window ``e^{−βt}`` moves every pole by
 ``−β`` and leaves the residues unchanged, so the fit uses the measured poles and
-the reported poles are ``λ_true = λ_meas + β`` (σ_true = σ_meas − β).
+the reported poles are ``λ_true = λ_meas + β`` (σ_true = σ_meas − β), by
+:func:`acquisition.windows.correct_poles` (the one implementation of that correction).
 """
 from __future__ import annotations
 
@@ -31,6 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from acquisition.windows import correct_poles
 from modalab.errors import ModalabValueError, ShapeError, fmt_error
 from modalab.frf import FRF
 from modalab.modes import ModeSet
@@ -83,6 +85,54 @@ class LSFDResult:
                    metadata={"estimator": "synthesised", "source": "LSFD"})
 
 
+_DENSE_RESIDUAL_MAX_IN = 8      # more references: the residual columns are eliminated reference by reference
+
+
+def _lsfd_structured(blocks, H, s, q, lower_residual, upper_residual):
+    """LSFD with the residual terms eliminated per reference (many references, e.g. 74 hammer points).
+
+    The residual columns of reference ``i`` are the same functions of frequency (``s^(q−2)``, ``s^q``, real
+    coefficients) on that reference's rows only, so the projection off them is one small basis applied
+    reference by reference (Frisch–Waugh–Lovell): the modal coefficients come from the projected problem
+    (2m columns instead of 2m + 2·n_in) and the residuals from the remainder — the same least-squares
+    solution as the dense design matrix, in a fraction of its memory.
+    """
+    n_in, nf, two_m = blocks.shape
+    n_out = H.shape[0]
+    m = two_m // 2
+    basis = ([s ** (q - 2)] if lower_residual else []) + ([s ** q] if upper_residual else [])
+    Rb = np.stack(basis, axis=1)                                            # (nf, k) complex
+    Rr = np.concatenate([Rb.real, Rb.imag], axis=0)                         # (2nf, k): one reference's rows
+    rs = np.linalg.norm(Rr, axis=0)
+    Qr, Rtri = np.linalg.qr(Rr / rs)
+    # per reference: rows [Re; Im] of its lines
+    Am = np.concatenate([blocks.real, blocks.imag], axis=1)                  # (n_in, 2nf, 2m)
+    Y = H.transpose(1, 2, 0)                                                # (n_in, nf, n_out)
+    Yr = np.concatenate([Y.real, Y.imag], axis=1)                           # (n_in, 2nf, n_out)
+
+    def off(V):
+        return V - np.einsum("rk,ikc->irc", Qr, np.einsum("rk,irc->ikc", Qr, V))
+
+    Ap, Yp = off(Am), off(Yr)
+    A2 = Ap.reshape(-1, two_m)
+    scale = np.linalg.norm(A2, axis=0)
+    scale[scale == 0] = 1.0
+    X, *_ = np.linalg.lstsq(A2 / scale, Yp.reshape(-1, n_out), rcond=None)
+    X = X / scale[:, None]                                                  # (2m, n_out)
+    psi = (X[:m] + 1j * X[m:]).T
+    rem = Yr - np.einsum("irc,co->iro", Am, X)                              # (n_in, 2nf, n_out)
+    C = np.linalg.solve(Rtri, np.einsum("rk,iro->iko", Qr, rem)) / rs[None, :, None]   # (n_in, k, n_out)
+    LR = np.zeros((n_out, n_in))
+    UR = np.zeros((n_out, n_in))
+    k = 0
+    if lower_residual:
+        LR = C[:, k, :].T
+        k += 1
+    if upper_residual:
+        UR = C[:, k, :].T
+    return psi, LR, UR
+
+
 def lsfd(frf: FRF, lam, participation, *, lower_residual: bool = True, upper_residual: bool = True) -> LSFDResult:
     """Fit shapes and residuals to ``frf`` for fixed poles ``lam`` (m,) and participation ``(n_in, m)``."""
     lam = np.atleast_1d(np.asarray(lam, complex))
@@ -101,6 +151,10 @@ def lsfd(frf: FRF, lam, participation, *, lower_residual: bool = True, upper_res
     lgc = L.conj()[:, :, None] * gc[None]
     cols = [np.transpose(lg + lgc, (0, 2, 1)), np.transpose(1j * (lg - lgc), (0, 2, 1))]   # (n_in, nf, m)
     blocks = np.concatenate(cols, axis=2)
+    if n_in > _DENSE_RESIDUAL_MAX_IN and (lower_residual or upper_residual):
+        psi, LR, UR = _lsfd_structured(blocks, frf.H, s, q, lower_residual, upper_residual)
+        return LSFDResult(lam=lam, participation=L, psi=psi, lower=LR, upper=UR, quantity=frf.quantity,
+                          responses=list(frf.responses), references=list(frf.references))
     extra = []
     eye = np.eye(n_in)
     if lower_residual:
@@ -150,10 +204,13 @@ def _basis(s, q, lam, L, lower_residual, upper_residual):
 class _LocalProjection:
     """Variable-projection objective ``‖(I − P(x))Y‖²/‖Y‖²`` of one pole ``λ(ω_n, ζ)``, minimised by LM.
 
-    The local basis is ``A = [B, a(x)]``: ``B`` (the other modes in the window and the quadratic
-    residual terms) does not depend on the refined pole, ``a(x)`` are the two columns "Re ψ", "Im ψ"
-    of the refined mode.  ``B = Q_B R_B`` is factored once; every evaluation projects ``a`` and ``Y``
-    off ``B`` and factors the two remaining columns (``P = Q_B Q_Bᵀ + q qᵀ``, ``q`` the orthonormal
+    The local basis is ``A = [E, B, a(x)]``: ``E`` the quadratic residual terms — per reference and per
+    real/imaginary part the same three polynomials ``poly`` (lines × 3) on that reference's rows, so
+    ``(I − P_E)`` is the projection off one 3-column basis applied segment by segment (no QR of the
+    6·n_in columns, which dominated with many references) —, ``B`` the other modes in the window
+    (projected off ``E``); neither depends on the refined pole, ``a(x)`` are the two columns "Re ψ",
+    "Im ψ" of the refined mode.  ``B = Q_B R_B`` is factored once; every evaluation projects ``a`` and ``Y``
+    off ``E`` and ``B`` and factors the two remaining columns (``P = Q_B Q_Bᵀ + q qᵀ``, ``q`` the orthonormal
     basis of ``(I − Q_B Q_Bᵀ) a``), and the coefficients of ``a`` are those of the regression of the
     projected data on the projected columns (Frisch–Waugh–Lovell).
 
@@ -163,26 +220,39 @@ class _LocalProjection:
     (``A⁺ r = 0``), so the gradient ``Jᵀr`` and the stationary points are exact.
     """
 
-    def __init__(self, s, q, lam, L, k_r, extra, Y, ynorm):
+    def __init__(self, s, q, lam, L, k_r, poly, Y, ynorm):
         self.s, self.q, self.k_r = s, q, k_r
         self.l = np.asarray(L, complex)[:, k_r]
         self.sq = s ** q
+        self.Q0 = np.linalg.qr(np.asarray(poly, float))[0]                     # (lines, 3) orthonormal
         others = np.delete(np.arange(np.size(lam)), k_r)
-        B = np.concatenate([_basis(s, q, np.asarray(lam, complex)[others], np.asarray(L, complex)[:, others],
-                                   False, False), extra], axis=1)
+        B = self._off_poly(_basis(s, q, np.asarray(lam, complex)[others], np.asarray(L, complex)[:, others],
+                                  False, False))
         sc = np.linalg.norm(B, axis=0)
         sc[sc == 0] = 1.0
         self.QB = np.linalg.qr(B / sc)[0]
         Y = Y / ynorm
-        self.Yp = Y - self.QB @ (self.QB.T @ Y)                                  # data off B
+        self.Yp = self._off_B(Y)                                                  # data off E and B
 
     @staticmethod
     def pole(x):
         w0, z0 = x
         return -z0 * w0 + 1j * w0 * np.sqrt(1 - z0 ** 2)
 
+    def _off_poly(self, V):
+        """``(I − P_E) V``: every (real/imaginary part, reference) segment of the rows off ``Q0``."""
+        nl = self.Q0.shape[0]
+        if V.size == 0:
+            return V
+        W = V.reshape(V.shape[0] // nl, nl, -1)
+        W = W - self.Q0 @ (self.Q0.T @ W)                                     # batched over the segments
+        return W.reshape(V.shape)
+
     def _off_B(self, V):
-        """``(I − Q_B Q_Bᵀ) V``, twice (classical Gram–Schmidt with one re-orthogonalisation)."""
+        """``(I − P_B)(I − P_E) V``; ``P_B`` twice (classical Gram–Schmidt with one re-orthogonalisation)."""
+        V = self._off_poly(V)
+        if not self.QB.shape[1]:
+            return V
         V = V - self.QB @ (self.QB.T @ V)
         return V - self.QB @ (self.QB.T @ V)
 
@@ -403,18 +473,11 @@ def _local_problem(frf, f, q, df, Yall, lam, L, r, half_bandwidths):
     k_r = int(np.flatnonzero(inwin == r)[0])
     x_loc = (f[sel] - fr) / hw
     n_in = frf.n_in
-    extra = np.zeros((n_in, x_loc.size, 3 * n_in), complex)
-    for i in range(n_in):
-        extra[i, :, 3 * i] = 1.0
-        extra[i, :, 3 * i + 1] = x_loc
-        extra[i, :, 3 * i + 2] = x_loc ** 2
-    extra = extra.reshape(n_in * x_loc.size, 3 * n_in)
-    extra = np.concatenate([extra, 1j * extra], axis=1)
-    extra = np.concatenate([extra.real, extra.imag], axis=0)
-
-    vp = _LocalProjection(s, q, lam[inwin], L[:, inwin], k_r, extra, Y, ynorm)
+    # per reference a complex quadratic: real coefficients on the real rows and on the imaginary rows
+    poly = np.stack([np.ones_like(x_loc), x_loc, x_loc ** 2], axis=1)
+    vp = _LocalProjection(s, q, lam[inwin], L[:, inwin], k_r, poly, Y, ynorm)
     return {"vp": vp, "wn": wn, "zr": zr, "wlo": wlo, "whi": whi, "sel": sel, "ynorm": ynorm,
-            "n_lin": 2 * inwin.size + extra.shape[1]}
+            "n_lin": 2 * inwin.size + 6 * n_in}
 
 
 # --------------------------------------------------------------------------- pole uncertainty
@@ -424,7 +487,7 @@ def frf_noise_variance(frf: FRF):
     In order of preference:
 
     ``'H_variance'``
-        ``frf.metadata['H_variance']``, the variance across averages of each FRF line (real,
+        ``frf.variance``, the variance across averages of each FRF line (real,
         ``>= 0``, same shape as ``H``).
     ``'coherence'``
         From the ordinary coherence ``γ²`` and ``metadata['n_averages']`` = n >= 2: the random
@@ -435,29 +498,12 @@ def frf_noise_variance(frf: FRF):
         Neither is usable: returns ``None``; :func:`pole_uncertainty` then estimates the noise
         from the residual of the local fit (least reliable: model error counts as noise).
 
-    Raises ``ShapeError``/``ModalabValueError`` naming the bad value when ``H_variance`` has the
-    wrong shape, is not numeric, is negative or not finite, or when ``n_averages`` is not a
-    positive integer.
+    Raises ``ModalabValueError`` naming the bad value when ``n_averages`` is not a positive integer
+    (the variance itself is checked by :class:`~modalab.frf.FRF`: shape, finite, >= 0).
     """
     H = frf.H
-    var = frf.metadata.get("H_variance")
-    if var is not None:
-        try:
-            v = np.asarray(var, dtype=float)
-        except (TypeError, ValueError):
-            raise ModalabValueError(fmt_error("FRF.metadata['H_variance']", type(var).__name__,
-                                              f"a real array of shape {H.shape} like H",
-                                              "Store the variance across averages of every FRF line")) from None
-        if v.shape != H.shape:
-            raise ShapeError(f"FRF.metadata['H_variance'] has shape {v.shape}; expected {H.shape} "
-                             "(n_out, n_in, n_freq) like H. Store one variance per FRF line (or drop the key)")
-        bad = ~np.isfinite(v) | (v < 0)
-        if bad.any():
-            idx = tuple(int(k) for k in np.argwhere(bad)[0])
-            raise ModalabValueError(
-                f"FRF.metadata['H_variance'] holds {int(bad.sum())} negative or non-finite value(s), the first "
-                f"{float(v[idx])!r} at (response, reference, line) {idx}; expected variances >= 0. "
-                "Store E|H_k - mean H|^2 over the averages")
+    if frf.variance is not None:
+        v = frf.variance
         return v, "H_variance"
     if frf.coherence is not None:
         n = frf.metadata.get("n_averages")
@@ -495,7 +541,8 @@ def window_corrected_covariance(wn, zeta, cov, beta: float = 0.0):
         return wn, zeta, cov
     sq = np.sqrt(1.0 - zeta ** 2)
     T = np.array([[-zeta, -wn], [sq, -wn * zeta / sq]])                 # ∂(σ, ω_d)/∂(ω_n, ζ)
-    sig, wd = -zeta * wn + beta, wn * sq
+    lt = correct_poles(-zeta * wn + 1j * wn * sq, beta)
+    sig, wd = lt.real, lt.imag
     wt = np.hypot(sig, wd)
     G = np.array([[sig / wt, wd / wt], [-wd ** 2 / wt ** 3, sig * wd / wt ** 3]])   # ∂(ω_n, ζ)/∂(σ, ω_d)
     K = G @ T
@@ -616,7 +663,7 @@ def modes_from_poles(frf: FRF, lam, participation, *, lower_residual: bool = Tru
     """LSFD, window correction, scaling and indicators: returns ``(ModeSet, LSFDResult)``."""
     res = lsfd(frf, lam, participation, lower_residual=lower_residual, upper_residual=upper_residual)
     m = res.lam.size
-    lam_true = res.lam + float(window_beta)
+    lam_true = correct_poles(res.lam, window_beta)
     fn, zeta = pole_freq_damping(lam_true)
     psi = res.psi
     L = res.participation

@@ -71,7 +71,7 @@ def frequency_weights(frf: FRF, weighting=None, *, normalise: bool = True) -> np
         ``'coherence'`` — the mean ordinary coherence over the references
         (lines with poor coherence count less);
         ``'variance'`` — ``1/σ_H``, the inverse standard deviation of the FRF
-        estimate, from ``frf.metadata['H_variance']`` (same shape as ``H``) when
+        estimate, from ``frf.variance`` (same shape as ``H``) when
         present, else from coherence and ``n_averages`` with the H1 variance
         ``σ² ≈ (1−γ²)/(2 n_avg γ²)·|H|²`` (Bendat & Piersol, eq. 9.73).
 
@@ -90,14 +90,10 @@ def frequency_weights(frf: FRF, weighting=None, *, normalise: bool = True) -> np
                                     "pass weighting=None or estimate the FRFs with coherence")
         w = np.clip(np.nan_to_num(frf.coherence, nan=0.0), 0.0, 1.0).mean(axis=1)
     elif weighting == "variance":
-        var = frf.metadata.get("H_variance")
-        if var is not None:
-            var = np.asarray(var, dtype=float)
-            if var.shape != H.shape:
-                raise ShapeError(f"metadata['H_variance'] has shape {var.shape}; expected {H.shape} like H")
-        else:
+        var = frf.variance
+        if var is None:
             if frf.coherence is None:
-                raise ModalabValueError("weighting='variance' needs metadata['H_variance'] or coherence; "
+                raise ModalabValueError("weighting='variance' needs FRF.variance or coherence; "
                                         "neither is present. Use weighting=None")
             n_avg = float(frf.metadata.get("n_averages", 1) or 1)
             g2 = np.clip(frf.coherence, 1e-6, 1 - 1e-9)
@@ -545,17 +541,92 @@ def poles_at_order(M: np.ndarray, order: int, n_in: int, dt: float, *, start=Non
     return _to_poles(z, L, dt)
 
 
+_SVD_MAX_IN = 8            # up to this many references the null vectors come from a batched SVD
+_CHUNK_BYTES = 32 * 2 ** 20   # bound of the (poles, n_in, n_in) work arrays
+
+
+def duplicate_shapes(freq_hz, psi, cluster_size, distance: float, mac_min: float) -> np.ndarray:
+    """True for automatic picks that repeat a nearby pick's shape: within ``distance`` in relative frequency
+    and shape MAC >= ``mac_min`` of a pick with a larger cluster (ties: the lower frequency stays)."""
+    from .stabilisation import mac_vectors
+
+    f = np.asarray(freq_hz, float)
+    m = f.size
+    dup = np.zeros(m, bool)
+    if m < 2:
+        return dup
+    mac = mac_vectors(psi, psi)
+    rank = np.lexsort((f, -np.asarray(cluster_size)))             # larger clusters first, then lower frequency
+    for a in rank:
+        if dup[a]:
+            continue
+        near = (np.abs(f - f[a]) < distance * f[a]) & (mac[a] >= mac_min) & ~dup
+        near[a] = False
+        if near.any():
+            log.info("automatic selection: %d pick(s) near %.4g Hz repeat its shape (MAC >= %g): one mode",
+                     int(near.sum()), f[a], mac_min)
+        dup |= near
+    return dup
+
+
+def combined_std(unc: dict, selected) -> dict:
+    """Standard deviations of frequency and damping: FRF noise plus the spread of the pole over orders.
+
+    ``σ² = σ_noise² + s²/n``: ``σ_noise`` from :func:`~identification.lsfd.pole_uncertainty` (the variance
+    of the FRF across averages — from ``FRF.variance`` or coherence — propagated to the refined pole), ``s``
+    the standard deviation of the mode's stable poles over the upper third of its orders and ``n`` their
+    number (:func:`~identification.selection.order_spread`): the standard error of the estimate over the
+    model orders, which the noise model does not see (model-order and local-model error, a neighbour's
+    leakage).  Treating the orders as independent is an approximation; the coverage of the total is tested
+    on synthetic data with known noise (``tests/identification/test_uncertainty_coverage.py``).  A mode
+    without an order spread (fewer than two poles) keeps the noise term alone.
+
+    Returns the indicators ``freq_std_hz``, ``damping_std`` (total), ``freq_std_noise_hz``,
+    ``damping_std_noise``, ``freq_std_orders_hz``, ``damping_std_orders`` and ``chi2_ratio``.
+    """
+    n = np.maximum(np.asarray(selected.n_spread, float), 1.0)
+    fo = np.where(np.isfinite(selected.freq_spread_hz), selected.freq_spread_hz / np.sqrt(n), 0.0)
+    zo = np.where(np.isfinite(selected.damping_spread), selected.damping_spread / np.sqrt(n), 0.0)
+    fnz, znz = np.asarray(unc["freq_std_hz"], float), np.asarray(unc["damping_std"], float)
+    return {"freq_std_hz": np.hypot(fnz, fo), "damping_std": np.hypot(znz, zo),
+            "freq_std_noise_hz": fnz, "damping_std_noise": znz,
+            "freq_std_orders_hz": fo, "damping_std_orders": zo, "chi2_ratio": np.asarray(unc["chi2_ratio"])}
+
+
 def _participation(alpha: np.ndarray, n: int, n_in: int, z: np.ndarray) -> np.ndarray:
-    """Null vectors of the denominator at the poles (batched SVD), unit norm, largest entry real > 0."""
+    """Left null vectors of the denominator at the poles, unit norm, largest entry real > 0.
+
+    ``H_o = N_o A(z)⁻¹`` and ``A⁻¹ ≈ v wᵀ / (z − z_r)`` near a pole (``A v = 0``, ``wᵀA = 0``), so the
+    residue of every output is ∝ ``wᵀ``: the participation vector is the LEFT null vector of ``A(z_r)``.
+    With few references it is the last left singular vector (batched SVD); with many (a roving-hammer
+    matrix identified as measured, n_in ≫ n_out) two steps of inverse iteration, ``Aᵀ w ← b``, give it
+    for ``O(n_in³/3)`` per pole instead of a full SVD, in chunks of poles so memory stays bounded.
+    """
     blocks = [alpha[r * n_in:(r + 1) * n_in] for r in range(n)] + [np.eye(n_in)]
-    # A(z) = Σ z^r α_r evaluated by Horner for all poles at once: (n_poles, n_in, n_in)
-    Az = np.broadcast_to(blocks[-1], (z.size, n_in, n_in)).astype(complex)
-    for r in range(n - 1, -1, -1):
-        Az = Az * z[:, None, None] + blocks[r][None]
-    # H_o = N_o A(z)⁻¹ and A⁻¹ ≈ v wᵀ / (z − z_r) near a pole (A v = 0, wᵀA = 0), so the residue of
-    # every output is ∝ wᵀ: the participation vector is the LEFT null vector of A(z_r).
-    U, _, _ = np.linalg.svd(Az)
-    L = U[:, :, -1].conj().T                                        # (n_in, n_poles)
+    L = np.empty((n_in, z.size), complex)
+    chunk = max(1, int(_CHUNK_BYTES // (16 * n_in * n_in)))
+    b0 = np.exp(1j * np.arange(n_in))[None, :, None] / np.sqrt(n_in)      # fixed start: deterministic
+    for c0 in range(0, z.size, chunk):
+        zc = z[c0:c0 + chunk]
+        # A(z) = Σ z^r α_r evaluated by Horner for the chunk's poles at once: (m, n_in, n_in)
+        Az = np.broadcast_to(blocks[-1], (zc.size, n_in, n_in)).astype(complex)
+        for r in range(n - 1, -1, -1):
+            Az = Az * zc[:, None, None] + blocks[r][None]
+        if n_in <= _SVD_MAX_IN:
+            U, _, _ = np.linalg.svd(Az)
+            L[:, c0:c0 + zc.size] = U[:, :, -1].conj().T
+            continue
+        At = np.swapaxes(Az, 1, 2)
+        try:
+            w = np.linalg.solve(At, np.broadcast_to(b0, (zc.size, n_in, 1)))
+            w /= np.linalg.norm(w, axis=1, keepdims=True)
+            w = np.linalg.solve(At, w)
+        except np.linalg.LinAlgError:
+            # A(z) exactly singular in floating point for some pole: its null vector by SVD (exact here)
+            U, _, _ = np.linalg.svd(Az)
+            L[:, c0:c0 + zc.size] = U[:, :, -1].conj().T
+            continue
+        L[:, c0:c0 + zc.size] = w[:, :, 0].T
     return _normalise_vectors(L)
 
 
@@ -592,11 +663,13 @@ class PolyMAX:
         Refine each selected pole by variable-projection least squares on the lines around it
         (:func:`~identification.lsfd.refine_poles`) before the final LSFD.
     window_correction : bool
-        Subtract ``frf.metadata['exp_window_beta']`` (1/s) from the decay rates.
+        Remove the exponential window's decay ``frf.window_beta_per_s`` (1/s) from the poles
+        (:func:`acquisition.windows.correct_poles`).
     uncertainty : bool
-        Standard deviations of the refined frequencies and damping ratios
-        (:func:`~identification.lsfd.pole_uncertainty`, first order, one Jacobian per mode) in
-        ``modes_.indicators`` as ``freq_std_hz``, ``damping_std`` and ``chi2_ratio``; the noise model
+        Standard deviations of the refined frequencies and damping ratios in ``modes_.indicators``:
+        ``freq_std_hz``, ``damping_std`` — FRF noise (:func:`~identification.lsfd.pole_uncertainty`,
+        first order, one Jacobian per mode) combined with the spread of the pole over the stable orders
+        (:func:`combined_std`) —, their parts ``*_noise``/``*_orders`` and ``chi2_ratio``; the noise model
         used is ``modes_.metadata['pole_std_source']``.  NaN with ``refine=False`` (the std describes
         the refined estimate).
 
@@ -659,20 +732,11 @@ class PolyMAX:
 
     @staticmethod
     def prepare(frf: FRF, band_hz=None) -> FRF:
-        """Band-limit and drop lines at 0 Hz or with non-finite data (``metadata['H_variance']`` too)."""
-        var = frf.metadata.get("H_variance")
-        if var is not None and np.shape(var) != frf.H.shape:
-            raise ShapeError(f"FRF.metadata['H_variance'] has shape {np.shape(var)}; expected {frf.H.shape} "
-                             "(n_out, n_in, n_freq) like H. Store one variance per FRF line (or drop the key)")
+        """Band-limit and drop lines at 0 Hz or with non-finite data (coherence and variance with them)."""
         f = frf if band_hz is None else frf.band(*band_hz)
-        if var is not None and f is not frf:                   # band() copies the metadata unsliced
-            f.metadata["H_variance"] = np.asarray(var)[..., np.isin(frf.freq_hz, f.freq_hz)]
         good = (f.freq_hz > 0) & np.all(np.isfinite(f.H), axis=(0, 1))
         if not good.all():
-            coh = None if f.coherence is None else f.coherence[..., good]
-            f = f._replace(freq_hz=f.freq_hz[good], H=f.H[..., good], coherence=coh)
-            if var is not None:
-                f.metadata["H_variance"] = np.asarray(f.metadata["H_variance"])[..., good]
+            f = f.lines(good)
         return f
 
     # ------------------------------------------------------------------ fit
@@ -736,22 +800,25 @@ class PolyMAX:
                 log.info("refinement rejected %d pole(s) with damping outside (0, %g]", int((~ok).sum()),
                          opts.max_damping)
                 sp = self.selected_
-                self.selected_ = type(sp)(sp.lam[ok], sp.participation[:, ok], sp.order[ok], sp.cluster_size[ok],
-                                          sp.source)
+                self.selected_ = sp.subset(ok)
                 lam_sel = lam_sel[ok]
         self.refined_poles_ = lam_sel
-        beta = float(data.metadata.get("exp_window_beta", 0.0) or 0.0) if self.window_correction else 0.0
+        beta = float(data.window_beta_per_s) if self.window_correction else 0.0
         if self.selected_.source == "auto" and opts.min_mpc > 0 and lam_sel.size:
             # noise modes fitted by LSFD have scattered phases: drop automatic picks with a low MPC
             # (MPC is invariant to the complex scaling of a shape: taken on the raw LSFD shapes ψ)
             psi = lsfd(data, lam_sel, self.selected_.participation, lower_residual=self.lower_residual,
                        upper_residual=self.upper_residual).psi
             ok = ~(mpc(psi) < opts.min_mpc)
+            # one mode picked twice (two near clusters kept because they coexist at some orders): their
+            # shapes agree; a close pair has distinct shapes (MAC between candidate shapes)
+            ok &= ~duplicate_shapes(pole_freq_damping(lam_sel)[0], psi, self.selected_.cluster_size,
+                                    opts.distance, opts.same_mode_mac)
             if not ok.all():
-                log.info("dropped %d automatic pick(s) with MPC < %g as noise", int((~ok).sum()), opts.min_mpc)
+                log.info("dropped %d automatic pick(s): MPC < %g (noise) or a repeated shape", int((~ok).sum()),
+                         opts.min_mpc)
                 sp = self.selected_
-                self.selected_ = type(sp)(sp.lam[ok], sp.participation[:, ok], sp.order[ok], sp.cluster_size[ok],
-                                          sp.source)
+                self.selected_ = sp.subset(ok)
                 lam_sel = lam_sel[ok]
                 self.refined_poles_ = lam_sel
         extra = {"cluster_size": self.selected_.cluster_size, "order": self.selected_.order}
@@ -763,12 +830,12 @@ class PolyMAX:
             else:
                 unc = {k: np.full(lam_sel.size, np.nan) for k in ("freq_std_hz", "damping_std", "chi2_ratio")}
                 std_source = "not computed (refine=False)"
-            extra.update({k: unc[k] for k in ("freq_std_hz", "damping_std", "chi2_ratio")})
+            extra.update(combined_std(unc, self.selected_))
         self.modes_, self.lsfd_ = modes_from_poles(
             data, lam_sel, self.selected_.participation, lower_residual=self.lower_residual,
             upper_residual=self.upper_residual, window_beta=beta, extra_indicators=extra)
         self.modes_.metadata.update({"method": "pLSCF (PolyMAX-style) + LSFD", "max_order": p,
-                                     "band_hz": list(band), "exp_window_beta": beta,
+                                     "band_hz": list(band), "window_beta_per_s": beta,
                                      "weighting": self.weighting or "none"})
         if std_source is not None:
             self.modes_.metadata["pole_std_source"] = std_source

@@ -14,7 +14,11 @@ operational modal analysis using multi-stage clustering", MSSP 76)
 4. keep clusters holding stable poles from at least ``min_fraction`` of the evaluated
    orders and at least ``min_poles`` poles: spurious poles are rarely stable over many
    orders; of two kept clusters closer than ``distance/2`` in frequency only the larger
-   stays (one physical mode whose estimates wander);
+   stays (one physical mode whose estimates wander) — unless they are two modes: they
+   hold a pole each at the same orders (more than ``coexist_fraction`` of the orders of the
+   smaller: one model order cannot give one mode two poles) or, with several references,
+   their participation vectors differ (MAC < ``same_mode_mac``).  A close pair seen by two
+   of three references (0.3 % apart, issue 16) is two clusters coexisting at every order;
 5. (in :class:`~identification.polymax.PolyMAX`) after LSFD, automatic picks whose shape
    has an MPC below ``min_mpc`` are dropped as noise modes;
 6. represent each cluster by the median frequency and damping of its poles in the upper third of
@@ -40,7 +44,7 @@ from .stabilisation import StabilisationDiagram, mac_vectors, pole_freq_damping
 log = logging.getLogger(__name__)
 
 __all__ = ["SelectionOptions", "SelectedPoles", "select_poles", "auto_select", "select_frequencies",
-           "load_selection_file"]
+           "load_selection_file", "order_spread"]
 
 
 @dataclass(frozen=True)
@@ -57,6 +61,8 @@ class SelectionOptions:
     manual_tol: float = 0.02        # relative frequency window for manual picks
     min_mpc: float = 0.5            # after LSFD, automatic picks with a lower MPC are dropped as noise
     max_block: int = 600            # poles clustered at once (bounds the distance matrices to a few MB)
+    coexist_fraction: float = 0.5  # near clusters with poles at the same order in more of their orders are two modes
+    same_mode_mac: float = 0.9      # near clusters with less participation MAC are two modes (several references)
 
     def __post_init__(self):
         for name in ("distance", "max_damping", "manual_tol"):
@@ -78,6 +84,20 @@ class SelectedPoles:
     order: np.ndarray              # model order of the representative pole
     cluster_size: np.ndarray       # number of stable poles behind each mode (0 for manual picks off-diagram)
     source: str = "auto"
+    # spread of the mode's stable poles over the upper third of its orders: standard deviations of their
+    # frequencies (Hz) and damping ratios and how many poles they are (:func:`order_spread`); NaN, 0 = none
+    freq_spread_hz: np.ndarray | None = None
+    damping_spread: np.ndarray | None = None
+    n_spread: np.ndarray | None = None
+
+    def __post_init__(self):
+        m = self.lam.size
+        if self.freq_spread_hz is None:
+            self.freq_spread_hz = np.full(m, np.nan)
+        if self.damping_spread is None:
+            self.damping_spread = np.full(m, np.nan)
+        if self.n_spread is None:
+            self.n_spread = np.zeros(m, int)
 
     @property
     def freq_hz(self):
@@ -90,9 +110,13 @@ class SelectedPoles:
     def __len__(self):
         return self.lam.size
 
+    def subset(self, idx) -> "SelectedPoles":
+        """The poles ``idx`` (indices or a boolean mask), every per-mode field with them."""
+        return SelectedPoles(self.lam[idx], self.participation[:, idx], self.order[idx], self.cluster_size[idx],
+                             self.source, self.freq_spread_hz[idx], self.damping_spread[idx], self.n_spread[idx])
+
     def _sorted(self):
-        o = np.argsort(self.freq_hz)
-        return SelectedPoles(self.lam[o], self.participation[:, o], self.order[o], self.cluster_size[o], self.source)
+        return self.subset(np.argsort(self.freq_hz, kind="stable"))
 
 
 def _empty(n_in, source):
@@ -125,6 +149,40 @@ def _segment_medians(x, starts, sizes):
     starts = np.asarray(starts)
     sizes = np.asarray(sizes)
     return 0.5 * (x[starts + (sizes - 1) // 2] + x[starts + sizes // 2])
+
+
+def order_spread(freq_hz, damping):
+    """``(std f, std ζ, n)`` of one mode's stable poles over the orders used for its estimate (ddof 1).
+
+    How much the estimate moves with the model order: :class:`~identification.polymax.PolyMAX` adds
+    ``spread/√n`` (the standard error of the representative over those orders) to the noise
+    standard deviation.  NaN with fewer than two poles.
+    """
+    f = np.asarray(freq_hz, float)
+    z = np.asarray(damping, float)
+    if f.size < 2:
+        return np.nan, np.nan, int(f.size)
+    return float(np.std(f, ddof=1)), float(np.std(z, ddof=1)), int(f.size)
+
+
+def _mean_participation(Lg):
+    """The dominant direction of a cluster's participation vectors (first left singular vector)."""
+    if Lg.shape[0] == 1:
+        return np.ones(1, complex)
+    u, _, _ = np.linalg.svd(Lg, full_matrices=False)
+    v = u[:, 0]
+    k = int(np.argmax(np.abs(v)))
+    return v * (abs(v[k]) / v[k])
+
+
+def _same_mode(orders_a, orders_b, la, lb, opts) -> bool:
+    """Two near clusters are one mode unless they coexist order by order or their participations differ."""
+    shared = len(orders_a & orders_b)
+    if shared > opts.coexist_fraction * min(len(orders_a), len(orders_b)):
+        return False
+    if la.size > 1 and mac_vectors(la[:, None], lb[:, None])[0, 0] < opts.same_mode_mac:
+        return False
+    return True
 
 
 def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = None, *, band_hz=None) -> SelectedPoles:
@@ -196,18 +254,30 @@ def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = N
             groups.append(members)
     sizes = np.array([g.size for g in groups])
     keep = (sizes >= opts.min_poles) & (sizes >= opts.min_fraction * diag.orders.size)
-    # one physical mode split into several clusters: keep the largest
+    # one physical mode split into several clusters: keep the largest — but only when the two clusters are
+    # one mode's wandering estimates: they rarely hold a pole at the same order (two modes coexist order by
+    # order) and, with several references, their participation vectors agree (MAC >= same_mode_mac)
     cat = np.concatenate(groups)
     gid = np.repeat(np.arange(len(groups)), sizes)
     o = np.lexsort((f[cat], gid))
     centre = _segment_medians(f[cat][o], np.cumsum(sizes) - sizes, sizes)
-    for a in np.argsort(-sizes):
+    orders_of = [set(od[g].tolist()) for g in groups]
+    told = set()                    # pairs of near clusters kept as two modes (logged once)
+
+    Lmean = [_mean_participation(L[:, g]) for g in groups]
+    for a in np.argsort(-sizes, kind="stable"):
         if not keep[a]:
             continue
-        dup = keep & (np.abs(centre - centre[a]) < 0.5 * opts.distance * centre[a])
-        dup[a] = False
-        keep[dup] = False
-    lam, parts, orders, csize = [], [], [], []
+        near = np.flatnonzero(keep & (np.abs(centre - centre[a]) < 0.5 * opts.distance * centre[a]))
+        for b in near[near != a]:
+            if _same_mode(orders_of[a], orders_of[b], Lmean[a], Lmean[b], opts):
+                keep[b] = False
+            elif (min(a, b), max(a, b)) not in told:
+                told.add((min(a, b), max(a, b)))
+                log.info("automatic selection: %.4g and %.4g Hz kept as two modes (they coexist at %d orders; "
+                         "participation MAC %.2f)", centre[a], centre[b], len(orders_of[a] & orders_of[b]),
+                         float(mac_vectors(Lmean[a][:, None], Lmean[b][:, None])[0, 0]))
+    lam, parts, orders, csize, spread = [], [], [], [], []
     for g, ok in zip(groups, keep):
         if not ok:
             continue
@@ -221,10 +291,13 @@ def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = N
         parts.append(L[:, best])
         orders.append(od[best])
         csize.append(g.size)
+        spread.append(order_spread(f[top], z[top]))
     log.info("automatic selection: %d stable poles in %d clusters, %d kept", idx.size, len(groups), len(lam))
     if not lam:
         return _empty(n_in, "auto")
-    return SelectedPoles(np.array(lam), np.array(parts).T, np.array(orders), np.array(csize), "auto")._sorted()
+    sp_ = np.array(spread, float).reshape(-1, 3)
+    return SelectedPoles(np.array(lam), np.array(parts).T, np.array(orders), np.array(csize), "auto",
+                         sp_[:, 0], sp_[:, 1], sp_[:, 2].astype(int))._sorted()
 
 
 def select_frequencies(diag: StabilisationDiagram, freqs_hz, options: SelectionOptions | None = None) -> SelectedPoles:
@@ -238,7 +311,7 @@ def select_frequencies(diag: StabilisationDiagram, freqs_hz, options: SelectionO
         raise ModalabValueError(fmt_error("selected frequencies", freqs_hz, "positive frequencies in Hz",
                                           "Give e.g. [12.5, 40.2]"))
     n_in = diag.participation.shape[0]
-    lam, parts, orders, csize = [], [], [], []
+    lam, parts, orders, csize, spread = [], [], [], [], []
     phys = (diag.damping > 0) & (diag.damping <= opts.max_damping)
     for ft in targets:
         near = np.abs(diag.freq_hz - ft) <= opts.manual_tol * ft
@@ -259,8 +332,26 @@ def select_frequencies(diag: StabilisationDiagram, freqs_hz, options: SelectionO
         parts.append(diag.participation[:, best])
         orders.append(diag.order[best])
         csize.append(int(np.sum(near & diag.stable)))
+        spread.append(_manual_spread(diag, phys, best, opts))
+    sp_ = np.array(spread, float).reshape(-1, 3)
     return SelectedPoles(np.array(lam), np.array(parts).T.reshape(n_in, -1), np.array(orders), np.array(csize),
-                         "manual")._sorted()
+                         "manual", sp_[:, 0], sp_[:, 1], sp_[:, 2].astype(int))._sorted()
+
+
+def _manual_spread(diag, phys, best, opts):
+    """:func:`order_spread` of a manual pick: per order, the stable pole nearest the picked one (within
+    ``distance/2``), over the upper third of the orders that have one."""
+    fb = diag.freq_hz[best]
+    cand = np.flatnonzero(diag.stable & phys & (np.abs(diag.freq_hz - fb) <= 0.5 * opts.distance * fb))
+    if cand.size < 2:
+        return order_spread([], [])
+    pick = []
+    for n in np.unique(diag.order[cand]):
+        c = cand[diag.order[cand] == n]
+        pick.append(c[np.argmin(np.abs(diag.freq_hz[c] - fb))])
+    pick = np.array(pick)
+    top = pick[diag.order[pick] >= np.percentile(diag.order[pick], 67)]
+    return order_spread(diag.freq_hz[top], diag.damping[top])
 
 
 def load_selection_file(path) -> list[float]:

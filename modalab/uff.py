@@ -407,7 +407,11 @@ def write_frf(path, frf: FRF, *, binary: bool = True, append: bool = False) -> N
     abs_axis = Axis(18, 0, 0, 0, "Frequency", "Hz")
     coh_axes = [abs_axis, Axis(0, 0, 0, 0, "Coherence", "NONE"), Axis(0), Axis(0)]
     frf_axes = [abs_axis, num_axis, den_axis, Axis(0)]
-    id4, id5 = _json_lines(frf.metadata, "FRF")
+    meta = dict(frf.metadata)
+    if frf.window_beta_per_s:
+        # the window's decay rate travels in the file under its historic key (FRF.window_beta_per_s)
+        meta = {"exp_window_beta": frf.window_beta_per_s, **meta}
+    id4, id5 = _json_lines(meta, "FRF")
     id2 = f"modalab x0={x0!r} dx={dx!r}" if even else "modalab"
     n_sets = frf.n_out * frf.n_in * (1 if frf.coherence is None else 2)
     date = date_line(n_sets, "f")
@@ -553,6 +557,7 @@ def read_frf(path, *, quantity: str | None = None, responses=None, references=No
                 log.warning("%s: no coherence for %s; those entries are NaN", path, ", ".join(lack[:10]))
         meta = _json_meta(first.tags)
         meta.setdefault("source", str(path))
+        beta = meta.pop("exp_window_beta", None)
         full_r = [rows[k] for k in rkeys]
         full_c = [cols[k] for k in ckeys]
         rot = _node_rotations(blocks, path, cur)
@@ -572,7 +577,8 @@ def read_frf(path, *, quantity: str | None = None, responses=None, references=No
                            "responses=[...] and references=[...] to read_frf to read a complete sub-matrix",
                            path=path, dataset=58)
         return FRF(freq_hz=first.x.copy(), H=H, responses=full_r, references=full_c, coherence=coh,
-                   quantity=qty, units=QUANTITY_UNITS[qty], metadata=meta)
+                   quantity=qty, units=QUANTITY_UNITS[qty], metadata=meta,
+                   window_beta_per_s=0.0 if beta is None else beta)
 
 
 def _rotate_frf(H, coh, rows, cols, rot, path, seen=None) -> list[int]:

@@ -51,7 +51,6 @@ import scipy.sparse.linalg as spla
 from modalab.dof import locate, parse_dofs
 from modalab.errors import ModalabValueError, NotFittedError, ShapeError
 from modalab.frf import FRF
-from modalab.units import quantity_factor
 
 from .sensitivity import StackedDerivatives
 
@@ -89,10 +88,21 @@ class MeasuredColumns:
     measured: np.ndarray       # (n_meas,) model row indices
     references: np.ndarray     # (n_ref,) model row indices of the excitation DOFs
     n: int                     # model size
+    beta: float = 0.0          # decay rate (1/s) of the exponential window the data were taken with
 
     @property
     def freq_hz(self) -> np.ndarray:
         return self.omega / (2 * np.pi)
+
+    @property
+    def w(self) -> np.ndarray:
+        """Complex angular frequency ``ω − iβ`` at which the model is compared with the data.
+
+        Windowed data are transfer functions at ``s = iω + β`` (:attr:`modalab.frf.FRF.s`); with
+        ``w = s/i`` the dynamic stiffness ``K − w²M + iwC + iD = K + s²M + sC + iD`` keeps its form,
+        so every model FRF, expansion and MCI below is evaluated at ``s`` (``w = ω`` without a window).
+        """
+        return self.omega - 1j * self.beta
 
 
 def measured_columns(model, frf: FRF, *, references=None, bands=None) -> MeasuredColumns:
@@ -121,12 +131,12 @@ def measured_columns(model, frf: FRF, *, references=None, bands=None) -> Measure
         raise ModalabValueError(f"no frequency lines left in bands {None if bands is None else bands.tolist()} "
                                 f"(FRF covers {f.min():.4g}..{f.max():.4g} Hz); widen the bands")
     omega = 2 * np.pi * f[keep]
-    H = frf.H[:, :, keep] * quantity_factor(frf.quantity, "receptance", omega)[None, None, :]
+    H = frf.lines(keep).to("receptance").H          # at s = iω + β: a windowed FRF stays consistent
     io, so = locate(model.dofs, frf.responses, "FRF response DOF")
     ii, si = locate(model.dofs, frf.references, "FRF reference DOF")
     theta = H * np.asarray(so, float)[:, None, None] * np.asarray(si, float)[None, :, None]
     return MeasuredColumns(omega=omega, theta=theta, measured=np.asarray(io), references=np.asarray(ii),
-                           n=len(model.dofs))
+                           n=len(model.dofs), beta=frf.window_beta_per_s)
 
 
 def _mats(model, p):
@@ -175,7 +185,7 @@ def dynamic_expansion(model, data: MeasuredColumns, p=None) -> np.ndarray:
     E[data.references, np.arange(R)] = 1.0
     mats = _mats(model, p)
     if n <= _DENSE_LIMIT:
-        Z = _zdense(mats, data.omega)                                   # (F, n, n)
+        Z = _zdense(mats, data.w)                                   # (F, n, n)
         Zss = Z[:, s][:, :, s]
         Zsm = Z[:, s][:, :, m]
         rhs = E[s][None, :, :] - np.einsum("fsm,mjf->fsj", Zsm, data.theta)
@@ -187,7 +197,7 @@ def dynamic_expansion(model, data: MeasuredColumns, p=None) -> np.ndarray:
                         "constrained at the measured DOFs); used least squares there")
         full[s] = np.transpose(xs, (1, 2, 0))
         return full
-    for k, w in enumerate(data.omega):
+    for k, w in enumerate(data.w):
         Z = _zsparse(mats, w)
         Zss = Z[s][:, s]
         Zsm = Z[s][:, m]
@@ -237,7 +247,7 @@ def mci(model, frf: FRF, p=None, *, references=None, bands=None) -> MCIResult:
     """MCI map of ``model`` at ``p`` against measured FRFs, unmeasured DOFs dynamically expanded (Eq. 3.69)."""
     data = measured_columns(model, frf, references=references, bands=bands)
     full = dynamic_expansion(model, data, p)
-    vals = miscorrelation(model, full, data.omega, data.references, p)
+    vals = miscorrelation(model, full, data.w, data.references, p)
     return MCIResult(freq_hz=data.freq_hz, values=vals, dofs=list(model.dofs),
                      references=[model.dofs[i] for i in data.references], measured=data.measured)
 
@@ -301,7 +311,7 @@ def _condensation(model, data: MeasuredColumns, p):
     E = np.zeros((n, R))
     E[data.references, np.arange(R)] = 1.0
     if n <= _DENSE_LIMIT:
-        Z = _zdense(mats, data.omega)
+        Z = _zdense(mats, data.w)
         Zss, Zsm, Zmm = Z[:, s][:, :, s], Z[:, s][:, :, m], Z[:, m][:, :, m]
         G = np.linalg.solve(Zss, Zsm)
         th = np.transpose(data.theta, (2, 0, 1))                               # (F, nm, R)
@@ -311,7 +321,7 @@ def _condensation(model, data: MeasuredColumns, p):
         y = np.linalg.solve(np.eye(nm)[None] + np.transpose(G, (0, 2, 1)) @ G.conj(), Trhs)
         full[s] = np.transpose(np.linalg.solve(Zss, rhs_s + G.conj() @ y), (1, 2, 0))
         return G, full
-    for k, w in enumerate(data.omega):
+    for k, w in enumerate(data.w):
         Z = _zsparse(mats, w)
         Zsm = Z[s][:, m].toarray()
         Zmm = Z[m][:, m].toarray()
@@ -353,11 +363,11 @@ def condensation_operator(model, data: MeasuredColumns, p=None, *, whiten: bool 
     elif s.size == 0:
         G = np.zeros((F, 0, nm), complex)
     elif n <= _DENSE_LIMIT:
-        Z = _zdense(mats, data.omega)
+        Z = _zdense(mats, data.w)
         G = np.linalg.solve(Z[:, s][:, :, s], Z[:, s][:, :, m])           # (F, ns, nm)
     else:
         G = np.empty((F, s.size, nm), complex)
-        for k, w in enumerate(data.omega):
+        for k, w in enumerate(data.w):
             Z = _zsparse(mats, w)
             G[k] = spla.splu(sp.csc_matrix(Z[s][:, s])).solve(Z[s][:, m].toarray())
     if whiten:
@@ -420,7 +430,7 @@ def lsq_expansion(model, data: MeasuredColumns, p=None):
     n, m = data.n, data.measured
     s = np.setdiff1d(np.arange(n), m)
     R, F = data.references.size, data.omega.size
-    Z = _zdense(_mats(model, p), data.omega)
+    Z = _zdense(_mats(model, p), data.w)
     E = np.zeros((n, R))
     E[data.references, np.arange(R)] = 1.0
     rhs = E[None] - np.einsum("fnm,mjf->fnj", Z[:, :, m], data.theta)
@@ -520,7 +530,7 @@ class MCIUpdater:
             r = (r * w[:, :, None]).reshape(-1)
             if not need_jac:
                 return r, None, w
-            A, _ = mci_system(model, full, data.omega, data.references, p, params=idx)
+            A, _ = mci_system(model, full, data.w, data.references, p, params=idx)
             Ad = A.toarray().reshape(R, F, n, -1)
             Ad = Ad - np.einsum("fns,fks,jfkp->jfnp", Q, Q.conj(), Ad, optimize=True)
             return r, (Ad * w[:, :, None, None]).reshape(R * F * n, -1), w
@@ -528,7 +538,7 @@ class MCIUpdater:
             G, full = _condensation(model, data, p)
         else:
             full = dynamic_expansion(model, data, p)
-        vals = miscorrelation(model, full, data.omega, data.references, p)
+        vals = miscorrelation(model, full, data.w, data.references, p)
         if w is None:
             w = self._weights(data, model=model, p=p)
         if mode == "condensed":
@@ -537,7 +547,7 @@ class MCIUpdater:
             r = (T @ b) * np.repeat(w.reshape(-1), m.size)
             if not need_jac:
                 return r, None, w
-            A, _ = mci_system(model, full, data.omega, data.references, p, params=idx)
+            A, _ = mci_system(model, full, data.w, data.references, p, params=idx)
             W = sp.diags(np.repeat(w.reshape(-1), m.size))
             return r, (W @ (T @ A)).tocsr(), w
         if not need_jac:
@@ -545,7 +555,7 @@ class MCIUpdater:
             return r, None, w
         rr = np.arange(n) if self.rows == "all" else m
         r = (np.transpose(vals[rr], (1, 2, 0)) * w[:, :, None]).reshape(-1)
-        A, _ = mci_system(model, full, data.omega, data.references, p, rows=rr, params=idx)
+        A, _ = mci_system(model, full, data.w, data.references, p, rows=rr, params=idx)
         W = sp.diags(np.repeat(w.reshape(-1), rr.size))
         return r, (W @ A).tocsr(), w
 
@@ -555,13 +565,13 @@ class MCIUpdater:
             return np.ones((R, F))
         m = data.measured
         if Zm is None and data.n <= _DENSE_LIMIT:
-            Zm = _zdense(_mats(model, p), data.omega)[:, :, m]
+            Zm = _zdense(_mats(model, p), data.w)[:, :, m]
         if Zm is not None:
             sig = np.linalg.norm(np.einsum("fnm,mjf->jfnm", Zm, data.theta), axis=(2, 3))
         else:
             mats = _mats(model, p)
             sig = np.empty((R, F))
-            for k, w in enumerate(data.omega):
+            for k, w in enumerate(data.w):
                 Zc = _zsparse(mats, w)[:, m]
                 for j in range(R):
                     sig[j, k] = spla.norm(Zc @ sp.diags(data.theta[:, j, k]))
@@ -653,7 +663,7 @@ class MCIUpdater:
 def mci_from_columns(model, data: MeasuredColumns, p=None) -> MCIResult:
     """MCI (Eq. 3.69) of ``model`` at ``p`` for already-mapped measured columns, Kidder-type expansion."""
     full = dynamic_expansion(model, data, p)
-    vals = miscorrelation(model, full, data.omega, data.references, p)
+    vals = miscorrelation(model, full, data.w, data.references, p)
     return MCIResult(freq_hz=data.freq_hz, values=vals, dofs=list(model.dofs), measured=data.measured,
                      references=[model.dofs[i] for i in data.references])
 

@@ -213,7 +213,7 @@ def build_case(name: str, out: Path, seed: int) -> dict:
     points = [f"{n}+Z" for n in n_nominal_nodes if not (kind == "strip" and n == 1)]
     frf, lab = measure(truth, points, SENSORS[kind], seed)
     ok = (frf.freq_hz > 1.0) & (frf.freq_hz < 0.4 * 512)
-    beta = float(frf.metadata.get("exp_window_beta") or 0.0)
+    beta = float(frf.window_beta_per_s)
     # random error of an H1 estimate from n averages: ε ≈ √((1 − γ²) / (2 n γ²)) (Bendat & Piersol)
     coh = np.clip(frf.coherence[..., ok], 1e-6, 1.0)
     noise = float(np.median(np.sqrt((1 - coh) / (2 * 3 * coh))))

@@ -46,7 +46,7 @@ def test_reads_header_channels_and_units(hit):
 def test_frf_peaks_where_the_source_says(hit):
     frf = estimate_frf([hit], force_window=ForceWindow(length_s=0.002, taper_s=0.001),
                        exp_window=ExponentialWindow(end_level=0.01))
-    assert frf.quantity == "accelerance" and frf.metadata["exp_window_beta"] == pytest.approx(
+    assert frf.quantity == "accelerance" and frf.window_beta_per_s == pytest.approx(
         -np.log(0.01) / ((50030 - 1 - hit.trigger_index) * 2e-5))
     f, m = frf.freq_hz, np.abs(frf.H[0, 0])
     band = (f > 100) & (f < 5000)

@@ -229,7 +229,7 @@ class TestKnownStructure:
         assert frf.quantity == "accelerance" and frf.units == "m/s^2/N"
         assert [str(d) for d in frf.responses] == ["1+Z", "3+Z"] and [str(d) for d in frf.references] == ["1+Z"]
         assert frf.metadata["estimator"] == "H1" and frf.metadata["n_averages"] == 5
-        assert frf.metadata["exp_window_beta"] == 0.0 and frf.metadata["force_window"] is None
+        assert frf.window_beta_per_s == 0.0 and frf.metadata["force_window"] is None
         exact = damped.frf(frf.freq_hz, frf.responses, frf.references)
         band = (frf.freq_hz >= BAND[0]) & (frf.freq_hz <= BAND[1])
         good = band & (frf.coherence[:, 0] > 0.99)
@@ -261,7 +261,7 @@ class TestKnownStructure:
                           amps=[80.0, 120.0])
         ew = ExponentialWindow(end_level=0.001)
         frf = estimate_frf(recs, exp_window=ew, force_window=ForceWindow(length_s=0.01, taper_s=0.005))
-        beta = frf.metadata["exp_window_beta"]
+        beta = frf.window_beta_per_s
         assert beta == pytest.approx(-np.log(0.001) / ((N - 1 - TI) / FS), rel=1e-12)
         exact = shifted_exact(mm, frf.freq_hz, frf.responses, frf.references, beta)
         band = (frf.freq_hz >= BAND[0]) & (frf.freq_hz <= BAND[1])
@@ -278,7 +278,7 @@ class TestKnownStructure:
                           quantity="receptance", units="m")
         frf = estimate_frf(recs, exp_window=ExponentialWindow(end_level=0.001))
         assert frf.quantity == "receptance"
-        beta = frf.metadata["exp_window_beta"]
+        beta = frf.window_beta_per_s
         shifted = dataclasses.replace(mm, poles=mm.poles - beta).frf(frf.freq_hz, frf.responses, frf.references,
                                                                      quantity="receptance")
         band = (frf.freq_hz >= BAND[0]) & (frf.freq_hz <= BAND[1])
@@ -288,7 +288,7 @@ class TestKnownStructure:
         mm = light.modal_model()
         recs = synth_hits(mm, "1+Z", ["1+Z"], fs=FS, n=N, ti=TI, widths=[0.4e-3, 0.45e-3], amps=[90.0, 110.0])
         frf = estimate_frf(recs, exp_window=ExponentialWindow(end_level=0.01))
-        beta = frf.metadata["exp_window_beta"]
+        beta = frf.window_beta_per_s
         wn_true, _ = light.normal_modes()
         up = mm.poles[mm.poles.imag > 0]
         up = up[np.argsort(up.imag)]
@@ -386,7 +386,7 @@ class TestSpectralAverager:
         np.testing.assert_allclose(got.H, ref.H, rtol=1e-9, atol=1e-14)
         np.testing.assert_allclose(got.coherence, ref.coherence, atol=1e-9)
         assert got.metadata["n_averages"] == 2 and got.metadata["hit_ids"] == [hits[0].hit_id, hits[2].hit_id]
-        assert got.metadata["exp_window_beta"] == 2.0 and avg.beta == 2.0
+        assert got.window_beta_per_s == 2.0 and avg.beta == 2.0
 
     def test_init_only_stores_and_errors_are_clear(self, hits):
         avg = SpectralAverager(estimator="nonsense")
@@ -453,7 +453,7 @@ def test_roving_hammer_groups_hits_by_reference(damped):
     frf = estimate_frf_roving(recs, exp_window=ExponentialWindow(end_level=0.05))
     assert frf.shape[:2] == (2, 3)
     assert frf.metadata["n_averages_per_reference"] == {"1+Z": 2, "2+Z": 2, "3+Z": 2}
-    beta = frf.metadata["exp_window_beta"]
+    beta = frf.window_beta_per_s
     exact = shifted_exact(mm, frf.freq_hz, frf.responses, frf.references, beta)
     band = (frf.freq_hz >= BAND[0]) & (frf.freq_hz <= BAND[1])
     assert rel_err(frf.H, exact.H)[..., band].max() < 2e-3
@@ -471,7 +471,7 @@ def test_h1_of_the_simulated_lab_matches_its_structure():
     frf = estimate_frf(recs, exp_window=ExponentialWindow(end_level=0.01),
                        force_window=ForceWindow(fraction=0.05, taper=0.25))
     exact = shifted_exact(lab.structure.modal_model(), frf.freq_hz, frf.responses, frf.references,
-                          frf.metadata["exp_window_beta"])
+                          frf.window_beta_per_s)
     band = (frf.freq_hz >= 20.0) & (frf.freq_hz <= 800.0)
     good = band[None, None, :] & (frf.coherence > 0.99)
     assert good.sum() > 0.95 * band.sum() * frf.n_out

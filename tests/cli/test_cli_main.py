@@ -36,7 +36,7 @@ def test_sim_frf_info_chain(hits, tmp_path, capsys):
     # reciprocity: accelerometers became references, hit points responses
     assert [str(d) for d in frf.references] == ["19+Z", "1+Z"]
     assert {str(d) for d in frf.responses} == {"1+Z", "4+Z", "19+Z"}
-    assert frf.metadata.get("exp_window_beta", 0) > 0
+    assert frf.window_beta_per_s > 0
     assert np.all((frf.coherence >= 0) & (frf.coherence <= 1 + 1e-12))
     assert frf.freq_hz[-1] <= 2048 / 2.56 + 1e-9
     capsys.readouterr()

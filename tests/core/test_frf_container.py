@@ -96,14 +96,78 @@ def test_select_and_band_slice_the_variance_with_the_data():
     f = np.linspace(1.0, 10.0, 10)
     H = np.arange(2 * 3 * 10, dtype=float).reshape(2, 3, 10) + 1j
     var = np.abs(H) * 1e-3
-    frf = FRF(freq_hz=f, H=H, responses=["1+Z", "2+Z"], references=["1+Z", "3+Z", "4+Z"],
-              metadata={"H_variance": var})
+    frf = FRF(freq_hz=f, H=H, responses=["1+Z", "2+Z"], references=["1+Z", "3+Z", "4+Z"], variance=var)
     sub = frf.select(responses=["2-Z"], references=["4+Z", "1+Z"]).band(3.0, 6.0)
     m = (f >= 3.0) & (f <= 6.0)
-    assert sub.metadata["H_variance"].shape == sub.H.shape
-    np.testing.assert_array_equal(sub.metadata["H_variance"], var[1][[2, 0]][None][..., m])   # a variance keeps its sign
+    assert sub.variance.shape == sub.H.shape
+    np.testing.assert_array_equal(sub.variance, var[1][[2, 0]][None][..., m])   # a variance keeps its sign
     np.testing.assert_array_equal(sub.H, -H[1][[2, 0]][None][..., m])
-    # a variance of another shape is left as it was (not silently cut)
-    odd = FRF(freq_hz=f, H=H, responses=["1+Z", "2+Z"], references=["1+Z", "3+Z", "4+Z"],
-              metadata={"H_variance": np.ones(3)})
-    assert odd.band(3.0, 6.0).metadata["H_variance"].shape == (3,)
+    np.testing.assert_array_equal(frf.transpose().variance, var.transpose(1, 0, 2))
+    # new data without a variance drop it (it described the old data)
+    assert frf._replace(H=2 * H).variance is None
+    # a variance of another shape is refused with the expected shape, not silently kept
+    with pytest.raises(ShapeError, match=r"expected \(2, 3, 10\)"):
+        FRF(freq_hz=f, H=H, responses=["1+Z", "2+Z"], references=["1+Z", "3+Z", "4+Z"], variance=np.ones(3))
+
+
+class TestTypedWindow:
+    """``window_beta_per_s`` and ``variance`` are fields; the former metadata keys map onto them."""
+
+    def _frf(self, beta=0.0, **kw):
+        f = np.linspace(1.0, 50.0, 50)
+        lam = -2.0 + 2j * np.pi * 20.0
+        s = 2j * np.pi * f + (beta if isinstance(beta, float) else 0.0)
+        rec = 1.0 / ((s - lam) * (s - lam.conjugate()))                 # receptance at s = iω + β
+        return FRF(freq_hz=f, H=(s ** 2 * rec)[None, None], responses=["1+Z"], references=["1+Z"],
+                   window_beta_per_s=beta, **kw), rec
+
+    def test_s_and_to_use_the_window_decay(self):
+        frf, rec = self._frf(beta=3.0)
+        np.testing.assert_allclose(frf.s, 1j * frf.omega + 3.0)
+        np.testing.assert_allclose(frf.to("receptance").H[0, 0], rec, rtol=1e-12)
+        # (iω)² would leave a relative error of order 2β/ω at the low lines
+        wrong = frf.H[0, 0] / (1j * frf.omega) ** 2
+        assert np.max(np.abs(wrong / rec - 1)) > 0.05
+        assert frf.to("receptance").window_beta_per_s == 3.0
+
+    def test_to_scales_the_variance(self):
+        frf, _ = self._frf(beta=1.0, variance=np.ones((1, 1, 50)))
+        np.testing.assert_allclose(frf.to("mobility").variance[0, 0], 1.0 / np.abs(frf.s) ** 2)
+
+    def test_legacy_metadata_keys_are_the_fields(self):
+        frf = FRF(freq_hz=[1.0, 2.0], H=np.ones((1, 1, 2)), responses=["1+Z"], references=["1+Z"],
+                  metadata={"exp_window_beta": 0.5, "n_averages": 4})
+        assert frf.window_beta_per_s == 0.5 and dict(frf.metadata) == {"n_averages": 4}
+        with pytest.warns(DeprecationWarning, match="window_beta_per_s"):
+            frf.metadata["exp_window_beta"] = 0.25
+        assert frf.window_beta_per_s == 0.25
+        with pytest.warns(DeprecationWarning):
+            assert frf.metadata.get("exp_window_beta") == 0.25
+        assert "H_variance" not in frf.metadata
+        frf.metadata = {"estimator": "H1", "exp_window_beta": 0.125}
+        assert frf.window_beta_per_s == 0.125 and "exp_window_beta" not in dict(frf.metadata)
+
+    def test_copies_and_pickles_keep_the_fields(self):
+        import pickle
+
+        frf, _ = self._frf(beta=2.0, variance=np.full((1, 1, 50), 0.5), metadata={"n_averages": 3})
+        for other in (frf.copy(), pickle.loads(pickle.dumps(frf))):
+            assert other.window_beta_per_s == 2.0 and other.metadata == {"n_averages": 3}
+            np.testing.assert_array_equal(other.variance, frf.variance)
+            with pytest.warns(DeprecationWarning):
+                other.metadata["exp_window_beta"] = 1.0            # still the typed field, not a stray key
+            assert other.window_beta_per_s == 1.0 and frf.window_beta_per_s == 2.0
+
+    @pytest.mark.parametrize("bad", [-0.1, float("nan"), "fast"])
+    def test_bad_beta_is_refused(self, bad):
+        with pytest.raises(ModalabValueError, match="window_beta_per_s"):
+            self._frf(beta=bad)
+
+    def test_concat_refuses_two_windows(self):
+        a, _ = self._frf(beta=1.0)
+        b, _ = self._frf(beta=2.0)
+        b = b._replace(references=["2+Z"])
+        with pytest.raises(ModalabValueError, match="different exponential windows"):
+            concat([a, b], axis="references")
+        c = concat([a, a._replace(references=["2+Z"])], axis="references")
+        assert c.window_beta_per_s == 1.0

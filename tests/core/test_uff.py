@@ -138,8 +138,9 @@ def _frf(n_out=3, n_in=2, n=16, coherence=True, seed=0, quantity="accelerance"):
     resp = [f"{i + 1}{'+' if i % 2 == 0 else '-'}Z" for i in range(n_out)]
     ref = [f"{100 + j}{'-' if j % 2 else '+'}Y" for j in range(n_in)]
     return FRF(freq_hz=np.arange(n) * 0.125 + 2.0, H=H, responses=resp, references=ref, coherence=coh,
-               quantity=quantity, metadata={"estimator": "H1", "n_averages": 5, "exp_window_beta": 3.25,
-                                            "force_window": {"kind": "cosine taper", "fraction": 0.1}})
+               quantity=quantity, window_beta_per_s=3.25,
+               metadata={"estimator": "H1", "n_averages": 5,
+                         "force_window": {"kind": "cosine taper", "fraction": 0.1}})
 
 
 def _records(n_hits=3, seed=1):
@@ -256,8 +257,9 @@ class TestFrfIO:
         else:
             np.testing.assert_allclose(g.H, frf.H, rtol=1e-12)
             np.testing.assert_allclose(g.coherence, frf.coherence, rtol=1e-12)
-        for k in ("estimator", "n_averages", "exp_window_beta", "force_window"):
+        for k in ("estimator", "n_averages", "force_window"):
             assert g.metadata[k] == frf.metadata[k]
+        assert g.window_beta_per_s == frf.window_beta_per_s > 0
         assert g.quantity == "accelerance"
 
     @pytest.mark.parametrize("binary", [True, False])

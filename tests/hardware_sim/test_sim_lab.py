@@ -114,7 +114,7 @@ class TestAgainstExactFrf:
         windows = pytest.importorskip("acquisition.windows")
         lab, recs = viscous_hits
         frf = spectral.estimate_frf(recs, exp_window=windows.ExponentialWindow(beta=2.5))
-        assert frf.metadata["exp_window_beta"] == pytest.approx(2.5)
+        assert frf.window_beta_per_s == pytest.approx(2.5)
         assert frf.references == [Dof.parse("14+Z")] and frf.responses == lab.response_dofs
         assert frf.quantity == "accelerance"
         r = recs[0]

@@ -80,9 +80,14 @@ def test_exponential_window_correction():
     mm, phi = modal_system(TEN_MODES_HZ, TEN_MODES_DAMPING, 30, rng=7, window_beta=beta)
     frf = noisy_frf(mm, FREQ, [mm.dofs[0], mm.dofs[11], mm.dofs[22]], noise=0.01, rng=8)
     raw, _ = identify(frf, max_order=40, window_correction=False)
-    frf.metadata["exp_window_beta"] = beta
-    corrected, _ = identify(frf, max_order=40)
-    assert corrected.metadata["exp_window_beta"] == beta
+    frf.window_beta_per_s = beta
+    corrected, rep = identify(frf, max_order=40)
+    assert corrected.metadata["window_beta_per_s"] == beta
+    assert rep.settings["window_correction"] == {"beta_per_s": beta, "source": "file"}
+    # the same correction from the option when the FRF carries no beta
+    by_option, rep2 = identify(frf._replace(window_beta_per_s=0.0), max_order=40, exp_beta=beta)
+    np.testing.assert_array_equal(by_option.damping, corrected.damping)
+    assert rep2.settings["window_correction"]["source"] == "option"
     _check(corrected, phi)
     # without the correction the low modes look far more damped (ζ + β/ω_n)
     added = beta / (2 * np.pi * TEN_MODES_HZ)
@@ -136,7 +141,7 @@ def test_simulated_lab_hammer_test_with_exponential_window():
     lab = demo_lab(rng=1)
     recs = simulate_roving_test(lab, ["19+Z", "12+Z", "1+Z", "4+Z", "7+Z", "14+Z"], hits_per_point=3)
     frf = estimate_frf_roving(recs, exp_window=ExponentialWindow(end_level=0.05)).transpose()
-    beta = frf.metadata["exp_window_beta"]
+    beta = frf.window_beta_per_s
     assert beta > 0.5
     # the demo structure's modal damping (hardware_sim.demo.demo_structure, viscous)
     w, _ = lab.structure.normal_modes(12)

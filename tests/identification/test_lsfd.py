@@ -134,7 +134,7 @@ class TestRefinementJacobian:
         """J_Kaufman^T r equals the finite-difference gradient of the projected residual (A⁺r = 0)."""
         from scipy.optimize._numdiff import approx_derivative
 
-        from identification.lsfd import _LocalProjection
+        from identification.lsfd import _LocalProjection, _basis
 
         mm, _ = modal_system(np.array([40.0, 47.0, 90.0]), np.array([0.02, 0.01, 0.015]), 5, rng=1)
         f = np.linspace(30, 60, 200)
@@ -152,9 +152,17 @@ class TestRefinementJacobian:
         extra = extra.reshape(2 * f.size, -1)
         extra = np.concatenate([extra, 1j * extra], 1)
         extra = np.concatenate([extra.real, extra.imag], 0)
+        poly = np.stack([np.ones_like(x_loc), x_loc, x_loc ** 2], axis=1)
         for k in (0, 1):
-            vp = _LocalProjection(2j * np.pi * f, q, lam, L, k, extra, Y, np.linalg.norm(Y))
+            vp = _LocalProjection(2j * np.pi * f, q, lam, L, k, poly, Y, np.linalg.norm(Y))
             x = np.array([abs(lam[k]) * 1.001, -lam[k].real / abs(lam[k]) * 1.1])
+            # the segment-wise projection off the quadratics equals the dense least squares on [extra, modes]
+            lam_x = lam.copy()
+            lam_x[k] = vp.pole(x)
+            A = np.concatenate([extra, _basis(2j * np.pi * f, q, lam_x, L, False, False)], axis=1)
+            Yn = Y / np.linalg.norm(Y)
+            dense = Yn - A @ np.linalg.lstsq(A, Yn, rcond=None)[0]
+            np.testing.assert_allclose(vp.residual(x), dense.ravel(), atol=1e-10)
             J = vp.jacobian(x)
             Jn = approx_derivative(vp.residual, x, method="3-point")
             r = vp.residual(x)
@@ -176,3 +184,23 @@ def test_contribution_equals_the_energy_of_each_mode_synthesis():
         Ar = res.residues[:, :, r]
         Hr = Ar[..., None] * g + Ar.conj()[..., None] * gc
         assert modes.indicators["contribution"][r] == pytest.approx(np.sum(np.abs(Hr) ** 2) / tot, rel=1e-10)
+
+
+def test_many_references_structured_lsfd_equals_the_dense_solve(monkeypatch):
+    """With many references the residual columns are eliminated reference by reference: same solution."""
+    import sys
+    lsfd_mod = sys.modules["identification.lsfd"]          # (the package exports a function of that name)
+    from identification.lsfd import lsfd as lsfd_fit
+
+    mm, _ = modal_system(np.array([40.0, 47.0, 90.0]), np.array([0.02, 0.01, 0.015]), 12, rng=3)
+    frf = mm.frf(np.linspace(20, 120, 300), references=mm.dofs[:12], quantity="accelerance")
+    frf = frf._replace(H=frf.H * (1 + 0.01 * np.random.default_rng(1).normal(size=frf.H.shape)))
+    lam = mm.poles[:3]
+    P = np.random.default_rng(2).normal(size=(12, 3)) + 1j * np.random.default_rng(3).normal(size=(12, 3))
+    assert frf.n_in > lsfd_mod._DENSE_RESIDUAL_MAX_IN
+    fast = lsfd_fit(frf, lam, P)
+    monkeypatch.setattr(lsfd_mod, "_DENSE_RESIDUAL_MAX_IN", 100)
+    dense = lsfd_fit(frf, lam, P)
+    for k in ("psi", "lower", "upper"):
+        a, b = getattr(fast, k), getattr(dense, k)
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-10 * np.abs(b).max())

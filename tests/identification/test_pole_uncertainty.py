@@ -1,7 +1,7 @@
 """Pole uncertainty: first-order std of the refined frequencies and damping ratios (issue #4, item 3).
 
 The Monte Carlo tests draw noise of known variance, give that variance to the fit in
-``metadata['H_variance']`` and compare the predicted std with the scatter of the estimates.
+``FRF.variance`` and compare the predicted std with the scatter of the estimates.
 """
 import json
 
@@ -30,9 +30,10 @@ def _sigma(clean, noise=0.02):
     return noise * rms * np.ones(clean.H.shape)
 
 
-def _noisy(clean, sd, rng, **meta):
+def _noisy(clean, sd, rng, **kw):
+    """Noisy copy; ``kw`` are FRF fields (``variance``, ``window_beta_per_s``, ``metadata``)."""
     e = (rng.normal(size=clean.H.shape) + 1j * rng.normal(size=clean.H.shape)) / np.sqrt(2)   # E|e|² = 1
-    return clean._replace(H=clean.H + sd * e, metadata=dict(meta))
+    return clean._replace(H=clean.H + sd * e, **{"metadata": {}, **kw})
 
 
 def _fit(frf, **kw):
@@ -47,16 +48,14 @@ def test_monte_carlo_std_matches_prediction(refs, beta):
     rng = np.random.default_rng(2026)
     f, z, pf, pz, chi = [], [], [], [], []
     for _ in range(N_MC):
-        meta = {"H_variance": sd ** 2}
-        if beta:
-            meta["exp_window_beta"] = beta
+        meta = {"variance": sd ** 2, "window_beta_per_s": beta}
         pm = _fit(_noisy(clean, sd, rng, **meta))
         m = pm.modes_
         assert m.metadata["pole_std_source"] == "H_variance"
         f.append(m.freq_hz)
         z.append(m.damping)
-        pf.append(m.indicators["freq_std_hz"])
-        pz.append(m.indicators["damping_std"])
+        pf.append(m.indicators["freq_std_noise_hz"])
+        pz.append(m.indicators["damping_std_noise"])
         chi.append(m.indicators["chi2_ratio"])
     f, z = np.array(f), np.array(z)
     # the window correction is applied: the estimates scatter around the true (unwindowed) values
@@ -82,10 +81,10 @@ def test_std_scales_linearly_with_noise():
     out = {}
     for k in (1.0, 2.0):
         for source in ("H_variance", "residual"):
-            meta = {"H_variance": (k * sd) ** 2} if source == "H_variance" else {}
-            m = _fit(clean._replace(H=clean.H + k * sd * e, metadata=meta)).modes_
+            var = (k * sd) ** 2 if source == "H_variance" else None
+            m = _fit(clean._replace(H=clean.H + k * sd * e, variance=var, metadata={})).modes_
             assert m.metadata["pole_std_source"] == source
-            out[k, source] = np.concatenate([m.indicators["freq_std_hz"], m.indicators["damping_std"]])
+            out[k, source] = np.concatenate([m.indicators["freq_std_noise_hz"], m.indicators["damping_std_noise"]])
     for source in ("H_variance", "residual"):
         r = out[2.0, source] / out[1.0, source]
         assert np.all(np.abs(r / 2 - 1) < 0.2), f"{source}: std(2σ)/std(σ) = {r}, expected 2 within 20 %"
@@ -108,8 +107,8 @@ def test_coherence_model_equals_the_variance_it_implies():
     pm = _fit(with_coh)
     ref = pole_uncertainty(pm.frf_, pm.refined_poles_, pm.selected_.participation, noise_variance=sd ** 2)
     assert pm.modes_.metadata["pole_std_source"] == "coherence"
-    np.testing.assert_allclose(pm.modes_.indicators["freq_std_hz"], ref["freq_std_hz"], rtol=1e-8)
-    np.testing.assert_allclose(pm.modes_.indicators["damping_std"], ref["damping_std"], rtol=1e-8)
+    np.testing.assert_allclose(pm.modes_.indicators["freq_std_noise_hz"], ref["freq_std_hz"], rtol=1e-8)
+    np.testing.assert_allclose(pm.modes_.indicators["damping_std_noise"], ref["damping_std"], rtol=1e-8)
     # coherence of a single average is 1 by construction, and without n_averages nothing is known
     for meta in ({"n_averages": 1}, {}):
         assert frf_noise_variance(frf._replace(coherence=g2, metadata=meta)) == (None, "residual")
@@ -140,8 +139,8 @@ def test_window_correction_of_the_covariance():
 def test_identify_json_and_band_selection(tmp_path):
     clean = _clean((0, 3))
     sd = _sigma(clean)
-    frf = _noisy(clean, sd, np.random.default_rng(11), H_variance=sd ** 2)
-    # band and reference selection slice H_variance with the data (the full-shape array is given)
+    frf = _noisy(clean, sd, np.random.default_rng(11), variance=sd ** 2)
+    # band and reference selection slice the variance with the data (the full-shape array is given)
     modes, report = identify(frf, band_hz=(20, 220), references=[frf.references[1]], max_order=16,
                              select=list(FN))
     assert modes.metadata["pole_std_source"] == "H_variance"
@@ -170,30 +169,23 @@ class TestMalformedVariance:
 
     def test_wrong_shape_names_both_shapes(self):
         frf = self._frf()
-        frf.metadata["H_variance"] = np.ones((6, 2, 499))
-        with pytest.raises(ShapeError, match=r"H_variance'\] has shape \(6, 2, 499\); expected \(6, 2, 500\)"):
-            frf_noise_variance(frf)
-        with pytest.raises(ShapeError, match=r"\(6, 2, 499\)"):
-            _fit(frf)
-        with pytest.raises(ShapeError, match=r"\(6, 2, 499\)"):
-            identify(frf, max_order=16, select=list(FN))
-        frf.metadata["H_variance"] = np.ones(500)
-        with pytest.raises(ShapeError, match=r"has shape \(500,\)"):
-            frf_noise_variance(frf)
+        with pytest.raises(ShapeError, match=r"variance has shape \(6, 2, 499\); expected \(6, 2, 500\)"):
+            frf.variance = np.ones((6, 2, 499))
+        with pytest.raises(ShapeError, match=r"variance has shape \(500,\)"):
+            frf._replace(variance=np.ones(500))
+        assert frf.variance is None                    # a refused value leaves the FRF as it was
 
     def test_negative_non_finite_and_non_numeric(self):
         frf = self._frf()
         v = np.ones(frf.H.shape)
         v[2, 1, 17] = -0.5
-        frf.metadata["H_variance"] = v
         with pytest.raises(ModalabValueError, match=r"-0\.5 at \(response, reference, line\) \(2, 1, 17\)"):
-            _fit(frf)
+            frf.variance = v
         v[2, 1, 17] = np.nan
         with pytest.raises(ModalabValueError, match=r"nan at .* \(2, 1, 17\)"):
-            frf_noise_variance(frf)
-        frf.metadata["H_variance"] = "large"
-        with pytest.raises(ModalabValueError, match="H_variance.*'str'"):
-            frf_noise_variance(frf)
+            frf.variance = v
+        with pytest.raises(ModalabValueError, match="variance must be a real array.*got str"):
+            frf.variance = "large"
 
     def test_bad_n_averages(self):
         frf = self._frf()

@@ -146,3 +146,17 @@ class TestSelection:
             fig = plot_stabilisation(pm.stabilisation_, pm.frf_, selected_hz=pm.modes_.freq_hz, path=path,
                                      indicator=ind)
             assert path.stat().st_size > 10_000 and len(fig.axes) == 2
+
+
+def test_duplicate_shapes_keep_a_close_pair_and_drop_a_repeated_mode():
+    from identification.polymax import duplicate_shapes
+
+    rng = np.random.default_rng(0)
+    a, b = rng.normal(size=30), rng.normal(size=30)
+    psi = np.column_stack([a, a * (1 + 1e-3j) + 0.01 * b, b, a]).astype(complex)
+    f = np.array([100.0, 100.2, 100.3, 150.0])
+    dup = duplicate_shapes(f, psi, np.array([10, 5, 4, 9]), 0.01, 0.9)
+    # 100.2 repeats the shape of the larger 100.0 cluster; 100.3 is a distinct mode 0.3 % away; 150 Hz is far
+    assert dup.tolist() == [False, True, False, False]
+    # the larger cluster stays whichever comes first
+    assert duplicate_shapes(f, psi, np.array([5, 10, 4, 9]), 0.01, 0.9).tolist() == [True, False, False, False]

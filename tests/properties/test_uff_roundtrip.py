@@ -43,11 +43,11 @@ def frfs(draw):
     coh = None
     if draw(st.booleans()):
         coh = np.array(draw(st.lists(st.floats(0, 1), min_size=H.size, max_size=H.size))).reshape(H.shape)
-    meta = {"estimator": draw(st.sampled_from(["H1", "H2", "Hv"])), "n_averages": draw(st.integers(1, 10 ** 6)),
-            "exp_window_beta": draw(st.floats(0, 1e3, allow_nan=False))}
+    meta = {"estimator": draw(st.sampled_from(["H1", "H2", "Hv"])), "n_averages": draw(st.integers(1, 10 ** 6))}
     dofs = draw(dof_lists(n_out + n_in))
     return FRF(freq_hz=freq, H=H, responses=dofs[:n_out], references=dofs[n_out:], coherence=coh,
-               quantity=draw(st.sampled_from(["receptance", "mobility", "accelerance"])), metadata=meta)
+               quantity=draw(st.sampled_from(["receptance", "mobility", "accelerance"])), metadata=meta,
+               window_beta_per_s=draw(st.floats(0, 1e3, allow_nan=False)))
 
 
 def _tmp():
@@ -77,6 +77,7 @@ def test_frf_round_trip(frf, binary):
         assert g.coherence is None
     else:
         np.testing.assert_allclose(g.coherence, frf.coherence, rtol=0 if binary else 1e-11, atol=0)
+    assert g.window_beta_per_s == frf.window_beta_per_s
     for k, v in frf.metadata.items():
         assert g.metadata[k] == v
 

@@ -82,12 +82,12 @@ class FRFData:
 def frf_data(frf: FRF, *, max_lines: int = 200, band_hz=None, min_coherence: float = 0.5) -> FRFData:
     """Receptance :class:`FRFData` from a measured FRF: in-band lines with enough coherence, thinned to ``max_lines``.
 
-    An exponential window's β (``frf.metadata['exp_window_beta']``) is kept in ``s = iω + β`` so the
+    An exponential window's β (``frf.window_beta_per_s``) is kept in ``s = iω + β`` so the
     model is compared with what was measured, not with undamped-corrected data.
     """
     f = frf if band_hz is None else frf.band(*band_hz)
     f = f.band(max(f.freq_hz[0], 1e-9), None) if f.freq_hz[0] <= 0 else f
-    beta = float(frf.metadata.get("exp_window_beta") or 0.0)
+    beta = float(frf.window_beta_per_s)
     # exponentially windowed data are the transforms at s = iω + β of the true responses: the quantity
     # conversion uses s too (dividing windowed accelerance by (iω)² leaves an error 2β/ω)
     s_all = 1j * 2 * np.pi * f.freq_hz + beta
