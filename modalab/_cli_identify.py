@@ -1,68 +1,56 @@
 """``modalab identify``: poly-reference PolyMAX identification of FRFs in UFF files."""
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 
-def _one(path, out_uff, out_json, plots, band, max_order, references, select, weighting):
-    from identification import identify
+def _options(a):
+    """The command's options as :class:`modalab.stages.IdentifyOptions`."""
+    from .stages import IdentifyOptions
 
-    from .frf import FRF
-
-    frf = FRF.from_uff(path)
-    sel = select
-    if select not in ("auto",) and not Path(select).exists():
-        sel = [float(x) for x in select.split(",")]
-    modes, report = identify(frf, band_hz=band, max_order=max_order, references=references, select=sel,
-                             plots_dir=plots, weighting=weighting)
-    Path(out_uff).parent.mkdir(parents=True, exist_ok=True)
-    if Path(out_uff).exists():
-        Path(out_uff).unlink()
-    modes.to_uff(out_uff)
-    summary = {"input": str(path), "modes": modes.to_dict(), "report": report.to_dict()}
-    if out_json:
-        Path(out_json).write_text(json.dumps(summary, indent=1, default=str))
-    return modes, report
+    sel = a.select
+    if sel != "auto" and not Path(sel).exists():
+        sel = tuple(float(x) for x in sel.split(","))
+    return IdentifyOptions(band_hz=tuple(a.band) if a.band else None, max_order=a.max_order, select=sel,
+                           references=a.references, weighting=a.weighting)
 
 
 def cmd_identify(a):
     from .cli import _print
+    from .stages import identify
 
-    inputs = list(a.inputs)
-    band = tuple(a.band) if a.band else None
-    if len(inputs) == 1:
-        modes, report = _one(inputs[0], a.output, a.json, a.plots, band, a.max_order, a.references, a.select,
-                             a.weighting)
-        nan = [float("nan")] * modes.n_modes
-        mpc = modes.indicators.get("MPC", nan)
-        fs, zs = modes.indicators.get("freq_std_hz", nan), modes.indicators.get("damping_std", nan)
-        _print(f"{'mode':>4} {'f [Hz]':>10} {'± [Hz]':>8} {'zeta [%]':>9} {'± [%]':>7} {'MPC':>6}")
-        for k, (f, z) in enumerate(zip(modes.freq_hz, modes.damping)):
-            _print(f"{k + 1:>4} {f:>10.3f} {float(fs[k]):>8.3f} {100 * z:>9.3f} {100 * float(zs[k]):>7.3f} "
-                   f"{float(mpc[k]):>6.3f}")
-        src = modes.metadata.get("pole_std_source")
-        if src:
-            _print(f"(± one standard deviation, first order, noise from {src})")
-        _print(f"wrote {modes.n_modes} modes to {a.output}" + (f" and {a.json}" if a.json else ""))
-        return 0
-    # a campaign: one output folder per input, in parallel
-    out_dir = Path(a.output)
-    jobs = []
-    for p in inputs:
-        d = out_dir / Path(p).stem
-        jobs.append((p, d / "modes.uff", d / "modes.json", d / "plots" if a.plots else None, band, a.max_order,
-                     a.references, a.select, a.weighting))
-    try:
-        from .campaign import run_many
-    except ImportError:
-        run_many = None
-    if run_many is not None:
-        results = run_many(_one, jobs, dask=a.dask)
-    else:
-        results = [_one(*j) for j in jobs]
-    for (p, *_), (modes, _) in zip(jobs, results):
-        _print(f"{p}: {modes.n_modes} modes")
+    opts = _options(a)
+    if len(a.inputs) > 1:
+        return _campaign(a, opts)
+    r = identify(a.inputs[0], a.output, opts, json_path=a.json, plots_dir=a.plots)
+    modes = r.result[0]
+    nan = [float("nan")] * modes.n_modes
+    mpc = modes.indicators.get("MPC", nan)
+    fs, zs = modes.indicators.get("freq_std_hz", nan), modes.indicators.get("damping_std", nan)
+    _print(f"{'mode':>4} {'f [Hz]':>10} {'± [Hz]':>8} {'zeta [%]':>9} {'± [%]':>7} {'MPC':>6}")
+    for k, (f, z) in enumerate(zip(modes.freq_hz, modes.damping)):
+        _print(f"{k + 1:>4} {f:>10.3f} {float(fs[k]):>8.3f} {100 * z:>9.3f} {100 * float(zs[k]):>7.3f} "
+               f"{float(mpc[k]):>6.3f}")
+    src = modes.metadata.get("pole_std_source")
+    if src:
+        _print(f"(± one standard deviation, first order, noise from {src})")
+    _print(f"wrote {modes.n_modes} modes to {a.output}" + (f" and {a.json}" if a.json else ""))
+    return 0
+
+
+def _campaign(a, opts):
+    """Several inputs: one folder per input under OUTPUT, in parallel (local processes or a Dask cluster)."""
+    from .campaign import identify_many
+    from .cli import _print
+
+    if a.json:
+        from .errors import PlanError
+
+        raise PlanError("--json names one file; with several inputs every OUTPUT/<input>/modes.json is written")
+    res = identify_many(a.inputs, a.output, opts, plots=bool(a.plots), dask=a.dask, workers=a.workers)
+    for r in res:
+        _print(f"{r['input']}: {len(r['freq_hz'])} modes -> {r['out']}")
+    _print(f"campaign index: {Path(a.output) / 'campaign.json'}")
     return 0
 
 
@@ -72,7 +60,8 @@ def register(sub):
     s.add_argument("-o", "--output", required=True,
                    help="mode shapes UFF (dataset 55); with several inputs, a folder")
     s.add_argument("--json", help="JSON summary (frequencies, damping, indicators, stabilisation)")
-    s.add_argument("--plots", help="folder for the stabilisation diagram, synthesis overlays and AutoMAC")
+    s.add_argument("--plots", help="folder for the stabilisation diagram, synthesis overlays and AutoMAC (campaigns: any value "
+                                         "puts them in each input's folder)")
     s.add_argument("--band", nargs=2, type=float, metavar=("LO", "HI"), help="band in Hz")
     s.add_argument("--max-order", type=int, help="highest model order (default: chosen from the data)")
     s.add_argument("--references", nargs="+", help="use only these reference DOFs, e.g. 1+Z 12+Z")
@@ -80,4 +69,5 @@ def register(sub):
                    help="'auto', a selection file (JSON/TOML list of Hz) or comma-separated frequencies in Hz")
     s.add_argument("--weighting", choices=["coherence", "variance"], help="frequency weighting")
     s.add_argument("--dask", help="address of an existing Dask scheduler (tcp://host:port) for campaigns")
+    s.add_argument("--workers", type=int, help="local processes for campaigns (default: the number of CPUs)")
     s.set_defaults(func=cmd_identify)
