@@ -59,7 +59,8 @@ def register(sub):
     s.add_argument("inputs", nargs="+", help="UFF file(s) with FRFs (dataset 58, func type 4); several = a campaign")
     s.add_argument("-o", "--output", required=True,
                    help="mode shapes UFF (dataset 55); with several inputs, a folder")
-    s.add_argument("--json", help="JSON summary (frequencies, damping, indicators, stabilisation)")
+    s.add_argument("--json", help="modes.json: the modes (correlate and update read it like the UFF) and a mode table "
+                                   "with the indicators (schema: modalab/schemas/modes.schema.json)")
     s.add_argument("--plots", help="folder for the stabilisation diagram, synthesis overlays and AutoMAC (campaigns: any value "
                                          "puts them in each input's folder)")
     s.add_argument("--band", nargs=2, type=float, metavar=("LO", "HI"), help="band in Hz")

@@ -424,15 +424,16 @@ def _correlation(model, test, opts: CorrelateOptions):
                       n_analysis_modes=n)
 
 
-def _correlation_figures(res, d: Path, tag: str, title: str) -> list:
+def _correlation_figures(res, d: Path, tag: str, title: str, frequencies: bool = True) -> list:
     from updating.correlation_plots import plot_frequencies, plot_mac
 
     d.mkdir(parents=True, exist_ok=True)
     files = [plot_mac(res.mac, d / f"mac_{tag}.png", analysis_freq_hz=res.analysis.freq_hz,
                       test_freq_hz=res.test.freq_hz, pairs=res.pairs, title=f"MAC, {title}")]
-    ia, jx = res.pairing.analysis_index, res.pairing.test_index
-    files.append(plot_frequencies(res.test.freq_hz[jx], res.analysis.freq_hz[ia], d / f"frequencies_{tag}.png",
-                                  title=f"Natural frequencies, {title}"))
+    if frequencies:
+        ia, jx = res.pairing.analysis_index, res.pairing.test_index
+        files.append(plot_frequencies(res.test.freq_hz[jx], res.analysis.freq_hz[ia], d / f"frequencies_{tag}.png",
+                                      title=f"Natural frequencies, {title}"))
     return [Path(p) for p in files]
 
 
@@ -559,7 +560,7 @@ def update(model_path, out_dir, opts: UpdateOptions = UpdateOptions(), *, modes_
         summary["correlation_after"] = after.to_dict()
         summary["table_before"] = before.table()
         summary["table_after"] = after.table()
-        files += _correlation_figures(before, out, "before", "model before updating")[:1]
+        files += _correlation_figures(before, out, "before", "model before updating", frequencies=False)
         files += _correlation_figures(after, out, "after", "updated model")
     files.insert(0, write_json(out / "update.json", summary))
     short = {"parameters": {n: round(v["updated"], 4) for n, v in summary.get("parameters", {}).items()},
