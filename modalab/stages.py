@@ -651,9 +651,8 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
     """Locate what the FE model leaves out, name the physics, model it, prove it on held-out FRF rows.
 
     From measured FRFs (``frf_path``; the identified ``modes_path`` then give the frequency and MAC columns of
-    the fit), or from identified modes alone (a GVT). ``json_path``: ``diagnosis.json`` (default
-    ``out_dir/diagnosis.json``; schema ``modalab/schemas/diagnosis.schema.json``). ``out_dir``: also the MCI
-    maps, the engine's figures (``figures/``), ``diagnosed.bdf`` (the augmented, updated model) and
+    the fit), or from identified modes alone (a GVT). ``json_path``: ``diagnosis.json`` (schema
+    ``modalab/schemas/diagnosis.schema.json``). ``out_dir``: ``diagnosis.json`` there too, the MCI maps, the engine's figures (``figures/``), ``diagnosed.bdf`` (the augmented, updated model) and
     ``frf_overlay.png`` (measured, nominal, diagnosed and, given ``updated_model``, the parameter-updated model).
     """
     from updating.diagnosis import diagnose as _diagnose
@@ -681,9 +680,10 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
         diag = _diagnose(model, H, parameters=params, test_modes=test_modes, criterion=opts.criterion,
                          progress=progress, **kw)
     files = []
-    jp = json_path if json_path is not None else (Path(out_dir) / "diagnosis.json" if out_dir is not None else None)
-    if jp is not None:
-        files.append(write_json(jp, diag.to_dict()))
+    doc = diag.to_dict()
+    for jp in dict.fromkeys(p for p in (json_path, Path(out_dir) / "diagnosis.json" if out_dir is not None else None)
+                            if p is not None):
+        files.append(write_json(jp, doc))
     if out_dir is not None:
         files += _diagnosis_files(diag, model, H, Path(out_dir), opts, updated_model)
     return StageResult(diag, tuple(files), {"statement": diag.statement, "findings": len(diag.findings)})

@@ -150,3 +150,28 @@ def _with_func(parser, func):
         return a
     parser.parse_args = parse
     return parser
+
+
+def test_stage_progress_is_a_bar_on_a_terminal_and_lines_otherwise():
+    import io
+
+    from rich.console import Console
+
+    from modalab._cli_run import _StageProgress
+
+    def feed(console):
+        p = _StageProgress(console=console)
+        p("frf", "skip", "up to date")
+        p("identify", "start", "")
+        p("identify", "info", "order 12 of 40")
+        p("identify", "done", "3.1 s")
+        p.close()
+
+    plain = io.StringIO()
+    feed(Console(file=plain, force_terminal=False, width=100))
+    assert plain.getvalue().splitlines() == ["[2/7] frf       up to date (skipped)", "[3/7] identify  done in 3.1 s"]
+    tty = io.StringIO()
+    feed(Console(file=tty, force_terminal=True, width=100))
+    text = tty.getvalue()
+    assert "stages" in text and "━" in text and "2/7" in text      # the live bar over the stages
+    assert "identify  done in 3.1 s" in text
