@@ -1,53 +1,25 @@
 """``modalab diagnose``: locate what an FE model leaves out, name the physics, model it, prove it."""
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 
-def diagnose_files(model_path, measured_path, *, modes=None, params=None, json_path=None, report_dir=None,
-                   progress=None, criterion: str = "auto"):
-    """Diagnose one configuration from files; returns the :class:`~updating.diagnosis.Diagnosis`."""
-    from updating.diagnosis import diagnose
+def _options(a):
+    from .stages import DiagnoseOptions
 
-    from .frf import FRF
-    from .pipeline import load_model, load_modes, load_params
-
-    model = load_model(model_path)
-    plist = load_params(params, model) if params else None
-    kw = {}
-    if modes:
-        kw["test_modes"] = load_modes(modes)
-    if measured_path is None:
-        from updating.diagnosis import diagnose_modes
-
-        d = diagnose_modes(model, kw["test_modes"], parameters=plist)
-    else:
-        measured = FRF.from_uff(measured_path)
-        d = diagnose(model, measured, parameters=plist, progress=progress, criterion=criterion, **kw)
-    if report_dir is not None:
-        if hasattr(d, "save"):
-            d.save(report_dir)
-        else:
-            Path(report_dir).mkdir(parents=True, exist_ok=True)
-            (Path(report_dir) / "diagnosis.json").write_text(json.dumps(d.to_dict(), indent=1, default=str))
-    if json_path is not None:
-        from ._output import write_text
-
-        write_text(json_path, json.dumps(d.to_dict(), indent=1, default=str))   # atomic, never over an input
-    return d
+    return DiagnoseOptions(parameters=a.params, criterion=a.criterion)
 
 
 def cmd_diagnose(a):
     from .cli import _print
+    from .stages import diagnose
 
-    if a.measured is None and a.modes is None:
-        from .errors import PlanError
-
-        raise PlanError("give measured FRFs (MEASURED.uff) or --modes MODES.uff (a GVT's modes alone)")
-    d = diagnose_files(a.model, a.measured, modes=a.modes, params=a.params, json_path=a.json,
-                       report_dir=a.report, progress=lambda m: _print(m), criterion=a.criterion)
-    dd = d.to_dict()
+    measured = list(a.measured or [])
+    if len(measured) > 1:
+        return _campaign(a, measured)
+    r = diagnose(a.model, frf_path=measured[0] if measured else None, modes_path=a.modes, opts=_options(a),
+                 json_path=a.json, out_dir=a.report, progress=lambda m: _print(m))
+    dd = r.result.to_dict()
     for f in dd["findings"]:
         vals = ", ".join(f"{v['name']} = {v['value']:.4g} {v['unit']} (± {v['std']:.2g})" for v in f["values"])
         _print(f"FINDING {f['physics']} at {', '.join(f['dofs']) or f['nodes']}: {vals}")
@@ -58,16 +30,37 @@ def cmd_diagnose(a):
     return 0
 
 
+def _campaign(a, measured):
+    """Several FRF files (configurations of a GVT): one folder per input under --report, in parallel."""
+    from .campaign import diagnose_many
+    from .cli import _print
+    from .errors import PlanError
+
+    if not a.report or a.json or a.modes:
+        raise PlanError("with several MEASURED files give --report FOLDER (one sub-folder with diagnosis.json "
+                        "per input; --json and --modes name one file and are for a single input)")
+    res = diagnose_many(a.model, measured, a.report, _options(a), dask=a.dask, workers=a.workers)
+    for r in res:
+        _print(f"{r['input']}: {len(r['findings'])} finding(s) -> {r['out']}")
+        _print(f"  {r['statement']}")
+    _print(f"campaign index: {Path(a.report) / 'campaign.json'}")
+    return 0
+
+
 def register(sub):
     s = sub.add_parser("diagnose", help="locate and name the physics a model leaves out, model it, prove it")
     s.add_argument("model", help="nominal FE model as Nastran bulk data (.bdf)")
-    s.add_argument("measured", nargs="?", help="measured FRFs with coherence (UFF 58); node ids and directions "
-                                               "refer to the model's grids and basic system")
+    s.add_argument("measured", nargs="*", help="measured FRFs with coherence (UFF 58); node ids and directions "
+                                               "refer to the model's grids and basic system; several files = a "
+                                               "campaign (needs --report)")
     s.add_argument("--modes", help="identified modes (UFF 55 or JSON); alone, a modes-only diagnosis")
     s.add_argument("--params", help="TOML [[parameter]] file (default: E and rho multipliers per property group)")
     s.add_argument("--json", help="diagnosis.json path (schema in the README)")
-    s.add_argument("--report", help="folder for diagnosis.json, MCI maps, FRF overlays and the augmented model")
+    s.add_argument("--report", help="folder for diagnosis.json, MCI maps, FRF overlays and the augmented model (diagnosed.bdf); "
+                                     "with several inputs, one sub-folder per input")
     s.add_argument("--criterion", choices=("auto", "mci", "frf"), default="auto",
                    help="how candidate physics is judged with the parameters re-fitted: by the MCI (thesis 3.2.4) "
                         "or by the FRF fit; auto: MCI up to 200 DOFs, FRF fit above (default: auto)")
+    s.add_argument("--dask", help="address of an existing Dask scheduler (tcp://host:port) for campaigns")
+    s.add_argument("--workers", type=int, help="local processes for campaigns (default: the number of CPUs)")
     s.set_defaults(func=cmd_diagnose)

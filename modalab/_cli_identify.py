@@ -2,33 +2,19 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 
-def _one(path, out_uff, out_json, plots, band, max_order, references, select, weighting, reciprocity=None,
-         exp_beta=None, force_window=False):
-    from identification import identify
+def _options(a):
+    """The command's options as :class:`modalab.stages.IdentifyOptions`."""
+    from .stages import IdentifyOptions
 
-    from .frf import FRF
-
-    frf = FRF.from_uff(path)
-    sel = select
-    if select not in ("auto",) and not Path(select).exists():
-        sel = [float(x) for x in select.split(",")]
-    modes, report = identify(frf, band_hz=band, max_order=max_order, references=references, select=sel,
-                             plots_dir=plots, weighting=weighting, reciprocity=reciprocity, exp_beta=exp_beta,
-                             force_window=force_window)
-    from ._output import write_text
-
-    Path(out_uff).parent.mkdir(parents=True, exist_ok=True)
-    modes.to_uff(out_uff)                     # atomic; never over an input (modalab._output)
-    summary = {"input": str(path), "reciprocity": report.settings["reciprocity"],
-               "window_correction": report.settings["window_correction"],
-               "modes": modes.to_dict(), "report": report.to_dict()}
-    if out_json:
-        write_text(out_json, json.dumps(summary, indent=1, default=str))
-    return modes, report
+    sel = a.select
+    if sel != "auto" and not Path(sel).exists():
+        sel = tuple(float(x) for x in sel.split(","))
+    return IdentifyOptions(band_hz=tuple(a.band) if a.band else None, max_order=a.max_order, select=sel,
+                           references=a.references, weighting=a.weighting, reciprocity=a.reciprocity,
+                           exp_beta=a.exp_beta, force_window=a.force_window)
 
 
 def _window_line(wc) -> str:
@@ -45,53 +31,57 @@ def _window_line(wc) -> str:
             "(each damping ratio lowered by about beta/omega_n)")
 
 
+def _print_settings(report, _print):
+    """What identification did with the matrix and the window, in words."""
+    rc = report.settings["reciprocity"]
+    if rc["applied"]:
+        n_out, n_in = rc["measured_shape"]
+        _print(f"reciprocity: {rc['reason']}: identified as {n_in} responses x {n_out} references "
+               "(the accelerometers are the references)")
+    elif rc["reason"].startswith("refused"):
+        _print(f"reciprocity refused: {rc['measured_shape'][0]} responses x {rc['measured_shape'][1]} "
+               "references identified as given")
+    _print(_window_line(report.settings["window_correction"]))
+
+
 def cmd_identify(a):
     from .cli import _print
+    from .stages import identify
 
-    inputs = list(a.inputs)
-    band = tuple(a.band) if a.band else None
-    if len(inputs) == 1:
-        modes, report = _one(inputs[0], a.output, a.json, a.plots, band, a.max_order, a.references, a.select,
-                             a.weighting, a.reciprocity, a.exp_beta, a.force_window)
-        rc = report.settings["reciprocity"]
-        if rc["applied"]:
-            n_out, n_in = rc["measured_shape"]
-            _print(f"reciprocity: {rc['reason']}: identified as {n_in} responses x {n_out} references "
-                   "(the accelerometers are the references)")
-        elif rc["reason"].startswith("refused"):
-            _print(f"reciprocity refused: {rc['measured_shape'][0]} responses x {rc['measured_shape'][1]} "
-                   "references identified as given")
-        _print(_window_line(report.settings["window_correction"]))
-        nan = [float("nan")] * modes.n_modes
-        mpc = modes.indicators.get("MPC", nan)
-        fs, zs = modes.indicators.get("freq_std_hz", nan), modes.indicators.get("damping_std", nan)
-        _print(f"{'mode':>4} {'f [Hz]':>10} {'± [Hz]':>8} {'zeta [%]':>9} {'± [%]':>7} {'MPC':>6}")
-        for k, (f, z) in enumerate(zip(modes.freq_hz, modes.damping)):
-            _print(f"{k + 1:>4} {f:>10.3f} {float(fs[k]):>8.3f} {100 * z:>9.3f} {100 * float(zs[k]):>7.3f} "
-                   f"{float(mpc[k]):>6.3f}")
-        src = modes.metadata.get("pole_std_source")
-        if src:
-            _print(f"(± one standard deviation: FRF noise from {src}, first order, combined with the spread "
-                   "of the pole over the stable orders)")
-        _print(f"wrote {modes.n_modes} modes to {a.output}" + (f" and {a.json}" if a.json else ""))
-        return 0
-    # a campaign: one output folder per input, in parallel
-    out_dir = Path(a.output)
-    jobs = []
-    for p in inputs:
-        d = out_dir / Path(p).stem
-        jobs.append((p, d / "modes.uff", d / "modes.json", d / "plots" if a.plots else None, band, a.max_order,
-                     a.references, a.select, a.weighting, a.reciprocity, a.exp_beta, a.force_window))
-    try:
-        from .campaign import run_many
-    except ImportError:
-        run_many = None
-    if run_many is not None:
-        results = run_many(_one, jobs, dask=a.dask)
-    else:
-        results = [_one(*j) for j in jobs]
-    for (p, *_), (modes, _) in zip(jobs, results):
-        _print(f"{p}: {modes.n_modes} modes")
+    opts = _options(a)
+    if len(a.inputs) > 1:
+        return _campaign(a, opts)
+    r = identify(a.inputs[0], a.output, opts, json_path=a.json, plots_dir=a.plots)
+    modes, report = r.result
+    _print_settings(report, _print)
+    nan = [float("nan")] * modes.n_modes
+    mpc = modes.indicators.get("MPC", nan)
+    fs, zs = modes.indicators.get("freq_std_hz", nan), modes.indicators.get("damping_std", nan)
+    _print(f"{'mode':>4} {'f [Hz]':>10} {'± [Hz]':>8} {'zeta [%]':>9} {'± [%]':>7} {'MPC':>6}")
+    for k, (f, z) in enumerate(zip(modes.freq_hz, modes.damping)):
+        _print(f"{k + 1:>4} {f:>10.3f} {float(fs[k]):>8.3f} {100 * z:>9.3f} {100 * float(zs[k]):>7.3f} "
+               f"{float(mpc[k]):>6.3f}")
+    src = modes.metadata.get("pole_std_source")
+    if src:
+        _print(f"(± one standard deviation: FRF noise from {src}, first order, combined with the spread "
+               "of the pole over the stable orders)")
+    _print(f"wrote {modes.n_modes} modes to {a.output}" + (f" and {a.json}" if a.json else ""))
+    return 0
+
+
+def _campaign(a, opts):
+    """Several inputs: one folder per input under OUTPUT, in parallel (local processes or a Dask cluster)."""
+    from .campaign import identify_many
+    from .cli import _print
+
+    if a.json:
+        from .errors import PlanError
+
+        raise PlanError("--json names one file; with several inputs every OUTPUT/<input>/modes.json is written")
+    res = identify_many(a.inputs, a.output, opts, plots=bool(a.plots), dask=a.dask, workers=a.workers)
+    for r in res:
+        _print(f"{r['input']}: {len(r['freq_hz'])} modes -> {r['out']}")
+    _print(f"campaign index: {Path(a.output) / 'campaign.json'}")
     return 0
 
 
@@ -100,8 +90,10 @@ def register(sub):
     s.add_argument("inputs", nargs="+", help="UFF file(s) with FRFs (dataset 58, func type 4); several = a campaign")
     s.add_argument("-o", "--output", required=True,
                    help="mode shapes UFF (dataset 55); with several inputs, a folder")
-    s.add_argument("--json", help="JSON summary (frequencies, damping, indicators, stabilisation)")
-    s.add_argument("--plots", help="folder for the stabilisation diagram, synthesis overlays and AutoMAC")
+    s.add_argument("--json", help="modes.json: the modes (correlate and update read it like the UFF) and a mode table "
+                                   "with the indicators (schema: modalab/schemas/modes.schema.json)")
+    s.add_argument("--plots", help="folder for the stabilisation diagram, synthesis overlays and AutoMAC (campaigns: any value "
+                                         "puts them in each input's folder)")
     s.add_argument("--band", nargs=2, type=float, metavar=("LO", "HI"), help="band in Hz")
     s.add_argument("--max-order", type=int, help="highest model order (default: chosen from the data)")
     s.add_argument("--references", nargs="+", help="use only these reference DOFs, e.g. 1+Z 12+Z")
@@ -118,4 +110,5 @@ def register(sub):
     s.add_argument("--force-window", action="store_true",
                    help="use --exp-beta even when the file carries a different beta")
     s.add_argument("--dask", help="address of an existing Dask scheduler (tcp://host:port) for campaigns")
+    s.add_argument("--workers", type=int, help="local processes for campaigns (default: the number of CPUs)")
     s.set_defaults(func=cmd_identify)

@@ -1,72 +1,78 @@
 """``modalab run PROJECT.toml``: the whole chain with per-stage progress (registered by :mod:`modalab.cli`)."""
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 from .project import STAGES
 
 
 class _StageProgress:
-    """One line per stage (rich when available): started, skipped (up to date) or done in N s."""
+    """Stage progress of ``modalab run``/``demo``: on a terminal a bar over the stages with the running stage's
+    latest message; otherwise one line per stage with its time (``[3/7] identify  done in 3.1 s``)."""
 
-    def __init__(self, quiet: bool = False):
+    def __init__(self, quiet: bool = False, console=None):
+        from rich.console import Console
+
         self.quiet = quiet
-        self.console = None
-        self._status = None
-        self._t0 = {}
-        if not quiet:
-            try:
-                from rich.console import Console
+        self.console = console or Console(highlight=False)
+        self.current = None
+        self._bar = None
+        self._task = None
+        self._done = 0
 
-                self.console = Console(highlight=False)
-            except ImportError:  # pragma: no cover
-                self.console = None
+    def _line(self, text, style=None):
+        if not self.quiet:
+            self.console.print(text, style=style, highlight=False)
 
-    def _print(self, text, style=""):
-        if self.quiet:
-            return
-        if self.console is not None:
-            self.console.print(text, style=style or None)
-        else:  # pragma: no cover
-            print(text, flush=True)
+    def _start_bar(self):
+        if self._bar is None and not self.quiet and self.console.is_terminal:
+            from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn
+            from rich.progress import TimeElapsedColumn
+
+            self._bar = Progress(SpinnerColumn(), TextColumn("[bold]stages"), BarColumn(), MofNCompleteColumn(),
+                                 TimeElapsedColumn(), TextColumn("{task.description}"), console=self.console,
+                                 transient=True)
+            self._bar.start()
+            self._task = self._bar.add_task("", total=len(STAGES))
 
     def __call__(self, stage, event, text):
         n = f"[{STAGES.index(stage) + 1}/{len(STAGES)}] {stage:<9}"
+        self._start_bar()
         if event == "start":
-            self._t0[stage] = time.perf_counter()
-            if self.console is not None and not self.quiet:
-                self._stop()
-                self._status = self.console.status(f"{n} running ...")
-                self._status.start()
-            else:
-                self._print(f"{n} running ...")
+            self.current = stage
+            if self._bar:
+                self._bar.update(self._task, description=f"{stage} running")
         elif event == "info":
-            if self._status is not None:
-                self._status.update(f"{n} {text}")
-        elif event == "skip":
-            self._stop()
-            self._print(f"{n} up to date (skipped)", "dim")
-        elif event == "done":
-            self._stop()
-            self._print(f"{n} done in {text}", "green")
-
-    def _stop(self):
-        if self._status is not None:
-            self._status.stop()
-            self._status = None
+            if self._bar:
+                self._bar.update(self._task, description=f"{stage}: {text}")
+        elif event in ("skip", "done"):
+            self.current = None
+            self._done += 1
+            if self._bar:
+                self._bar.update(self._task, completed=self._done, description="")
+            if event == "skip":
+                self._line(f"{n} up to date (skipped)", "dim")
+            else:
+                self._line(f"{n} done in {text}", "green")
 
     def close(self):
-        self._stop()
+        if self._bar:
+            self._bar.stop()
+            self._bar = None
 
 
-def cmd_run(a):
-    from .run import run_project
-
-    prog = _StageProgress(quiet=a.quiet)
+def run_with_progress(run, again: str, *, quiet: bool = False) -> int:
+    """Call ``run(progress)`` (a :func:`modalab.run.run_project`-like call) with stage progress, print what it did
+    and, last, the report's path; on Ctrl-C say what is kept and how to continue (``again``: the command)."""
+    prog = _StageProgress(quiet=quiet)
     try:
-        res = run_project(a.project, a.output, backend=a.backend, from_stage=a.from_stage, until_stage=a.until_stage,
-                          progress=prog, force=a.force)
+        res = run(prog)
+    except KeyboardInterrupt:
+        prog.close()
+        where = f" during the {prog.current} stage" if prog.current else ""
+        print(f"interrupted{where}. Completed stages are kept (manifest.json) and an interrupted acquisition keeps "
+              f"every accepted hit. Continue with: {again}", flush=True)
+        return 130
     finally:
         prog.close()
     ran = [s for s, v in res.status.items() if v == "ran"]
@@ -75,10 +81,19 @@ def cmd_run(a):
     d = res.summaries.get("diagnose")
     if d:
         print(f"diagnosis: {d.get('statement')}", flush=True)
+    print(f"manifest: {Path(res.out_dir) / 'manifest.json'}", flush=True)
     if res.report.is_file():
         print(f"report: {res.report}", flush=True)
-    print(f"manifest: {Path(res.out_dir) / 'manifest.json'}", flush=True)
     return 0
+
+
+def cmd_run(a):
+    from .run import run_project
+
+    again = f"modalab run {a.project} -o {a.output}" + (f" --backend {a.backend}" if a.backend else "")
+    return run_with_progress(lambda progress: run_project(a.project, a.output, backend=a.backend,
+                                                          from_stage=a.from_stage, until_stage=a.until_stage,
+                                                          progress=progress, force=a.force), again, quiet=a.quiet)
 
 
 def register(subparsers):

@@ -20,7 +20,7 @@ a :class:`modalab.errors.ModalabError` naming that input (the others are still c
 """
 from __future__ import annotations
 
-import json
+import functools
 import logging
 import os
 from concurrent.futures import ProcessPoolExecutor
@@ -123,90 +123,74 @@ def run_many(func: Callable, inputs: Sequence, *, dask=None, workers: int | None
 
 
 # ----------------------------------------------------------------------------- campaign commands
-def identify_one(job: dict) -> dict:
-    """Identify one FRF file into ``job['out']`` (modes.uff, identification.json, figures); returns a summary."""
-    from identification import identify
+def identify_one(frf_path, out_dir, opts=None, plots: bool = True) -> dict:
+    """:func:`modalab.stages.identify` of one FRF file into ``out_dir`` (modes.uff, modes.json,
+    identification.json, figures); returns the campaign index entry."""
+    from . import stages
 
-    from . import uff
-
-    out = Path(job["out"])
-    out.mkdir(parents=True, exist_ok=True)
-    frf = uff.read_frf(job["frf"])
-    band = job.get("band_hz")
-    if band:
-        frf = frf.band(float(band[0]), float(band[1]))
-    else:
-        f = frf.freq_hz
-        frf = frf.band(float(f[f > 0][0]), float(f[-1]))
-    modes, rep = identify(frf, max_order=job.get("max_order"), plots_dir=out if job.get("plots", True) else None)
-    mp = out / "modes.uff"
-    if mp.exists():
-        mp.unlink()
-    uff.write_modes(mp, modes)
-    rep.to_json(out / "identification.json")
-    return {"input": str(job["frf"]), "out": str(out), "freq_hz": [float(x) for x in modes.freq_hz],
+    out = Path(out_dir)
+    r = stages.identify(frf_path, out / "modes.uff", opts or stages.IdentifyOptions(), json_path=out / "modes.json",
+                        plots_dir=out if plots else None, report_path=out / "identification.json")
+    modes = r.result[0]
+    return {"input": str(frf_path), "out": str(out), "freq_hz": [float(x) for x in modes.freq_hz],
             "damping": [float(x) for x in modes.damping]}
 
 
-def diagnose_one(job: dict) -> dict:
-    """Diagnose one FRF file against the bulk-data model ``job['model']``; writes diagnosis.json."""
-    from updating.bulk import read_bdf
-    from updating.bulk.build import build_model
-    from updating.diagnosis import diagnose
+def diagnose_one(model_path, frf_path, out_dir, opts=None) -> dict:
+    """:func:`modalab.stages.diagnose` of one FRF file against the bulk-data model into ``out_dir``
+    (diagnosis.json, figures, diagnosed.bdf); returns the campaign index entry."""
+    from . import stages
 
-    from . import uff
-    from .project import load_parameters
-
-    out = Path(job["out"])
-    out.mkdir(parents=True, exist_ok=True)
-    model = build_model(read_bdf(job["model"]))
-    params = load_parameters(job["parameters"])[0] if job.get("parameters") else None
-    frf = uff.read_frf(job["frf"])
-    band = job.get("band_hz")
-    if band:
-        frf = frf.band(float(band[0]), float(band[1]))
-    kw = {k: job[k] for k in ("max_lines", "max_findings", "max_nfev", "holdout", "kinds") if job.get(k) is not None}
-    d = diagnose(model, frf, parameters=params, **kw)
-    dd = d.to_dict()
-    (out / "diagnosis.json").write_text(json.dumps(dd, indent=1, default=float))
-    return {"input": str(job["frf"]), "out": str(out), "statement": d.statement,
+    r = stages.diagnose(model_path, frf_path=frf_path, opts=opts or stages.DiagnoseOptions(), out_dir=out_dir)
+    dd = r.result.to_dict()
+    return {"input": str(frf_path), "out": str(out_dir), "statement": dd["statement"],
             "findings": dd["findings"], "parameters": dd["parameters"]}
 
 
-def _jobs(frf_paths, out_dir, common: dict) -> list:
+def _job(item, func, **kw):
+    """One campaign input: ``item`` = (input file, output folder)."""
+    return func(frf_path=item[0], out_dir=item[1], **kw)
+
+
+def _folders(frf_paths, out_dir) -> list:
+    """(input, ``out_dir/<file stem>``) per input; stems that repeat get their position as a prefix."""
     out_dir = Path(out_dir)
     paths = [Path(p) for p in frf_paths]
     stems = [p.stem for p in paths]
-    jobs = []
+    items = []
     for k, p in enumerate(paths):
         name = p.stem if stems.count(p.stem) == 1 else f"{k:03d}_{p.stem}"
-        jobs.append({**common, "frf": str(p.resolve()), "out": str((out_dir / name).resolve())})
-    return jobs
+        items.append((str(p.resolve()), str((out_dir / name).resolve())))
+    return items
 
 
 def _index(out_dir, results) -> Path:
-    p = Path(out_dir) / "campaign.json"
-    p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(json.dumps(results, indent=1, default=float))
-    return p
+    from .outputs import write_json
+
+    return write_json(Path(out_dir) / "campaign.json", results)
 
 
-def identify_many(frf_paths, out_dir, *, band_hz=None, max_order=None, plots: bool = True, dask=None,
-                  workers=None, progress=None) -> list:
-    """``modalab identify`` over many FRF files: ``out_dir/<file stem>/`` each, ``out_dir/campaign.json``."""
-    jobs = _jobs(frf_paths, out_dir, {"band_hz": band_hz, "max_order": max_order, "plots": plots})
-    res = run_many(identify_one, jobs, dask=dask, workers=workers, progress=progress)
+def identify_many(frf_paths, out_dir, opts=None, *, plots: bool = True, dask=None, workers=None,
+                  progress=None) -> list:
+    """``modalab identify`` over many FRF files: ``out_dir/<file stem>/`` each, ``out_dir/campaign.json``.
+
+    ``opts``: :class:`modalab.stages.IdentifyOptions` (the same for every input)."""
+    from . import stages
+
+    func = functools.partial(_job, func=identify_one, opts=opts or stages.IdentifyOptions(), plots=plots)
+    res = run_many(func, _folders(frf_paths, out_dir), dask=dask, workers=workers, progress=progress)
     _index(out_dir, res)
     return res
 
 
-def diagnose_many(model_path, frf_paths, out_dir, *, parameters=None, band_hz=None, max_lines=None,
-                  max_findings=None, max_nfev=None, dask=None, workers=None, progress=None) -> list:
-    """``modalab diagnose`` of one model against many FRF files (configurations) in parallel."""
-    common = {"model": str(Path(model_path).resolve()), "parameters": str(Path(parameters).resolve()) if parameters
-              else None, "band_hz": band_hz, "max_lines": max_lines, "max_findings": max_findings,
-              "max_nfev": max_nfev}
-    jobs = _jobs(frf_paths, out_dir, common)
-    res = run_many(diagnose_one, jobs, dask=dask, workers=workers, progress=progress)
+def diagnose_many(model_path, frf_paths, out_dir, opts=None, *, dask=None, workers=None, progress=None) -> list:
+    """``modalab diagnose`` of one model against many FRF files (configurations) in parallel.
+
+    ``opts``: :class:`modalab.stages.DiagnoseOptions` (the same for every input)."""
+    from . import stages
+
+    func = functools.partial(_job, func=diagnose_one, model_path=str(Path(model_path).resolve()),
+                             opts=opts or stages.DiagnoseOptions())
+    res = run_many(func, _folders(frf_paths, out_dir), dask=dask, workers=workers, progress=progress)
     _index(out_dir, res)
     return res

@@ -1,17 +1,7 @@
-"""The ``modalab`` command line.  ``main(args=None)`` parses, builds config and calls the public API.
+"""The ``modalab`` command line.  ``main(args=None)`` parses, builds the options and calls :mod:`modalab.stages`.
 
-Subcommands (each has ``--help`` with units):
-
-  demo       simulate the demo structure's hammer test end to end into a folder
-  sim        simulate a roving-hammer test into a UFF file of raw hits
-  frf        raw hits (UFF 58 time records) -> H1 FRFs + coherence (UFF 58)
-  info       what a UFF file holds
-  acquire    run a test plan on NI hardware or the simulated lab
-  identify   poly-reference PolyMAX identification of FRFs
-  correlate  test modes against an FE model (MAC, pairing)
-  update     update an FE model to test modes or FRFs
-  diagnose   locate and name missing physics
-  run        the whole chain from a project file
+The user's description (``modalab --help``) is :data:`DESCRIPTION`; each command is registered in
+:func:`build_parser` or in its ``modalab/_cli_<command>.py`` module.
 
 Outputs (:mod:`modalab._output`): an output is never written over an input (not even with ``--force``); an
 existing output file is replaced only with ``--force`` (``sim``: ``--overwrite``); files are written to a
@@ -30,6 +20,16 @@ from pathlib import Path
 from .errors import ModalabError
 
 log = logging.getLogger("modalab")
+DESCRIPTION = """\
+Modal testing from the bench to an updated FE model: impact tests on NI hardware or the simulated lab,
+FRFs with coherence, PolyMAX identification, correlation with a Nastran model, model updating, and a
+diagnosis of the physics the model leaves out.
+
+Try it without hardware:   modalab demo -o modalab-demo     (then open modalab-demo/report/report.html)
+Step by step:              modalab sim -> frf -> identify -> correlate -> update -> diagnose
+A whole project:           modalab run project.toml -o out  (reruns only what changed)
+
+Every command has --help, e.g. modalab identify --help."""
 UNITS_EPILOG = ("Units: SI throughout - frequencies in Hz, times in s, forces in N, accelerations in m/s^2, "
                 "stiffness in N/m (N*m/rad), masses in kg; DOFs as node+direction, e.g. 12+Z.")
 
@@ -37,6 +37,43 @@ UNITS_EPILOG = ("Units: SI throughout - frequencies in Hz, times in s, forces in
 # ----------------------------------------------------------------------------- helpers
 def _print(*a):
     print(*a, flush=True)
+
+
+class _CountProgress:
+    """Progress of a counted task (``progress(done, total, item)``): a bar on a terminal, else a line per item."""
+
+    def __init__(self, what: str):
+        self.what = what
+        self._bar = None
+        self._task = None
+
+    def __enter__(self):
+        return self
+
+    def __call__(self, done, total, item=""):
+        if self._bar is None:
+            from rich.console import Console
+
+            console = Console(stderr=False, highlight=False)
+            if console.is_terminal:
+                from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+                self._bar = Progress(TextColumn(f"[bold]{self.what}"), BarColumn(), MofNCompleteColumn(),
+                                     TextColumn("{task.description}"), TimeElapsedColumn(), console=console,
+                                     transient=True)
+                self._bar.start()
+                self._task = self._bar.add_task("", total=total)
+            else:
+                self._bar = False
+        if self._bar:
+            self._bar.update(self._task, completed=done, description=str(item))
+        else:
+            _print(f"  {self.what} {done}/{total}" + (f": {item}" if item else ""))
+
+    def __exit__(self, *exc):
+        if self._bar:
+            self._bar.stop()
+        return False
 
 
 class _TerminalPrompter:
@@ -168,32 +205,32 @@ class _ConsoleObserver:
 
 # ----------------------------------------------------------------------------- commands
 def cmd_sim(a):
-    from ._output import atomic_path
-    from .pipeline import simulate_hits
+    from .stages import SimOptions, sim
 
-    out = Path(a.output)
-    with atomic_path(out) as tmp:              # no partial file on failure; never over an input
-        _, recs, _ = simulate_hits(tmp, structure=a.structure, points=a.points, references=a.references,
-                                   hits=a.hits, seed=a.seed, force_n=a.force, double_hit_probability=a.double_hits,
-                                   sample_rate_hz=a.sample_rate, n_samples=a.samples,
-                                   plot_dir=None if a.no_plot else out.parent)
-    _print(f"wrote {len(recs)} hits x {recs[0].n_channels} channels to {out}")
+    opts = SimOptions(structure=a.structure, points=a.points, references=a.references, hits=a.hits, seed=a.seed,
+                      force_n=a.force, double_hit_probability=a.double_hits, sample_rate_hz=a.sample_rate,
+                      n_samples=a.samples)
+    with _CountProgress("points") as bar:
+        r = sim(a.output, opts, plot_dir=None if a.no_plot else Path(a.output).parent,
+                export_model=a.export_model, progress=bar)
+    recs = r.result
+    _print(f"wrote {len(recs)} hits x {recs[0].n_channels} channels to {r.files[0]}")
+    if a.export_model:
+        _print("FE model and updating parameters of the structure: "
+               + ", ".join(str(p) for p in r.files if Path(p).suffix in (".bdf", ".toml")))
     return 0
 
 
 def cmd_frf(a):
-    from .pipeline import frf_from_file
+    from .stages import FRFOptions, frf
 
     plot = None if a.no_plot else (a.plot or str(Path(a.output).with_suffix(".png")))
-    from ._output import atomic_path
-
-    out = Path(a.output)
-    with atomic_path(out) as tmp:              # no partial file on failure; never over an input
-        _, frf = frf_from_file(a.input, tmp, estimator=a.estimator, force_fraction=a.force_window,
-                               exp_end_level=a.exp_end, exp_beta=a.exp_beta, reciprocity=not a.no_reciprocity,
-                               plot_path=plot, bandwidth_hz=a.bandwidth)
-    _print(f"wrote {frf.n_out} x {frf.n_in} {frf.metadata.get('estimator', a.estimator)} FRFs "
-           f"({frf.n_freq} lines, {frf.freq_hz[0]:g}-{frf.freq_hz[-1]:g} Hz) with coherence to {out}")
+    opts = FRFOptions(estimator=a.estimator, force_fraction=a.force_window, exp_end_level=a.exp_end,
+                      exp_beta=a.exp_beta, reciprocity=not a.no_reciprocity, bandwidth_hz=a.bandwidth)
+    r = frf(a.input, a.output, opts, plot_path=plot)
+    H = r.result
+    _print(f"wrote {H.n_out} x {H.n_in} {H.metadata.get('estimator', a.estimator)} FRFs "
+           f"({H.n_freq} lines, {H.freq_hz[0]:g}-{H.freq_hz[-1]:g} Hz) with coherence to {r.files[0]}")
     if plot:
         _print(f"plot: {plot}")
     return 0
@@ -335,24 +372,17 @@ def cmd_acquire(a):
 
 
 def cmd_demo(a):
-    from .pipeline import demo
+    from ._cli_run import run_with_progress
+    from .demo_project import run_demo
 
-    progress = None
-    try:
-        from ._cli_run import _StageProgress
-
-        progress = _StageProgress()
-    except ImportError:  # pragma: no cover
-        pass
-    result = demo(a.output, quick=a.quick) if progress is None else demo(a.output, quick=a.quick, progress=progress)
-    for k, v in result.items():
-        _print(f"{k:>12}: {v}")
-    return 0
+    out = Path(a.output)
+    again = f"modalab demo -o {out}" + (" --quick" if a.quick else "")
+    return run_with_progress(lambda progress: run_demo(out, quick=a.quick, progress=progress), again)
 
 
 # ----------------------------------------------------------------------------- parser
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="modalab", description=__doc__.split("\n\n")[0],
+    p = argparse.ArgumentParser(prog="modalab", description=DESCRIPTION,
                                 formatter_class=argparse.RawDescriptionHelpFormatter,
                                 epilog=UNITS_EPILOG)
     p.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv for debug)")
@@ -375,6 +405,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--samples", type=int, help="samples per record (default 8192)")
     s.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
     s.add_argument("--no-plot", action="store_true", help="do not write the hit figure")
+    s.add_argument("--export-model", metavar="FOLDER",
+                   help="also write the simulated structure's FE model (FOLDER/model.bdf, Nastran bulk data) and "
+                        "updating parameters (FOLDER/params.toml) for correlate, update and diagnose")
     s.set_defaults(func=cmd_sim)
 
     s = sub.add_parser("frf", help="raw hits -> H1 FRFs and coherence")
@@ -478,8 +511,8 @@ _IO = {
 }
 #: files a command writes into its output folder (checked against its inputs)
 _WRITES_INTO = {"update": ("output", ("updated.bdf", "update.json", "updated_matrices.npz", "mac_before.png",
-                                      "mac_after.png", "parameter_convergence.png")),
-                "diagnose": ("report", ("diagnosis.json", "augmented.bdf"))}
+                                      "mac_after.png", "frequencies_after.png", "convergence.png")),
+                "diagnose": ("report", ("diagnosis.json", "diagnosed.bdf", "mci_maps.png", "frf_overlay.png"))}
 #: commands whose output folder is a resumable session/run: kept on failure unless empty
 _KEEP_FOLDER = {"run", "demo", "acquire"}
 

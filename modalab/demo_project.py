@@ -18,10 +18,11 @@ smaller variant used by the tests: fewer points, one line in two, lower orders).
 from __future__ import annotations
 
 import logging
-import shutil
 from pathlib import Path
 
 import numpy as np
+
+from .outputs import write_bytes, write_text
 
 log = logging.getLogger(__name__)
 
@@ -179,13 +180,13 @@ def write_demo_files(folder=None) -> Path:
 
     d = Path(folder) if folder is not None else demo_project_dir()
     d.mkdir(parents=True, exist_ok=True)
-    (d / "nominal.bdf").write_text("$ GARTEUR SM-AG19-like frame, nominal model (modalab demo)\n"
-                                   + write_bdf(to_bulk(nominal_model())))
-    (d / "params.toml").write_text(_PARAMS_TEXT)
-    (d / "plan.toml").write_text(_plan_text(False))
-    (d / "plan_quick.toml").write_text(_plan_text(True))
-    (d / "project.toml").write_text(_project_text(False))
-    (d / "project_quick.toml").write_text(_project_text(True))
+    write_text(d / "nominal.bdf", "$ GARTEUR SM-AG19-like frame, nominal model (modalab demo)\n"
+               + write_bdf(to_bulk(nominal_model())))
+    write_text(d / "params.toml", _PARAMS_TEXT)
+    write_text(d / "plan.toml", _plan_text(False))
+    write_text(d / "plan_quick.toml", _plan_text(True))
+    write_text(d / "project.toml", _project_text(False))
+    write_text(d / "project_quick.toml", _project_text(True))
     return d
 
 
@@ -206,5 +207,5 @@ def run_demo(out_dir, quick: bool = False, *, progress=None, **kw):
         src = demo_project_dir() / name
         dst = proj / name
         if not dst.is_file() or dst.read_bytes() != src.read_bytes():
-            shutil.copyfile(src, dst)
+            write_bytes(dst, src.read_bytes())
     return run_project(proj / ("project_quick.toml" if quick else "project.toml"), out, progress=progress, **kw)

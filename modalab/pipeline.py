@@ -1,131 +1,25 @@
-"""Glue between the stages: what the CLI runs, callable from a notebook too.
+"""Acquisition glue and file helpers of the command line (the stages themselves are in :mod:`modalab.stages`).
 
-This module (with :mod:`modalab.cli`) is the only place that sees every
-stage; the stage packages never import it.  Functions take plain arguments,
-write artifacts and return what they produced.
+:func:`acquire` runs a test plan on the simulated lab or NI hardware, :func:`make_sim_backend` builds the
+simulated DAQ of a plan, :func:`file_info` says what a UFF holds, :func:`demo` runs the embedded demo project;
+``load_model``/``load_modes`` come from :mod:`modalab.stages`, ``load_params`` reads a parameter file.
 """
 from __future__ import annotations
 
-import json
 import logging
 from pathlib import Path
 
 import numpy as np
 
-from .errors import ModalabValueError, PlanError
-from .frf import FRF
+from .errors import PlanError
+from .stages import _sim_structure, load_model, load_modes  # noqa: F401 - re-exported
 
 log = logging.getLogger(__name__)
 
-__all__ = ["simulate_hits", "frf_from_file", "file_info", "make_sim_backend", "acquire", "demo", "demo_lab",
-           "load_model", "load_params", "load_modes"]
+__all__ = ["file_info", "make_sim_backend", "acquire", "demo", "load_model", "load_params", "load_modes"]
 
 
-# ------------------------------------------------------------------------- simulated lab
-def _demo_or_structure(structure):
-    """The demo structure for 'demo' (or None), else a structure file (.bdf) through updating."""
-    from hardware_sim import demo as hdemo
-
-    if structure in (None, "demo"):
-        return hdemo.demo_structure(), hdemo
-    path = Path(structure)
-    if path.suffix.lower() in (".bdf", ".dat", ".nas", ".blk"):
-        from updating.bulk import read_bdf
-        from updating.bulk.build import build_model
-
-        model = build_model(read_bdf(path, whole_model=True))
-        return model.structure(), hdemo
-    raise PlanError(f"structure {structure!r}: expected 'demo' or a Nastran bulk-data file (.bdf/.dat)")
-
-
-def simulate_hits(out_uff, *, structure="demo", points=None, references=None, hits: int = 3, seed: int = 1,
-                  force_n: float | None = None, double_hit_probability: float = 0.0,
-                  sample_rate_hz: float | None = None, n_samples: int | None = None, plot_dir=None):
-    """Simulate a roving-hammer test and write its raw hits (UFF 58 time records, one per channel per hit)."""
-    from hardware_sim.demo import DEMO_POINTS, DEMO_REFERENCES, demo_channels, demo_setup
-    from hardware_sim.lab import SimulatedLab, simulate_roving_test
-    from hardware_sim.setup import FaultConfig
-
-    from . import uff
-
-    st, _ = _demo_or_structure(structure)
-    pts = list(points or DEMO_POINTS)
-    refs = list(references or DEMO_REFERENCES)
-    setup_kw = {}
-    if sample_rate_hz:
-        setup_kw["sample_rate_hz"] = float(sample_rate_hz)
-    if n_samples:
-        setup_kw["n_samples"] = int(n_samples)
-    faults = FaultConfig(double_hit_probability=double_hit_probability) if double_hit_probability else None
-    lab = SimulatedLab(st, demo_channels(pts[0], refs), demo_setup(**setup_kw), faults=faults,
-                       rng=np.random.default_rng(seed))
-    recs = simulate_roving_test(lab, pts, hits_per_point=hits, force_n=force_n)
-    for i, r in enumerate(recs, start=1):
-        r.hit_id = i
-    out = Path(out_uff)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if out.exists():
-        out.unlink()
-    if getattr(st, "coords", None):
-        uff.write_geometry(out, st.coords)
-        uff.write_records(out, recs, append=True)
-    else:
-        uff.write_records(out, recs)
-    if plot_dir is not None:
-        from .plots import plot_hit
-
-        plot_hit(recs[0], path=Path(plot_dir) / "first_hit.png", title=f"hit 1 at {recs[0].force_dofs[0]}")
-    return out, recs, lab
-
-
-def frf_from_file(in_uff, out_uff, *, estimator: str = "H1", force_fraction: float | None = 0.05,
-                  exp_end_level: float | None = None, exp_beta: float | None = None, reciprocity: bool = True,
-                  plot_path=None, exact=None, bandwidth_hz: float | None = None):
-    """Raw hits in a UFF → H1 (H2, Hv) FRFs + coherence in a UFF; roving-hammer data reordered by reciprocity.
-
-    Lines above ``bandwidth_hz`` (default fs/2.56, the anti-alias band) are dropped.
-    """
-    from acquisition.reciprocity import reorder_by_reciprocity
-    from acquisition.spectral import estimate_frf_roving
-    from acquisition.plan import exponential_window
-    from acquisition.windows import ForceWindow
-
-    from . import uff
-
-    recs = uff.read_records(in_uff)
-    if not recs:
-        raise ModalabValueError(f"{in_uff}: no time records (dataset 58, function type 1) to turn into FRFs; "
-                                "run 'modalab info' to see what the file holds")
-    fw = ForceWindow(fraction=force_fraction) if force_fraction else None
-    ew = exponential_window(exp_beta, exp_end_level)      # the one rule, as for a test plan
-    frf = estimate_frf_roving(recs, estimator=estimator, force_window=fw, exp_window=ew)
-    bw = bandwidth_hz or recs[0].sample_rate_hz / 2.56
-    frf = frf.band(0.0, bw)
-    n_ref = len(frf.references)
-    if reciprocity and n_ref > len(frf.responses):
-        frf = reorder_by_reciprocity(frf)
-    out = Path(out_uff)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if out.exists():
-        out.unlink()
-    geometry = {}
-    try:
-        geometry = uff.read_geometry(in_uff)
-    except Exception:  # noqa: BLE001 - a file without geometry is fine
-        geometry = {}
-    if geometry:
-        uff.write_geometry(out, geometry)
-        uff.write_frf(out, frf, append=True)
-    else:
-        uff.write_frf(out, frf)
-    if plot_path is not None:
-        from .plots import plot_frf
-
-        others = {"exact": exact} if exact is not None else None
-        plot_frf(frf, path=plot_path, others=others, title=f"{frf.estimator if hasattr(frf, 'estimator') else estimator} FRFs")
-    return out, frf
-
-
+# ------------------------------------------------------------------------- files
 def file_info(path) -> dict:
     from . import uff
 
@@ -142,7 +36,7 @@ def make_sim_backend(plan, *, seed: int | None = None):
     """
     from hardware_sim.bench import lab_from_sim
 
-    st, _ = _demo_or_structure(plan.sim.get("structure", "demo"))
+    st, _ = _sim_structure(plan.sim.get("structure", "demo"))
     automatic = str(plan.hammer.get("url", "")).startswith("simhammer://")
     lab = lab_from_sim(plan.sim, st, channel_names=[c.name for c in plan.channels], automatic=automatic, seed=seed,
                        source=plan.source, dofs=list(plan.points) + plan.fixed_dofs)
@@ -216,69 +110,15 @@ def acquire(plan_path, out_dir, *, backend: str = "sim", auto: bool = False, res
 
 
 # ------------------------------------------------------------------------- the demo
-def demo(out_dir, *, quick: bool = False, progress=None) -> dict:
-    """The README's main job: the whole chain on the embedded demo project (``modalab.run.run_demo``).
+def demo(out_dir, *, quick: bool = False, progress=None):
+    """The README's main job: the whole chain on the embedded demo project (:func:`modalab.demo_project.run_demo`);
+    returns the :class:`modalab.run.RunResult`."""
+    from .demo_project import run_demo
 
-    Falls back to :func:`demo_lab` (simulated hammer test, FRFs, plot) when the staged runner is unavailable.
-    """
-    try:
-        from .demo_project import run_demo
-    except ImportError:  # pragma: no cover - a stripped install without the updating stage
-        return demo_lab(out_dir, quick=quick)
-    res = run_demo(out_dir, quick=quick, progress=progress)
-    out = {"report": str(res.report)}
-    for stage, status in res.status.items():
-        t = res.elapsed_s.get(stage)
-        out[stage] = status + (f" ({t:.1f} s)" if t is not None else "")
-    diag = (res.summaries.get("diagnose") or {})
-    if diag.get("statement"):
-        out["diagnosis"] = diag["statement"]
-    return out
-
-
-def demo_lab(out_dir, *, quick: bool = False) -> dict:
-    """Simulated hammer test of the demo structure: raw hits, H1 FRFs + coherence and a plot against the exact FRF."""
-    from hardware_sim.demo import DEMO_POINTS, DEMO_REFERENCES
-
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    points = list(DEMO_POINTS[:4] if quick else DEMO_POINTS)
-    raw, recs, lab = simulate_hits(out / "raw_hits.uff", points=points, references=DEMO_REFERENCES,
-                                   hits=2 if quick else 3, seed=1, plot_dir=out)
-    first = recs[0]
-    import numpy as _np
-
-    f = _np.fft.rfftfreq(first.n_samples, first.dt)
-    st = lab.structure if hasattr(lab, "structure") else None
-    exact = None
-    if st is not None:
-        exact = st.frf(f[1:], responses=points, references=list(DEMO_REFERENCES))
-    frf_path, frf = frf_from_file(raw, out / "frf.uff", exp_end_level=None, plot_path=out / "frf.png", exact=exact)
-    result = {"raw hits": str(raw), "FRFs": str(frf_path), "FRF plot": str(out / "frf.png"),
-              "hit plot": str(out / "first_hit.png")}
-    if exact is not None:
-        ex = exact.select(responses=frf.responses, references=frf.references)
-        H = frf.band(f[1], f[-1]).H
-        E = ex.H[..., :H.shape[-1]] if ex.n_freq >= H.shape[-1] else ex.H
-        coh = frf.band(f[1], f[-1]).coherence
-        good = coh > 0.99
-        err = float(_np.median(_np.abs(H[good] - E[good]) / _np.abs(E[good]))) if good.any() else float("nan")
-        result["median |H1-exact|/|exact| where coherence>0.99"] = f"{100 * err:.2f} %"
-    (out / "demo_summary.json").write_text(json.dumps(result, indent=1))
-    return result
+    return run_demo(out_dir, quick=quick, progress=progress)
 
 
 # ------------------------------------------------------------------------- FE models and test data
-def load_model(path):
-    """An FE model from Nastran bulk data (``.bdf``, ``.dat``, ``.nas``, ``.blk``)."""
-    from updating.bulk import build_model, read_bdf
-
-    p = Path(path)
-    if not p.exists():
-        raise PlanError(f"model file {str(p)!r} does not exist; give a Nastran bulk-data file (.bdf)")
-    return build_model(read_bdf(p, whole_model=True))
-
-
 def load_params(path, model):
     """Updating parameters from a TOML file, or the defaults (E and density multipliers per property group).
 
@@ -314,13 +154,3 @@ def load_params(path, model):
         except KeyError as e:
             raise PlanError(f"{p}: parameter {i + 1} lacks {e.args[0]!r}") from None
     return out
-
-
-def load_modes(path):
-    """Test modes from a UFF (dataset 55) or a JSON written by ``modalab identify``."""
-    from .modes import ModeSet
-
-    p = Path(path)
-    if p.suffix.lower() == ".json":
-        return ModeSet.from_json(p)
-    return ModeSet.from_uff(p)

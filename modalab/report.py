@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ModalabValueError
+from .outputs import write_json, write_text
 
 log = logging.getLogger(__name__)
 
@@ -232,7 +233,7 @@ def build_report(run_dir, report_dir=None, *, project=None, title: str | None = 
                      else (project.name if project else run_dir.name))
     frf_s = _load(run_dir / "frf" / "frf.json")
     rec = _load(run_dir / "frf" / "reciprocity.json")
-    modes = _load(run_dir / "identify" / "modes.json")
+    modes = (_load(run_dir / "identify" / "modes.json") or {}).get("table")
     ident = _load(run_dir / "identify" / "identification.json")
     corr = _load(run_dir / "correlate" / "correlation.json")
     upd = _load(run_dir / "update" / "update.json")
@@ -315,12 +316,10 @@ def build_report(run_dir, report_dir=None, *, project=None, title: str | None = 
            f"<title>{html.escape(name)}</title><style>{_CSS}</style></head><body>\n"
            + "\n".join(parts) + "\n</body></html>\n")
     out = rd / "report.html"
-    out.write_text(doc, encoding="utf-8")
+    write_text(out, doc)
     summary = {"title": name, "frf": frf_s, "reciprocity": {"max_rel_diff": (rec or {}).get("max_rel_diff")},
                "modes": modes, "identification": {k: (ident or {}).get(k) for k in ("settings", "elapsed_s")},
                "correlation_before": corr, "update": upd, "diagnosis": diag,
                "stages": {s: {"key": e.get("key"), "elapsed_s": e.get("elapsed_s")}
                           for s, e in manifest.get("stages", {}).items()}}
-    sp = rd / "summary.json"
-    sp.write_text(json.dumps(summary, indent=1, default=str))
-    return out, sp
+    return out, write_json(rd / "summary.json", summary)

@@ -32,7 +32,6 @@ import hashlib
 import importlib
 import json
 import logging
-import os
 import re
 import shutil
 import time
@@ -41,8 +40,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ModalabError, ModalabValueError, PlanError
-from .project import STAGES, Project, load_parameters, load_project
+from . import stages
+from .errors import PlanError
+from .outputs import write_json, write_text
+from .project import STAGES, Project, load_project
 
 log = logging.getLogger(__name__)
 
@@ -96,15 +97,6 @@ def stage_key(options: dict, inputs: dict, upstream: dict) -> str:
                                   "upstream": upstream}).encode()).hexdigest()
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "w") as fh:
-        fh.write(text)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
-
-
 class Manifest:
     """``OUT/manifest.json``: one entry per completed stage (see the module docstring)."""
 
@@ -151,7 +143,7 @@ class Manifest:
 
     def save(self) -> None:
         self.out_dir.mkdir(parents=True, exist_ok=True)
-        _atomic_write(self.path, json.dumps(self.data, indent=1, default=str))
+        write_json(self.path, self.data)
 
 
 @dataclass
@@ -185,8 +177,6 @@ class _Context:
         self.out = out_dir
         self.backend = backend
         self.progress = progress
-        self._model = None
-        self._params = None
 
     def dir(self, stage: str) -> Path:
         d = self.out / stage
@@ -197,31 +187,6 @@ class _Context:
         log.info("%s: %s", stage, text)
         if self.progress:
             self.progress(stage, "info", text)
-
-    # shared inputs
-    def model(self):
-        if self._model is None:
-            from updating.bulk import read_bdf
-            from updating.bulk.build import build_model
-
-            self._model = build_model(read_bdf(self.project.bulk_path))
-        return self._model
-
-    def parameters(self, which: str = "update"):
-        p = self.project.options[which].get("parameters")
-        if not p:
-            return None, None, None
-        return load_parameters(self.project.resolve(p))
-
-    def frf(self):
-        from . import uff
-
-        return uff.read_frf(self.out / "frf" / "frf.uff")
-
-    def test_modes(self):
-        from . import uff
-
-        return uff.read_modes(self.out / "identify" / "modes.uff")
 
 
 def _plan_with(project: Project):
@@ -296,254 +261,79 @@ def stage_acquire(ctx: _Context, resume: bool) -> tuple[list, dict]:
     return [out], {"points": len(plan.points), "summary": summ}
 
 
+# Each stage of the run is the stage function of :mod:`modalab.stages` with the project's options; these
+# adapters only map the project's sections to the options dataclasses and the run folder's layout.
 def stage_frf(ctx: _Context) -> tuple[list, dict]:
     """Raw hits → H1 FRFs + coherence (reciprocity-reordered), reciprocity check, coherence map."""
-    from acquisition.reciprocity import reciprocity_check
-
-    from . import uff
-    from .pipeline import frf_from_file
-
     d = ctx.dir("frf")
     o = ctx.project.options["frf"]
     if ctx.project.frf_path is not None:
-        frf = uff.read_frf(ctx.project.frf_path)
-        geometry = {}
-        try:
-            geometry = uff.read_geometry(ctx.project.frf_path)
-        except Exception:  # noqa: BLE001 - FRFs without geometry are fine
-            pass
-        if geometry:
-            uff.write_geometry(d / "frf.uff", geometry)
-        uff.write_frf(d / "frf.uff", frf, append=bool(geometry))
-        out = d / "frf.uff"
+        r = stages.frf(ctx.project.frf_path, d / "frf.uff", measured=True, details_dir=d)
     else:
         plan = _plan_with(ctx.project)
-        ff = o["force_fraction"] if o["force_fraction"] is not None else plan.force_fraction
-        ee = o["exp_end_level"] if o["exp_end_level"] is not None else (plan.exp_end_level or None)
-        out, frf = frf_from_file(ctx.out / "acquire" / "session.uff", d / "frf.uff", estimator=o["estimator"],
-                                 force_fraction=ff, exp_end_level=ee,
-                                 exp_beta=plan.exp_beta if o["exp_end_level"] is None else None,   # override wins
-                                 reciprocity=o["reciprocity"])
-    rec = {}
-    try:
-        rep = reciprocity_check(frf)
-        rec = {"max_rel_diff": float(rep.max_rel_diff), **rep.to_dict()}
-    except ModalabValueError as e:
-        rec = {"note": str(e)}
-    (d / "reciprocity.json").write_text(json.dumps(rec, indent=1, default=str))
-    from .report import plot_coherence_map
-
-    plot_coherence_map(frf, d / "coherence.png")
-    coh = frf.coherence
-    summ = {"responses": len(frf.responses), "references": [str(r) for r in frf.references],
-            "lines": int(frf.n_freq), "band_hz": [float(frf.freq_hz[0]), float(frf.freq_hz[-1])],
-            "median_coherence": float(np.nanmedian(coh)) if coh is not None else None,
-            "reciprocity_max_rel_diff": rec.get("max_rel_diff")}
-    (d / "frf.json").write_text(json.dumps(summ, indent=1))
-    return [out, d / "reciprocity.json", d / "coherence.png", d / "frf.json"], summ
-
-
-def _band(frf, band):
-    if band:
-        return frf.band(float(band[0]), float(band[1]))
-    f = frf.freq_hz
-    return frf.band(float(f[f > 0][0]), float(f[-1]))
+        opts = stages.FRFOptions(
+            estimator=o["estimator"], reciprocity=o["reciprocity"], exp_beta=plan.exp_beta if o["exp_end_level"] is None else None,   # the project's level wins
+            force_fraction=o["force_fraction"] if o["force_fraction"] is not None else plan.force_fraction,
+            exp_end_level=o["exp_end_level"] if o["exp_end_level"] is not None else (plan.exp_end_level or None))
+        r = stages.frf(ctx.out / "acquire" / "session.uff", d / "frf.uff", opts, details_dir=d)
+    return list(r.files), r.summary
 
 
 def stage_identify(ctx: _Context) -> tuple[list, dict]:
-    from identification import identify
-
-    from . import uff
-
     d = ctx.dir("identify")
     o = ctx.project.options["identify"]
-    frf = _band(ctx.frf(), o["band_hz"])
-    modes, rep = identify(frf, max_order=o["max_order"], select=o["select"], weighting=o["weighting"],
-                          plots_dir=d)
-    if modes.n_modes == 0:
-        raise ModalabValueError("identification found no modes; widen [identify] band_hz or raise max_order")
-    out = d / "modes.uff"
-    if out.exists():
-        out.unlink()
-    uff.write_modes(out, modes)
-    rep.to_json(d / "identification.json")
-    table = _mode_table(modes)
-    (d / "modes.json").write_text(json.dumps(table, indent=1))
-    outs = [out, d / "identification.json", d / "modes.json"] + [Path(p) for p in rep.figures.values()]
-    return outs, {"modes": modes.n_modes, "freq_hz": [round(float(f), 3) for f in modes.freq_hz]}
+    opts = stages.IdentifyOptions(band_hz=o["band_hz"], max_order=o["max_order"], select=o["select"],
+                                  weighting=o["weighting"])
+    r = stages.identify(ctx.out / "frf" / "frf.uff", d / "modes.uff", opts, json_path=d / "modes.json",
+                        plots_dir=d, report_path=d / "identification.json")
+    return list(r.files), r.summary
 
 
-def _mode_table(modes) -> list:
-    rows = []
-    ind = getattr(modes, "indicators", None) or {}
-    for k in range(modes.n_modes):
-        r = {"mode": k + 1, "freq_hz": float(modes.freq_hz[k]),
-             "damping_pct": 100 * float(modes.damping[k]) if modes.damping is not None else None}
-        for name, v in ind.items():
-            try:
-                r[name] = float(np.asarray(v)[k])
-            except (TypeError, ValueError, IndexError):
-                pass
-        rows.append(r)
-    return rows
-
-
-def _correlate(model, test, o_corr, n_modes):
-    from updating.correlation import correlate
-
-    analysis = model.modes(max(int(n_modes), 2 * test.n_modes + 6))
-    return correlate(analysis, test, mac_min=o_corr["mac_min"], freq_weight=o_corr["freq_weight"])
+def _correlate_options(ctx: _Context) -> stages.CorrelateOptions:
+    o = ctx.project.options["correlate"]
+    return stages.CorrelateOptions(mac_min=o["mac_min"], freq_weight=o["freq_weight"],
+                                   n_modes=ctx.project.options["model"]["n_modes"])
 
 
 def stage_correlate(ctx: _Context) -> tuple[list, dict]:
-    from updating.correlation_plots import plot_frequencies, plot_mac
-
     d = ctx.dir("correlate")
-    res = _correlate(ctx.model(), ctx.test_modes(), ctx.project.options["correlate"],
-                     ctx.project.options["model"]["n_modes"])
-    summ = res.to_dict()
-    (d / "correlation.json").write_text(json.dumps(summ, indent=1, default=float))
-    ia, jx = res.pairing.analysis_index, res.pairing.test_index
-    plot_mac(res.mac, d / "mac_before.png", analysis_freq_hz=res.analysis.freq_hz, test_freq_hz=res.test.freq_hz,
-             pairs=res.pairs, title="MAC, nominal model")
-    plot_frequencies(res.test.freq_hz[jx], res.analysis.freq_hz[ia], d / "frequencies_before.png",
-                     title="Natural frequencies, nominal model")
-    return [d / "correlation.json", d / "mac_before.png", d / "frequencies_before.png"], \
-        {"pairs": len(res.pairs), "mean_abs_freq_error_pct": float(np.mean(np.abs(res.freq_error_pct)))
-         if len(res.pairs) else None}
+    r = stages.correlate(ctx.project.bulk_path, ctx.out / "identify" / "modes.uff", _correlate_options(ctx),
+                         json_path=d / "correlation.json", plots_dir=d)
+    return list(r.files), r.summary
 
 
 def stage_update(ctx: _Context) -> tuple[list, dict]:
-    from updating.bulk import to_bulk, write_bdf
-    from updating.correlation_plots import plot_frequencies, plot_mac
-    from updating.eigensensitivity import InverseEigensensitivity
-    from updating.fe import ParametricFEModel
-
-    from .report import plot_convergence
-
-    d = ctx.dir("update")
     o = ctx.project.options["update"]
-    params, lo, hi = ctx.parameters("update")
-    if params is None:
+    if not o["parameters"]:
         raise PlanError(f"{ctx.project.path}: [update] parameters = 'params.toml' is missing; updating needs "
                         "declared parameters")
-    model = ctx.model()
-    test = ctx.test_modes()
-    pm = ParametricFEModel(model, params)
-    lo_ = np.array([-np.inf if v is None else float(v) for v in lo])
-    hi_ = np.array([np.inf if v is None else float(v) for v in hi])
-    est = InverseEigensensitivity(max_iter=o["max_iter"], regularisation=o["regularisation"],
-                                  use_shapes=o["use_shapes"], freq_sigma=o["freq_sigma"], shape_sigma=o["shape_sigma"],
-                                  bounds=(lo_, hi_), mac_min=ctx.project.options["correlate"]["mac_min"])
-    est.fit(pm, test)
-    updated = pm.model_at(est.p_)
-    from updating.bulk import read_bdf
-
-    text = write_bdf(to_bulk(updated, template=read_bdf(ctx.project.bulk_path)))
-    (d / "updated.bdf").write_text(text)
-    res = _correlate(updated, test, ctx.project.options["correlate"], ctx.project.options["model"]["n_modes"])
-    ia, jx = res.pairing.analysis_index, res.pairing.test_index
-    plot_mac(res.mac, d / "mac_after.png", analysis_freq_hz=res.analysis.freq_hz, test_freq_hz=res.test.freq_hz,
-             pairs=res.pairs, title="MAC, updated model")
-    plot_frequencies(res.test.freq_hz[jx], res.analysis.freq_hz[ia], d / "frequencies_after.png",
-                     title="Natural frequencies, updated model")
-    hist = est.parameter_history() if est.history_ else np.asarray(pm.p0, float)[None, :]
-    hist = np.vstack([np.asarray(pm.p0, float)[None, :], hist])
-    names = [p.name for p in params]
-    plot_convergence(hist, names, d / "convergence.png")
-    summ = {"parameters": {n: {"initial": float(pm.p0[k]), "updated": float(est.p_[k]), "std": float(est.std_[k]),
-                               "mode": params[k].mode} for k, n in enumerate(names)},
-            "converged": bool(est.converged_), "iterations": int(est.n_iter_),
-            "history": [{"iteration": h["iteration"], "p": [float(x) for x in h["p"]], "cost": float(h["cost"]),
-                         "freq_error_pct": [float(x) for x in h["freq_error_pct"]]} for h in est.history_],
-            "correlation_after": res.to_dict()}
-    (d / "update.json").write_text(json.dumps(summ, indent=1, default=float))
-    return [d / "updated.bdf", d / "update.json", d / "mac_after.png", d / "frequencies_after.png",
-            d / "convergence.png"], {"parameters": {n: round(summ["parameters"][n]["updated"], 4) for n in names},
-                                     "mean_abs_freq_error_pct": float(np.mean(np.abs(res.freq_error_pct)))
-                                     if len(res.pairs) else None}
+    opts = stages.UpdateOptions(method="eigensensitivity", parameters=str(ctx.project.resolve(o["parameters"])),
+                                max_iter=o["max_iter"], regularisation=o["regularisation"],
+                                use_shapes=o["use_shapes"], freq_sigma=o["freq_sigma"], shape_sigma=o["shape_sigma"],
+                                correlation=_correlate_options(ctx))
+    r = stages.update(ctx.project.bulk_path, ctx.dir("update"), opts, modes_path=ctx.out / "identify" / "modes.uff")
+    return list(r.files), r.summary
 
 
 def stage_diagnose(ctx: _Context) -> tuple[list, dict]:
-    from updating.bulk import to_bulk, write_bdf
-    from updating.diagnosis import diagnose
-
-    from .report import plot_mci_maps
-
     d = ctx.dir("diagnose")
     o = ctx.project.options["diagnose"]
-    params = None
-    if o["parameters"]:
-        params = load_parameters(ctx.project.resolve(o["parameters"]))[0]
-    frf = _band(ctx.frf(), o["band_hz"] or ctx.project.options["identify"]["band_hz"])
-    try:        # the identified modes (not peak picking) for the frequency and MAC columns of the fit blocks
-        test_modes = ctx.test_modes()
-    except (ModalabError, OSError) as e:
-        log.info("diagnosis without identified modes (%s): peak picking on the FRFs", e)
-        test_modes = None
-    diag = diagnose(ctx.model(), frf, parameters=params, max_lines=o["max_lines"], max_findings=o["max_findings"],
-                    max_nfev=o["max_nfev"], holdout=o["holdout"], kinds=o["kinds"], test_modes=test_modes,
-                    progress=lambda s: ctx.info("diagnose", s))
-    outs = []
-    dd = diag.to_dict()
-    dd["steps"] = {k: (v if not isinstance(v, tuple) else list(v)) for k, v in diag.steps.items()}
-    (d / "diagnosis.json").write_text(json.dumps(dd, indent=1, default=float))
-    outs.append(d / "diagnosis.json")
-    if hasattr(diag, "save"):
-        try:
-            saved = diag.save(d / "figures")
-            if isinstance(saved, (str, Path)) and Path(saved).is_dir():
-                outs += sorted(p for p in Path(saved).iterdir() if p.is_file())
-            elif isinstance(saved, (dict, list, tuple)):
-                outs += [Path(p) for p in (saved.values() if isinstance(saved, dict) else saved)
-                         if isinstance(p, (str, Path)) and Path(p).is_file()]
-        except Exception as e:  # noqa: BLE001 - the engine's own figures are extras
-            log.warning("diagnosis figures failed: %s", e)
-    if diag.maps:
-        outs.append(plot_mci_maps(diag.maps, d / "mci_maps.png"))
-    (d / "diagnosed.bdf").write_text(write_bdf(to_bulk(diag.model)))
-    outs.append(d / "diagnosed.bdf")
-    # FRF overlay data: measured vs nominal vs diagnosed model at the report's DOFs
-    outs.append(_frf_overlays(ctx, frf, diag, d))
-    return outs, {"statement": diag.statement, "findings": len(diag.findings)}
-
-
-def _frf_overlays(ctx: _Context, frf, diag, d: Path) -> Path:
-    """Measured, nominal and augmented-updated FRFs at the chosen DOFs (one figure, first reference)."""
-    from .report import plot_frf_overlays
-
-    want = ctx.project.options["report"]["frf_dofs"]
-    resp = [r for r in frf.responses if want is None or str(r) in {str(w) for w in want}][:4] or frf.responses[:4]
-    ref = frf.references[0]
-    lines = frf.freq_hz[frf.freq_hz > 0]
-    step = max(1, len(lines) // 600)
-    f = lines[::step]
-    curves = {"measured": frf.select(responses=resp, references=[ref]).band(f[0], f[-1])}
-    models = {"nominal": ctx.model(), "diagnosed + updated": diag.model}
-    upd = ctx.out / "update" / "updated.bdf"
-    if upd.is_file():
-        from updating.bulk import read_bdf
-        from updating.bulk.build import build_model
-
-        models["updated (parameters)"] = build_model(read_bdf(upd))
-    eta = diag.parameters.get("eta_global", {}).get("updated")
-    for name, m in models.items():
-        try:
-            mm = m.copy()
-            if eta is not None and not mm.global_ge:
-                mm.global_ge = float(eta)
-            curves[name] = mm.frf(f, responses=resp, references=[ref])
-        except Exception as e:  # noqa: BLE001 - an overlay must not fail the stage
-            log.warning("FRF of the %s model failed: %s", name, e)
-    return plot_frf_overlays(curves, d / "frf_overlay.png", responses=resp, reference=ref)
+    opts = stages.DiagnoseOptions(
+        parameters=str(ctx.project.resolve(o["parameters"])) if o["parameters"] else None,
+        band_hz=o["band_hz"] or ctx.project.options["identify"]["band_hz"], max_lines=o["max_lines"],
+        max_findings=o["max_findings"], max_nfev=o["max_nfev"], holdout=o["holdout"], kinds=o["kinds"],
+        overlay_dofs=ctx.project.options["report"]["frf_dofs"])
+    modes = ctx.out / "identify" / "modes.uff"     # the identified modes give the frequency and MAC columns
+    r = stages.diagnose(ctx.project.bulk_path, frf_path=ctx.out / "frf" / "frf.uff",
+                        modes_path=modes if modes.is_file() else None, opts=opts, out_dir=d,
+                        updated_model=ctx.out / "update" / "updated.bdf",
+                        progress=lambda s: ctx.info("diagnose", s))
+    return list(r.files), r.summary
 
 
 def stage_report(ctx: _Context) -> tuple[list, dict]:
-    from .report import build_report
-
-    d = ctx.dir("report")
-    html, summary = build_report(ctx.out, d, project=ctx.project)
-    return [html, summary], {"report": str(html)}
+    r = stages.report(ctx.out, ctx.dir("report"), project=ctx.project)
+    return list(r.files), r.summary
 
 
 # =================================================================================== runner
@@ -657,7 +447,7 @@ def run_project(project, out_dir, *, backend: str | None = None, from_stage: str
             if not resume and (out / s).exists():
                 shutil.rmtree(out / s)
             ctx.dir(s)
-            pending.write_text(key)
+            write_text(pending, key)
             outputs, summary = stage_acquire(ctx, resume)
         else:
             if (out / s).exists():

@@ -11,6 +11,7 @@ import pytest
 from modalab import uff
 from modalab.cli import main
 from modalab.modes import ModeSet
+from modalab.outputs import validate
 
 CASES = Path(__file__).resolve().parents[2] / "examples" / "concealed"
 
@@ -22,6 +23,7 @@ def test_diagnose_names_the_concealed_mass_from_the_files(tmp_path, criterion, c
     assert main(["diagnose", str(d / "nominal.bdf"), str(d / "measured.uff"), "--json", str(out),
                  "--criterion", criterion]) == 0
     res = json.loads(out.read_text())
+    validate(res, "diagnosis")
     truth = json.loads((d / "truth.json").read_text())["concealed"][0]
     assert [f["physics"] for f in res["findings"]] == ["added_mass"]
     f = res["findings"][0]

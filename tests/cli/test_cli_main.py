@@ -6,6 +6,7 @@ import pytest
 
 from modalab.cli import build_parser, main
 from modalab.frf import FRF
+from modalab.outputs import validate
 
 
 @pytest.fixture(scope="module")
@@ -26,6 +27,26 @@ def test_help_lists_every_command(capsys):
     sub = build_parser()._subparsers._group_actions[0].choices
     for name, p in sub.items():
         assert "Units: SI" in p.format_help(), name
+    # a description for users, not the module's developer docstring
+    assert "modalab demo -o modalab-demo" in text and "main(args=None)" not in text and "``" not in text
+
+
+def test_sim_shows_progress_and_exports_the_model_it_simulated(tmp_path, capsys):
+    from hardware_sim.demo import demo_structure
+
+    from modalab.project import load_parameters
+    from modalab.stages import load_model
+
+    assert main(["sim", "-o", str(tmp_path / "h.uff"), "--points", "1+Z", "19+Z", "--hits", "1", "--samples", "2048",
+                 "--no-plot", "--export-model", str(tmp_path / "m")]) == 0
+    out = capsys.readouterr().out
+    assert "points 1/2: 1+Z" in out and "points 2/2: 19+Z" in out
+    # the exported bulk data has the simulated structure's modes (same grillage as CBAR/PBAR, springs, SPC)
+    fe = load_model(tmp_path / "m" / "model.bdf").modes(12)
+    w, _ = demo_structure().normal_modes()
+    np.testing.assert_allclose(fe.freq_hz, w[:12] / (2 * np.pi), rtol=1e-6)
+    params = load_parameters(tmp_path / "m" / "params.toml")[0]
+    assert [p.name for p in params] == ["E_fuselage", "rho_fuselage", "E_wing", "rho_wing"]
 
 
 def test_sim_frf_info_chain(hits, tmp_path, capsys):
@@ -70,7 +91,11 @@ def test_identify_cli(hits, tmp_path, capsys):
     assert np.min(np.abs(m.freq_hz - 18.97)) < 0.1
     assert np.min(np.abs(m.freq_hz - 118.4)) < 0.5
     assert (tmp_path / "p" / "stabilisation.png").exists()
-    assert json.loads((tmp_path / "m.json").read_text())["modes"]["freq_hz"]
+    doc = json.loads((tmp_path / "m.json").read_text())
+    validate(doc, "modes")
+    assert [r["freq_hz"] for r in doc["table"]] == doc["freq_hz"] == m.freq_hz.tolist()
+    # the JSON reads back as the same modes (correlate and update take it instead of the UFF)
+    np.testing.assert_allclose(ModeSet.from_json(tmp_path / "m.json").shapes, m.shapes, rtol=1e-6, atol=1e-12)
 
 
 @pytest.mark.parametrize("args,needle", [
@@ -125,3 +150,28 @@ def _with_func(parser, func):
         return a
     parser.parse_args = parse
     return parser
+
+
+def test_stage_progress_is_a_bar_on_a_terminal_and_lines_otherwise():
+    import io
+
+    from rich.console import Console
+
+    from modalab._cli_run import _StageProgress
+
+    def feed(console):
+        p = _StageProgress(console=console)
+        p("frf", "skip", "up to date")
+        p("identify", "start", "")
+        p("identify", "info", "order 12 of 40")
+        p("identify", "done", "3.1 s")
+        p.close()
+
+    plain = io.StringIO()
+    feed(Console(file=plain, force_terminal=False, width=100))
+    assert plain.getvalue().splitlines() == ["[2/7] frf       up to date (skipped)", "[3/7] identify  done in 3.1 s"]
+    tty = io.StringIO()
+    feed(Console(file=tty, force_terminal=True, width=100))
+    text = tty.getvalue()
+    assert "stages" in text and "━" in text and "2/7" in text      # the live bar over the stages
+    assert "identify  done in 3.1 s" in text

@@ -60,7 +60,7 @@ def test_update_cli_recovers_parameters_and_writes_deck(case, capsys):
     f = upd.freq_hz[upd.freq_hz > 1.0][:test.n_modes]
     np.testing.assert_allclose(np.sort(f), np.sort(test.freq_hz), rtol=2e-3)
     assert (out / "mac_before.png").exists() and (out / "mac_after.png").exists()
-    assert (out / "parameter_convergence.png").exists()
+    assert (out / "convergence.png").exists()
 
 
 def test_update_needs_the_right_data(case, capsys):

@@ -10,6 +10,7 @@ import pytest
 from modalab import uff
 from modalab.campaign import CampaignError, identify_many, run_many
 from modalab.errors import ModalabValueError
+from modalab.stages import IdentifyOptions
 
 
 def _eigs(seed: int) -> list:
@@ -73,8 +74,8 @@ def _synthetic_frf_files(tmp_path, n=2):
 
 def test_identify_many_same_results_serial_and_parallel(tmp_path):
     paths = _synthetic_frf_files(tmp_path)
-    a = identify_many(paths, tmp_path / "serial", max_order=12, plots=False, workers=1)
-    b = identify_many(paths, tmp_path / "pool", max_order=12, plots=False, workers=2)
+    a = identify_many(paths, tmp_path / "serial", IdentifyOptions(max_order=12), plots=False, workers=1)
+    b = identify_many(paths, tmp_path / "pool", IdentifyOptions(max_order=12), plots=False, workers=2)
     fa = [r["freq_hz"] for r in a]
     assert fa == [r["freq_hz"] for r in b]
     for k, f in enumerate(fa):              # and right: the synthetic modes
@@ -93,8 +94,8 @@ def test_dask_local_cluster_gives_the_serial_results(tmp_path):
         inputs = list(range(5))
         assert run_many(_eigs, inputs, dask=addr) == run_many(_eigs, inputs, workers=1)
         paths = _synthetic_frf_files(tmp_path)
-        a = identify_many(paths, tmp_path / "serial", max_order=12, plots=False, workers=1)
-        b = identify_many(paths, tmp_path / "dask", max_order=12, plots=False, dask=addr)
+        a = identify_many(paths, tmp_path / "serial", IdentifyOptions(max_order=12), plots=False, workers=1)
+        b = identify_many(paths, tmp_path / "dask", IdentifyOptions(max_order=12), plots=False, dask=addr)
         assert [r["freq_hz"] for r in a] == [r["freq_hz"] for r in b]
         with pytest.raises(CampaignError, match="three is bad"):
             run_many(_fail_on_three, range(5), dask=addr)

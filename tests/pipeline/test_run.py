@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -96,6 +97,18 @@ def test_end_to_end_artifacts_and_manifest(demo):
     assert html.count("<img ") >= 10 and 'src="http' not in html
 
 
+def test_outputs_follow_the_schemas(demo):
+    """modes.json, diagnosis.json and summary.json of a run follow the schemas shipped with the package."""
+    from modalab.outputs import validate
+
+    out = demo["out"]
+    validate(out / "identify" / "modes.json", "modes")
+    validate(out / "diagnose" / "diagnosis.json", "diagnosis")
+    validate(out / "report" / "summary.json", "summary")
+    summary = json.loads((out / "report" / "summary.json").read_text())
+    assert summary["diagnosis"] == json.loads((out / "diagnose" / "diagnosis.json").read_text())
+
+
 def test_updating_moves_parameters_towards_the_truth(demo):
     upd = json.loads((demo["out"] / "update" / "update.json").read_text())
     assert upd["converged"], upd["history"][-1]          # stationary at the end, not stalled
@@ -128,6 +141,41 @@ def test_diagnosis_finds_the_concealed_effect(demo):
     for name in ("rho_fuselage", "E_wing"):
         assert abs(d["parameters"][name]["updated"] - truth[name]) < \
             abs(upd["parameters"][name]["updated"] - truth[name]), name
+
+
+def test_run_command_prints_a_line_per_stage_and_the_report_last(demo, capsys):
+    """Not on a terminal: one line per stage with its time (or 'up to date'), the report's path last."""
+    from modalab.cli import main
+
+    proj = demo["out"] / "project" / "project_quick.toml"
+    assert main(["run", str(proj), "-o", str(demo["out"]), "--from", "report"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert [ln.split()[1] for ln in lines[:len(STAGES)]] == list(STAGES)
+    assert all("up to date" in ln for ln in lines[:len(STAGES) - 1])
+    assert re.fullmatch(r"\[7/7\] report +done in \d+\.\d s", lines[len(STAGES) - 1])
+    assert lines[-1] == f"report: {demo['out'] / 'report' / 'report.html'}"
+
+
+def test_ctrl_c_during_run_says_how_to_continue(tmp_path):
+    d = tmp_path / "p"
+    d.mkdir()
+    for name in DEMO_FILES:
+        (d / name).write_bytes((demo_project_dir() / name).read_bytes())
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", MPLBACKEND="Agg", PYTHONPATH=str(REPO))
+    proc = subprocess.Popen([sys.executable, "-m", "modalab.cli", "run", "project_quick.toml", "-o", "out"], cwd=d,
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    t_end = time.time() + 240
+    while time.time() < t_end and not _hit_times(d / "out") and proc.poll() is None:
+        time.sleep(0.2)
+    assert proc.poll() is None, proc.communicate()[1].decode()[-2000:]
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err.decode()[-2000:]
+    assert "Traceback" not in err.decode()
+    assert out.decode().strip().splitlines()[-1] == (
+        "interrupted during the acquire stage. Completed stages are kept (manifest.json) and an interrupted "
+        "acquisition keeps every accepted hit. Continue with: modalab run project_quick.toml -o out")
 
 
 def test_rerun_skips_and_changed_options_rerun_only_dependents(demo, tmp_path):
