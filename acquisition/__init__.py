@@ -54,8 +54,8 @@ Windows (:mod:`acquisition.windows`)
    beta_from_end_level                    -- beta (1/s) for a given level at the record end
    correct_poles, correct_damping         -- remove the window's added damping (s = i*omega + beta)
 
-FRF estimation (:mod:`acquisition.spectral`)
---------------------------------------------
+FRF estimation (:mod:`acquisition.spectral`; array estimators in :mod:`acquisition.estimators`)
+-----------------------------------------------------------------------------------------------
 .. autosummary::
 
    estimate_frf          -- H1/H2/Hv + coherence from hits with one channel layout (SIMO, MIMO)
@@ -76,6 +76,10 @@ Reciprocity (:mod:`acquisition.reciprocity`)
 
 Sessions: measure, never lose a hit (:mod:`acquisition.session`, :mod:`acquisition.store`)
 ------------------------------------------------------------------------------------------
+The session's FRFs, hit choice and export are in :mod:`acquisition.session_results`, its observer,
+prompter and summaries in :mod:`acquisition.session_summary`, resume checks and reconnecting in
+:mod:`acquisition.session_resume`; every name below is importable from :mod:`acquisition.session`.
+
 .. autosummary::
 
    AcquisitionSession   -- arm (then fire an automatic hammer), wait, check, accept/reject, store, export

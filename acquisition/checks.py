@@ -166,6 +166,176 @@ def _spectral_dip_db(pulse: np.ndarray, fs: float, lobe_db: float) -> float:
     return float(depth.max())
 
 
+class _Flags:
+    """The flags raised so far (each once, in order) and every message, in order."""
+
+    def __init__(self):
+        self.flags: list[str] = []
+        self.msgs: list[str] = []
+
+    def __contains__(self, name) -> bool:
+        return name in self.flags
+
+    def flag(self, name, msg):
+        if name not in self.flags:
+            self.flags.append(name)
+        self.msgs.append(msg)
+
+
+def _check_overload(record: TimeRecord, cfg: HitCheckConfig, ranges, out: _Flags) -> set:
+    """Overload: device flags, samples at the rail of a known range, or a flat (clipped) top.  The channels."""
+    over = set(int(i) for i in np.flatnonzero(record.overload))
+    for i in sorted(over):
+        out.msgs.append(f"channel {i} ({record.dofs[i]}) overload flagged by the device")
+    for i, rng in enumerate(_ranges_for(record, ranges)):
+        x = record.data[i]
+        if rng is not None:
+            lo, hi = rng
+            at_rail = (x >= cfg.rail_fraction * hi) | (x <= cfg.rail_fraction * lo)
+            if int(at_rail.sum()) >= cfg.rail_samples:
+                over.add(i)
+                out.msgs.append(f"channel {i} ({record.dofs[i]}): {int(at_rail.sum())} samples at the rail of "
+                                f"[{lo:g}, {hi:g}] {record.units[i]}; raise the range")
+        else:
+            peak = np.abs(x).max()
+            if peak > 0:
+                top = np.abs(np.abs(x) - peak) <= 1e-9 * peak
+                run = _longest_run(top)
+                if run >= cfg.flat_top_samples:
+                    over.add(i)
+                    out.msgs.append(f"channel {i} ({record.dofs[i]}): flat top of {run} samples at "
+                                    f"{peak:.4g} {record.units[i]} (clipped)")
+    if over:
+        out.flags.insert(0, "overload")
+    return over
+
+
+def _main_force(record: TimeRecord):
+    """(channel, force less its pretrigger baseline and turned so that the main pulse is positive, peak index)
+    of the force channel with the largest pulse."""
+    ti = record.trigger_index
+    best = None
+    for i in record.force_channels:
+        f = record.data[i]
+        base = float(np.median(f[:ti])) if ti >= 8 else 0.0
+        fc = f - base
+        k = int(np.argmax(np.abs(fc)))
+        if best is None or abs(fc[k]) > abs(best[1][best[2]]):
+            best = (i, fc, k)
+    i, fc, k = best
+    sgn = np.sign(fc[k]) or 1.0
+    return i, fc * sgn, k
+
+
+def _check_trigger(g, k: int, ti: int, cfg: HitCheckConfig, trigger_level, out: _Flags, details: dict) -> float:
+    """Missing (peak within the pretrigger noise) or weak (below the trigger level) hit.  The peak force."""
+    peak_force = float(g[k])
+    noise = float(np.sqrt(np.mean(g[:ti] ** 2))) if ti >= 8 else 0.0
+    details["pretrigger_noise_rms"] = noise
+    if peak_force < cfg.min_peak_snr * noise or peak_force <= 0:
+        out.flag("missing_trigger", f"force peak {peak_force:.3g} N is within the noise "
+                                    f"({noise:.3g} N RMS): no hit in this record")
+    else:
+        level = max(cfg.min_peak_force_n, 0.0 if trigger_level is None else abs(float(trigger_level)))
+        if peak_force < level:
+            out.flag("weak_trigger", f"peak force {peak_force:.3g} N is below {level:g} N; hit harder "
+                                     "or lower the trigger level")
+    return peak_force
+
+
+def _pulse_bounds(g, k: int, peak_force: float, cfg: HitCheckConfig) -> tuple:
+    """(start, end) samples of the main pulse: where the force last/first falls below pulse_end_level × peak."""
+    lvl = cfg.pulse_end_level * peak_force
+    after = np.flatnonzero(g[k:] < lvl)
+    end = k + int(after[0]) if after.size else g.size
+    before = np.flatnonzero(g[:k] < lvl)
+    start = int(before[-1]) + 1 if before.size else 0
+    return start, end
+
+
+def _check_double_hit(g, k: int, end: int, peak_force: float, fs: float, cfg: HitCheckConfig,
+                      out: _Flags) -> tuple:
+    """Time-domain double hit: a later pulse of the same polarity.  (ratio to the peak, delay s)."""
+    dh_ratio, dh_delay = 0.0, float("nan")
+    gs = int(cfg.guard_samples)
+    if end + gs < g.size:
+        tail = g[end + gs:]
+        j = int(np.argmax(tail))
+        dh_ratio = float(tail[j] / peak_force) if peak_force > 0 else 0.0
+        dh_delay = (end + gs + j - k) / fs
+        if dh_ratio > cfg.double_hit_level and "missing_trigger" not in out:
+            out.flag("double_hit", f"second force pulse of {100 * dh_ratio:.0f} % of the peak "
+                                   f"{1e3 * dh_delay:.3g} ms after the first; repeat the hit")
+    return dh_ratio, dh_delay
+
+
+def _check_double_hit_spectral(g, start: int, end: int, fs: float, cfg: HitCheckConfig, out: _Flags) -> float:
+    """Spectral heuristic on the force from the pulse start over a force-window-like span.  The notch depth, dB."""
+    span = max(int(round(cfg.spectral_window_s * fs)), 20 * (end - start))
+    seg = g[start:start + span]
+    dip = 0.0
+    if "missing_trigger" not in out:
+        dip = _spectral_dip_db(seg, fs, cfg.lobe_db)
+        if dip > cfg.dip_db:
+            out.flag("double_hit_spectral", f"notch of {dip:.1f} dB in the force spectrum's main lobe "
+                                            "(double hit or a bouncing hammer)")
+    return dip
+
+
+def _check_pretrigger_force(g, start: int, ti: int, peak_force: float, cfg: HitCheckConfig, out: _Flags) -> float:
+    """Force before the pulse started (and before the trigger), as a fraction of the peak."""
+    pre_force = 0.0
+    pre_end = min(start - int(cfg.guard_samples), ti)
+    if pre_end > 0 and peak_force > 0:
+        pre_force = float(np.abs(g[:pre_end]).max() / peak_force)
+        if pre_force > cfg.max_pretrigger_ratio:
+            out.flag("pretrigger_force", f"force of {100 * pre_force:.0f} % of the peak before the pulse: the hit "
+                                         "began before the record or an earlier hit; increase the pretrigger")
+    return pre_force
+
+
+def _check_force(record: TimeRecord, cfg: HitCheckConfig, trigger_level, out: _Flags, details: dict) -> dict:
+    """The force checks in order: trigger, double hit (time, spectrum), pretrigger force."""
+    res = dict(peak_force=float("nan"), pulse_width_s=float("nan"), double_hit_ratio=0.0,
+               double_hit_delay_s=float("nan"), spectral_dip_db=0.0, pretrigger_force_ratio=0.0)
+    if not record.force_channels:
+        out.flag("missing_trigger", "no force channel in the record; mark the hammer channel with role 'force'")
+        return res
+    fs, ti = record.sample_rate_hz, record.trigger_index
+    i, g, k = _main_force(record)
+    details["force_channel"] = i
+    peak_force = _check_trigger(g, k, ti, cfg, trigger_level, out, details)
+    start, end = _pulse_bounds(g, k, peak_force, cfg)
+    dh_ratio, dh_delay = _check_double_hit(g, k, end, peak_force, fs, cfg, out)
+    res.update(peak_force=peak_force, pulse_width_s=(end - start) / fs, double_hit_ratio=dh_ratio,
+               double_hit_delay_s=dh_delay,
+               spectral_dip_db=_check_double_hit_spectral(g, start, end, fs, cfg, out),
+               pretrigger_force_ratio=_check_pretrigger_force(g, start, ti, peak_force, cfg, out))
+    return res
+
+
+def _check_responses(record: TimeRecord, cfg: HitCheckConfig, out: _Flags) -> tuple:
+    """Per response channel, in order: not decayed at the record end, then still moving before the trigger.
+    (end ratios, pretrigger ratios)."""
+    n, ti = record.n_samples, record.trigger_index
+    end_ratio, pre_resp = [], []
+    m_end = max(1, int(round(cfg.end_fraction * n)))
+    for i in record.response_channels:
+        yc = record.data[i]          # responses are AC-coupled: no baseline removed (motion before the trigger is data)
+        pk = float(np.abs(yc).max())
+        er = float(np.sqrt(np.mean(yc[-m_end:] ** 2)) / pk) if pk > 0 else 0.0
+        end_ratio.append(er)
+        if er > cfg.max_end_ratio:
+            out.flag("not_decayed", f"response {record.dofs[i]} still at {100 * er:.2g} % of its peak at the record "
+                                    "end; use an exponential window or a longer record")
+        pr = float(np.sqrt(np.mean(yc[:ti] ** 2)) / pk) if (ti >= 8 and pk > 0) else 0.0
+        pre_resp.append(pr)
+        if pr > cfg.max_pretrigger_ratio:
+            out.flag("pretrigger_response", f"response {record.dofs[i]} RMS before the trigger is {100 * pr:.2g} % "
+                                            "of its peak: the structure was still moving; wait longer between hits")
+    return end_ratio, pre_resp
+
+
 def check_hit(record: TimeRecord, config: HitCheckConfig | None = None, *, ranges=None,
               trigger_level: float | None = None) -> HitReport:
     """Quality checks of one hit; see the module docstring for what each flag means.
@@ -187,124 +357,15 @@ def check_hit(record: TimeRecord, config: HitCheckConfig | None = None, *, range
     if not isinstance(record, TimeRecord):
         raise ModalabValueError(f"check_hit expects a TimeRecord; got {type(record).__name__}")
     cfg = HitCheckConfig() if config is None else config
-    fs, n, ti = record.sample_rate_hz, record.n_samples, record.trigger_index
-    flags: list[str] = []
-    msgs: list[str] = []
+    out = _Flags()
     details: dict = {}
-
-    def flag(name, msg):
-        if name not in flags:
-            flags.append(name)
-        msgs.append(msg)
-
-    # ---------------------------------------------------------------- overload
-    over = set(int(i) for i in np.flatnonzero(record.overload))
-    for i in sorted(over):
-        msgs.append(f"channel {i} ({record.dofs[i]}) overload flagged by the device")
-    for i, rng in enumerate(_ranges_for(record, ranges)):
-        x = record.data[i]
-        if rng is not None:
-            lo, hi = rng
-            at_rail = (x >= cfg.rail_fraction * hi) | (x <= cfg.rail_fraction * lo)
-            if int(at_rail.sum()) >= cfg.rail_samples:
-                over.add(i)
-                msgs.append(f"channel {i} ({record.dofs[i]}): {int(at_rail.sum())} samples at the rail of "
-                            f"[{lo:g}, {hi:g}] {record.units[i]}; raise the range")
-        else:
-            peak = np.abs(x).max()
-            if peak > 0:
-                top = np.abs(np.abs(x) - peak) <= 1e-9 * peak
-                run = _longest_run(top)
-                if run >= cfg.flat_top_samples:
-                    over.add(i)
-                    msgs.append(f"channel {i} ({record.dofs[i]}): flat top of {run} samples at "
-                                f"{peak:.4g} {record.units[i]} (clipped)")
-    if over:
-        flags.insert(0, "overload")
-    # ---------------------------------------------------------------- force
-    fch = record.force_channels
-    peak_force = float("nan")
-    width = float("nan")
-    dh_ratio, dh_delay, dip = 0.0, float("nan"), 0.0
-    pre_force = 0.0
-    if not fch:
-        flag("missing_trigger", "no force channel in the record; mark the hammer channel with role 'force'")
-    else:
-        best = None
-        for i in fch:
-            f = record.data[i]
-            base = float(np.median(f[:ti])) if ti >= 8 else 0.0
-            fc = f - base
-            k = int(np.argmax(np.abs(fc)))
-            if best is None or abs(fc[k]) > abs(best[1][best[2]]):
-                best = (i, fc, k)
-        i, fc, k = best
-        sgn = np.sign(fc[k]) or 1.0
-        g = fc * sgn                                   # main pulse positive
-        peak_force = float(g[k])
-        noise = float(np.sqrt(np.mean(g[:ti] ** 2))) if ti >= 8 else 0.0
-        details["force_channel"] = i
-        details["pretrigger_noise_rms"] = noise
-        if peak_force < cfg.min_peak_snr * noise or peak_force <= 0:
-            flag("missing_trigger", f"force peak {peak_force:.3g} N is within the noise "
-                                    f"({noise:.3g} N RMS): no hit in this record")
-        else:
-            level = max(cfg.min_peak_force_n, 0.0 if trigger_level is None else abs(float(trigger_level)))
-            if peak_force < level:
-                flag("weak_trigger", f"peak force {peak_force:.3g} N is below {level:g} N; hit harder "
-                                     "or lower the trigger level")
-        lvl = cfg.pulse_end_level * peak_force
-        after = np.flatnonzero(g[k:] < lvl)
-        end = k + int(after[0]) if after.size else n
-        before = np.flatnonzero(g[:k] < lvl)
-        start = int(before[-1]) + 1 if before.size else 0
-        width = (end - start) / fs
-        # double hit: later pulse of the same polarity
-        gs = int(cfg.guard_samples)
-        if end + gs < n:
-            tail = g[end + gs:]
-            j = int(np.argmax(tail))
-            dh_ratio = float(tail[j] / peak_force) if peak_force > 0 else 0.0
-            dh_delay = (end + gs + j - k) / fs
-            if dh_ratio > cfg.double_hit_level and "missing_trigger" not in flags:
-                flag("double_hit", f"second force pulse of {100 * dh_ratio:.0f} % of the peak "
-                                   f"{1e3 * dh_delay:.3g} ms after the first; repeat the hit")
-        # spectral heuristic on the force from the pulse start over a force-window-like span
-        span = max(int(round(cfg.spectral_window_s * fs)), 20 * (end - start))
-        seg = g[start:start + span]
-        if "missing_trigger" not in flags:
-            dip = _spectral_dip_db(seg, fs, cfg.lobe_db)
-            if dip > cfg.dip_db:
-                flag("double_hit_spectral", f"notch of {dip:.1f} dB in the force spectrum's main lobe "
-                                            "(double hit or a bouncing hammer)")
-        # pretrigger force: before the pulse started (and before the trigger)
-        pre_end = min(start - gs, ti)
-        if pre_end > 0 and peak_force > 0:
-            pre_force = float(np.abs(g[:pre_end]).max() / peak_force)
-            if pre_force > cfg.max_pretrigger_ratio:
-                flag("pretrigger_force", f"force of {100 * pre_force:.0f} % of the peak before the pulse: the hit "
-                                         "began before the record or an earlier hit; increase the pretrigger")
-    # ---------------------------------------------------------------- responses
-    end_ratio, pre_resp = [], []
-    m_end = max(1, int(round(cfg.end_fraction * n)))
-    for i in record.response_channels:
-        yc = record.data[i]          # responses are AC-coupled: no baseline removed (motion before the trigger is data)
-        pk = float(np.abs(yc).max())
-        er = float(np.sqrt(np.mean(yc[-m_end:] ** 2)) / pk) if pk > 0 else 0.0
-        end_ratio.append(er)
-        if er > cfg.max_end_ratio:
-            flag("not_decayed", f"response {record.dofs[i]} still at {100 * er:.2g} % of its peak at the record "
-                                "end; use an exponential window or a longer record")
-        pr = float(np.sqrt(np.mean(yc[:ti] ** 2)) / pk) if (ti >= 8 and pk > 0) else 0.0
-        pre_resp.append(pr)
-        if pr > cfg.max_pretrigger_ratio:
-            flag("pretrigger_response", f"response {record.dofs[i]} RMS before the trigger is {100 * pr:.2g} % of "
-                                        "its peak: the structure was still moving; wait longer between hits")
-    rep = HitReport(hit_id=record.hit_id, flags=tuple(flags), messages=tuple(msgs), peak_force=peak_force,
-                    pulse_width_s=width, double_hit_ratio=dh_ratio, double_hit_delay_s=dh_delay,
-                    spectral_dip_db=dip, overloaded_channels=tuple(sorted(over)), end_ratio=tuple(end_ratio),
-                    pretrigger_force_ratio=pre_force, pretrigger_response_ratio=tuple(pre_resp), details=details)
-    if flags:
+    over = _check_overload(record, cfg, ranges, out)
+    force = _check_force(record, cfg, trigger_level, out, details)
+    end_ratio, pre_resp = _check_responses(record, cfg, out)
+    rep = HitReport(hit_id=record.hit_id, flags=tuple(out.flags), messages=tuple(out.msgs),
+                    overloaded_channels=tuple(sorted(over)), end_ratio=tuple(end_ratio),
+                    pretrigger_response_ratio=tuple(pre_resp), details=details, **force)
+    if out.flags:
         log.info("%s", rep.summary())
     return rep
 

@@ -5,7 +5,7 @@ a structure, with the sensors, conditioners and 24-bit DAQ in between, and the
 faults that happen on real benches.  Acquisition's ``sim`` backend presents it
 as a device; every acquisition path is tested against it.
 
-The lab
+The lab (:mod:`hardware_sim.lab`; how a hit is synthesised: :mod:`hardware_sim.synthesis`)
     :class:`SimulatedLab` — structure + channels + hammer + DAQ; DAQ-style
     ``configure`` / ``notify_point`` / ``arm`` / ``fire`` / ``wait`` / ``abort`` /
     ``reconnect`` / ``close``, and ``hit(point, force_n)``; ``exact_frf`` for checks.

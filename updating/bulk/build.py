@@ -184,8 +184,33 @@ def build_model(bulk, *, spc_id: int | None = None, sdamping: int | None = None,
 
 
 def _build(bulk, spc_id, sdamping, name) -> FEModel:
+    """The model, one card family at a time (in the order in which their errors take precedence)."""
     bulk.check()
-    P = bulk.params
+    coupled, wt, g, a1, a2 = _mass_params(bulk.params)
+    cc = bulk.case_control
+    tid, md = _modal_damping(bulk, sdamping)
+    m = FEModel(name or (bulk.path or "bulk data"), coupled_mass=coupled, global_ge=g,
+                rayleigh=(a1, a2) if (a1 or a2) else None, modal_damping=md)
+    m.metadata.update({"source": bulk.path, "wtmass": wt, "sol": cc.sol})
+    ignored = sorted(set(bulk.params) - {"COUPMASS", "WTMASS", "G", "ALPHA1", "ALPHA2"})
+    if ignored:
+        log.info("PARAMs without effect on the model matrices here: %s", ", ".join(ignored))
+    cd_axes = _add_grids(m, bulk)
+    _add_materials(m, bulk, wt)
+    _add_properties(m, bulk, wt)
+    _add_elements(m, bulk, wt, cd_axes)
+    _add_rigid(m, bulk)
+    sid = _add_spcs(m, bulk, spc_id)
+    if sid is not None:
+        m.metadata["spc_id"] = sid
+    if tid is not None:
+        m.metadata["sdamping"] = tid
+    log.info("built %r from %s", m, bulk.path or "text")
+    return m
+
+
+def _mass_params(P) -> tuple:
+    """PARAM COUPMASS, WTMASS, G, ALPHA1, ALPHA2: (coupled mass?, wtmass, G, alpha1, alpha2)."""
     coup = P.get("COUPMASS")
     coupled = False
     if coup is not None:
@@ -197,21 +222,22 @@ def _build(bulk, spc_id, sdamping, name) -> FEModel:
     g = _num(P["G"].value, P["G"], "G") if "G" in P else 0.0
     a1 = _num(P["ALPHA1"].value, P["ALPHA1"], "ALPHA1") if "ALPHA1" in P else 0.0
     a2 = _num(P["ALPHA2"].value, P["ALPHA2"], "ALPHA2") if "ALPHA2" in P else 0.0
-    cc = bulk.case_control
-    tid = _pick_set("SDAMPING", sdamping if sdamping is not None else cc.selection("SDAMPING"),
+    return coupled, wt, g, a1, a2
+
+
+def _modal_damping(bulk, sdamping) -> tuple:
+    """TABDMP1 chosen by ``sdamping``, case control SDAMPING or as the only table: (id, ModalDampingTable)."""
+    tid = _pick_set("SDAMPING", sdamping if sdamping is not None else bulk.case_control.selection("SDAMPING"),
                     bulk.tables, "TABDMP1")
     md = None
     if tid is not None:
         t = bulk.tables[tid]
         md = ModalDampingTable(tuple(t.freq_hz), tuple(t.damping), kind=t.type)
-    m = FEModel(name or (bulk.path or "bulk data"), coupled_mass=coupled, global_ge=g,
-                rayleigh=(a1, a2) if (a1 or a2) else None, modal_damping=md)
-    m.metadata.update({"source": bulk.path, "wtmass": wt, "sol": cc.sol})
-    ignored = sorted(set(P) - {"COUPMASS", "WTMASS", "G", "ALPHA1", "ALPHA2"})
-    if ignored:
-        log.info("PARAMs without effect on the model matrices here: %s", ", ".join(ignored))
+    return tid, md
 
-    # nodes
+
+def _add_grids(m: FEModel, bulk) -> dict:
+    """GRID: nodes at their basic positions, CD axes and PS constraints.  Node id -> CD axes (3 × 3)."""
     cd_axes = {}
     for nid in sorted(bulk.grids):
         gr = bulk.grids[nid]
@@ -225,8 +251,11 @@ def _build(bulk, spc_id, sdamping, name) -> FEModel:
         m.add_node(nid, x, cd=R)
         if gr.ps:
             m.add_spc(nid, gr.ps)
+    return cd_axes
 
-    # materials
+
+def _add_materials(m: FEModel, bulk, wt: float) -> None:
+    """MAT1, completed as Nastran does (G blank with E and NU given stays tied to E)."""
     for mid in sorted(bulk.materials):
         mc = bulk.materials[mid]
         E, G, nu = mc.resolved()
@@ -241,7 +270,9 @@ def _build(bulk, spc_id, sdamping, name) -> FEModel:
             mat = Material(mid, E=E, nu=nu, rho=mc.rho * wt, G=G, ge=mc.ge, name=card_name(mc))
         m.add_material(mat)
 
-    # properties
+
+def _add_properties(m: FEModel, bulk, wt: float) -> None:
+    """PROD, PSHELL, PBAR/PBEAM(L) (PELAS/PDAMP are read by their elements)."""
     for pid in sorted(bulk.properties):
         pc = bulk.properties[pid]
         if isinstance(pc, (C.Pelas, C.Pdamp)):
@@ -255,38 +286,74 @@ def _build(bulk, spc_id, sdamping, name) -> FEModel:
         nsm = pc.nsm if not isinstance(pc, C.Pbeam) else pc.stations[0][7]
         m.add_property(BeamProperty(pid, pc.mid, section_of(pc), nsm=nsm * wt, name=card_name(pc)))
 
-    # elements
+
+def _bar_element(bulk, eid: int, e, cd_axes: dict):
+    """CBAR / CBEAM: orientation (G0 or X in the GA CD system or basic) and rigid end offsets."""
+    if e.pa or e.pb:
+        raise e.error(f"pin flags PA = {e.pa!r}, PB = {e.pb!r} are not supported by build_model; release "
+                      "the DOFs with a second grid and an RBE2/CELAS instead")
+    offt = e.offt
+    if len(offt) != 3 or offt[0] not in "GB" or offt[1] not in "GBO" or offt[2] not in "GBO":
+        raise e.error(f"OFFT = {offt!r}; expected three letters: G or B for the orientation vector, "
+                      "then G, B or O for each end offset")
+    if ("O" in offt[1:]) and (any(e.wa) or any(e.wb)):
+        raise e.error(f"OFFT = {offt!r}: offsets in the element system (O) are not supported by "
+                      "build_model; give them in the displacement (G) or basic (B) system")
+    if e.g0 is not None:
+        orient = int(e.g0)
+    else:
+        x = np.asarray(e.x, float)
+        orient = tuple(cd_axes[e.ga] @ x if offt[0] == "G" else x)
+    wa = wb = None
+    if any(e.wa):
+        wa = cd_axes[e.ga] @ np.asarray(e.wa) if offt[1] == "G" else np.asarray(e.wa, float)
+    if any(e.wb):
+        wb = cd_axes[e.gb] @ np.asarray(e.wb) if offt[2] == "G" else np.asarray(e.wb, float)
+    prop = bulk.properties[e.pid]
+    if isinstance(e, C.Cbeam):
+        cls = Timoshenko3D
+    else:
+        shear = isinstance(prop, C.Pbar) and (prop.k1 or prop.k2)
+        cls = Timoshenko3D if shear else Beam3D
+    return cls(eid, e.ga, e.gb, e.pid, orientation=orient,
+               offset_a=None if wa is None else tuple(wa), offset_b=None if wb is None else tuple(wb))
+
+
+def _scalar_or_mass_element(m: FEModel, bulk, eid: int, e, wt: float):
+    """CELAS1/2 springs, CDAMP1/2 dampers, CONM2 lumped masses; None for any other card."""
+    if isinstance(e, C.Cdamp1):
+        pd = bulk.properties[e.pid]
+        a, b = (e.a, e.b) if e.a is not None else (e.b, None)
+        return Damper(eid, a, b, pd.b, group=card_name(pd) or f"PDAMP {e.pid}")
+    if isinstance(e, C.Celas1):
+        pe = bulk.properties[e.pid]
+        a, b = (e.a, e.b) if e.a is not None else (e.b, None)
+        return Spring(eid, a, b, pe.k, ge=pe.ge, group=card_name(pe) or f"PELAS {e.pid}")
+    if isinstance(e, C.Celas2):
+        a, b = (e.a, e.b) if e.a is not None else (e.b, None)
+        return Spring(eid, a, b, e.k, ge=e.ge, group=card_name(e))
+    if isinstance(e, C.Cdamp2):
+        a, b = (e.a, e.b) if e.a is not None else (e.b, None)
+        return Damper(eid, a, b, e.b_value, group=card_name(e))
+    if isinstance(e, C.Conm2):
+        x_g = m.node_xyz(e.g)
+        axes = None
+        if e.cid == -1:
+            offset = np.asarray(e.x, float) - x_g
+        else:
+            offset = np.asarray(e.x, float)
+            if e.cid > 0:
+                axes = resolve_coord(bulk, e.cid).axes_at(x_g)
+        return LumpedMass(eid, e.g, e.m * wt, inertia=e.tensor() * wt, offset=offset, axes=axes, group=card_name(e))
+    return None
+
+
+def _add_elements(m: FEModel, bulk, wt: float, cd_axes: dict) -> None:
+    """Every element card in id order (CONROD adds its private property ``-EID`` first)."""
     for eid in sorted(bulk.elements):
         e = bulk.elements[eid]
-        if isinstance(e, C.Cbar):
-            if e.pa or e.pb:
-                raise e.error(f"pin flags PA = {e.pa!r}, PB = {e.pb!r} are not supported by build_model; release "
-                              "the DOFs with a second grid and an RBE2/CELAS instead")
-            offt = e.offt
-            if len(offt) != 3 or offt[0] not in "GB" or offt[1] not in "GBO" or offt[2] not in "GBO":
-                raise e.error(f"OFFT = {offt!r}; expected three letters: G or B for the orientation vector, "
-                              "then G, B or O for each end offset")
-            if ("O" in offt[1:]) and (any(e.wa) or any(e.wb)):
-                raise e.error(f"OFFT = {offt!r}: offsets in the element system (O) are not supported by "
-                              "build_model; give them in the displacement (G) or basic (B) system")
-            if e.g0 is not None:
-                orient = int(e.g0)
-            else:
-                x = np.asarray(e.x, float)
-                orient = tuple(cd_axes[e.ga] @ x if offt[0] == "G" else x)
-            wa = wb = None
-            if any(e.wa):
-                wa = cd_axes[e.ga] @ np.asarray(e.wa) if offt[1] == "G" else np.asarray(e.wa, float)
-            if any(e.wb):
-                wb = cd_axes[e.gb] @ np.asarray(e.wb) if offt[2] == "G" else np.asarray(e.wb, float)
-            prop = bulk.properties[e.pid]
-            if isinstance(e, C.Cbeam):
-                cls = Timoshenko3D
-            else:
-                shear = isinstance(prop, C.Pbar) and (prop.k1 or prop.k2)
-                cls = Timoshenko3D if shear else Beam3D
-            m.add_element(cls(eid, e.ga, e.gb, e.pid, orientation=orient,
-                              offset_a=None if wa is None else tuple(wa), offset_b=None if wb is None else tuple(wb)))
+        if isinstance(e, C.Cbar):             # and CBEAM
+            m.add_element(_bar_element(bulk, eid, e, cd_axes))
         elif isinstance(e, C.Cquad4):       # and CTRIA3
             bad = e.unsupported_fields()
             if bad:
@@ -298,43 +365,28 @@ def _build(bulk, spc_id, sdamping, name) -> FEModel:
         elif isinstance(e, C.Conrod):
             m.add_property(RodProperty(-eid, e.mid, A=e.A, J=e.J, nsm=e.nsm * wt, name=f"CONROD {eid}"))
             m.add_element(Rod(eid, e.ga, e.gb, -eid))
-        elif isinstance(e, C.Cdamp1):
-            pd = bulk.properties[e.pid]
-            a, b = (e.a, e.b) if e.a is not None else (e.b, None)
-            m.add_element(Damper(eid, a, b, pd.b, group=card_name(pd) or f"PDAMP {e.pid}"))
-        elif isinstance(e, C.Celas1):
-            pe = bulk.properties[e.pid]
-            a, b = (e.a, e.b) if e.a is not None else (e.b, None)
-            m.add_element(Spring(eid, a, b, pe.k, ge=pe.ge, group=card_name(pe) or f"PELAS {e.pid}"))
-        elif isinstance(e, C.Celas2):
-            a, b = (e.a, e.b) if e.a is not None else (e.b, None)
-            m.add_element(Spring(eid, a, b, e.k, ge=e.ge, group=card_name(e)))
-        elif isinstance(e, C.Cdamp2):
-            a, b = (e.a, e.b) if e.a is not None else (e.b, None)
-            m.add_element(Damper(eid, a, b, e.b_value, group=card_name(e)))
-        elif isinstance(e, C.Conm2):
-            x_g = m.node_xyz(e.g)
-            axes = None
-            if e.cid == -1:
-                offset = np.asarray(e.x, float) - x_g
-            else:
-                offset = np.asarray(e.x, float)
-                if e.cid > 0:
-                    axes = resolve_coord(bulk, e.cid).axes_at(x_g)
-            m.add_element(LumpedMass(eid, e.g, e.m * wt, inertia=e.tensor() * wt, offset=offset, axes=axes,
-                                     group=card_name(e)))
-        else:  # pragma: no cover - the reader only stores the types above
-            raise e.error("internal: element type not handled by build_model")
+        else:
+            el = _scalar_or_mass_element(m, bulk, eid, e, wt)
+            if el is None:  # pragma: no cover - the reader only stores the types above
+                raise e.error("internal: element type not handled by build_model")
+            m.add_element(el)
 
+
+def _add_rigid(m: FEModel, bulk) -> None:
+    """RBE2 rigid links."""
     for eid in sorted(bulk.rigid):
         r = bulk.rigid[eid]
         if r.alpha:
             log.info("RBE2 %d: thermal expansion ALPHA ignored", eid)
         m.add_rbe2(eid, r.gn, list(r.gm), r.cm)
 
-    # single-point constraints
+
+def _add_spcs(m: FEModel, bulk, spc_id) -> int | None:
+    """SPC/SPC1 of the set chosen by ``spc_id``, case control SPC or as the only set (SPCADD expanded).
+    The set id, or None."""
     avail = set(bulk.spcs) | set(bulk.spcadds)
-    sid = _pick_set("SPC", spc_id if spc_id is not None else cc.selection("SPC"), avail, "SPC/SPC1/SPCADD")
+    sid = _pick_set("SPC", spc_id if spc_id is not None else bulk.case_control.selection("SPC"), avail,
+                    "SPC/SPC1/SPCADD")
     if sid is not None:
         sets = list(bulk.spcadds[sid].sets) if sid in bulk.spcadds else [sid]
         for s in sets:
@@ -349,8 +401,4 @@ def _build(bulk, spc_id, sdamping, name) -> FEModel:
                                         s, nid, d)
                         if comps:
                             m.add_spc(nid, comps)
-        m.metadata["spc_id"] = sid
-    if tid is not None:
-        m.metadata["sdamping"] = tid
-    log.info("built %r from %s", m, bulk.path or "text")
-    return m
+    return sid

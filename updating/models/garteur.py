@@ -109,9 +109,26 @@ def garteur_model(mesh: int = 8, *, E: float = 70e9, nu: float = 0.31, rho: floa
     m.add_property(BeamProperty(3, 3, RectangularSection(1.0 * _L, 0.1 * _L), name="drum"))
     m.add_property(BeamProperty(4, 4, RectangularSection(1.0 * _L, 0.1 * _L), name="fin"))
     m.add_property(BeamProperty(5, 5, RectangularSection(1.0 * _L, 0.1 * _L), name="htail"))
+    members = _garteur_members(m, mesh, element)
+    pts = _garteur_points(m, members)
+    eid = 900
+    m.add_rbe2(eid, pts["fuselage_wing"], [pts["wing_centre"]])
+    m.add_rbe2(eid + 1, pts["right_wing_drum"], [pts["right_drum_centre"]])
+    m.add_rbe2(eid + 2, pts["left_wing_drum"], [pts["left_drum_centre"]])
+    m.add_rbe2(eid + 3, pts["fuselage_fin"], [pts["fin_root"]])
+    m.add_rbe2(eid + 4, pts["fin_tip"], [pts["tail_centre"]])
+    _garteur_extras(m, pts, drum_mass, drum_mass_at, tail_mass, suspension, suspension_stiffness, torsion_springs)
+    m.metadata["points"] = pts
+    m.metadata["members"] = members
+    return m
 
-    zw, zd, zt = 0.805 * _L, 0.91 * _L, 3.8 * _L
-    xf = -8 * _L
+
+_ZW, _ZD, _ZT, _XF = 0.805 * _L, 0.91 * _L, 3.8 * _L, -8 * _L     # wing, drum, tail heights; fin station
+
+
+def _garteur_members(m: FEModel, mesh: int, element) -> dict:
+    """The beam members' node ids: fuselage, wing, right/left drum, fin, horizontal tail."""
+    zw, zd, zt, xf = _ZW, _ZD, _ZT, _XF
     # fuselage: x -0.9 -> 0.6, nodes at the fin (x=-0.8), suspension (x=-0.1) and wing (x=0)
     fus = mesh_line(m, (-9 * _L, 0, 0), (6 * _L, 0, 0), 2 * mesh, 1, (0, 1, 0), first_nid=100, first_eid=100,
                     element=element, breakpoints=(1 / 15, 8 / 15, 9 / 15))
@@ -126,28 +143,37 @@ def garteur_model(mesh: int = 8, *, E: float = 70e9, nu: float = 0.31, rho: floa
                     element=element)
     tail = mesh_line(m, (xf, -2 * _L, zt), (xf, 2 * _L, zt), mesh, 5, (1, 0, 0), first_nid=600, first_eid=600,
                      element=element, breakpoints=(0.5,))
+    return {"fuselage": fus, "wing": wing, "right_drum": drums["right"], "left_drum": drums["left"], "fin": fin,
+            "htail": tail}
 
-    def at(x, y, z):
-        p = np.array([x, y, z])
-        for n in m.nodes.values():
-            if np.allclose(n.xyz, p, atol=1e-9):
-                return n.nid
-        raise AssertionError(f"no node at {p}")
 
-    pts = {
-        "nose": fus[-1], "tail_end": fus[0], "fuselage_wing": at(0, 0, 0), "fuselage_fin": at(xf, 0, 0),
-        "wing_centre": at(0, 0, zw), "right_tip": wing[-1], "left_tip": wing[0],
-        "right_wing_drum": at(0, 9.5 * _L, zw), "left_wing_drum": at(0, -9.5 * _L, zw),
-        "right_drum_centre": at(0, 9.5 * _L, zd), "left_drum_centre": at(0, -9.5 * _L, zd),
-        "right_drum_front": drums["right"][-1], "left_drum_front": drums["left"][-1],
-        "fin_root": fin[0], "fin_tip": fin[-1], "tail_centre": at(xf, 0, zt),
+def _node_at(m: FEModel, x, y, z) -> int:
+    """The id of the node at (x, y, z)."""
+    p = np.array([x, y, z])
+    for n in m.nodes.values():
+        if np.allclose(n.xyz, p, atol=1e-9):
+            return n.nid
+    raise AssertionError(f"no node at {p}")
+
+
+def _garteur_points(m: FEModel, members: dict) -> dict:
+    """The key nodes by name (``model.metadata["points"]``)."""
+    zw, zd, zt, xf = _ZW, _ZD, _ZT, _XF
+    fus, wing, fin = members["fuselage"], members["wing"], members["fin"]
+    return {
+        "nose": fus[-1], "tail_end": fus[0], "fuselage_wing": _node_at(m, 0, 0, 0),
+        "fuselage_fin": _node_at(m, xf, 0, 0),
+        "wing_centre": _node_at(m, 0, 0, zw), "right_tip": wing[-1], "left_tip": wing[0],
+        "right_wing_drum": _node_at(m, 0, 9.5 * _L, zw), "left_wing_drum": _node_at(m, 0, -9.5 * _L, zw),
+        "right_drum_centre": _node_at(m, 0, 9.5 * _L, zd), "left_drum_centre": _node_at(m, 0, -9.5 * _L, zd),
+        "right_drum_front": members["right_drum"][-1], "left_drum_front": members["left_drum"][-1],
+        "fin_root": fin[0], "fin_tip": fin[-1], "tail_centre": _node_at(m, xf, 0, zt),
     }
-    eid = 900
-    m.add_rbe2(eid, pts["fuselage_wing"], [pts["wing_centre"]])
-    m.add_rbe2(eid + 1, pts["right_wing_drum"], [pts["right_drum_centre"]])
-    m.add_rbe2(eid + 2, pts["left_wing_drum"], [pts["left_drum_centre"]])
-    m.add_rbe2(eid + 3, pts["fuselage_fin"], [pts["fin_root"]])
-    m.add_rbe2(eid + 4, pts["fin_tip"], [pts["tail_centre"]])
+
+
+def _garteur_extras(m: FEModel, pts: dict, drum_mass, drum_mass_at, tail_mass, suspension, suspension_stiffness,
+                    torsion_springs) -> None:
+    """Drum and tail masses, suspension springs, wing/fin torsion springs (each optional)."""
     if drum_mass and drum_mass_at == "corner":
         m.add_element(LumpedMass(950, pts["right_drum_front"], drum_mass, offset=(0, -0.5 * _L, 0), group="drum_mass"))
         m.add_element(LumpedMass(951, pts["left_drum_front"], drum_mass, offset=(0, 0.5 * _L, 0), group="drum_mass"))
@@ -157,16 +183,12 @@ def garteur_model(mesh: int = 8, *, E: float = 70e9, nu: float = 0.31, rho: floa
     if tail_mass:
         m.add_element(LumpedMass(952, pts["tail_centre"], tail_mass, group="tail_mass"))
     if suspension:
-        for k, nid in enumerate((at(0, _L, zw), at(0, -_L, zw), at(-_L, 0, 0))):
+        for k, nid in enumerate((_node_at(m, 0, _L, _ZW), _node_at(m, 0, -_L, _ZW), _node_at(m, -_L, 0, 0))):
             m.add_element(Spring(960 + k, (nid, 3), None, suspension_stiffness, group="suspension"))
     if torsion_springs:
         m.add_element(Spring(970, (pts["wing_centre"], 5), (pts["right_tip"], 5), 250.0, group="wing_torsion"))
         m.add_element(Spring(971, (pts["wing_centre"], 5), (pts["left_tip"], 5), 250.0, group="wing_torsion"))
         m.add_element(Spring(972, (pts["fin_root"], 6), (pts["fin_tip"], 6), 1000.0, group="fin_torsion"))
-    m.metadata["points"] = pts
-    m.metadata["members"] = {"fuselage": fus, "wing": wing, "right_drum": drums["right"],
-                             "left_drum": drums["left"], "fin": fin, "htail": tail}
-    return m
 
 
 #: parameter name -> (field, selector kind, selector, mode)

@@ -240,21 +240,11 @@ class Quad4(_Shell):
         Dm, Db, Gs, Gt, rho_a, rot, _ = consts
         dt = np.result_type(Dm, Db, Gs, rho_a, rot, float)
         n = xy.shape[0]
-
-        def jac(dN):
-            return np.einsum("ak,nkb->nab", dN, xy)
-
         # Jacobian at the centre (incompatible modes, Taylor's modification)
-        J0 = jac(_q4(0.0, 0.0)[1])
+        J0 = _q4_jacobian(xy, _q4(0.0, 0.0)[1])
         detJ0 = np.linalg.det(J0)
         J0inv = np.linalg.inv(J0)
-        for (xi, eta) in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
-            bad = np.flatnonzero(np.linalg.det(jac(_q4(xi, eta)[1])) <= 1e-10 * np.abs(detJ0))
-            if bad.size:
-                el = elements[int(bad[0])]
-                raise ModalabValueError(f"element {el.eid} (Quad4) on nodes {el.nodes} is not convex or its "
-                                        f"nodes are not ordered around it (Jacobian <= 0 at corner ({xi}, {eta})); "
-                                        "reorder the nodes or split it into two Tria3")
+        _q4_check_convex(elements, xy, detJ0)
         Kmm = np.zeros((n, 8, 8), dt)
         Kma = np.zeros((n, 8, 4), dt)
         Kaa = np.zeros((n, 4, 4), dt)
@@ -262,68 +252,118 @@ class Quad4(_Shell):
         Ks = np.zeros((n, 12, 12), dt)
         Kd = np.zeros((n, 12, 12))        # (u, v, θz) per node
         NN = np.zeros((n, 4, 4))
-
-        # MITC4: covariant shear γ_ξ = ∂w/∂ξ + β·∂x/∂ξ tied at A (0, 1), C (0, −1); γ_η at B (−1, 0), D (1, 0)
-        def cov(xi, eta):
-            N, dN = _q4(xi, eta)
-            J = jac(dN)
-            rx = np.zeros((n, 12))
-            re = np.zeros((n, 12))
-            rx[:, 0::3] = dN[0]
-            rx[:, 1::3] = -N * J[:, 0, 1, None]
-            rx[:, 2::3] = N * J[:, 0, 0, None]
-            re[:, 0::3] = dN[1]
-            re[:, 1::3] = -N * J[:, 1, 1, None]
-            re[:, 2::3] = N * J[:, 1, 0, None]
-            return rx, re
-
-        gA, _ = cov(0.0, 1.0)
-        gC, _ = cov(0.0, -1.0)
-        _, gB = cov(-1.0, 0.0)
-        _, gD = cov(1.0, 0.0)
+        gA, gC, gB, gD = _mitc4_tying(xy)
         for xi, eta in _GAUSS2:
             N, dN = _q4(xi, eta)
-            J = jac(dN)
+            J = _q4_jacobian(xy, dN)
             detJ = np.linalg.det(J)
             Jinv = np.linalg.inv(J)
             w = detJ[:, None, None]
             dNx = np.einsum("nab,bk->nak", Jinv, dN)          # rows: ∂N/∂x, ∂N/∂y
-            Bm = np.zeros((n, 3, 8))
-            Bm[:, 0, 0::2] = dNx[:, 0]
-            Bm[:, 1, 1::2] = dNx[:, 1]
-            Bm[:, 2, 0::2] = dNx[:, 1]
-            Bm[:, 2, 1::2] = dNx[:, 0]
-            dP = (detJ0 / detJ)[:, None, None] * np.einsum("nab,bc->nac", J0inv,
-                                                           np.array([[-2.0 * xi, 0.0], [0.0, -2.0 * eta]]))
-            Ba = np.zeros((n, 3, 4))             # (a1u, a2u, a1v, a2v)
-            Ba[:, 0, 0:2] = dP[:, 0]
-            Ba[:, 1, 2:4] = dP[:, 1]
-            Ba[:, 2, 0:2] = dP[:, 1]
-            Ba[:, 2, 2:4] = dP[:, 0]
+            Bm = _q4_membrane_B(dNx)
+            Ba = _q4_incompatible_B(detJ0, detJ, J0inv, xi, eta)
             DmBm = np.einsum("nij,njb->nib", Dm, Bm)
             Kmm += np.einsum("nia,nib->nab", Bm, DmBm) * w
             Kma += np.einsum("nia,nib->nab", DmBm, Ba) * w
             Kaa += np.einsum("nia,nij,njb->nab", Ba, Dm, Ba) * w
-            Bb = np.zeros((n, 3, 12))            # (w, θx, θy) per node
-            Bb[:, 0, 2::3] = dNx[:, 0]
-            Bb[:, 1, 1::3] = -dNx[:, 1]
-            Bb[:, 2, 1::3] = -dNx[:, 0]
-            Bb[:, 2, 2::3] = dNx[:, 1]
+            Bb = _q4_bending_B(dNx)
             Kb += np.einsum("nia,nij,njb->nab", Bb, Db, Bb) * w
             g_xi = 0.5 * (1 + eta) * gA + 0.5 * (1 - eta) * gC
             g_eta = 0.5 * (1 + xi) * gD + 0.5 * (1 - xi) * gB
             Bs = np.einsum("nab,nbk->nak", Jinv, np.stack([g_xi, g_eta], axis=1))
             Ks += Gs[:, None, None] * np.einsum("nak,nal->nkl", Bs, Bs) * w
-            bd = np.zeros((n, 12))               # θz − ½(∂v/∂x − ∂u/∂y)
-            bd[:, 0::3] = 0.5 * dNx[:, 1]
-            bd[:, 1::3] = -0.5 * dNx[:, 0]
-            bd[:, 2::3] = N
+            bd = _q4_drill_b(dNx, N)
             Kd += np.einsum("nk,nl->nkl", bd, bd) * w
             NN += np.outer(N, N)[None] * w
         Km = Kmm - Kma @ np.linalg.solve(Kaa, np.swapaxes(Kma, 1, 2))
         if not coupled:
             NN = np.eye(4)[None] * (area / 4.0)[:, None, None]
         return _assemble_local(4, Km, Kb + Ks, cls.drill * Gt[:, None, None] * Kd, NN, rho_a, rot, dt)
+
+
+# ------------------------------------------------------------------ Quad4 kernels (batched over n elements)
+def _q4_jacobian(xy, dN):
+    """Jacobians (n, 2, 2) at one point of the elements' local corner coordinates ``xy`` (n, 4, 2)."""
+    return np.einsum("ak,nkb->nab", dN, xy)
+
+
+def _q4_check_convex(elements, xy, detJ0) -> None:
+    """A Jacobian not positive at a corner (a concave element or nodes out of order) is an error."""
+    for (xi, eta) in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+        bad = np.flatnonzero(np.linalg.det(_q4_jacobian(xy, _q4(xi, eta)[1])) <= 1e-10 * np.abs(detJ0))
+        if bad.size:
+            el = elements[int(bad[0])]
+            raise ModalabValueError(f"element {el.eid} (Quad4) on nodes {el.nodes} is not convex or its "
+                                    f"nodes are not ordered around it (Jacobian <= 0 at corner ({xi}, {eta})); "
+                                    "reorder the nodes or split it into two Tria3")
+
+
+def _mitc4_tying(xy):
+    """MITC4: covariant shear γ_ξ = ∂w/∂ξ + β·∂x/∂ξ tied at A (0, 1), C (0, −1); γ_η at B (−1, 0), D (1, 0).
+
+    Returns the rows (γ_ξ at A, γ_ξ at C, γ_η at B, γ_η at D), each (n, 12) over (w, θx, θy) per node.
+    """
+    n = xy.shape[0]
+
+    def cov(xi, eta):
+        N, dN = _q4(xi, eta)
+        J = _q4_jacobian(xy, dN)
+        rx = np.zeros((n, 12))
+        re = np.zeros((n, 12))
+        rx[:, 0::3] = dN[0]
+        rx[:, 1::3] = -N * J[:, 0, 1, None]
+        rx[:, 2::3] = N * J[:, 0, 0, None]
+        re[:, 0::3] = dN[1]
+        re[:, 1::3] = -N * J[:, 1, 1, None]
+        re[:, 2::3] = N * J[:, 1, 0, None]
+        return rx, re
+
+    gA, _ = cov(0.0, 1.0)
+    gC, _ = cov(0.0, -1.0)
+    _, gB = cov(-1.0, 0.0)
+    _, gD = cov(1.0, 0.0)
+    return gA, gC, gB, gD
+
+
+def _q4_membrane_B(dNx):
+    """Membrane strain-displacement matrices (n, 3, 8) over (u, v) per node."""
+    Bm = np.zeros((dNx.shape[0], 3, 8))
+    Bm[:, 0, 0::2] = dNx[:, 0]
+    Bm[:, 1, 1::2] = dNx[:, 1]
+    Bm[:, 2, 0::2] = dNx[:, 1]
+    Bm[:, 2, 1::2] = dNx[:, 0]
+    return Bm
+
+
+def _q4_incompatible_B(detJ0, detJ, J0inv, xi, eta):
+    """Incompatible-mode membrane strains (n, 3, 4) over (a1u, a2u, a1v, a2v), Taylor's modification."""
+    dP = (detJ0 / detJ)[:, None, None] * np.einsum("nab,bc->nac", J0inv,
+                                                   np.array([[-2.0 * xi, 0.0], [0.0, -2.0 * eta]]))
+    Ba = np.zeros((detJ.shape[0], 3, 4))
+    Ba[:, 0, 0:2] = dP[:, 0]
+    Ba[:, 1, 2:4] = dP[:, 1]
+    Ba[:, 2, 0:2] = dP[:, 1]
+    Ba[:, 2, 2:4] = dP[:, 0]
+    return Ba
+
+
+def _q4_bending_B(dNx):
+    """Curvature-displacement matrices (n, 3, 12) over (w, θx, θy) per node."""
+    Bb = np.zeros((dNx.shape[0], 3, 12))
+    Bb[:, 0, 2::3] = dNx[:, 0]
+    Bb[:, 1, 1::3] = -dNx[:, 1]
+    Bb[:, 2, 1::3] = -dNx[:, 0]
+    Bb[:, 2, 2::3] = dNx[:, 1]
+    return Bb
+
+
+def _q4_drill_b(dNx, N):
+    """Drilling strain θz − ½(∂v/∂x − ∂u/∂y), rows (n, 12) over (u, v, θz) per node."""
+    bd = np.zeros((dNx.shape[0], 12))
+    bd[:, 0::3] = 0.5 * dNx[:, 1]
+    bd[:, 1::3] = -0.5 * dNx[:, 0]
+    bd[:, 2::3] = N
+    return bd
 
 
 # ------------------------------------------------------------------ DKT
