@@ -41,7 +41,7 @@ def _band(frf: FRF, plan: TestPlan) -> FRF:
 def frf_from_hits(records: list[TimeRecord], plan: TestPlan) -> FRF:
     """H1 FRF and coherence of one point's hits with the plan's windows, limited to the analysis band.
 
-    The exponential window's decay rate is in ``metadata['exp_window_beta']`` (1/s): the FRF is the
+    The exponential window's decay rate is :attr:`FRF.window_beta_per_s` (1/s): the FRF is the
     structure's at ``s = iω + β``.
     """
     avg = _averager(plan)
@@ -98,7 +98,7 @@ def session_frf(store: HitStore, plan: TestPlan, *, reciprocity: bool = True) ->
     the matrix is transposed so the accelerometers become the references and the hit points the
     responses (thesis section 5.3).  Roving accelerometer: one row per roving point, the hammer as
     reference (fixed response channels, if any, are left out).  All points share one exponential-window
-    β (same record length and pretrigger), kept in ``metadata['exp_window_beta']``.
+    β (same record length and pretrigger), kept in :attr:`FRF.window_beta_per_s`.
     """
     per_point = store.accepted_records()
     parts = []
@@ -112,7 +112,6 @@ def session_frf(store: HitStore, plan: TestPlan, *, reciprocity: bool = True) ->
         parts.append(f)
     if not parts:
         raise PlanError(f"the session in {str(store.dir)!r} has no accepted hits yet; acquire first")
-    meta = dict(parts[0].metadata)
     if plan.pattern == "hammer":
         frf = concat(parts, axis="references") if len(parts) > 1 else parts[0]
         if reciprocity:
@@ -121,7 +120,6 @@ def session_frf(store: HitStore, plan: TestPlan, *, reciprocity: bool = True) ->
             frf = reorder_by_reciprocity(frf)
     else:
         frf = concat(parts, axis="responses") if len(parts) > 1 else parts[0]
-    frf.metadata.setdefault("exp_window_beta", meta.get("exp_window_beta", 0.0))
     frf.metadata["n_averages"] = min(len(v) for v in per_point.values())
     return frf
 
@@ -152,8 +150,8 @@ def export_session(store: HitStore, plan: TestPlan, path) -> Path:
         uff.write_records(tmp, recs, append=not first)
         first = False
     frf = session_frf(store, plan)
-    frf.metadata = {k: frf.metadata[k] for k in ("estimator", "n_averages", "exp_window_beta", "sample_rate_hz")
-                    if k in frf.metadata}
+    frf.metadata = {k: frf.metadata[k] for k in ("estimator", "n_averages", "sample_rate_hz")
+                    if k in frf.metadata}     # beta travels as the typed field FRF.window_beta_per_s
     uff.write_frf(tmp, frf, append=not first)
     tmp.replace(path)
     return path

@@ -184,13 +184,13 @@ def test_exp_window_both_or_invalid_is_an_error():
 @pytest.mark.parametrize("beta", [0.0, 3.0])
 def test_session_and_modalab_frf_window_the_same_hits_alike(tmp_path, beta):
     # one rule (exponential_window) for a plan's exp_beta and `modalab frf --exp-beta`; exp_beta = 0 used to
-    # build a beta-0 window in the session and none in frf_from_file
+    # build a beta-0 window in the session and none in `modalab frf` (the frf stage)
     import numpy as np
 
     from acquisition.session import frf_from_hits
     from hardware_sim import demo_lab
     from modalab import uff
-    from modalab.pipeline import frf_from_file
+    from modalab.stages import FRFOptions, frf
 
     lab = demo_lab(rng=1)
     recs = [lab.hit("14+Z", force_n=150.0) for _ in range(3)]
@@ -201,11 +201,11 @@ def test_session_and_modalab_frf_window_the_same_hits_alike(tmp_path, beta):
     d["windows"] = {"exp_beta": beta, "force_fraction": 0.05, "force_taper": 0.0}
     plan = TestPlan.from_dict(d)
     a = frf_from_hits(recs, plan)
-    _, b = frf_from_file(tmp_path / "hits.uff", tmp_path / "frf.uff", exp_beta=beta, reciprocity=False,
-                         bandwidth_hz=plan.bandwidth_hz)
+    b = frf(tmp_path / "hits.uff", tmp_path / "frf.uff",
+            FRFOptions(exp_beta=beta, reciprocity=False, bandwidth_hz=plan.bandwidth_hz)).result
     assert a.H.shape == b.H.shape
     np.testing.assert_allclose(b.H, a.H, rtol=1e-6, atol=1e-9 * np.abs(a.H).max())
-    assert float(a.metadata.get("exp_window_beta") or 0.0) == float(b.metadata.get("exp_window_beta") or 0.0)
+    assert a.window_beta_per_s == b.window_beta_per_s
 
 
 # ------------------------------------------------------------------ files (issue 14 #11 and the tracebacks)

@@ -61,7 +61,7 @@ def test_auto_exported_frfs_equal_the_exact_frfs(auto_run):
     assert [str(d) for d in frf.references] == ["19+Z", "12+Z", "1+Z"]       # reciprocity: accelerometers
     assert [str(d) for d in frf.responses] == ["1+Z", "14+Z", "19+Z"]
     assert frf.freq_hz[-1] <= 800.0 + 1e-9 and frf.quantity == "accelerance"
-    assert frf.metadata["exp_window_beta"] == pytest.approx(BETA, rel=1e-9)
+    assert frf.window_beta_per_s == pytest.approx(BETA, rel=1e-9)
     err, good = rel_errors(frf, auto_run["lab"].model, BETA)
     assert good.mean() > 0.9
     assert np.median(err) < 5e-3 and np.percentile(err, 95) < 3e-2
