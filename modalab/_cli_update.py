@@ -38,8 +38,16 @@ def _figure_convergence(history, names, path):
 
 
 def update_model(model_path, *, modes=None, frf=None, method="eigensensitivity", params=None, out_dir="updated",
-                 dofmap=None, bands=None, max_iter=30):
-    """Run one updating method and write the updated model, JSON summary and figures; returns the summary."""
+                 dofmap=None, bands=None, max_iter=30, geometry=None, same_ids=False, freq_window=0.35,
+                 freq_sigma=None):
+    """Run one updating method and write the updated model, JSON summary and figures; returns the summary.
+
+    Test DOFs go onto model DOFs as in ``modalab correlate`` (``dofmap``, ``geometry``, ``same_ids``,
+    else the modes file's own geometry; see :func:`modalab._cli_correlate.resolve_dof_map`).  Every
+    method pairs modes by the one rule of :func:`updating.correlation.pair_modes` with the frequency
+    window ``freq_window``.  Frequency-only test sets use the frequencies alone; their ``freq_cov`` (or
+    ``freq_sigma``: relative σ per mode, scalar or list) weights the residuals.
+    """
     from updating.bulk import to_bulk, write_bdf
     from updating.correlation import correlate
     from updating.correlation_plots import plot_mac
@@ -49,7 +57,6 @@ def update_model(model_path, *, modes=None, frf=None, method="eigensensitivity",
     from .pipeline import load_model, load_modes, load_params
 
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     model = load_model(model_path)
     summary: dict = {"model": str(model_path), "method": method}
     test = load_modes(modes) if modes else None
@@ -58,13 +65,35 @@ def update_model(model_path, *, modes=None, frf=None, method="eigensensitivity",
     if method in FRF_METHODS and frf is None:
         raise PlanError(f"method {method!r} needs measured FRFs: pass --frf FRF.uff")
     n_an = max(2 * test.n_modes + 6, 12) if test is not None else 20
+    how = geo = None
+    if test is not None:
+        from ._cli_correlate import resolve_dof_map
+
+        dofmap, how, geo = resolve_dof_map(model, test, map_path=dofmap, geometry_path=geometry, same_ids=same_ids,
+                                           modes_path=modes)
+        summary["dof_mapping"] = how
+        if not test.has_shapes:
+            if method != "eigensensitivity":
+                raise PlanError(f"{modes} holds frequencies only (no mode shapes); method {method!r} needs shapes: "
+                                "use --method eigensensitivity")
+            summary["note"] = "frequency-only test set: frequencies only, modes paired by frequency order"
+    pairing_kw = {"max_freq_error": freq_window}
+    bounds = parsed = None
+    if params is not None and method not in DIRECT:
+        from .paramfile import read_parameter_file
+
+        parsed = read_parameter_file(params)          # a bad file fails before anything is written
+        bounds = (np.array([-np.inf if v is None else v for v in parsed[1]], float),
+                  np.array([np.inf if v is None else v for v in parsed[2]], float))
+    out.mkdir(parents=True, exist_ok=True)
 
     def corr(structure_or_model):
         """Correlation on all test DOFs: FE models give their modes on every DOF (rigid links filled in)."""
         if test is None:
             return None
         an = structure_or_model.modes(n_an, full=True) if hasattr(structure_or_model, "modes") else structure_or_model
-        return correlate(an, test, dofmap=dofmap, n_analysis_modes=n_an)
+        return correlate(an, test, dofmap=dofmap, n_analysis_modes=n_an, max_freq_error=freq_window,
+                         dof_mapping=how, geometry=geo)
 
     def on_model_dofs(modes, dofs):
         """Test modes restricted to DOFs the updater can see (independent DOFs of the constrained model)."""
@@ -107,18 +136,30 @@ def update_model(model_path, *, modes=None, frf=None, method="eigensensitivity",
                           n_analysis_modes=n_an)
         summary.update({"equations": res.equations, "matrices": str(out / "updated_matrices.npz")})
     else:
-        plist = load_params(params, model)
+        plist = load_params(None, model) if params is None else parsed[0]
         pm = ParametricFEModel(model, plist)
         before = corr(model)
         test_u = on_model_dofs(test, pm.dofs) if test is not None else None
         if method == "eigensensitivity":
             from updating.eigensensitivity import InverseEigensensitivity
 
-            up = InverseEigensensitivity(max_iter=max_iter).fit(pm, test_u, dofmap=dofmap)
+            kw = {}
+            if freq_sigma is not None:
+                kw = {"freq_sigma": freq_sigma, "freq_cov": None}
+            up = InverseEigensensitivity(max_iter=max_iter, pairing=pairing_kw, use_shapes=test.has_shapes,
+                                         bounds=bounds, **kw).fit(pm, test_u, dofmap=dofmap)
+            summary["identifiability"] = {
+                "condition_number": float(up.condition_), "identifiable": up.identifiable_,
+                "std_unregularised": {n: (float(v) if np.isfinite(v) else None)
+                                      for n, v in zip([pm.parameter_names[i] for i in up.params_],
+                                                      up.std_unregularised_)},
+                "frequency_weights": ("covariance of the test frequencies" if test.freq_cov is not None
+                                      and freq_sigma is None else
+                                      f"relative sigma {freq_sigma if freq_sigma is not None else 0.01}")}
         elif method == "eigendynamic":
             from updating.eigendynamic import EigendynamicConstraint
 
-            up = EigendynamicConstraint().fit(pm, test_u, dofmap=dofmap)
+            up = EigendynamicConstraint(pairing=pairing_kw).fit(pm, test_u, dofmap=dofmap)
         else:
             from modalab.frf import FRF
 
@@ -167,13 +208,24 @@ def cmd_update(a):
 
     bands = [tuple(b) for b in a.band] if a.band else None
     s = update_model(a.model, modes=a.modes, frf=a.frf, method=a.method, params=a.params, out_dir=a.output,
-                     dofmap=a.map, bands=bands, max_iter=a.max_iter)
+                     dofmap=a.map, bands=bands, max_iter=a.max_iter, geometry=a.geometry, same_ids=a.same_ids,
+                     freq_window=a.freq_window, freq_sigma=a.freq_sigma)
+    if s.get("note"):
+        _print(s["note"])
     if "table_before" in s:
         _print("before:\n" + s["table_before"])
         _print("after:\n" + s["table_after"])
     for name, v in (s.get("parameters") or {}).items():
         sd = "" if v["std"] is None else f" ± {v['std']:.3g}"
         _print(f"{name:>20}: {v['initial']:.4g} -> {v['updated']:.4g}{sd}")
+    idf = s.get("identifiability")
+    if idf:
+        un = ", ".join(f"{k} ± {v:.3g}" if v is not None else f"{k} ± inf" for k, v in idf["std_unregularised"].items())
+        _print(f"condition number {idf['condition_number']:.3g}; unregularised std: {un}; frequency weights: "
+               f"{idf['frequency_weights']}")
+        if not idf["identifiable"]:
+            _print("WARNING: the parameters are not identifiable from these data (condition number above 1e3): the "
+                   "regularised ± above reflect the regularisation, not the data")
     _print(f"results in {a.output}")
     return 0
 
@@ -188,7 +240,12 @@ def register(sub):
                    help="updating method (default eigensensitivity)")
     s.add_argument("--params", help="TOML file of [[parameter]] entries (default: E and rho multipliers per "
                                     "property group)")
-    s.add_argument("--map", help="DOF map file (test DOF -> model DOF)")
+    from ._cli_correlate import add_map_arguments
+
+    add_map_arguments(s)
+    s.add_argument("--freq-sigma", type=float, nargs="+",
+                   help="relative standard deviation of each test frequency (one value, or one per mode); default: "
+                        "the covariance stored with the modes, else 1 %%")
     s.add_argument("--band", nargs=2, type=float, action="append", metavar=("LO", "HI"),
                    help="updating band in Hz for mci/rfm (repeatable)")
     s.add_argument("--max-iter", type=int, default=30, help="iteration limit (default 30)")

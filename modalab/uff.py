@@ -808,7 +808,7 @@ def write_modes(path, modes: ModeSet, *, append: bool = False, exact: bool = Tru
         raise UffError(f"write_modes needs a ModeSet; got {type(modes).__name__}")
     phi = np.asarray(modes.shapes)
     cplx = np.iscomplexobj(phi)
-    axes = {d.axis for d in modes.dofs}
+    axes = {d.axis for d in modes.dofs} or {1, 2, 3}           # a frequency-only set: no node records
     if 0 in axes and len(axes) > 1:
         raise UffError("the mode set mixes scalar DOFs with directional ones; write them as two files",
                        path=path)
@@ -857,6 +857,8 @@ def write_modes(path, modes: ModeSet, *, append: bool = False, exact: bool = Tru
         chunks.append("\n".join(lines))
     with _open_out(path, append) as fh:
         fh.write("".join(chunks).encode("latin-1"))
+    if getattr(modes, "coordinates", None):
+        write_geometry(path, modes.coordinates, append=True)
 
 
 def _parse_55(b: Block):
@@ -914,8 +916,11 @@ def read_modes(path, *, dofs=None) -> ModeSet:
     ``read_modes(p, dofs=m.dofs)`` reproduces a written ModeSet ``m``.
     """
     with _guard(path) as cur:
-        sets, all55 = [], []
+        sets, all55, coords = [], [], {}
         for b in _blocks(path, cur):
+            if b.number in (2411, 15):
+                cur.block = b
+                coords.update(_parse_nodes(b))
             if b.number == 55:
                 cur.block = b
                 s = _parse_55(b)
@@ -991,8 +996,8 @@ def read_modes(path, *, dofs=None) -> ModeSet:
             keep = np.any(shapes != 0, axis=1)
             labels = [d for d, kk in zip(labels, keep) if kk]
             shapes = shapes[keep]
-        ms = ModeSet(freq_hz=freq, damping=damp, shapes=shapes, dofs=labels, scaling=scaling,
-                     indicators=indicators, metadata={"source": str(path)})
+        ms = ModeSet(freq_hz=freq, damping=damp, shapes=shapes if labels else None, dofs=labels, scaling=scaling,
+                     indicators=indicators, metadata={"source": str(path)}, coordinates=coords)
         if dofs is not None:
             ms = ms.select_dofs(dofs)
         return ms

@@ -136,8 +136,13 @@ def _sigmas(test: ModeSet, freq_sigma, shape_sigma):
 def sensitivity_system(model, test_modes: ModeSet, p=None, *, params=None, dofmap=None, n_modes=None,
                        mac_min: float = 0.5, freq_sigma=0.01, shape_sigma=0.05, use_shapes: bool = True,
                        residual: str = "frequency", scale=None, C=None, pairing: dict | None = None,
-                       freq_cov=None) -> SensitivitySystem:
-    """Build the weighted sensitivity matrix [S] (Eq. 3.50) and residual {Δ} (Eq. 3.51) for paired modes."""
+                       freq_cov=None, only_test=None) -> SensitivitySystem:
+    """Build the weighted sensitivity matrix [S] (Eq. 3.50) and residual {Δ} (Eq. 3.51) for paired modes.
+
+    Modes are paired by :func:`updating.correlation.pair_modes` (``pairing``: its keyword arguments);
+    ``only_test`` restricts the pairing to those test modes (0-based), as the updater does after its
+    first pairing so that the objective keeps the same test modes at every iteration.
+    """
     if residual not in ("frequency", "eigenvalue"):
         raise ModalabValueError(f"residual={residual!r}; expected 'frequency' or 'eigenvalue'")
     p = np.asarray(model.p0 if p is None else p, float)
@@ -153,14 +158,20 @@ def sensitivity_system(model, test_modes: ModeSet, p=None, *, params=None, dofma
     if use_shapes and not test_modes.has_shapes:
         log.info("the test modes have no shapes: frequencies only")
         use_shapes = False
+    cols = np.arange(test_modes.n_modes) if only_test is None else np.array(sorted(int(j) for j in only_test), int)
     if test_modes.has_shapes:
-        pairs, Mm, pr = _mac_pair(Pa, X, mac_min, sol.freq_hz, test_modes.freq_hz, sol.phi, model.dofs,
-                                  **(pairing or {}))
+        _, Mm, pr = _mac_pair(Pa, X[:, cols], mac_min, sol.freq_hz, test_modes.freq_hz[cols], sol.phi, model.dofs,
+                              **(pairing or {}))
+        if only_test is not None:
+            from .correlation import mac as _mac
+
+            Mm = _mac(Pa, X)
     else:
         from .correlation import pair_modes
 
-        pr = pair_modes(None, sol.freq_hz, test_modes.freq_hz, **(pairing or {}))
-        pairs, Mm = [(int(a), int(x)) for a, x in pr.pairs], None
+        pr = pair_modes(None, sol.freq_hz, test_modes.freq_hz[cols], **(pairing or {}))
+        Mm = None
+    pairs = [(int(a), int(cols[x])) for a, x in pr.pairs]
     if not pairs:
         raise ModalabValueError(f"no analysis mode pairs with any test mode ({pr.method}); check the DOF "
                                 "map (signs, node numbers), the frequency window or mac_min")
@@ -413,6 +424,13 @@ class InverseEigensensitivity:
         it = 0
         sysm = sensitivity_system(model, test_modes, p, **kw)
         self.initial_pairs_ = list(sysm.pairs)
+        # the objective is defined on the test modes paired at the start: re-pairing at later iterations may follow
+        # a mode switch (new analysis partner) but never adds a test mode the initial model could not pair
+        kw["only_test"] = sorted(x for _, x in sysm.pairs)
+        self.unpaired_test_ = [j for j in range(test_modes.n_modes) if j not in kw["only_test"]]
+        if self.unpaired_test_:
+            log.info("inverse eigensensitivity: test modes %s have no partner and stay out of the objective",
+                     [j + 1 for j in self.unpaired_test_])
         for it in range(1, self.max_iter + 1):
             S, r = sysm.S, sysm.r
             d0 = (p[idx] - p0[idx]) / scale
