@@ -97,9 +97,13 @@ def update_model(model_path, *, modes=None, frf=None, method="eigensensitivity",
 
     def on_model_dofs(modes, dofs):
         """Test modes restricted to DOFs the updater can see (independent DOFs of the constrained model)."""
-        if dofmap is not None:
+        from updating.dofmap import as_dofmap
+
+        if not modes.has_shapes:
             return modes
-        keep = [d for d in modes.dofs if any(d.same_axis(m) for m in dofs)]
+        dm = as_dofmap(dofmap)
+        have = {(m.node, m.axis) for m in dofs}
+        keep = [d for d in modes.dofs if all((t.node, t.axis) in have for t, _ in dm.terms(d))]
         if len(keep) < len(modes.dofs):
             import logging
 
