@@ -199,8 +199,9 @@ def update_model(model_path, *, modes=None, frf=None, method="eigensensitivity",
     if before is not None:
         summary["correlation_before"] = before.to_dict()
         summary["correlation_after"] = after.to_dict()
-        plot_mac(before.mac, out / "mac_before.png", title="MAC before updating")
-        plot_mac(after.mac, out / "mac_after.png", title="MAC after updating")
+        if test.has_shapes:
+            plot_mac(before.mac, out / "mac_before.png", title="MAC before updating")
+            plot_mac(after.mac, out / "mac_after.png", title="MAC after updating")
         summary["table_before"] = before.table()
         summary["table_after"] = after.table()
     (out / "update.json").write_text(json.dumps(summary, indent=1, default=str))

@@ -136,12 +136,13 @@ def _sigmas(test: ModeSet, freq_sigma, shape_sigma):
 def sensitivity_system(model, test_modes: ModeSet, p=None, *, params=None, dofmap=None, n_modes=None,
                        mac_min: float = 0.5, freq_sigma=0.01, shape_sigma=0.05, use_shapes: bool = True,
                        residual: str = "frequency", scale=None, C=None, pairing: dict | None = None,
-                       freq_cov=None, only_test=None) -> SensitivitySystem:
+                       freq_cov=None, only_test=None, fixed_pairs=None) -> SensitivitySystem:
     """Build the weighted sensitivity matrix [S] (Eq. 3.50) and residual {Δ} (Eq. 3.51) for paired modes.
 
     Modes are paired by :func:`updating.correlation.pair_modes` (``pairing``: its keyword arguments);
     ``only_test`` restricts the pairing to those test modes (0-based), as the updater does after its
-    first pairing so that the objective keeps the same test modes at every iteration.
+    first pairing so that the objective keeps the same test modes at every iteration; ``fixed_pairs``
+    (used for frequency-only test sets, where no shape can follow a mode) keeps given (analysis, test) pairs.
     """
     if residual not in ("frequency", "eigenvalue"):
         raise ModalabValueError(f"residual={residual!r}; expected 'frequency' or 'eigenvalue'")
@@ -153,6 +154,16 @@ def sensitivity_system(model, test_modes: ModeSet, p=None, *, params=None, dofma
     N = len(model.dofs)
     na = min(N, max(2 * nx, nx + 6)) if n_modes is None else int(n_modes)
     sol = solve_modes(model, p, na)
+    if n_modes is None and test_modes.n_modes:
+        # enough analysis modes to cover the test band and its frequency window (free-free models and local
+        # modes can push the partners of the highest test modes beyond 2 x n_test)
+        from .correlation import FREQ_WINDOW
+
+        w = (pairing or {}).get("max_freq_error", FREQ_WINDOW) or FREQ_WINDOW
+        top = float(np.max(test_modes.freq_hz)) * (1 + w)
+        while sol.freq_hz[-1] < top and na < N:
+            na = min(N, 2 * na)
+            sol = solve_modes(model, p, na)
     X = test_modes.real_shapes
     Pa = np.asarray(C @ sol.phi)
     if use_shapes and not test_modes.has_shapes:
@@ -166,14 +177,17 @@ def sensitivity_system(model, test_modes: ModeSet, p=None, *, params=None, dofma
             from .correlation import mac as _mac
 
             Mm = _mac(Pa, X)
+    elif fixed_pairs is not None:
+        pr, Mm = None, None
     else:
         from .correlation import pair_modes
 
         pr = pair_modes(None, sol.freq_hz, test_modes.freq_hz[cols], **(pairing or {}))
         Mm = None
-    pairs = [(int(a), int(cols[x])) for a, x in pr.pairs]
+    pairs = [(int(a), int(x)) for a, x in fixed_pairs] if pr is None else \
+        [(int(a), int(cols[x])) for a, x in pr.pairs]
     if not pairs:
-        raise ModalabValueError(f"no analysis mode pairs with any test mode ({pr.method}); check the DOF "
+        raise ModalabValueError(f"no analysis mode pairs with any test mode ({pr.method if pr else 'fixed'}); check the DOF "
                                 "map (signs, node numbers), the frequency window or mac_min")
     fs, ss = _sigmas(test_modes, freq_sigma, shape_sigma)
     sd = StackedDerivatives(model.derivatives(p), N)
@@ -427,6 +441,9 @@ class InverseEigensensitivity:
         # the objective is defined on the test modes paired at the start: re-pairing at later iterations may follow
         # a mode switch (new analysis partner) but never adds a test mode the initial model could not pair
         kw["only_test"] = sorted(x for _, x in sysm.pairs)
+        if not test_modes.has_shapes:
+            # no shapes to follow a mode: keep the analysis partner (by mode number) found at the start
+            kw["fixed_pairs"] = list(sysm.pairs)
         self.unpaired_test_ = [j for j in range(test_modes.n_modes) if j not in kw["only_test"]]
         if self.unpaired_test_:
             log.info("inverse eigensensitivity: test modes %s have no partner and stay out of the objective",

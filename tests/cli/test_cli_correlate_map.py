@@ -72,3 +72,31 @@ def test_update_refuses_a_misspelt_parameter_key(case, capsys):
     err = capsys.readouterr().err
     assert "bad.toml" in err and "'lowr'" in err and "did you mean 'lower'" in err
     assert not out.exists()
+
+
+def test_frequency_only_set_end_to_end(case, capsys, tmp_path):
+    """A JSON of repeated frequencies (no shapes): correlate pairs by order and says so; update uses the
+    covariance of the mean, keeps the exact model at nominal and reports the condition number."""
+    d, _ = case
+    from updating.models.garteur import garteur_model
+
+    f = garteur_model(mesh=4).modes(16).freq_hz
+    f = f[f > 1.0][:6]
+    rng = np.random.default_rng(2)
+    reps = f * (1 + 1e-3 * (0.8 * rng.normal(size=(40, 1)) + 0.6 * rng.normal(size=(40, f.size))))
+    (tmp_path / "f.json").write_text(json.dumps({"freq_repeats_hz": reps.tolist()}))
+    assert main(["correlate", str(d / "nominal.bdf"), str(tmp_path / "f.json")]) == 0
+    out = capsys.readouterr().out
+    assert "no mode shapes" in out and "pairing by frequency order" in out and "6 pairs" in out
+    (tmp_path / "p.toml").write_text('[[parameter]]\nname = "E_wing"\nfield = "E"\nproperties = ["wing"]\n'
+                                     '[[parameter]]\nname = "t_fin"\nfield = "h"\nproperties = ["fin"]\n')
+    assert main(["update", str(d / "nominal.bdf"), "--modes", str(tmp_path / "f.json"), "--params",
+                 str(tmp_path / "p.toml"), "-o", str(tmp_path / "u")]) == 0
+    out = capsys.readouterr().out
+    assert "frequency-only test set" in out and "condition number" in out
+    js = json.loads((tmp_path / "u" / "update.json").read_text())
+    assert js["identifiability"]["frequency_weights"] == "covariance of the test frequencies"
+    for name, v in js["parameters"].items():
+        sd = js["identifiability"]["std_unregularised"][name]
+        assert abs(v["updated"] - 1.0) < 4 * sd, (name, v, sd)
+        assert sd < 5e-3
