@@ -80,7 +80,7 @@ def update_model(model_path, *, modes=None, frf=None, method="eigensensitivity",
     pairing_kw = {"max_freq_error": freq_window}
     bounds = parsed = None
     if params is not None and method not in DIRECT:
-        from .paramfile import read_parameter_file
+        from updating.parameter_file import read_parameter_file
 
         parsed = read_parameter_file(params)          # a bad file fails before anything is written
         bounds = (np.array([-np.inf if v is None else v for v in parsed[1]], float),

@@ -337,7 +337,7 @@ def load_params(path, model):
 
     if path is None:
         return default_parameters(model)
-    from .paramfile import read_parameter_file
+    from updating.parameter_file import read_parameter_file
 
     return read_parameter_file(path)[0]
 

@@ -8,10 +8,13 @@ hand between Nastran runs is automated here, with the additions its section
 6.3 asks for:
 
 **Residuals, for paired modes only.**  At every iteration the analytical modes
-are recomputed and paired with the test modes by MAC (Hungarian assignment,
-:func:`updating.correlation.pair_modes`), so modes that are out of order
-between the models are compared with their true partner; test modes without
-a partner (MAC below ``mac_min``) are left out of that iteration.  Per pair:
+are recomputed and paired with the test modes by the one pairing rule of
+:func:`updating.correlation.pair_modes` (MAC and frequency, a frequency window,
+unobservable and rigid-body modes excluded), so modes that are out of order
+between the models are compared with their true partner.  The objective is
+defined on the test modes paired at the start: a test mode without a partner
+then stays out at every iteration (re-pairing may follow a mode switch but never
+adds a test mode); frequency-only test sets keep their initial partners.  Per pair:
 
 * frequency: ``(f_X − f_A)/f_X`` with sensitivity ``(∂f_A/∂p)/f_X`` from
   ``∂λ/∂p = φᵀ(∂K/∂p − λ∂M/∂p)φ`` (or eigenvalues, ``residual='eigenvalue'``:

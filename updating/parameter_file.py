@@ -18,7 +18,7 @@ import difflib
 import tomllib
 from pathlib import Path
 
-from .errors import PlanError
+from modalab.errors import PlanError
 
 __all__ = ["PARAMETER_KEYS", "read_parameter_file"]
 
@@ -33,7 +33,7 @@ def _suggest(key: str, valid) -> str:
 
 def read_parameter_file(path) -> tuple[list, list, list]:
     """A parameter file → (parameters, lower bounds, upper bounds); a bound is None where not given."""
-    from updating.fe import Parameter
+    from .fe import Parameter
 
     p = Path(path)
     try:
