@@ -89,10 +89,22 @@ class MeasuredColumns:
     measured: np.ndarray       # (n_meas,) model row indices
     references: np.ndarray     # (n_ref,) model row indices of the excitation DOFs
     n: int                     # model size
+    beta: float = 0.0          # decay rate of an exponential window on the data, 1/s
 
     @property
     def freq_hz(self) -> np.ndarray:
         return self.omega / (2 * np.pi)
+
+    @property
+    def omega_c(self) -> np.ndarray:
+        """Frequencies at which the model is evaluated: ``ω − iβ``, so that ``iω_c = s = β + iω``.
+
+        An exponential window ``e^{−βt}`` on the response gives the FRF ``H(s + β)``: the windowed
+        data are the model's receptance at ``s = β + iω`` (``Z = K + iD + sC + s²M``), exactly, for
+        every mode.  The model is compared with the data as measured instead of adding β to its
+        damping (which would bias damping and, without damping parameters, stiffness and mass).
+        """
+        return self.omega - 1j * self.beta if self.beta else self.omega
 
 
 def measured_columns(model, frf: FRF, *, references=None, bands=None) -> MeasuredColumns:
@@ -121,12 +133,25 @@ def measured_columns(model, frf: FRF, *, references=None, bands=None) -> Measure
         raise ModalabValueError(f"no frequency lines left in bands {None if bands is None else bands.tolist()} "
                                 f"(FRF covers {f.min():.4g}..{f.max():.4g} Hz); widen the bands")
     omega = 2 * np.pi * f[keep]
-    H = frf.H[:, :, keep] * quantity_factor(frf.quantity, "receptance", omega)[None, None, :]
+    beta = float(frf.metadata.get("exp_window_beta") or 0.0)
+    if not np.isfinite(beta) or beta < 0:
+        raise ModalabValueError(f"exp_window_beta = {beta!r} in the FRF metadata; expected a decay rate >= 0 (1/s)")
+    if beta:
+        # windowed data: convert the quantity at s = β + iω as well (a(t)e^{-βt} ↔ (s+β)² X(s+β))
+        order = {"receptance": 0, "mobility": 1, "accelerance": 2}
+        from modalab.units import check_quantity
+
+        n_ord = order[check_quantity(frf.quantity)]
+        H = frf.H[:, :, keep] / ((beta + 1j * omega) ** n_ord)[None, None, :]
+        log.info("the FRFs carry an exponential window (beta = %.4g 1/s): the model is evaluated at s = beta + "
+                 "i*omega", beta)
+    else:
+        H = frf.H[:, :, keep] * quantity_factor(frf.quantity, "receptance", omega)[None, None, :]
     io, so = locate(model.dofs, frf.responses, "FRF response DOF")
     ii, si = locate(model.dofs, frf.references, "FRF reference DOF")
     theta = H * np.asarray(so, float)[:, None, None] * np.asarray(si, float)[None, :, None]
     return MeasuredColumns(omega=omega, theta=theta, measured=np.asarray(io), references=np.asarray(ii),
-                           n=len(model.dofs))
+                           n=len(model.dofs), beta=beta)
 
 
 def _mats(model, p):
@@ -175,7 +200,7 @@ def dynamic_expansion(model, data: MeasuredColumns, p=None) -> np.ndarray:
     E[data.references, np.arange(R)] = 1.0
     mats = _mats(model, p)
     if n <= _DENSE_LIMIT:
-        Z = _zdense(mats, data.omega)                                   # (F, n, n)
+        Z = _zdense(mats, data.omega_c)                                   # (F, n, n)
         Zss = Z[:, s][:, :, s]
         Zsm = Z[:, s][:, :, m]
         rhs = E[s][None, :, :] - np.einsum("fsm,mjf->fsj", Zsm, data.theta)
@@ -187,7 +212,7 @@ def dynamic_expansion(model, data: MeasuredColumns, p=None) -> np.ndarray:
                         "constrained at the measured DOFs); used least squares there")
         full[s] = np.transpose(xs, (1, 2, 0))
         return full
-    for k, w in enumerate(data.omega):
+    for k, w in enumerate(data.omega_c):
         Z = _zsparse(mats, w)
         Zss = Z[s][:, s]
         Zsm = Z[s][:, m]
@@ -237,7 +262,7 @@ def mci(model, frf: FRF, p=None, *, references=None, bands=None) -> MCIResult:
     """MCI map of ``model`` at ``p`` against measured FRFs, unmeasured DOFs dynamically expanded (Eq. 3.69)."""
     data = measured_columns(model, frf, references=references, bands=bands)
     full = dynamic_expansion(model, data, p)
-    vals = miscorrelation(model, full, data.omega, data.references, p)
+    vals = miscorrelation(model, full, data.omega_c, data.references, p)
     return MCIResult(freq_hz=data.freq_hz, values=vals, dofs=list(model.dofs),
                      references=[model.dofs[i] for i in data.references], measured=data.measured)
 
@@ -301,7 +326,7 @@ def _condensation(model, data: MeasuredColumns, p):
     E = np.zeros((n, R))
     E[data.references, np.arange(R)] = 1.0
     if n <= _DENSE_LIMIT:
-        Z = _zdense(mats, data.omega)
+        Z = _zdense(mats, data.omega_c)
         Zss, Zsm, Zmm = Z[:, s][:, :, s], Z[:, s][:, :, m], Z[:, m][:, :, m]
         G = np.linalg.solve(Zss, Zsm)
         th = np.transpose(data.theta, (2, 0, 1))                               # (F, nm, R)
@@ -311,7 +336,7 @@ def _condensation(model, data: MeasuredColumns, p):
         y = np.linalg.solve(np.eye(nm)[None] + np.transpose(G, (0, 2, 1)) @ G.conj(), Trhs)
         full[s] = np.transpose(np.linalg.solve(Zss, rhs_s + G.conj() @ y), (1, 2, 0))
         return G, full
-    for k, w in enumerate(data.omega):
+    for k, w in enumerate(data.omega_c):
         Z = _zsparse(mats, w)
         Zsm = Z[s][:, m].toarray()
         Zmm = Z[m][:, m].toarray()
@@ -353,11 +378,11 @@ def condensation_operator(model, data: MeasuredColumns, p=None, *, whiten: bool 
     elif s.size == 0:
         G = np.zeros((F, 0, nm), complex)
     elif n <= _DENSE_LIMIT:
-        Z = _zdense(mats, data.omega)
+        Z = _zdense(mats, data.omega_c)
         G = np.linalg.solve(Z[:, s][:, :, s], Z[:, s][:, :, m])           # (F, ns, nm)
     else:
         G = np.empty((F, s.size, nm), complex)
-        for k, w in enumerate(data.omega):
+        for k, w in enumerate(data.omega_c):
             Z = _zsparse(mats, w)
             G[k] = spla.splu(sp.csc_matrix(Z[s][:, s])).solve(Z[s][:, m].toarray())
     if whiten:
@@ -420,7 +445,7 @@ def lsq_expansion(model, data: MeasuredColumns, p=None):
     n, m = data.n, data.measured
     s = np.setdiff1d(np.arange(n), m)
     R, F = data.references.size, data.omega.size
-    Z = _zdense(_mats(model, p), data.omega)
+    Z = _zdense(_mats(model, p), data.omega_c)
     E = np.zeros((n, R))
     E[data.references, np.arange(R)] = 1.0
     rhs = E[None] - np.einsum("fnm,mjf->fnj", Z[:, :, m], data.theta)
@@ -520,7 +545,7 @@ class MCIUpdater:
             r = (r * w[:, :, None]).reshape(-1)
             if not need_jac:
                 return r, None, w
-            A, _ = mci_system(model, full, data.omega, data.references, p, params=idx)
+            A, _ = mci_system(model, full, data.omega_c, data.references, p, params=idx)
             Ad = A.toarray().reshape(R, F, n, -1)
             Ad = Ad - np.einsum("fns,fks,jfkp->jfnp", Q, Q.conj(), Ad, optimize=True)
             return r, (Ad * w[:, :, None, None]).reshape(R * F * n, -1), w
@@ -528,7 +553,7 @@ class MCIUpdater:
             G, full = _condensation(model, data, p)
         else:
             full = dynamic_expansion(model, data, p)
-        vals = miscorrelation(model, full, data.omega, data.references, p)
+        vals = miscorrelation(model, full, data.omega_c, data.references, p)
         if w is None:
             w = self._weights(data, model=model, p=p)
         if mode == "condensed":
@@ -537,7 +562,7 @@ class MCIUpdater:
             r = (T @ b) * np.repeat(w.reshape(-1), m.size)
             if not need_jac:
                 return r, None, w
-            A, _ = mci_system(model, full, data.omega, data.references, p, params=idx)
+            A, _ = mci_system(model, full, data.omega_c, data.references, p, params=idx)
             W = sp.diags(np.repeat(w.reshape(-1), m.size))
             return r, (W @ (T @ A)).tocsr(), w
         if not need_jac:
@@ -545,7 +570,7 @@ class MCIUpdater:
             return r, None, w
         rr = np.arange(n) if self.rows == "all" else m
         r = (np.transpose(vals[rr], (1, 2, 0)) * w[:, :, None]).reshape(-1)
-        A, _ = mci_system(model, full, data.omega, data.references, p, rows=rr, params=idx)
+        A, _ = mci_system(model, full, data.omega_c, data.references, p, rows=rr, params=idx)
         W = sp.diags(np.repeat(w.reshape(-1), rr.size))
         return r, (W @ A).tocsr(), w
 
@@ -555,13 +580,13 @@ class MCIUpdater:
             return np.ones((R, F))
         m = data.measured
         if Zm is None and data.n <= _DENSE_LIMIT:
-            Zm = _zdense(_mats(model, p), data.omega)[:, :, m]
+            Zm = _zdense(_mats(model, p), data.omega_c)[:, :, m]
         if Zm is not None:
             sig = np.linalg.norm(np.einsum("fnm,mjf->jfnm", Zm, data.theta), axis=(2, 3))
         else:
             mats = _mats(model, p)
             sig = np.empty((R, F))
-            for k, w in enumerate(data.omega):
+            for k, w in enumerate(data.omega_c):
                 Zc = _zsparse(mats, w)[:, m]
                 for j in range(R):
                     sig[j, k] = spla.norm(Zc @ sp.diags(data.theta[:, j, k]))
@@ -653,7 +678,7 @@ class MCIUpdater:
 def mci_from_columns(model, data: MeasuredColumns, p=None) -> MCIResult:
     """MCI (Eq. 3.69) of ``model`` at ``p`` for already-mapped measured columns, Kidder-type expansion."""
     full = dynamic_expansion(model, data, p)
-    vals = miscorrelation(model, full, data.omega, data.references, p)
+    vals = miscorrelation(model, full, data.omega_c, data.references, p)
     return MCIResult(freq_hz=data.freq_hz, values=vals, dofs=list(model.dofs), measured=data.measured,
                      references=[model.dofs[i] for i in data.references])
 

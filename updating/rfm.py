@@ -56,7 +56,7 @@ def receptance_rows(model, p, omega, rows) -> np.ndarray:
     mats = _mats(model, np.asarray(p, float))
     n = mats[0].shape[0]
     rows = np.asarray(rows, int)
-    omega = np.asarray(omega, float)
+    omega = np.asarray(omega)          # complex ω − iβ for windowed data (MeasuredColumns.omega_c)
     if n <= _DENSE_LIMIT:
         Z = _zdense(mats, omega)
         E = np.zeros((n, rows.size))
@@ -248,15 +248,15 @@ class ResponseFunctionMethod:
 
     def _normal(self, model, data, full, p, idx, W, big):
         if big:
-            N, g = rfm_system(model, full, data.omega, data.references, data.measured, p, params=idx,
+            N, g = rfm_system(model, full, data.omega_c, data.references, data.measured, p, params=idx,
                               weights=W, normal=True)
             # cost from the current misfit
-            HA = receptance_rows(model, p, data.omega, data.measured)
+            HA = receptance_rows(model, p, data.omega_c, data.measured)
             ha = np.transpose(HA[:, :, data.references], (2, 0, 1))
             b = ha - np.transpose(data.theta, (1, 2, 0))
             cost = float(np.sum(np.abs(b * (1 if W is None else W)) ** 2))
             return N, g, cost
-        Rm, b = rfm_system(model, full, data.omega, data.references, data.measured, p, params=idx)
+        Rm, b = rfm_system(model, full, data.omega_c, data.references, data.measured, p, params=idx)
         if W is not None:
             w = W.reshape(-1)
             Rm = Rm * w[:, None]
