@@ -16,6 +16,11 @@ def _one(path, out_uff, out_json, plots, band, max_order, references, select, we
         sel = [float(x) for x in select.split(",")]
     modes, report = identify(frf, band_hz=band, max_order=max_order, references=references, select=sel,
                              plots_dir=plots, weighting=weighting)
+    from .uff import info as uff_info, read_geometry
+
+    if {"2411", "15"} & set(uff_info(path).get("datasets", {})):
+        # the test geometry travels with the modes, so correlate/update can map test nodes onto model grids
+        modes.coordinates = read_geometry(path)
     Path(out_uff).parent.mkdir(parents=True, exist_ok=True)
     if Path(out_uff).exists():
         Path(out_uff).unlink()

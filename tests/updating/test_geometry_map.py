@@ -72,3 +72,15 @@ def test_refuses_two_test_nodes_on_one_grid():
 def test_missing_test_coordinates_are_named():
     with pytest.raises(DofError, match=r"\[7\]"):
         geometry_map(TEST, GRID, test_nodes=[1, 7])
+
+
+def test_mode_file_carries_its_geometry(tmp_path):
+    from modalab.modes import ModeSet
+
+    ms = ModeSet(freq_hz=[3.0, 7.0], shapes=np.eye(2), dofs=["1+Z", "2+Z"], coordinates={1: (0.0, 0.1, 0.2),
+                                                                                        2: (1.5, -0.25, 0.0)})
+    ms.to_uff(tmp_path / "m.uff")
+    back = ModeSet.from_uff(tmp_path / "m.uff")
+    assert back.coordinates == ms.coordinates
+    np.testing.assert_array_equal(back.shapes, ms.shapes)
+    assert ModeSet.from_dict(ms.to_dict()).coordinates == ms.coordinates
