@@ -54,6 +54,17 @@ def resolve_dof_map(model, test, *, map_path=None, geometry_path=None, same_ids=
     return dm, how, rep
 
 
+def analysis_modes_covering(model, test, n, window):
+    """The model's modes on every DOF, enough of them to cover the test band and its frequency window."""
+    an = model.modes(n, full=True)
+    top = float(max(test.freq_hz, default=0.0)) * (1 + (window or 0.0))
+    n_dof = len(model.system().dofs)
+    while an.n_modes and an.freq_hz[-1] < top and n < n_dof - 1:
+        n = min(2 * n, n_dof - 1)
+        an = model.modes(n, full=True)
+    return an
+
+
 def cmd_correlate(a):
     from updating.correlation import correlate
     from updating.correlation_plots import save_correlation_plots
@@ -67,7 +78,7 @@ def cmd_correlate(a):
                                        modes_path=a.modes)
     n = a.n_modes or max(2 * test.n_modes + 6, 12)
     # modes on every model DOF (rigid-link dependents filled in), so test DOFs on linked nodes correlate too
-    res = correlate(model.modes(n, full=True), test, dofmap=dofmap, mac_min=a.mac_min, n_analysis_modes=n,
+    res = correlate(analysis_modes_covering(model, test, n, a.freq_window), test, dofmap=dofmap, mac_min=a.mac_min, n_analysis_modes=n,
                     max_freq_error=a.freq_window, dof_mapping=how, geometry=rep)
     _print(res.table())
     if a.plots and res.has_shapes:

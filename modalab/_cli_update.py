@@ -91,7 +91,10 @@ def update_model(model_path, *, modes=None, frf=None, method="eigensensitivity",
         """Correlation on all test DOFs: FE models give their modes on every DOF (rigid links filled in)."""
         if test is None:
             return None
-        an = structure_or_model.modes(n_an, full=True) if hasattr(structure_or_model, "modes") else structure_or_model
+        from ._cli_correlate import analysis_modes_covering
+
+        an = analysis_modes_covering(structure_or_model, test, n_an, freq_window) \
+            if hasattr(structure_or_model, "modes") else structure_or_model
         return correlate(an, test, dofmap=dofmap, n_analysis_modes=n_an, max_freq_error=freq_window,
                          dof_mapping=how, geometry=geo)
 
