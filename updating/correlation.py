@@ -419,7 +419,8 @@ def pair_modes(mac_matrix=None, freq_a_hz=None, freq_x_hz=None, *, mac_min: floa
 
     **Excluded analysis modes**: modes whose ``observability`` (see :func:`observability`)
     is below ``min_observability`` (the sensors cannot see them; their MAC is round-off), and
-    rigid-body modes (``f_a ≤ rigid_hz``, default ``max(0.01 Hz, 1e-4·max f_a)``).  With
+    rigid-body modes (``f_a ≤ rigid_hz``, default 1e-3 × the lowest test frequency: independent of how many
+    analysis modes were computed).  With
     ``rigid='pair'`` rigid-body modes are paired by MAC alone with test modes below half the
     lowest elastic analysis frequency and reported in ``rigid_pairs`` — never as an
     objective pair.  Every exclusion and every unpaired test mode carries its reason.
@@ -465,7 +466,9 @@ def pair_modes(mac_matrix=None, freq_a_hz=None, freq_x_hz=None, *, mac_min: floa
     excluded: dict[int, str] = {}
     rigid_a = np.zeros(na, bool)
     if has_f and na:
-        thr = float(rigid_hz) if rigid_hz is not None else max(0.01, 1e-4 * float(np.abs(fa).max(initial=0)))
+        pos = np.abs(fx)[np.abs(fx) > 0]
+        thr = (float(rigid_hz) if rigid_hz is not None else
+               1e-3 * float(pos.min()) if pos.size else 1e-4 * float(np.abs(fa).max(initial=0)))
         rigid_a = np.abs(fa) <= thr
         for i in np.flatnonzero(rigid_a):
             excluded[int(i)] = (f"rigid-body mode ({fa[i]:.3g} Hz <= {thr:.3g} Hz): "
