@@ -85,6 +85,13 @@ def update_model(model_path, *, modes=None, frf=None, method="eigensensitivity",
         parsed = read_parameter_file(params)          # a bad file fails before anything is written
         bounds = (np.array([-np.inf if v is None else v for v in parsed[1]], float),
                   np.array([np.inf if v is None else v for v in parsed[2]], float))
+    fsig = None
+    if freq_sigma is not None and test is not None:
+        fs = np.atleast_1d(np.asarray(freq_sigma, float))
+        if fs.size not in (1, test.n_modes) or not np.all(np.isfinite(fs)) or np.any(fs <= 0):
+            raise PlanError(f"--freq-sigma: got {fs.size} value(s); expected one positive relative sigma "
+                            f"(e.g. 0.002) or one per test mode ({test.n_modes}) of {modes}")
+        fsig = fs if fs.size > 1 else float(fs[0])
     out.mkdir(parents=True, exist_ok=True)
 
     def corr(structure_or_model):
@@ -150,9 +157,7 @@ def update_model(model_path, *, modes=None, frf=None, method="eigensensitivity",
         if method == "eigensensitivity":
             from updating.eigensensitivity import InverseEigensensitivity
 
-            kw = {}
-            if freq_sigma is not None:
-                kw = {"freq_sigma": freq_sigma, "freq_cov": None}
+            kw = {} if fsig is None else {"freq_sigma": fsig, "freq_cov": None}
             up = InverseEigensensitivity(max_iter=max_iter, pairing=pairing_kw, use_shapes=test.has_shapes,
                                          bounds=bounds, **kw).fit(pm, test_u, dofmap=dofmap)
             summary["identifiability"] = {
@@ -162,7 +167,7 @@ def update_model(model_path, *, modes=None, frf=None, method="eigensensitivity",
                                                       up.std_unregularised_)},
                 "frequency_weights": ("covariance of the test frequencies" if test.freq_cov is not None
                                       and freq_sigma is None else
-                                      f"relative sigma {freq_sigma if freq_sigma is not None else 0.01}")}
+                                      f"relative sigma {fsig if fsig is not None else 0.01}")}
         elif method == "eigendynamic":
             from updating.eigendynamic import EigendynamicConstraint
 
