@@ -100,3 +100,13 @@ def test_frequency_only_set_end_to_end(case, capsys, tmp_path):
         sd = js["identifiability"]["std_unregularised"][name]
         assert abs(v["updated"] - 1.0) < 4 * sd, (name, v, sd)
         assert sd < 5e-3
+
+
+def test_freq_sigma_of_the_wrong_length_is_refused(case, capsys, tmp_path):
+    d, _ = case
+    (tmp_path / "f.json").write_text(json.dumps({"freq_hz": [10.0, 20.0, 30.0]}))
+    out = tmp_path / "u"
+    assert main(["update", str(d / "nominal.bdf"), "--modes", str(tmp_path / "f.json"), "--freq-sigma", "0.01",
+                 "0.02", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "--freq-sigma: got 2 value(s)" in err and "Traceback" not in err and not out.exists()
