@@ -78,7 +78,8 @@ def cmd_correlate(a):
                                        modes_path=a.modes)
     n = a.n_modes or max(2 * test.n_modes + 6, 12)
     # modes on every model DOF (rigid-link dependents filled in), so test DOFs on linked nodes correlate too
-    res = correlate(analysis_modes_covering(model, test, n, a.freq_window), test, dofmap=dofmap, mac_min=a.mac_min, n_analysis_modes=n,
+    analysis = analysis_modes_covering(model, test, n, a.freq_window)
+    res = correlate(analysis, test, dofmap=dofmap, mac_min=a.mac_min, n_analysis_modes=n,
                     max_freq_error=a.freq_window, dof_mapping=how, geometry=rep)
     _print(res.table())
     if a.plots and res.has_shapes:

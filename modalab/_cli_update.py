@@ -233,7 +233,8 @@ def cmd_update(a):
         _print(f"{name:>20}: {v['initial']:.4g} -> {v['updated']:.4g}{sd}")
     idf = s.get("identifiability")
     if idf:
-        un = ", ".join(f"{k} ± {v:.3g}" if v is not None else f"{k} ± inf" for k, v in idf["std_unregularised"].items())
+        un = ", ".join(f"{k} ± {v:.3g}" if v is not None else f"{k} ± inf"
+                       for k, v in idf["std_unregularised"].items())
         _print(f"condition number {idf['condition_number']:.3g}; unregularised std: {un}; frequency weights: "
                f"{idf['frequency_weights']}")
         if not idf["identifiable"]:

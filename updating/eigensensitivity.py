@@ -190,7 +190,8 @@ def sensitivity_system(model, test_modes: ModeSet, p=None, *, params=None, dofma
     pairs = [(int(a), int(x)) for a, x in fixed_pairs] if pr is None else \
         [(int(a), int(cols[x])) for a, x in pr.pairs]
     if not pairs:
-        raise ModalabValueError(f"no analysis mode pairs with any test mode ({pr.method if pr else 'fixed'}); check the DOF "
+        how = pr.method if pr is not None else "fixed pairs"
+        raise ModalabValueError(f"no analysis mode pairs with any test mode ({how}); check the DOF "
                                 "map (signs, node numbers), the frequency window or mac_min")
     fs, ss = _sigmas(test_modes, freq_sigma, shape_sigma)
     sd = StackedDerivatives(model.derivatives(p), N)
