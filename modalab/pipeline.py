@@ -131,26 +131,9 @@ def load_params(path, model):
         mode = "factor"                # factor (p multiplies the nominal) or value (p is the SI value)
     """
     from updating.diagnosis.workflow import default_parameters
-    from updating.fe import Parameter
 
     if path is None:
         return default_parameters(model)
-    import tomllib
+    from updating.parameter_file import read_parameter_file
 
-    p = Path(path)
-    try:
-        d = tomllib.loads(p.read_text())
-    except (OSError, tomllib.TOMLDecodeError) as e:
-        raise PlanError(f"cannot read parameter file {str(p)!r}: {e}") from None
-    items = d.get("parameter") or d.get("parameters")
-    if not items:
-        raise PlanError(f"{p}: no [[parameter]] entries; see 'modalab update --help' for the format")
-    out = []
-    for i, it in enumerate(items):
-        try:
-            out.append(Parameter(str(it["name"]), str(it["field"]), materials=tuple(it.get("materials", ())),
-                                 properties=tuple(it.get("properties", ())), elements=tuple(it.get("elements", ())),
-                                 groups=tuple(it.get("groups", ())), mode=str(it.get("mode", "factor"))))
-        except KeyError as e:
-            raise PlanError(f"{p}: parameter {i + 1} lacks {e.args[0]!r}") from None
-    return out
+    return read_parameter_file(path)[0]

@@ -199,32 +199,7 @@ def load_project(path) -> Project:
 
 
 def load_parameters(path) -> tuple[list, list, list]:
-    """A parameter file → (parameters, lower bounds, upper bounds); bounds are None where not given."""
-    from updating.fe import Parameter
+    """A parameter file → (parameters, lower, upper bounds): :func:`updating.parameter_file.read_parameter_file`."""
+    from updating.parameter_file import read_parameter_file
 
-    path = Path(path)
-    raw = _read_toml(path, "parameter file")
-    items = raw.get("parameter")
-    if not isinstance(items, list) or not items:
-        raise PlanError(f"{path}: no [[parameter]] tables; add at least one, e.g. [[parameter]] name = 'E_wing' "
-                        "field = 'E' properties = ['wing']")
-    params, lo, hi = [], [], []
-    seen = set()
-    for k, it in enumerate(items, start=1):
-        if "name" not in it or "field" not in it:
-            raise PlanError(f"{path}: parameter #{k} needs name and field (got keys {sorted(it)})")
-        if it["name"] in seen:
-            raise PlanError(f"{path}: parameter name {it['name']!r} is used twice; names must be unique")
-        seen.add(it["name"])
-        extra = set(it) - {"name", "field", "mode", "properties", "materials", "groups", "elements", "lower", "upper"}
-        if extra:
-            raise PlanError(f"{path}: parameter {it['name']!r}: unknown key(s) {sorted(extra)}")
-        kw = {s: tuple(it[s]) if isinstance(it[s], list) else (it[s],)
-              for s in ("properties", "materials", "groups", "elements") if s in it}
-        try:
-            params.append(Parameter(str(it["name"]), str(it["field"]), mode=str(it.get("mode", "factor")), **kw))
-        except Exception as e:  # noqa: BLE001 - Parameter's own message names the problem
-            raise PlanError(f"{path}: {e}") from None
-        lo.append(it.get("lower"))
-        hi.append(it.get("upper"))
-    return params, lo, hi
+    return read_parameter_file(Path(path))

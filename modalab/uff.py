@@ -973,29 +973,36 @@ def _node_rotations(blocks, path, cur=None) -> dict[int, np.ndarray]:
 def read_geometry(path) -> dict[int, tuple[float, float, float]]:
     """Node coordinates from datasets 2411 and 15: ``{node: (x, y, z)}``."""
     with _guard(path) as cur:
-        blocks = _blocks(path, cur)
-        out: dict = {}
-        found = False
-        frames = _frames(blocks, path, cur)
-        for b in blocks:
-            if b.number in (2411, 15):
-                cur.block = b
-                found = True
-                cs: dict = {}
-                nodes = _parse_nodes(b, cs)
-                for nd, (def_cs, _) in cs.items():
-                    fr = frames.get(def_cs)
-                    if fr is not None and not fr["identity"]:
-                        xyz = fr["rotation"].T @ np.asarray(nodes[nd]) + fr["origin"]
-                        nodes[nd] = tuple(float(v) for v in xyz)
-                clash = [n for n in nodes if n in out and out[n] != nodes[n]]
-                if clash:
-                    raise UffError(f"nodes {clash[:10]} are defined again with different coordinates; keep one "
-                                   "definition per node", path=path, dataset=b.number, line=b.line)
-                out.update(nodes)
-        if not found:
+        out = _global_nodes(_blocks(path, cur), path, cur)
+        if out is None:
             raise UffError("no node coordinates (dataset 2411 or 15) in the file", path=path)
         return out
+
+
+def _global_nodes(blocks, path, cur) -> dict | None:
+    """Node coordinates of datasets 2411/15 in the global frame (dataset 2420 frames applied); None when the
+    file has no node dataset."""
+    out: dict = {}
+    found = False
+    frames = _frames(blocks, path, cur)
+    for b in blocks:
+        if b.number in (2411, 15):
+            cur.block = b
+            found = True
+            cs: dict = {}
+            nodes = _parse_nodes(b, cs)
+            for nd, (def_cs, _) in cs.items():
+                fr = frames.get(def_cs)
+                if fr is not None and not fr["identity"]:
+                    xyz = fr["rotation"].T @ np.asarray(nodes[nd]) + fr["origin"]
+                    nodes[nd] = tuple(float(v) for v in xyz)
+            clash = [n for n in nodes if n in out and out[n] != nodes[n]]
+            if clash:
+                raise UffError(f"nodes {clash[:10]} are defined again with different coordinates; keep one "
+                               "definition per node", path=path, dataset=b.number, line=b.line)
+            out.update(nodes)
+    cur.block = None
+    return out if found else None
 
 
 # ----------------------------------------------------------------------------- units
@@ -1044,7 +1051,7 @@ def write_modes(path, modes: ModeSet, *, append: bool = False, exact: bool = Tru
         raise UffError(f"write_modes needs a ModeSet; got {type(modes).__name__}")
     phi = np.asarray(modes.shapes)
     cplx = np.iscomplexobj(phi)
-    axes = {d.axis for d in modes.dofs}
+    axes = {d.axis for d in modes.dofs} or {1, 2, 3}           # a frequency-only set: no node records
     if 0 in axes and len(axes) > 1:
         raise UffError("the mode set mixes scalar DOFs with directional ones; write them as two files",
                        path=path)
@@ -1094,6 +1101,8 @@ def write_modes(path, modes: ModeSet, *, append: bool = False, exact: bool = Tru
         chunks.append("\n".join(lines))
     with _open_out(path, append) as fh:
         fh.write("".join(chunks).encode("latin-1"))
+    if getattr(modes, "coordinates", None):
+        write_geometry(path, modes.coordinates, append=True)
 
 
 def _parse_55(b: Block):
@@ -1153,6 +1162,7 @@ def read_modes(path, *, dofs=None) -> ModeSet:
     with _guard(path) as cur:
         sets, all55 = [], []
         blocks = _blocks(path, cur)
+        coords = _global_nodes(blocks, path, cur) or {}
         for b in blocks:
             if b.number == 55:
                 cur.block = b
@@ -1245,8 +1255,8 @@ def read_modes(path, *, dofs=None) -> ModeSet:
         meta = {"source": str(path)}
         if rotated:
             meta["rotated_to_global"] = rotated
-        ms = ModeSet(freq_hz=freq, damping=damp, shapes=shapes, dofs=labels, scaling=scaling,
-                     indicators=indicators, metadata=meta)
+        ms = ModeSet(freq_hz=freq, damping=damp, shapes=shapes if labels else None, dofs=labels, scaling=scaling,
+                     indicators=indicators, metadata=meta, coordinates=coords)
         if dofs is not None:
             ms = ms.select_dofs(dofs)
         return ms

@@ -63,7 +63,7 @@ from modalab.dof import Dof, parse_dofs
 from modalab.errors import DofError, ModalabValueError, ShapeError
 from modalab.modes import ModeSet
 
-__all__ = ["DofMap", "as_dofmap", "observation_matrix"]
+__all__ = ["DofMap", "as_dofmap", "observation_matrix", "geometry_map"]
 
 log = logging.getLogger(__name__)
 
@@ -357,3 +357,124 @@ def as_dofmap(value) -> DofMap:
 def observation_matrix(test_dofs, model_dofs, dofmap=None) -> sp.csr_matrix:
     """``C`` with ``x_test = C x_model`` for the given labels (see :meth:`DofMap.matrix`)."""
     return as_dofmap(dofmap).matrix(test_dofs, model_dofs)
+
+
+def _kabsch(P, Q):
+    """Rotation R and translation t minimising Σ‖R p + t − q‖² (proper rotation)."""
+    cp, cq = P.mean(axis=0), Q.mean(axis=0)
+    H = (P - cp).T @ (Q - cq)
+    U, _, Vt = np.linalg.svd(H)
+    d = np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0
+    R = Vt.T @ np.diag([1.0, 1.0, d]) @ U.T
+    return R, cq - R @ cp
+
+
+def _axis_rotations() -> list:
+    import itertools
+
+    out = []
+    for perm in itertools.permutations(range(3)):
+        for signs in itertools.product((1.0, -1.0), repeat=3):
+            R = np.zeros((3, 3))
+            for i, (j, sg) in enumerate(zip(perm, signs)):
+                R[i, j] = sg
+            if np.linalg.det(R) > 0:
+                out.append(R)
+    return out
+
+
+def geometry_map(test_coords: Mapping, model_coords: Mapping, test_nodes=None, *, tol: float | None = None,
+                 max_iter: int = 50) -> tuple[DofMap, dict]:
+    """Map test nodes onto model nodes by geometry: nearest model node after a best-fit rigid transform.
+
+    ``test_coords``/``model_coords`` are ``{node: (x, y, z)}`` in m (test geometry from UFF
+    dataset 2411, model grids from the bulk data).  The test geometry is first compared as it
+    is (same frame); if some node is farther than ``tol`` from every model node, a rigid
+    transform is fitted by iterated closest points (Kabsch, deterministic, started from the
+    identity and from the centroid alignment) and used when it brings every node within
+    ``tol``; the sensor directions are then rotated with it (``test_frames``).  ``tol``
+    defaults to 2 % of the model's largest extent.
+
+    Returns the :class:`DofMap` (``same_nodes=False``: every test node is mapped) and a report
+    ``{"rotation", "translation", "tol_m", "max_distance_m", "rms_distance_m", "nodes":
+    {test node: {"model_node", "distance_m"}}}``.  Raises :class:`~modalab.errors.DofError`
+    naming the nodes that have no model node within ``tol``, or two test nodes that land on the
+    same model node.
+    """
+    from scipy.spatial import cKDTree
+
+    nodes = sorted(int(n) for n in (test_coords if test_nodes is None else test_nodes))
+    missing = [n for n in nodes if n not in {int(k) for k in test_coords}]
+    if missing:
+        raise DofError(f"test node(s) {missing[:10]} have no coordinates; give the test geometry (UFF dataset 2411) "
+                       "for every measured node, or a DOF map (--map)")
+    if not nodes:
+        raise DofError("no test nodes to map by geometry")
+    tc = {int(k): v for k, v in test_coords.items()}
+    P = np.array([tc[n] for n in nodes], float)
+    mids = sorted(int(k) for k in model_coords)
+    if not mids:
+        raise DofError("the model has no node coordinates to map the test nodes onto")
+    Q = np.array([model_coords[m] for m in mids], float)
+    if not (np.all(np.isfinite(P)) and np.all(np.isfinite(Q))):
+        raise DofError("node coordinates contain NaN or inf")
+    ext = float(np.ptp(Q, axis=0).max()) if len(Q) > 1 else 1.0
+    tol = 0.02 * max(ext, 1e-12) if tol is None else float(tol)
+    tree = cKDTree(Q)
+
+    def fit(R, t):
+        for _ in range(max_iter):
+            d, j = tree.query(P @ R.T + t)
+            if len(nodes) < 3:
+                return R, t, d, j
+            R2, t2 = _kabsch(P, Q[j])
+            if np.allclose(R2, R, atol=1e-12) and np.allclose(t2, t, atol=1e-12 * max(ext, 1)):
+                break
+            R, t = R2, t2
+        d, j = tree.query(P @ R.T + t)
+        return R, t, d, j
+
+    I3 = np.eye(3)
+    d0, j0 = tree.query(P)
+    candidates = [(I3, np.zeros(3), d0, j0)]
+    if d0.max() > tol:
+        # iterated closest points from the 24 axis-aligned proper rotations, centroids aligned (deterministic)
+        for R0 in _axis_rotations():
+            candidates.append(fit(R0, Q.mean(axis=0) - R0 @ P.mean(axis=0)))
+        candidates.append(fit(I3, np.zeros(3)))
+    # the simplest candidate that fits: identity first, then the rigid fits by RMS distance
+    ok = [c for c in candidates if c[2].max() <= tol]
+    if not ok:
+        best = min(candidates, key=lambda c: float(np.sqrt(np.mean(c[2] ** 2))))
+        far = [(n, float(dd)) for n, dd in zip(nodes, best[2]) if dd > tol]
+        far.sort(key=lambda t: -t[1])
+        raise DofError(f"{len(far)} test node(s) have no model node within {tol:.3g} m even after a best-fit rigid "
+                       f"transform (worst: {', '.join(f'{n} at {dd:.3g} m' for n, dd in far[:5])}); the test geometry "
+                       "does not match the model: give a DOF map (--map) or check units and frames")
+    if ok[0] is candidates[0]:
+        R, t, d, j = ok[0]                      # the test geometry is already in the model's frame
+    else:
+        maps = {}
+        for c in ok:
+            maps.setdefault(tuple(int(k) for k in c[3]), c)
+        if len(maps) > 1:
+            raise DofError(f"the test geometry fits the model in {len(maps)} different ways after a rigid transform "
+                           "(a symmetric structure or sensor layout): the mapping is ambiguous; give a DOF map (--map) "
+                           "or the test geometry in the model's frame")
+        R, t, d, j = next(iter(maps.values()))
+    mapped = [mids[k] for k in j]
+    dup = {}
+    for n, m in zip(nodes, mapped):
+        dup.setdefault(m, []).append(n)
+    clash = {m: ns for m, ns in dup.items() if len(ns) > 1}
+    if clash:
+        m, ns = sorted(clash.items())[0]
+        raise DofError(f"test nodes {ns} all map onto model node {m} by geometry; the test mesh is finer than the "
+                       "model or the geometry is off: give a DOF map (--map)")
+    rotated = not np.allclose(R, I3, atol=1e-9)
+    dm = DofMap(nodes=dict(zip(nodes, mapped)), same_nodes=False,
+                test_frames={n: R for n in nodes} if rotated else None, name="geometry")
+    report = {"rotation": R.tolist(), "translation": t.tolist(), "tol_m": tol,
+              "max_distance_m": float(d.max()), "rms_distance_m": float(np.sqrt(np.mean(d ** 2))),
+              "nodes": {str(n): {"model_node": int(m), "distance_m": float(dd)} for n, m, dd in zip(nodes, mapped, d)}}
+    return dm, report

@@ -124,7 +124,10 @@ class EigendynamicConstraint:
     ``n_iter_``, ``residual_norm_`` (of the final linear system).
     """
 
-    def __init__(self, params=None, *, max_iter: int = 50, tol: float = 1e-10):
+    def __init__(self, params=None, *, max_iter: int = 50, tol: float = 1e-10, mac_min: float = 0.5,
+                 pairing: dict | None = None):
+        self.mac_min = mac_min
+        self.pairing = pairing
         self.params = params
         self.max_iter = max_iter
         self.tol = tol
@@ -135,8 +138,28 @@ class EigendynamicConstraint:
 
         if not isinstance(test_modes, ModeSet):
             raise ModalabValueError(f"test_modes must be a ModeSet; got {type(test_modes).__name__}")
+        if not test_modes.has_shapes:
+            raise ModalabValueError("the eigendynamic method needs measured mode shapes; this test set has "
+                                    "frequencies only: use inverse eigensensitivity (frequencies only)")
         C = observation_matrix(test_modes.dofs, model.dofs, dofmap).tocsr()
         n = len(model.dofs)
+        # only test modes with an analysis partner (the one pairing rule) enter the equations: a spurious or
+        # unmatched test mode would be forced onto the model as if it were one of its modes
+        from .correlation import mac, observability, pair_modes
+        from .sensitivity import solve_modes
+
+        sol = solve_modes(model, np.asarray(model.p0, float), min(n, max(2 * test_modes.n_modes,
+                                                                             test_modes.n_modes + 6)))
+        Pa = np.asarray(C @ sol.phi)
+        pr = pair_modes(mac(Pa, test_modes.real_shapes), sol.freq_hz, test_modes.freq_hz, mac_min=self.mac_min,
+                        observability=observability(Pa, sol.phi, model.dofs), **(self.pairing or {}))
+        self.pairing_ = pr
+        if not pr.pairs:
+            raise ModalabValueError(f"no test mode pairs with an analysis mode ({pr.method}); check the DOF map")
+        if pr.unpaired_test:
+            log.warning("eigendynamic: test modes %s have no analysis partner and are left out",
+                        [j + 1 for j in pr.unpaired_test])
+        test_modes = test_modes.select_modes(pr.test_index)
         # each test DOF must be one signed model DOF for the partition of Kidder's expansion
         if np.any(np.diff(C.indptr) != 1):
             raise ModalabValueError("the eigendynamic method needs test DOFs that coincide with model DOFs "

@@ -8,10 +8,13 @@ hand between Nastran runs is automated here, with the additions its section
 6.3 asks for:
 
 **Residuals, for paired modes only.**  At every iteration the analytical modes
-are recomputed and paired with the test modes by MAC (Hungarian assignment,
-:func:`updating.correlation.pair_modes`), so modes that are out of order
-between the models are compared with their true partner; test modes without
-a partner (MAC below ``mac_min``) are left out of that iteration.  Per pair:
+are recomputed and paired with the test modes by the one pairing rule of
+:func:`updating.correlation.pair_modes` (MAC and frequency, a frequency window,
+unobservable and rigid-body modes excluded), so modes that are out of order
+between the models are compared with their true partner.  The objective is
+defined on the test modes paired at the start: a test mode without a partner
+then stays out at every iteration (re-pairing may follow a mode switch but never
+adds a test mode); frequency-only test sets keep their initial partners.  Per pair:
 
 * frequency: ``(f_X − f_A)/f_X`` with sensitivity ``(∂f_A/∂p)/f_X`` from
   ``∂λ/∂p = φᵀ(∂K/∂p − λ∂M/∂p)φ`` (or eigenvalues, ``residual='eigenvalue'``:
@@ -80,20 +83,14 @@ __all__ = [
 ]
 
 
-def _mac_pair(Pa, Px, mac_min):
-    try:
-        from .correlation import mac, pair_modes
+def _mac_pair(Pa, Px, mac_min, freq_a_hz=None, freq_x_hz=None, phi_full=None, dofs=None, **kw):
+    """Pairs by the one pairing rule of modalab (:func:`updating.correlation.pair_modes`)."""
+    from .correlation import mac, observability, pair_modes
 
-        Mm = mac(Pa, Px)
-        pr = pair_modes(Mm, mac_min=mac_min)
-        return [(int(a), int(x)) for a, x in pr.pairs], Mm
-    except ImportError:  # pragma: no cover - correlation is part of the package
-        from scipy.optimize import linear_sum_assignment
-
-        num = np.abs(Pa.T @ Px) ** 2
-        Mm = num / np.outer((Pa * Pa).sum(0), (Px * Px).sum(0))
-        r, c = linear_sum_assignment(1 - Mm)
-        return sorted([(int(a), int(x)) for a, x in zip(r, c) if Mm[a, x] >= mac_min], key=lambda t: t[1]), Mm
+    Mm = mac(Pa, Px)
+    obs = observability(Pa, phi_full, dofs) if phi_full is not None else None
+    pr = pair_modes(Mm, freq_a_hz, freq_x_hz, mac_min=mac_min, observability=obs, **kw)
+    return [(int(a), int(x)) for a, x in pr.pairs], Mm, pr
 
 
 def _observation(test: ModeSet, model, dofmap):
@@ -141,8 +138,15 @@ def _sigmas(test: ModeSet, freq_sigma, shape_sigma):
 
 def sensitivity_system(model, test_modes: ModeSet, p=None, *, params=None, dofmap=None, n_modes=None,
                        mac_min: float = 0.5, freq_sigma=0.01, shape_sigma=0.05, use_shapes: bool = True,
-                       residual: str = "frequency", scale=None, C=None) -> SensitivitySystem:
-    """Build the weighted sensitivity matrix [S] (Eq. 3.50) and residual {Δ} (Eq. 3.51) for paired modes."""
+                       residual: str = "frequency", scale=None, C=None, pairing: dict | None = None,
+                       freq_cov=None, only_test=None, fixed_pairs=None) -> SensitivitySystem:
+    """Build the weighted sensitivity matrix [S] (Eq. 3.50) and residual {Δ} (Eq. 3.51) for paired modes.
+
+    Modes are paired by :func:`updating.correlation.pair_modes` (``pairing``: its keyword arguments);
+    ``only_test`` restricts the pairing to those test modes (0-based), as the updater does after its
+    first pairing so that the objective keeps the same test modes at every iteration; ``fixed_pairs``
+    (used for frequency-only test sets, where no shape can follow a mode) keeps given (analysis, test) pairs.
+    """
     if residual not in ("frequency", "eigenvalue"):
         raise ModalabValueError(f"residual={residual!r}; expected 'frequency' or 'eigenvalue'")
     p = np.asarray(model.p0 if p is None else p, float)
@@ -153,12 +157,42 @@ def sensitivity_system(model, test_modes: ModeSet, p=None, *, params=None, dofma
     N = len(model.dofs)
     na = min(N, max(2 * nx, nx + 6)) if n_modes is None else int(n_modes)
     sol = solve_modes(model, p, na)
+    if n_modes is None and test_modes.n_modes:
+        # enough analysis modes to cover the test band and its frequency window (free-free models and local
+        # modes can push the partners of the highest test modes beyond 2 x n_test)
+        from .correlation import FREQ_WINDOW
+
+        w = (pairing or {}).get("max_freq_error", FREQ_WINDOW) or FREQ_WINDOW
+        top = float(np.max(test_modes.freq_hz)) * (1 + w)
+        while sol.freq_hz[-1] < top and na < N:
+            na = min(N, 2 * na)
+            sol = solve_modes(model, p, na)
     X = test_modes.real_shapes
     Pa = np.asarray(C @ sol.phi)
-    pairs, Mm = _mac_pair(Pa, X, mac_min)
+    if use_shapes and not test_modes.has_shapes:
+        log.info("the test modes have no shapes: frequencies only")
+        use_shapes = False
+    cols = np.arange(test_modes.n_modes) if only_test is None else np.array(sorted(int(j) for j in only_test), int)
+    if test_modes.has_shapes:
+        _, Mm, pr = _mac_pair(Pa, X[:, cols], mac_min, sol.freq_hz, test_modes.freq_hz[cols], sol.phi, model.dofs,
+                              **(pairing or {}))
+        if only_test is not None:
+            from .correlation import mac as _mac
+
+            Mm = _mac(Pa, X)
+    elif fixed_pairs is not None:
+        pr, Mm = None, None
+    else:
+        from .correlation import pair_modes
+
+        pr = pair_modes(None, sol.freq_hz, test_modes.freq_hz[cols], **(pairing or {}))
+        Mm = None
+    pairs = [(int(a), int(x)) for a, x in fixed_pairs] if pr is None else \
+        [(int(a), int(cols[x])) for a, x in pr.pairs]
     if not pairs:
-        raise ModalabValueError(f"no analysis mode pairs with any test mode at MAC >= {mac_min}; check the DOF "
-                                "map (signs, node numbers) or lower mac_min")
+        how = pr.method if pr is not None else "fixed pairs"
+        raise ModalabValueError(f"no analysis mode pairs with any test mode ({how}); check the DOF "
+                                "map (signs, node numbers), the frequency window or mac_min")
     fs, ss = _sigmas(test_modes, freq_sigma, shape_sigma)
     sd = StackedDerivatives(model.derivatives(p), N)
     amodes = np.array([a for a, _ in pairs])
@@ -166,7 +200,7 @@ def sensitivity_system(model, test_modes: ModeSet, p=None, *, params=None, dofma
     lam_a = sol.lam[amodes]
     fa_all = sol.freq_hz
     fx = test_modes.freq_hz
-    rows, Srows, rvals = [], [], []
+    rows, Srows, rvals, frows = [], [], [], []
     if use_shapes:
         used = np.unique(C.indices)
         dphi = eigenvector_sensitivities(model, modes=amodes, solution=sol, derivatives=sd, rows=used)[:, :, idx]
@@ -186,6 +220,7 @@ def sensitivity_system(model, test_modes: ModeSet, p=None, *, params=None, dofma
             srow = dl[k] / lx
             sig = 2 * fs[x]
         rows.append(f"f{x + 1}")
+        frows.append((len(rvals), x, 1.0 if residual == "frequency" else 2.0))
         rvals.append(rv / sig)
         Srows.append(srow * scale / sig)
         if use_shapes:
@@ -202,8 +237,28 @@ def sensitivity_system(model, test_modes: ModeSet, p=None, *, params=None, dofma
             rvals.extend(res / sig_c)
             Srows.extend(sens * scale[None, :] / sig_c[:, None])
             rows.extend(f"s{x + 1}:{d}" for d in test_modes.dofs)
-    return SensitivitySystem(S=np.vstack(Srows) if np.ndim(Srows[0]) == 1 else np.vstack(Srows),
-                             r=np.asarray(rvals), rows=rows, pairs=pairs, scale=scale, params=idx,
+    S, r = np.vstack(Srows), np.asarray(rvals, float)
+    if freq_cov is not None:
+        # whiten the frequency rows with the full covariance of the relative frequencies (Cholesky), so
+        # correlated repeats count once; the rows were divided by σ above: undo that first
+        cov = np.asarray(freq_cov, float)
+        if cov.shape != (test_modes.n_modes, test_modes.n_modes):
+            raise ShapeError(f"freq_cov has shape {cov.shape}; expected ({test_modes.n_modes}, {test_modes.n_modes})")
+        at = np.array([i for i, _, _ in frows], int)
+        xs = np.array([x for _, x, _ in frows], int)
+        fac = np.array([c for _, _, c in frows], float)
+        sig_used = fac * fs[xs]
+        raw_r, raw_S = r[at] * sig_used, S[at] * sig_used[:, None]
+        D = 1.0 / fx[xs]
+        Sig = fac[:, None] * fac[None, :] * cov[np.ix_(xs, xs)] * np.outer(D, D)
+        try:
+            L = np.linalg.cholesky(Sig)
+        except np.linalg.LinAlgError:
+            raise ModalabValueError("the frequency covariance of the paired test modes is singular (a mode with "
+                                    "zero variance, or perfectly correlated modes); give positive variances") from None
+        r[at] = np.linalg.solve(L, raw_r)
+        S[at] = np.linalg.solve(L, raw_S)
+    return SensitivitySystem(S=S, r=r, rows=rows, pairs=pairs, scale=scale, params=idx,
                              freq_a_hz=fa_all, freq_x_hz=fx, mac=Mm)
 
 
@@ -307,7 +362,11 @@ class InverseEigensensitivity:
 
     def __init__(self, params=None, *, weights=None, freq_sigma=0.01, shape_sigma=0.05, use_shapes: bool = True,
                  residual: str = "frequency", regularisation="lcurve", tikhonov: str = "step", bounds=None,
-                 max_iter: int = 50, tol: float = 1e-6, mac_min: float = 0.5, n_modes: int | None = None):
+                 max_iter: int = 50, tol: float = 1e-6, mac_min: float = 0.5, n_modes: int | None = None,
+                 pairing: dict | None = None, freq_cov="test", condition_max: float = 1e3):
+        self.pairing = pairing
+        self.freq_cov = freq_cov
+        self.condition_max = condition_max
         self.weights = weights
         self.params = params
         self.freq_sigma = freq_sigma
@@ -373,8 +432,9 @@ class InverseEigensensitivity:
             if unknown:
                 raise ModalabValueError(f"weights keys {sorted(unknown)}; expected some of {sorted(wts)}")
             wts.update(self.weights)
+        fcov = test_modes.freq_cov if isinstance(self.freq_cov, str) and self.freq_cov == "test" else self.freq_cov
         kw = dict(params=idx, n_modes=self.n_modes, mac_min=self.mac_min, residual=self.residual,
-                  scale=scale, C=C, **wts)
+                  scale=scale, C=C, pairing=self.pairing, freq_cov=fcov, **wts)
         self.history_ = []
         self.converged_ = False
         self.params_ = idx
@@ -382,6 +442,16 @@ class InverseEigensensitivity:
         it = 0
         sysm = sensitivity_system(model, test_modes, p, **kw)
         self.initial_pairs_ = list(sysm.pairs)
+        # the objective is defined on the test modes paired at the start: re-pairing at later iterations may follow
+        # a mode switch (new analysis partner) but never adds a test mode the initial model could not pair
+        kw["only_test"] = sorted(x for _, x in sysm.pairs)
+        if not test_modes.has_shapes:
+            # no shapes to follow a mode: keep the analysis partner (by mode number) found at the start
+            kw["fixed_pairs"] = list(sysm.pairs)
+        self.unpaired_test_ = [j for j in range(test_modes.n_modes) if j not in kw["only_test"]]
+        if self.unpaired_test_:
+            log.info("inverse eigensensitivity: test modes %s have no partner and stay out of the objective",
+                     [j + 1 for j in self.unpaired_test_])
         for it in range(1, self.max_iter + 1):
             S, r = sysm.S, sysm.r
             d0 = (p[idx] - p0[idx]) / scale
@@ -443,6 +513,24 @@ class InverseEigensensitivity:
         cov = Ai @ H @ Ai
         self.covariance_ = cov * np.outer(scale, scale)
         self.std_ = np.sqrt(np.clip(np.diag(self.covariance_), 0, None))
+        # identifiability: condition number of the weighted sensitivity matrix and the unregularised
+        # (linearised least-squares) uncertainty, which regularisation hides
+        sv = np.linalg.svd(S, compute_uv=False) if S.size else np.zeros(0)
+        full_rank = sv.size == idx.size and sv.size and sv[-1] > 1e-12 * sv[0]
+        self.singular_values_ = sv
+        self.condition_ = float(sv[0] / sv[-1]) if full_rank else np.inf
+        if full_rank:
+            cu = np.linalg.inv(H) * np.outer(scale, scale)
+            self.std_unregularised_ = np.sqrt(np.clip(np.diag(cu), 0, None))
+        else:
+            self.std_unregularised_ = np.full(idx.size, np.inf)
+        self.identifiable_ = bool(self.condition_ <= self.condition_max)
+        if not self.identifiable_:
+            log.warning("the parameters are not identifiable from these data: condition number %.3g > %.3g "
+                        "(%d equations, %d parameters); unregularised standard deviations %s — the regularised "
+                        "values %s only reflect the regularisation", self.condition_, self.condition_max,
+                        S.shape[0], idx.size, np.array2string(self.std_unregularised_, precision=3),
+                        np.array2string(self.std_, precision=3))
         self.p_ = p
         self.pairs_ = sysm.pairs
         fa = np.full(test_modes.n_modes, np.nan)

@@ -24,6 +24,8 @@ def case(tmp_path_factory):
     dofs = [x for x in ms.dofs if x.axis in (2, 3) and x.node % 2 == 0]
     elastic = np.flatnonzero(ms.freq_hz > 1.0)[:8]
     test = ms.select_dofs(dofs).select_modes(elastic)
+    # the test geometry travels with the modes (dataset 2411): correlate/update map test nodes by geometry
+    test.coordinates = {x.node: tuple(nominal.nodes[x.node].xyz) for x in dofs}
     test.to_uff(d / "test_modes.uff")
     (d / "params.toml").write_text(
         '[[parameter]]\nname = "E_wing"\nfield = "E"\nproperties = ["wing"]\n'

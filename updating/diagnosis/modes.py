@@ -63,7 +63,8 @@ def mode_errors(structure, test_modes: ModeSet, keep=None):
     """Relative frequency errors and MACs of the test modes ``keep`` paired (by MAC) with the model's modes."""
     from ..correlation import correlate
     sub = test_modes if keep is None else test_modes.select_modes(list(np.asarray(keep, int)))
-    c = correlate(structure, sub, mac_min=0.0)
+    # MAC-only pairing as before the one pairing rule (pair_modes); the diagnosis fit block adopts it separately
+    c = correlate(structure, sub, mac_min=0.0, max_freq_error=None, freq_weight=0.0)
     df = np.full(sub.n_modes, 1.0)
     mac = np.zeros(sub.n_modes)
     for a, t in c.pairs:

@@ -349,7 +349,7 @@ def _paired_frequencies(structure, test_modes, n_modes: int, band) -> list:
     if test_modes is not None:
         from ..correlation import correlate
         try:
-            c = correlate(structure, test_modes, mac_min=0.3)
+            c = correlate(structure, test_modes, mac_min=0.3, max_freq_error=None, freq_weight=0.0)
         except ModalabError:
             c = None
         if c is not None:
@@ -369,7 +369,7 @@ def _mode_metrics(structure, test_modes) -> dict:
         return {"freq_error_max_pct": None, "mac_min": None}
     from ..correlation import correlate
     try:
-        c = correlate(structure, test_modes, mac_min=0.3)
+        c = correlate(structure, test_modes, mac_min=0.3, max_freq_error=None, freq_weight=0.0)
     except ModalabError as e:
         log.info("correlation failed: %s", e)
         return {"freq_error_max_pct": None, "mac_min": None}
