@@ -102,7 +102,7 @@ MASSLESS_TOL = 1e-13
 #: an eigenvalue of K_oo below this fraction of its largest diagonal entry is a mechanism
 MECHANISM_TOL = 1e-10
 #: massless components up to this size get a dense null space; larger ones shift-invert Lanczos
-_DENSE_NULL = 3000
+_DENSE_NULL = 300
 
 
 def _massless(M) -> np.ndarray:
@@ -144,7 +144,7 @@ def massless_mechanisms(K, M) -> tuple[np.ndarray, np.ndarray]:
     of ``N`` (on all DOFs).  A mechanism is a null vector of ``K_oo``, the stiffness between the massless
     DOFs o (with the DOFs with mass held); for a positive semi-definite K it satisfies ``K n = 0`` and, being
     massless, ``M n = 0``.  Each connected group of massless DOFs (graph of ``K_oo``) is treated on its own:
-    dense eigenvalues up to 3000 DOFs, shift-invert Lanczos above.
+    dense eigenvalues up to 300 DOFs, shift-invert Lanczos above.
     """
     n = K.shape[0]
     o = _massless(M)
