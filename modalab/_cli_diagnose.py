@@ -6,22 +6,28 @@ from pathlib import Path
 
 
 def diagnose_files(model_path, measured_path, *, modes=None, params=None, json_path=None, report_dir=None,
-                   progress=None, criterion: str = "auto"):
+                   progress=None, criterion: str = "auto", dofmap=None):
     """Diagnose one configuration from files; returns the :class:`~updating.diagnosis.Diagnosis`."""
     from updating.diagnosis import diagnose
 
     from .frf import FRF
     from .pipeline import load_model, load_modes, load_params
 
+    if dofmap is not None and measured_path is not None:
+        from .errors import PlanError
+
+        raise PlanError("--map applies to a modes-only diagnosis (--modes without MEASURED.uff); remove --map or the "
+                        "measured FRFs")
     model = load_model(model_path)
     plist = load_params(params, model) if params else None
     kw = {}
     if modes:
         kw["test_modes"] = load_modes(modes)
     if measured_path is None:
-        from updating.diagnosis import diagnose_modes
+        from updating.diagnosis.modes import diagnose_modes, map_test_modes
 
-        d = diagnose_modes(model, kw["test_modes"], parameters=plist)
+        test = kw["test_modes"] if dofmap is None else map_test_modes(kw["test_modes"], model, dofmap)
+        d = diagnose_modes(model, test, parameters=plist, progress=progress)
     else:
         measured = FRF.from_uff(measured_path)
         d = diagnose(model, measured, parameters=plist, progress=progress, criterion=criterion, **kw)
@@ -45,7 +51,8 @@ def cmd_diagnose(a):
 
         raise PlanError("give measured FRFs (MEASURED.uff) or --modes MODES.uff (a GVT's modes alone)")
     d = diagnose_files(a.model, a.measured, modes=a.modes, params=a.params, json_path=a.json,
-                       report_dir=a.report, progress=lambda m: _print(m), criterion=a.criterion)
+                       report_dir=a.report, progress=lambda m: _print(m), criterion=a.criterion,
+                       dofmap=getattr(a, "map", None))
     dd = d.to_dict()
     for f in dd["findings"]:
         vals = ", ".join(f"{v['name']} = {v['value']:.4g} {v['unit']} (± {v['std']:.2g})" for v in f["values"])
@@ -63,6 +70,8 @@ def register(sub):
     s.add_argument("measured", nargs="?", help="measured FRFs with coherence (UFF 58); node ids and directions "
                                                "refer to the model's grids and basic system")
     s.add_argument("--modes", help="identified modes (UFF 55 or JSON); alone, a modes-only diagnosis")
+    s.add_argument("--map", help="with --modes alone: DOF map file (TOML/CSV, as for correlate: test DOF -> model "
+                                 "DOF with sign); default: test node ids are model grid ids")
     s.add_argument("--params", help="TOML [[parameter]] file (default: E and rho multipliers per property group)")
     s.add_argument("--json", help="diagnosis.json path (schema in the README)")
     s.add_argument("--report", help="folder for diagnosis.json, MCI maps, FRF overlays and the augmented model")

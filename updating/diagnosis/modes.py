@@ -40,7 +40,8 @@ from modalab.errors import ModalabValueError
 from modalab.modes import ModeSet
 
 from ..fe import FEModel, ParametricFEModel
-from ..fe.solvers import DEFAULT_SHIFT_HZ, _drop_mechanisms, eigen_dense, eigen_sparse, factorize
+from ..fe.solvers import (DEFAULT_SHIFT_HZ, _drop_mechanisms, eigen_dense, eigen_sparse, factorize,
+                          massless_mechanisms)
 from .fit import FitResult, FRFData
 from .library import build_library
 from .workflow import (Diagnosis, Finding, _augment, _bounds, _fmt, _upper, default_parameters,
@@ -48,7 +49,7 @@ from .workflow import (Diagnosis, Finding, _augment, _bounds, _fmt, _upper, defa
 
 log = logging.getLogger(__name__)
 __all__ = ["diagnose_modes", "modes_data", "fit_modes", "mode_errors", "modal_force_map", "ModalResidual",
-           "ModalSubspace", "ModesFinding", "screen_modes", "fit_modal_residual"]
+           "ModalSubspace", "ModesFinding", "screen_modes", "fit_modal_residual", "map_test_modes"]
 
 
 def modes_data(test_modes: ModeSet, keep=None) -> FRFData:
@@ -510,6 +511,26 @@ class ModesFinding(Finding):
 AMBIGUOUS_RSS = 0.05
 
 
+def map_test_modes(test_modes: ModeSet, model: FEModel, dofmap) -> ModeSet:
+    """The test modes on the model's DOF labels through a DOF map (``--map``: a TOML/CSV file, a dict or a
+    :class:`~updating.dofmap.DofMap`; test node → model grid, with signs).  Each test DOF must read one
+    model DOF (an oblique sensor is refused with a message by :meth:`DofMap.model_labels`)."""
+    from ..dofmap import as_dofmap
+    if not len(test_modes.dofs):
+        return test_modes
+    labels, scale = as_dofmap(dofmap).model_labels(list(test_modes.dofs), model.reduction().full_dofs)
+    shapes = np.asarray(test_modes.shapes) / np.asarray(scale, float)[:, None]
+    keys = [(d.node, d.axis) for d in labels]
+    if len(set(keys)) != len(keys):
+        dup = sorted({str(d) for d, k in zip(labels, keys) if keys.count(k) > 1})
+        raise ModalabValueError(f"the DOF map sends several test DOFs to the same model DOF(s) {', '.join(dup)}; "
+                                "map each test DOF to its own model DOF")
+    out = test_modes.copy()
+    out.shapes = shapes
+    out.dofs = labels
+    return out
+
+
 def _neighbours(model) -> dict:
     """Nodes sharing an element with each node."""
     from .library import _nodes_of
@@ -748,12 +769,29 @@ def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
 
 def modal_force_map(structure, data: FRFData) -> np.ndarray:
     """|r| / σ per measured DOF and mode of the homogeneous condensed residual ``[Z(iω_j) x_j]_m`` (the
-    modal force residual: thesis eq. 3.89 with f = 0, unmeasured DOFs expanded by the model), (n_m, n_modes)."""
+    modal force residual: thesis eq. 3.89 with f = 0, unmeasured DOFs expanded by the model), (n_m, n_modes).
+    A massless mechanism (``K n = M n = 0``) is constrained at one DOF first, exactly as in the eigen-solvers:
+    otherwise the expansion ``Z_ss`` is singular at every frequency."""
     from modalab.dof import locate
 
     from .dynamics import condensed_residual
     mi, ms = locate(structure.dofs, data.responses, "test-mode DOF")
+    K, M = sp.csr_matrix(structure.K), sp.csr_matrix(structure.M)
+    C = None if structure.C is None else sp.csr_matrix(structure.C)
+    D = None if structure.D is None else sp.csr_matrix(structure.D)
+    fix, _ = massless_mechanisms(K, M)
+    mi = np.asarray(mi, int)
+    if fix.size:
+        if np.isin(mi, fix).any():
+            fix = np.setdiff1d(fix, mi)        # a measured DOF on a mechanism keeps its value (rare)
+        keep = np.setdiff1d(np.arange(K.shape[0]), fix)
+        pos = np.full(K.shape[0], -1)
+        pos[keep] = np.arange(keep.size)
+        K, M = K[keep][:, keep], M[keep][:, keep]
+        C = None if C is None else C[keep][:, keep]
+        D = None if D is None else D[keep][:, keep]
+        mi = pos[mi]
     x = data.H * np.asarray(ms, float)[:, None, None]
-    F = np.zeros((structure.n_dof, 1))
-    _, r, _, sigma = condensed_residual(structure.K, structure.M, structure.C, structure.D, data.s, mi, x, F)
+    F = np.zeros((K.shape[0], 1))
+    _, r, _, sigma = condensed_residual(K, M, C, D, data.s, mi, x, F)
     return np.abs(r[:, 0, :]) / (sigma[0][None, :] + 1e-300)
