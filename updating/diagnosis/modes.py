@@ -164,11 +164,13 @@ class ModalSubspace:
         E = np.zeros((V.shape[0], Lk.shape[1]))
         E[p] = Lk
         S = self.factor.solve(E)
+        m_before = float(np.max(np.einsum("ij,ij->j", S, self.Mk @ S), initial=0.0))
         for _ in range(2):
             S = S - V @ (V.T @ (self.Mk @ S))
         ms = S.T @ (self.Mk @ S)
         mu, U = np.linalg.eigh(0.5 * (ms + ms.T))
-        ok = mu > 1e-9 * max(mu.max(initial=0.0), 1e-300)
+        # a correction (numerically) inside the basis already, or without mass, adds nothing
+        ok = mu > 1e-8 * max(m_before, 1e-300)
         S = S @ (U[:, ok] / np.sqrt(mu[ok]))
         W = np.hstack([V, S])
         KS = self.Kk @ S
@@ -198,7 +200,7 @@ class ModalResidual:
 
     def __init__(self, test_modes: ModeSet, keep=None, *, sigma_f: float = 0.005, sigma_phi: float = 0.02):
         idx = np.arange(test_modes.n_modes) if keep is None else np.asarray(keep, int)
-        phi = np.asarray(test_modes.shapes).reshape(len(test_modes.dofs), -1)[:, idx]
+        phi = np.asarray(test_modes.shapes).reshape(len(test_modes.dofs), test_modes.n_modes)[:, idx]
         phi = np.real(phi) if np.iscomplexobj(phi) else phi
         self.phi = phi / np.maximum(np.linalg.norm(phi, axis=0), 1e-300)
         self.f = np.asarray(test_modes.freq_hz, float)[idx]
@@ -718,6 +720,15 @@ def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
     fit = {"nominal": _block(pm.structure(p_nom), test_modes, keep_eval),
            "parameters_only": _block(pm.structure(upd.p), test_modes, keep_eval),
            "with_physics": _block(best_pm.structure(best_fit.p), test_modes, keep_eval)}
+    unproven = []
+    if current and held.size and \
+            fit["with_physics"]["freq_error_rms_pct"] >= fit["parameters_only"]["freq_error_rms_pct"]:
+        # the terms fit the training modes but do not predict the held-out ones: not proven, not claimed
+        unproven = [c.label for c in current]
+        log.info("modes: %s lower the training residual but not the held-out error; nothing added",
+                 ", ".join(unproven))
+        current, scales, best_fit, best_pm = [], [], upd, pm
+        fit["with_physics"] = dict(fit["parameters_only"])
     n_par = len(params)
     findings = []
     for k, (c, sc) in enumerate(zip(current, scales)):
@@ -747,11 +758,17 @@ def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
         if f.ambiguous:
             text = (f"AMBIGUOUS: {f.candidate.label} or " + " or ".join(a.label for a, _, _ in f.alternatives)
                     + " explain the test modes equally well; the data cannot tell which. ") + text
+    if unproven:
+        text = (f"Not proven: {' and '.join(unproven)} lowered the error on the training modes but not on the "
+                f"held-out ones ({held_desc}), so nothing is added; the model may lack something the candidates "
+                f"do not describe (or its mesh is too coarse). Updating the model's own parameters brings the "
+                f"held-out frequency error from {fit['nominal']['freq_error_rms_pct']:.3g} % to "
+                f"{fit['parameters_only']['freq_error_rms_pct']:.3g} % RMS.")
     if not separable:
         text = (f"The data cannot separate missing physics from parameter error: {n_eq} numbers "
                 f"({resid.f.size} training {'modes' if has_shapes else 'frequencies'}"
-                f"{' with shapes' if has_shapes else ', no shapes'}) against {n_free} free parameter(s) and a "
-                f"physics term; no physics is claimed. Frequency error after updating the parameters: "
+                f"{' with shapes' if has_shapes else ', no shapes'}) against {len(params)} "
+                f"parameters and a physics term; no physics is claimed. Frequency error after updating the parameters: "
                 f"{fit['parameters_only']['freq_error_rms_pct']:.3g} % RMS ({held_desc}).")
     maps = {}
     if has_shapes:       # localisation for the report: the modal force residual per measured DOF and mode
