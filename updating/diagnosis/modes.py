@@ -1,27 +1,39 @@
 """Missing-physics diagnosis from identified modes alone (no FRFs: a GVT deliverable).
 
 :func:`diagnose_modes` judges a model against test modes (natural frequencies f_j, real shapes φ_j on the
-measured DOFs) by the residual of :class:`ModalResidual`
+measured DOFs, or frequencies alone) by the residual of :class:`ModalResidual`
 
     e = [(f_model,j − f_j)/(σ_f f_j) ;  (a_j φ_model,j − φ_j)/σ_φ]
 
-(modes paired by MAC, shapes unit-norm, ``a_j`` the least-squares scale; σ_f = 0.5 %, σ_φ = 2 % by
-default): the eigenvalue residual and the shape residual *in displacement space*.  The homogeneous force
-residual ``Z(iω_j) φ_j`` (thesis section 3.2.4 with f = 0, the eigen-equation form of eq. 3.89;
-:func:`modes_data` still provides it) multiplies the shape scatter by the stiffness and lost the
-concealed effects at 1 % scatter; the displacement residual keeps them at 2 %.
+(modes paired by MAC — model modes the sensors cannot see are never paired — or, without shapes, by
+frequency order; shapes unit-norm, ``a_j`` the least-squares scale; σ_f = 0.5 %, σ_φ = 2 % by default): the
+eigenvalue residual and the shape residual *in displacement space*.  The homogeneous force residual
+``Z(iω_j) φ_j`` (thesis section 3.2.4 with f = 0, the eigen-equation form of eq. 3.89; :func:`modes_data`
+still provides it) multiplies the shape scatter by the stiffness and lost the concealed effects at 1 %
+scatter; the displacement residual keeps them at 2 %.
+
+Eigen-solutions come from :mod:`updating.fe.solvers`, which handle massless DOFs (Nastran's default lumped
+mass) and massless mechanisms exactly; a failing eigen-solution is an error, never a residual.
 
 1. parameter-only updating on ``e`` (a weak pull to the nominal values: without a force the common
    scale of stiffness and mass is not observable) — the baseline;
-2. every grounded-spring and added-mass candidate is added alone at its best value on a plausible grid
-   (:func:`screen_modes`, exact eigensolutions), around the updated and the nominal parameters;
+2. every grounded-spring and added-mass candidate on an independent DOF is added alone at its best value
+   on a plausible grid (:func:`screen_modes`), around the updated and the nominal parameters: a low-rank
+   update ``θ L Lᵀ`` in the subspace of the lowest modes extended by the static corrections of the
+   candidate's DOFs (:class:`ModalSubspace`; the FRF screening's Ritz idea), a small eigenproblem per
+   value.  A candidate that changes none of the model modes paired with test modes (``Lᵀφ_j = 0``: a
+   rotational spring about the vertical axis seen by vertical sensors) has no evidence and is dropped;
 3. the best few are fitted jointly with the stiffness parameters (densities stay nominal: a density
-   multiplier mimics an added mass, and on suspension modes any grounded stiffness); a term is kept
-   if it lowers ``‖e‖²`` by ``min_gain`` and passes an information criterion (``penalty`` × ln N);
-   terms are added only while ``‖e‖²`` exceeds the number of equations (χ² rule: beyond that the model
-   already explains the modes to the stated precision), and backward elimination drops a term whose
-   removal costs less than ``min_term_gain``;
-4. the comparison uses test modes held out of the fits (every third mode when there are at least five).
+   multiplier mimics an added mass, and on suspension modes any grounded stiffness) — in the subspace for
+   models above ``SUBSPACE_ABOVE`` DOFs, checked against the exact modes; a term is kept if it lowers
+   ``‖e‖²`` by ``min_gain`` and passes an information criterion (``penalty`` × ln N); terms are added only
+   while ``‖e‖²`` exceeds the number of equations (χ² rule), and backward elimination drops a term whose
+   removal costs less than ``min_term_gain``.  Other candidates that fit as well (within 5 %), and are not
+   the same physics at a neighbouring node, make the finding ambiguous (:class:`ModesFinding`);
+4. the comparison uses test modes held out of the fits (every third mode when there are at least five); a
+   term that does not improve the held-out modes is not claimed, and without held-out modes the statement
+   says the error is a training error.  With too few numbers for the free parameters and a physics term
+   (fewer than 2 (n_free + 1) + 1) the statement says the data cannot separate physics from parameters.
 
 Damping cannot be named from real modes.
 """
@@ -402,7 +414,7 @@ def fit_modal_residual(pmodel, resid: ModalResidual, p_start, *, lower, upper, r
     eigen-solution).
 
     Models above ``SUBSPACE_ABOVE`` DOFs are fitted in a :class:`ModalSubspace` (built at the start with
-    static corrections at the measured DOFs and ``cols``, or ``basis``); the result is checked against the
+    static corrections at the measured DOFs and the DOF labels ``cols``, or ``basis``); the result is checked against the
     exact modes and the fit repeated in a basis rebuilt there when the two residuals differ by more than
     2 % (at most ``max_rebuild`` times)."""
     p_all = np.asarray(p_start, float)
@@ -415,7 +427,10 @@ def fit_modal_residual(pmodel, resid: ModalResidual, p_start, *, lower, upper, r
         scale = np.where(np.abs(p0) > 0, np.maximum(np.abs(p0), 1e-12), 1.0)
         if big and (basis is None or attempt > 0):
             st0 = pmodel.structure(p_all)
-            basis = ModalSubspace(st0, np.concatenate([resid.rows(st0)[0], np.asarray(cols, int)]),
+            from modalab.dof import parse_dofs
+            where = {(d.node, d.axis): i for i, d in enumerate(st0.dofs)}
+            extra = [where[(d.node, d.axis)] for d in parse_dofs(list(cols)) if (d.node, d.axis) in where]
+            basis = ModalSubspace(st0, np.concatenate([resid.rows(st0)[0], np.asarray(extra, int)]),
                                   float(resid.f.max()), resid.n_model_modes)
 
         def full(x, p0=p0, scale=scale):
@@ -614,7 +629,10 @@ def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
     # half of them, or the data cannot separate the physics from parameter error
     separable = n_eq >= 2 * (n_free + 1) + 1
     say("modes: parameter-only updating (baseline)")
+    tm = {"baseline": 0.0, "screening": 0.0, "fits": 0.0}
+    t1 = time.perf_counter()
     p_upd, std_upd, rss_upd = fit_modal_residual(pm, resid, p_nom, lower=lo, upper=hi)
+    tm["baseline"] = time.perf_counter() - t1
     upd = FitResult(p_upd, std_upd, _freq_rms(pm.structure(p_upd), test_modes, train), [], True, "")
     current, p_cur, pm_cur, rss_cur = [], p_upd, pm, rss_upd
     std_cur = std_upd
@@ -632,11 +650,14 @@ def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
         st_cur = pm_cur.structure(p_cur)
         lib = _on_independent_dofs(build_library(pm_cur.model_at(p_cur), kinds=kinds), st_cur)
         say(f"modes: screening {len(lib)} candidates")
+        t1 = time.perf_counter()
         screens = [screen_modes(st_cur, lib, resid)]
         if it == 0:      # and around the nominal parameters (updating may have bent them to hide the effect)
             st_nom = pm.structure(p_nom)
             screens.append(screen_modes(st_nom, _on_independent_dofs(build_library(pm.model_at(p_nom),
                                                                                     kinds=kinds), st_nom), resid))
+        tm["screening"] += time.perf_counter() - t1
+        t1 = time.perf_counter()
         if ranking is None:
             ranking = screens[0]
         have_keys = {c.key for c in current}
@@ -647,10 +668,7 @@ def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
                     options.append((c, th))
                     listed.add(c.key)
         results = []
-        cols = []
-        if options and st_cur.n_dof > SUBSPACE_ABOVE:
-            from modalab.dof import locate
-            cols = list(locate(st_cur.dofs, [d for c, _ in options for d in c.dofs], "candidate DOF")[0])
+        cols = [d for c, _ in options for d in c.dofs]            # static corrections of the subspace fits
         for c, th in options:
             m_aug, cpar, scales = _augment(model, current + [c])
             pm_aug = ParametricFEModel(m_aug, params + cpar)
@@ -675,6 +693,7 @@ def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
             if best_c is not None:
                 results.append(best_c)
         results.sort(key=lambda r: (r[1], r[0].key))
+        tm["fits"] += time.perf_counter() - t1
         best = results[0] if results else None
         # an information criterion (``penalty`` × ln N per term) and a relative drop of ``min_gain``
         if best is None or not (best[1] < rss_cur * (1 - min_gain) and
@@ -781,7 +800,7 @@ def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
                      model=best_pm.model_at(best_fit.p), parametric=best_pm, p=best_fit.p,
                      steps={"held_out": held_desc, "source": "modes", "separable": bool(separable),
                             "n_equations": n_eq, "n_free_parameters": n_free},
-                     ranking=ranking or [], maps=maps, timings={"total": time.perf_counter() - t0})
+                     ranking=ranking or [], maps=maps, timings=dict(tm, total=time.perf_counter() - t0))
 
 
 def modal_force_map(structure, data: FRFData) -> np.ndarray:
