@@ -82,6 +82,9 @@ SUBSPACE_ABOVE = 600
 UNOBSERVABLE = 1e-6
 #: model modes beyond the test modes' count that pairing may choose from
 EXTRA_MODES = 12
+#: ... and at least every model mode up to this factor times the highest test frequency (modes of other
+#: planes, unobservable or rigid, interleave with the observed ones)
+PAIR_FACTOR = 1.5
 
 
 def _exact_modes(K, M, k):
@@ -250,11 +253,22 @@ class ModalResidual:
         if basis is not None and basis.matches(structure):
             Kr, Mr = basis.project(sp.csr_matrix(K), sp.csr_matrix(M))
             w2, Psi = sla.eigh(Kr, Mr)
-            k = min(self.n_model_modes, w2.size)
+            k = self.n_pairable(np.sqrt(np.clip(w2, 0, None)) / (2 * np.pi))
             Vm = (basis.full()[mi] * ms[:, None]) @ Psi[:, :k]
             return np.sqrt(np.clip(w2[:k], 0, None)) / (2 * np.pi), Vm
-        w, V = _exact_modes(sp.csr_matrix(K), sp.csr_matrix(M), self.n_model_modes)
+        Ks, Ms = sp.csr_matrix(K), sp.csr_matrix(M)
+        k = self.n_model_modes
+        while True:                    # every model mode up to PAIR_FACTOR × the highest test frequency
+            w, V = _exact_modes(Ks, Ms, k)
+            if w.size < k or w[-1] / (2 * np.pi) > PAIR_FACTOR * self.f.max() or k >= Ks.shape[0] - 2:
+                break
+            k = min(2 * k, Ks.shape[0] - 2)
         return w / (2 * np.pi), V[mi] * ms[:, None]
+
+    def n_pairable(self, fm) -> int:
+        """How many of the ascending model frequencies ``fm`` pairing may choose from: every mode up to
+        ``PAIR_FACTOR`` × the highest test frequency, and at least ``n_model_modes``."""
+        return int(min(fm.size, max(self.n_model_modes, np.searchsorted(fm, PAIR_FACTOR * self.f.max(), "right"))))
 
     def pairs(self, fm, Vm):
         """``(a, mac)``: the model mode paired with each test mode and the MAC (NaN without shapes)."""
@@ -274,14 +288,14 @@ class ModalResidual:
         U = Vm / np.maximum(nrm, 1e-300)
         mac = (U.T @ self.phi) ** 2                                           # (model, test)
         mac[~seen] = -1.0
-        used = np.zeros(fm.size, bool)
         a = np.empty(nt, int)
         best = mac.max(axis=0)
         for j in np.argsort(-best, kind="stable"):                           # clearest test modes first
-            order = np.argsort(-np.where(used, -2.0, mac[:, j]), kind="stable")
-            a[j] = order[0]
-            used[order[0]] = True
-        return a, np.clip(mac[a, np.arange(nt)], 0.0, 1.0)
+            k = int(np.argmax(mac[:, j]))                                     # (the first of equal ones)
+            a[j] = k
+            mac[k, :] = -2.0                                                  # a model mode is used once
+            mac[k, j] = (U[:, k] @ self.phi[:, j]) ** 2
+        return a, np.clip(np.einsum("ij,ij->j", U[:, a], self.phi) ** 2, 0.0, 1.0)
 
     def residual(self, fm, Vm) -> np.ndarray:
         a, _ = self.pairs(fm, Vm)
@@ -335,19 +349,21 @@ def screen_modes(structure, candidates, resid: ModalResidual, basis: ModalSubspa
     from .frfscreen import _low_rank, _value_grid
     K, M = sp.csr_matrix(structure.K), sp.csr_matrix(structure.M)
     if basis is None or not basis.matches(structure):
-        basis = ModalSubspace(structure, resid.rows(structure)[0], float(resid.f.max()), resid.n_model_modes)
+        # the lowest modes alone: each candidate brings the static corrections of its own DOFs
+        basis = ModalSubspace(structure, [], float(resid.f.max()), resid.n_model_modes)
     mi, ms = resid.rows(structure)
     Kr0, Mr0 = basis.project(K, M)
     w20, Psi0 = sla.eigh(Kr0, Mr0)
-    k0 = min(resid.n_model_modes, w20.size)
+    k0 = resid.n_pairable(np.sqrt(np.clip(w20, 0, None)) / (2 * np.pi))
     fm0 = np.sqrt(np.clip(w20[:k0], 0, None)) / (2 * np.pi)
     Vm0 = (basis.full()[mi] * ms[:, None]) @ Psi0[:, :k0]
     e0 = resid.residual(fm0, Vm0)
     r0 = float(e0 @ e0)
     a0, _ = resid.pairs(fm0, Vm0)
     Phi_pair = basis.full() @ Psi0[:, a0]                       # paired model modes on all DOFs
-    kn = min(resid.n_model_modes, basis.size)
+    kn = resid.n_pairable(np.sqrt(np.clip(w20, 0, None)) / (2 * np.pi))
     out = []
+    n_blind = 0
     for c in candidates:
         if not c.shared or c.G is None or c.matrix not in ("K", "M"):
             continue
@@ -358,11 +374,14 @@ def screen_modes(structure, candidates, resid: ModalResidual, basis: ModalSubspa
         grid = _value_grid(c, K, M, rows, L, n=13)
         if grid.size == 0:
             continue
+        bp = L.T @ Phi_pair[rows]                               # (r, n_pairs): the candidate on paired modes
+        if _candidate_effect(resid, fm0[a0], None, bp.T, grid[-1], c.matrix) < MIN_OBSERVED_EFFECT:
+            n_blind += 1        # even its largest value leaves every paired mode an exact eigenpair: no evidence
+            continue
         W, Kr, b = basis.extended(rows, L)
         if not np.any(b):
             continue
         Wm = basis.full(W)[mi] * ms[:, None]
-        bp = L.T @ Phi_pair[rows]                               # (r, n_pairs): the candidate on paired modes
 
         def evaluate(thetas):
             G = b @ b.T
@@ -384,7 +403,7 @@ def screen_modes(structure, candidates, resid: ModalResidual, basis: ModalSubspa
 
         t = grid
         rr = evaluate(t)
-        for _ in range(2):                     # refine twice between the neighbours of the best value
+        for _ in range(2 if rr.min() < 0.95 * r0 else 0):   # refine twice between the best value's neighbours
             k = int(np.argmin(rr))
             lo_t, hi_t = t[max(k - 1, 0)], t[min(k + 1, t.size - 1)]
             if hi_t <= lo_t:
@@ -402,6 +421,8 @@ def screen_modes(structure, candidates, resid: ModalResidual, basis: ModalSubspa
             continue
         out.append((c, float(t[k]), 1.0 - rr[k] / max(r0, 1e-300)))
     out.sort(key=lambda x: (-x[2], x[0].key))
+    log.info("modes: screened %d candidates in a %d-vector subspace; %d act on no observed mode", len(candidates),
+             basis.size, n_blind)
     return out
 
 
