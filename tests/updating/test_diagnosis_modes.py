@@ -132,7 +132,11 @@ def test_lumped_deck_without_spc_finds_a_concealed_mass(tmp_path, monkeypatch, p
     assert "Nothing is missing" not in diag.statement
 
 
-def test_lumped_deck_nominal_modes_leave_everything_at_nominal(tmp_path):
+@pytest.mark.parametrize("path", ["exact", "subspace"])
+def test_lumped_deck_nominal_modes_leave_everything_at_nominal(tmp_path, monkeypatch, path):
+    import updating.diagnosis.modes as MD
+    if path == "subspace":
+        monkeypatch.setattr(MD, "SUBSPACE_ABOVE", 50)
     model = _gvt_deck(tmp_path / "gvt.bdf")
     ms = model.modes(16)
     z = ms.select_dofs([f"{i + 1}+Z" for i in range(_NEL + 1)])
@@ -217,3 +221,24 @@ def test_cli_map_needs_modes_alone(tmp_path):
     (tmp_path / "map.csv").write_text("1+Z,1+Z\n")
     assert main(["diagnose", str(tmp_path / "gvt.bdf"), str(tmp_path / "m.uff"), "--map",
                  str(tmp_path / "map.csv")]) == 2
+
+
+def test_cli_diagnose_modes_with_map(tmp_path, capsys):
+    # test nodes 1001.. (sensor numbering) on model grids 1..: without the map the run refuses, with it the
+    # nominal model's own modes leave nothing to find
+    import json
+    from modalab.cli import main
+    model = _gvt_deck(tmp_path / "gvt.bdf")
+    ms = model.modes(16)
+    z = ms.select_dofs([f"{i + 1}+Z" for i in range(_NEL + 1)])
+    sh = np.real(z.shapes)
+    seen = (ms.freq_hz > 1.0) & (np.linalg.norm(sh, axis=0) > 1e-6 * np.linalg.norm(sh, axis=0).max())
+    ModeSet(freq_hz=ms.freq_hz[seen][:5], shapes=sh[:, seen][:, :5],
+            dofs=[f"{1000 + d.node}+Z" for d in z.dofs]).to_json(tmp_path / "gvt_modes.json")
+    (tmp_path / "map.toml").write_text("[nodes]\n" + "".join(f'"{1000 + i}" = {i}\n' for i in range(1, _NEL + 2)))
+    args = ["diagnose", str(tmp_path / "gvt.bdf"), "--modes", str(tmp_path / "gvt_modes.json")]
+    assert main(args) == 2
+    assert "node numbering" in capsys.readouterr().err
+    assert main(args + ["--map", str(tmp_path / "map.toml"), "--json", str(tmp_path / "d.json")]) == 0
+    d = json.loads((tmp_path / "d.json").read_text())
+    assert d["findings"] == [] and "Nothing is missing" in d["statement"]
