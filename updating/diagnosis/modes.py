@@ -435,9 +435,9 @@ def fit_modal_residual(pmodel, resid: ModalResidual, p_start, *, lower, upper, r
     eigen-solution).
 
     Models above ``SUBSPACE_ABOVE`` DOFs are fitted in a :class:`ModalSubspace` (built at the start with
-    static corrections at the measured DOFs and the DOF labels ``cols``, or ``basis``); the result is checked against the
-    exact modes and the fit repeated in a basis rebuilt there when the two residuals differ by more than
-    2 % (at most ``max_rebuild`` times)."""
+    static corrections at the measured DOFs and the DOF labels ``cols``, or ``basis``); the result is checked
+    against the exact modes and the fit repeated in a basis rebuilt there when the two residuals differ by
+    more than 2 % (at most ``max_rebuild`` times)."""
     p_all = np.asarray(p_start, float)
     free = np.ones(p_all.size, bool) if free is None else np.asarray(free, bool)
     lower = np.asarray(lower, float)[free]
@@ -726,8 +726,8 @@ def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
                                for o in results[1:]
                                if o[1] <= best[1] * (1 + AMBIGUOUS_RSS) + 1.0 and not _same_place(c, o[0], nb)]
         current.append(c)
-        say(f"  found (modes): {c.label}" + (f" (or, equally well: {', '.join(a.label for a, _, _ in alternatives[c.key])})"
-                                             if alternatives[c.key] else ""))
+        alt = ", ".join(a.label for a, _, _ in alternatives[c.key])
+        say(f"  found (modes): {c.label}" + (f" (or, equally well: {alt})" if alt else ""))
     # backward elimination: a term whose removal (the rest refitted) costs less than ``min_term_gain`` of the
     # residual has not earned its place
     while len(current) > 1:
