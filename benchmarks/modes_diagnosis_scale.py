@@ -26,11 +26,12 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+os.environ.setdefault("OMP_NUM_THREADS", "1")          # one BLAS thread, as the CLI (MODALAB_BLAS_THREADS)
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-os.environ.setdefault("OMP_NUM_THREADS", "1")
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from modalab.modes import ModeSet  # noqa: E402
 from updating.bulk import build_model, read_bdf  # noqa: E402
