@@ -193,9 +193,13 @@ def _restore(phi, keep, n):
     return out
 
 
-def _check_definite(lam, sigma):
-    """Refuse eigenvalues below zero beyond rounding: the stiffness matrix is indefinite (never clip them)."""
-    tol = max(1e-6 * abs(sigma), 1e-10 * float(np.abs(lam).max(initial=0.0)))
+def _check_definite(lam, sigma, K, M):
+    """Refuse eigenvalues below zero beyond rounding: the stiffness matrix is indefinite (never clip them).
+    Rounding is relative to the shift, the largest eigenvalue found and the stiffness-to-mass scale of the
+    diagonals (a very stiff connector next to a small inertia makes rigid-body eigenvalues noisy)."""
+    kd = np.abs(K.diagonal()).max(initial=0.0)
+    md = max(np.abs(M.diagonal()).max(initial=0.0), 1e-300)
+    tol = max(1e-6 * abs(sigma), 1e-10 * float(np.abs(lam).max(initial=0.0)), 1e-12 * kd / md)
     if lam.size and lam.min() < -tol:
         raise ModalabValueError(f"an eigenvalue is negative (ω² = {lam.min():.4g} rad²/s²): the stiffness matrix is "
                                 "not positive semi-definite (a negative spring, a buckled or pre-stressed member, or "
@@ -241,7 +245,7 @@ def eigen_dense(K, M, n_modes: int | None = None, *, shift: float | None = None,
     lam = sigma + 1.0 / mu
     o = np.argsort(lam)
     lam, phi = lam[o], phi[:, o]
-    _check_definite(lam, sigma)
+    _check_definite(lam, sigma, Kd, Md)
     phi = _normalise(phi, Md)
     return np.sqrt(np.clip(lam, 0, None)), _restore(phi, keep, n_all)
 
@@ -328,7 +332,7 @@ def eigen_sparse(K, M, n_modes: int, *, shift: float | None = None, shift_hz: fl
                                "shift closer to the wanted frequencies") from None
     o = np.argsort(w2)
     w2, phi = w2[o], phi[:, o]
-    _check_definite(w2, sigma)
+    _check_definite(w2, sigma, K, M)
     phi = _normalise(phi, M)
     if info is not None:
         info.update(factor_time=op.factor.factor_time, n_solves=op.factor.n_solves,
