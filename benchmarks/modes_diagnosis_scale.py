@@ -18,9 +18,9 @@ Before this change (issue 16): one dense eigen-solution per candidate value, 1.1
 13 values × 2 screens ≈ 31 h with coupled mass; with lumped mass the eigen-solution raised, the error was
 caught into a constant residual and the run ended "Nothing is missing".
 
-Measured 2026-11-25 on the shared 2-core machine under a load average of 14-18 (one BLAS thread), so the
-wall time is dominated by other jobs and the process CPU time is the better estimate of an idle run:
-lumped mass 23.5 s CPU (152 s wall), coupled mass 22.8 s CPU (94 s wall): CPU ratio 0.39 / 0.38 to the
+Measured 2026-11-25 on the shared 2-core machine under a load average of 9-10 (one BLAS thread), so the
+wall time is inflated by other jobs and the process CPU time is the better estimate of an idle run:
+lumped mass 26.0 s CPU (111 s wall), coupled mass 24.9 s CPU (47 s wall): CPU ratio 0.43 / 0.41 to the
 60 s budget.  Both find a point mass at grid 331 of 0.148 kg (truth 0.15 kg at grid 330); held-out frequency
 error (test modes 3, 6, 9) 1.2 % after parameter updating → 0.1 % with the mass.  Most of the time is the
 screening (3670 candidates, two screens; those acting only on unobserved directions are skipped before

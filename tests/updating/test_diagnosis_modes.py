@@ -242,3 +242,36 @@ def test_cli_diagnose_modes_with_map(tmp_path, capsys):
     assert main(args + ["--map", str(tmp_path / "map.toml"), "--json", str(tmp_path / "d.json")]) == 0
     d = json.loads((tmp_path / "d.json").read_text())
     assert d["findings"] == [] and "Nothing is missing" in d["statement"]
+
+
+@pytest.mark.parametrize("kind,node,theta", [("K", 15, 3e5), ("M", 18, 0.2)])
+def test_subspace_low_rank_update_matches_the_exact_modes(tmp_path, kind, node, theta):
+    # the screening's low-rank update in the lowest-mode subspace extended by the candidate's own static
+    # corrections against a full eigen-solution of the changed model (a stiff spring, a heavy mass)
+    import scipy.sparse as sp
+    from updating.diagnosis.frfscreen import _low_rank
+    from updating.diagnosis.modes import ModalSubspace
+    from updating.fe import eigen_dense
+    st = _gvt_deck(tmp_path / "gvt.bdf", n_el=80).structure()      # 486 DOFs: 24 modes are far from complete
+    idx = [i for i, d in enumerate(st.dofs) if d.node == 4 * node and (d.axis == 3 if kind == "K" else d.axis <= 3)]
+    G = sp.csr_matrix((np.ones(len(idx)), (idx, idx)), shape=(st.n_dof, st.n_dof))
+    rows, L = _low_rank(G)
+    basis = ModalSubspace(st, [], 150.0, 8)              # the lowest 24 modes (to ~700 Hz)
+    W, Kr, b = basis.extended(rows, L)
+    if kind == "K":
+        w2 = np.linalg.eigvalsh(Kr + theta * b @ b.T)
+        we, _ = eigen_dense(st.K + theta * G, st.M, 20)
+    else:
+        import scipy.linalg as sla
+        w2 = sla.eigh(Kr, np.eye(Kr.shape[0]) + theta * b @ b.T, eigvals_only=True)
+        we, _ = eigen_dense(st.K, st.M + theta * G, 20)
+    f_sub = np.sqrt(np.clip(w2[:20], 0, None)) / (2 * np.pi)
+    f_ex = we / (2 * np.pi)
+    el = (f_ex > 1.0) & (f_ex < 225.0)                   # the modes pairing uses: to 1.5 × the top test mode
+    assert np.abs(f_sub[el] / f_ex[el] - 1).max() < 1e-4
+    # without the candidate's static correction the stiff spring or heavy mass would be far off
+    m = basis.size
+    w2v = np.linalg.eigvalsh(Kr[:m, :m] + theta * b[:m] @ b[:m].T) if kind == "K" else \
+        sla.eigh(Kr[:m, :m], np.eye(m) + theta * b[:m] @ b[:m].T, eigvals_only=True)
+    f_modes_only = np.sqrt(np.clip(w2v[:20], 0, None)) / (2 * np.pi)
+    assert np.abs(f_modes_only[el] / f_ex[el] - 1).max() > 10 * np.abs(f_sub[el] / f_ex[el] - 1).max()

@@ -96,6 +96,32 @@ def _exact_modes(K, M, k):
     return eigen_sparse(K, M, min(k, n - 2))
 
 
+def _new_directions(V, S, M) -> np.ndarray:
+    """M-orthonormal directions of ``S`` outside the M-orthonormal basis ``V``.  The static correction of a
+    DOF beyond the lowest modes has a tiny mass (the high modes' share of a static deflection is weighted by
+    1/ω⁴) but matters for a stiff spring or heavy mass there; a direction is dropped only when it is
+    numerically inside ``V`` (Euclidean norm after two Gram-Schmidt passes below 1e-10 of its own) or has no
+    mass."""
+    if S.shape[1] == 0:
+        return S
+    n0 = np.linalg.norm(S, axis=0)
+    for _ in range(2):
+        S = S - V @ (V.T @ (M @ S))
+    n1 = np.linalg.norm(S, axis=0)
+    S = S[:, n1 > 1e-10 * np.maximum(n0, 1e-300)]
+    if S.shape[1] == 0:
+        return S
+    S = S / np.linalg.norm(S, axis=0)
+    ms = S.T @ (M @ S)
+    mu, U = np.linalg.eigh(0.5 * (ms + ms.T))
+    mmax = float(np.abs(M.diagonal()).max(initial=0.0))
+    ok = mu > 1e-12 * max(mmax, 1e-300)
+    S = S @ (U[:, ok] / np.sqrt(mu[ok]))
+    for _ in range(2):                          # re-orthogonalise after the scaling
+        S = S - V @ (V.T @ (M @ S))
+    return S
+
+
 class ModalSubspace:
     """A Ritz basis for the lowest modes of a structure and their changes (modes-only screening and fits).
 
@@ -132,11 +158,8 @@ class ModalSubspace:
         E = np.zeros((nk, c.size))
         E[c, np.arange(c.size)] = 1.0
         R = self.factor.solve(E) if c.size else np.zeros((nk, 0))
-        V = np.hstack([phi, R])
-        Mr = V.T @ (Mk @ V)
-        mu, U = np.linalg.eigh(0.5 * (Mr + Mr.T))
-        ok = mu > 1e-10 * mu.max()
-        V = V @ (U[:, ok] / np.sqrt(mu[ok]))
+        V = _new_directions(np.zeros((nk, 0)), phi, Mk)          # the modes, M-orthonormal
+        V = np.hstack([V, _new_directions(V, R, Mk)])
         Kr = V.T @ (Kk @ V)
         w2, Psi = np.linalg.eigh(0.5 * (Kr + Kr.T))
         self.V = np.ascontiguousarray(V @ Psi)                  # on the kept DOFs
@@ -178,15 +201,7 @@ class ModalSubspace:
             return V, np.diag(self.w2), np.zeros((V.shape[1], L.shape[1]))
         E = np.zeros((V.shape[0], Lk.shape[1]))
         E[p] = Lk
-        S = self.factor.solve(E)
-        m_before = float(np.max(np.einsum("ij,ij->j", S, self.Mk @ S), initial=0.0))
-        for _ in range(2):
-            S = S - V @ (V.T @ (self.Mk @ S))
-        ms = S.T @ (self.Mk @ S)
-        mu, U = np.linalg.eigh(0.5 * (ms + ms.T))
-        # a correction (numerically) inside the basis already, or without mass, adds nothing
-        ok = mu > 1e-8 * max(m_before, 1e-300)
-        S = S @ (U[:, ok] / np.sqrt(mu[ok]))
+        S = _new_directions(V, self.factor.solve(E), self.Mk)
         W = np.hstack([V, S])
         KS = self.Kk @ S
         m = V.shape[1]
