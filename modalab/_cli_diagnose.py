@@ -7,7 +7,7 @@ from pathlib import Path
 def _options(a):
     from .stages import DiagnoseOptions
 
-    return DiagnoseOptions(parameters=a.params, criterion=a.criterion)
+    return DiagnoseOptions(parameters=a.params, criterion=a.criterion, dofmap=getattr(a, "map", None))
 
 
 def cmd_diagnose(a):
@@ -54,6 +54,8 @@ def register(sub):
                                                "refer to the model's grids and basic system; several files = a "
                                                "campaign (needs --report)")
     s.add_argument("--modes", help="identified modes (UFF 55 or JSON); alone, a modes-only diagnosis")
+    s.add_argument("--map", help="with --modes alone: DOF map file (TOML/CSV, as for correlate: test DOF -> model "
+                                 "DOF with sign); default: test node ids are model grid ids")
     s.add_argument("--params", help="TOML [[parameter]] file (default: E and rho multipliers per property group)")
     s.add_argument("--json", help="diagnosis.json path (schema in the README)")
     s.add_argument("--report", help="folder for diagnosis.json, MCI maps, FRF overlays and the augmented model (diagnosed.bdf); "

@@ -505,7 +505,7 @@ _IO = {
     "identify": (("inputs", "select"), ("output", "json"), ("plots",)),
     "correlate": (("model", "modes", "map"), ("json",), ("plots",)),
     "update": (("model", "modes", "frf", "params", "map"), (), ("output",)),
-    "diagnose": (("model", "measured", "modes", "params"), ("json",), ("report",)),
+    "diagnose": (("model", "measured", "modes", "params", "map"), ("json",), ("report",)),
     "run": (("project",), (), ("output",)),
     "demo": ((), (), ("output",)),
 }

@@ -342,19 +342,18 @@ def _reduced_eigvals(Kr, Mr):
 
 
 def _lowest_modes(K, M, k: int):
+    """The lowest ``k`` modes (ω², Φ) by the FE solvers, which handle DOFs without mass (Nastran's default
+    lumped mass) and massless mechanisms exactly (:mod:`updating.fe.solvers`)."""
+    from .fe.solvers import eigen_dense, eigen_sparse
     n = K.shape[0]
     if not sp.issparse(K) and not sp.issparse(M) or n <= 1500:
-        try:
-            w2, phi = sla.eigh(_dense(K), _dense(M), subset_by_index=[0, k - 1])
-        except (np.linalg.LinAlgError, ValueError):
-            raise ModalabValueError("the mass matrix is not positive definite; SEREP needs the model's modes — "
-                                    "give modes=... or a model with mass on every DOF") from None
-        return w2, phi
-    Kc, Mc = sp.csc_matrix(K), sp.csc_matrix(M)
-    sigma = -1e-6 * max(abs(Kc.diagonal()).max() / max(abs(Mc.diagonal()).max(), 1e-300), 1.0)
-    w2, phi = spla.eigsh(Kc, k=k, M=Mc, sigma=sigma, which="LM")
-    o = np.argsort(w2)
-    return w2[o], phi[:, o]
+        w, phi = eigen_dense(_dense(K), _dense(M), k)
+        if w.size < k:
+            raise ModalabValueError(f"SEREP needs {k} modes but the model has only {w.size} DOFs with mass; "
+                                    "keep fewer modes (or masters), or give modes=...")
+    else:
+        w, phi = eigen_sparse(sp.csr_matrix(K), sp.csr_matrix(M), k)
+    return w ** 2, phi
 
 
 def serep(K, M, masters, *, dofs=None, modes=None, n_modes: int | None = None, rcond: float = 1e-10) -> ReducedModel:

@@ -204,23 +204,25 @@ def solve_modes(model, p=None, n_modes: int | None = None, *, sigma: float | Non
     if n_modes is not None and not (1 <= int(n_modes) <= n):
         raise ModalabValueError(f"n_modes={n_modes}; expected 1..{n} for a model of {n} DOFs")
     if n <= _DENSE_LIMIT or (n_modes is not None and n_modes >= n - 1):
-        try:
-            lam, phi = sla.eigh(K.toarray(), M.toarray())
-        except np.linalg.LinAlgError:
-            # massless DOFs (lumped mass without rotary inertia: Nastran's default without COUPMASS): the
-            # finite eigenpairs of the shifted problem; the massless directions have infinite eigenvalues
-            from modalab.structure import _shifted_eigh
-            lam, phi = _shifted_eigh(K.toarray(), M.toarray())
-            if n_modes is not None and n_modes > lam.size:
-                raise ModalabValueError(f"n_modes={n_modes} but the model has only {lam.size} DOFs with mass; "
-                                        f"ask for at most {lam.size} modes") from None
-        if n_modes is not None:
-            lam, phi = lam[:n_modes], phi[:, :n_modes]
-    else:
+        # massless DOFs (lumped mass without rotary inertia: Nastran's default without COUPMASS) and massless
+        # mechanisms (the rigid torsion of a free-free lumped-mass beam) are handled by the FE solver
+        from .fe.solvers import _massless, eigen_dense
+        n_finite = n - int(_massless(M).size)
+        if n_modes is not None and n_modes > n_finite:
+            raise ModalabValueError(f"n_modes={n_modes} but the model has only {n_finite} finite modes; "
+                                    f"ask for at most {n_finite} modes")
+        w, phi = eigen_dense(K, M, n_modes)
+        lam = w ** 2
+    elif sigma is None or sigma < 0:
+        from .fe.solvers import eigen_sparse
         k = 10 if n_modes is None else int(n_modes)
         if sigma is None:
             scale = abs(K.diagonal()).max() / max(abs(M.diagonal()).max(), 1e-300)
             sigma = -1e-6 * scale
+        w, phi = eigen_sparse(K, M, k, shift=sigma)
+        lam = w ** 2
+    else:
+        k = 10 if n_modes is None else int(n_modes)
         lam, phi = spla.eigsh(K.tocsc(), k=k, M=M.tocsc(), sigma=sigma, which="LM")
         o = np.argsort(lam)
         lam, phi = lam[o], phi[:, o]

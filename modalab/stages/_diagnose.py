@@ -29,6 +29,7 @@ class DiagnoseOptions:
     kinds: tuple | None = None
     criterion: str = "auto"
     overlay_dofs: tuple | None = None
+    dofmap: str | None = None              # modes-only: DOF map file (test DOF -> model DOF), as for correlate
 
     def __post_init__(self):
         for k in ("band_hz", "kinds", "overlay_dofs"):
@@ -49,6 +50,9 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
 
     if frf_path is None and modes_path is None:
         raise PlanError("give measured FRFs (MEASURED.uff) or --modes MODES.uff (a GVT's modes alone)")
+    if opts.dofmap is not None and frf_path is not None:
+        raise PlanError("--map applies to a modes-only diagnosis (--modes without MEASURED.uff); remove --map or the "
+                        "measured FRFs")
     model = load_model(model_path)
     params = load_parameters(opts.parameters, model)[0] if opts.parameters else None
     test_modes = load_modes(modes_path) if modes_path else None
@@ -57,6 +61,10 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
         kw = {k: getattr(opts, k) for k in ("max_findings",) if getattr(opts, k) is not None}
         if opts.kinds:
             kw["kinds"] = list(opts.kinds)
+        if opts.dofmap is not None:
+            from updating.diagnosis.modes import map_test_modes
+
+            test_modes = map_test_modes(test_modes, model, opts.dofmap)
         diag = diagnose_modes(model, test_modes, parameters=params, progress=progress, **kw)
     else:
         from .. import uff

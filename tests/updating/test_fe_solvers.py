@@ -61,13 +61,32 @@ class TestEigen:
         r = s.K @ pd[:, 8] - wd[8] ** 2 * (s.M @ pd[:, 8])
         assert np.abs(r).max() < 1e-6 * np.abs(s.K @ pd[:, 8]).max()
 
-    def test_singular_pencil_is_reported(self):
-        # free-free 3-D beam with lumped mass: the rigid torsion has neither mass nor stiffness
+    def test_massless_mechanism_is_constrained_exactly(self):
+        # free-free 3-D beam with lumped mass: the rigid torsion has neither mass nor stiffness; both solvers
+        # constrain it (Nastran's MECHFIX) and return the same finite modes as with a tiny torsional inertia
+        from updating.fe.solvers import massless_mechanisms
         s = beam_model(10, kind="beam3d", coupled_mass=False).system()
-        with pytest.raises(ModalabValueError, match="singular"):
-            eigen_sparse(s.K, s.M, 8, solver="splu")
+        fix, N = massless_mechanisms(s.K, s.M)
+        assert fix.size == 1 and N.shape == (s.n_dof, 1)
+        assert np.abs(s.K @ N).max() < 1e-8 * abs(s.K).max() and np.abs(s.M @ N).max() == 0
+        ws, ps = eigen_sparse(s.K, s.M, 8, solver="splu")
+        wd, pd = eigen_dense(s.K, s.M, 8)
+        np.testing.assert_allclose(ws[5:], wd[5:], rtol=1e-8)
+        assert np.all(wd[:5] / (2 * np.pi) < 1e-3) and wd[5] / (2 * np.pi) > 1.0    # 5 rigid modes with mass
+        r = s.K @ pd - (s.M @ pd) * wd ** 2
+        assert np.abs(r).max() < 1e-7 * np.abs(s.K @ pd).max()
+        np.testing.assert_allclose(pd.T @ (s.M @ pd), np.eye(8), atol=1e-8)
+        # a cantilever has no massless mechanism
+        c = beam_model(10, kind="beam3d", coupled_mass=False, bc="cantilever").system()
+        assert massless_mechanisms(c.K, c.M)[0].size == 0
+
+    def test_dofs_with_neither_mass_nor_stiffness_on_a_mass_dof_are_reported(self):
+        # a translational DOF with mass but the stiffness matrix indefinite is still refused, with a message
+        s = beam_model(6, kind="beam3d").system()
+        K = s.K.tolil()
+        K[3, 3] = -abs(K[3, 3]) * 10
         with pytest.raises(ModalabValueError, match="not positive definite"):
-            eigen_dense(s.K, s.M, 8)
+            eigen_dense(K.tocsr(), s.M, 8)
 
     @pytest.mark.skipif(not cholmod_available(), reason="scikit-sparse not installed")
     def test_cholmod_path(self, garteur):
@@ -179,3 +198,55 @@ class TestDampingHelpers:
         for f, z in ((10.0, 0.01), (100.0, 0.03)):
             w = 2 * np.pi * f
             assert a / (2 * w) + b * w / 2 == pytest.approx(z)
+
+
+# ----------------------------------------------------------------- a lumped-mass GVT deck without SPC (issue 16 #7)
+# free-free Euler-Bernoulli roots of cos βL cosh βL = 1 (then (2n + 1)π/2 to double precision)
+_BETA_FREE = (4.730040745, 7.853204624, 10.99560784, 14.13716549) + tuple((2 * n + 1) * np.pi / 2 for n in range(5, 9))
+
+
+def _free_beam_deck(path, n_el, *, coupmass=False, length=1.2):
+    """A Nastran deck as a GVT engineer's: CBEAM/PBEAML along x, no SPC, lumped mass unless ``coupmass``."""
+    lines = ["SOL 103", "CEND", "BEGIN BULK", "EIGRL,10,,,20"]
+    if coupmass:
+        lines.append("PARAM,COUPMASS,1")
+    lines += ["MAT1,1,7.e10,,.33,2700.", "PBEAML,1,1,,BAR", "+,.05,.008"]
+    lines += [f"GRID,{i + 1},,{length * i / n_el:.8f},0.,0." for i in range(n_el + 1)]
+    lines += [f"CBEAM,{i + 1},1,{i + 1},{i + 2},0.,1.,0." for i in range(n_el)]
+    path.write_text("\n".join(lines + ["ENDDATA", ""]).replace("\n", "\r\n"))
+    return path
+
+
+def _closed_form_hz(length=1.2):
+    E, rho, b, h = 7e10, 2700.0, 0.05, 0.008
+    A = b * h
+    out = []
+    for I in (b * h ** 3 / 12, h * b ** 3 / 12):            # the two bending planes
+        out += [bl ** 2 / (2 * np.pi * length ** 2) * np.sqrt(E * I / (rho * A)) for bl in _BETA_FREE]
+    return np.sort(out)[:8]
+
+
+@pytest.mark.parametrize("method", ["dense", "sparse"])
+def test_lumped_mass_free_free_deck_without_spc(tmp_path, method):
+    from updating.bulk import build_model, read_bdf
+    model = build_model(read_bdf(_free_beam_deck(tmp_path / "gvt.bdf", 60)))
+    s = model.system()
+    assert not model.coupled_mass and np.any(s.M.diagonal() == 0)
+    w, phi = normal_modes(s.K, s.M, 16, method=method)
+    f = w / (2 * np.pi)
+    assert np.all(f[:5] < 1e-2)                      # 5 rigid modes with mass (the torsion has none)
+    fe = f[5:]
+    bend = [x for x in fe if x < 1500][:8]            # the first axial/torsion modes are far higher
+    truth = _closed_form_hz()
+    assert len(bend) == 8
+    # Euler-Bernoulli: within 1.5 % (the strong plane has some shear flexibility), 0.5 % for the slender plane
+    np.testing.assert_allclose(bend, truth, rtol=1.5e-2)
+    weak = [0, 1, 2, 4]
+    np.testing.assert_allclose(np.asarray(bend)[weak], truth[weak], rtol=5e-3)
+    # and a consistent-mass mesh four times finer agrees too (an independent discretisation)
+    fine = build_model(read_bdf(_free_beam_deck(tmp_path / "fine.bdf", 240, coupmass=True))).system()
+    wf, pf = normal_modes(fine.K, fine.M, 20, method="sparse")
+    yz = np.array([d.axis in (2, 3) for d in fine.dofs])
+    lateral = np.einsum("ij,ij->j", pf[yz], (fine.M @ pf)[yz])          # share of kinetic energy in y, z
+    fine_bend = (wf / (2 * np.pi))[(lateral > 0.5) & (wf / (2 * np.pi) > 1.0)][:8]     # no torsion, no axial
+    np.testing.assert_allclose(bend, fine_bend, rtol=1e-2)          # lumped vs coupled mass, 60 vs 240 elements

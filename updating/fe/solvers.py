@@ -6,6 +6,17 @@ Normal modes solve ``K φ = ω² M φ`` (thesis eq. 2.1 and following):
   LAPACK, in the same shift-inverted form as the sparse solver so that
   rigid-body modes are accurate; DOFs without mass (lumped-mass rotations)
   drop out exactly (their static condensation).
+* Massless mechanisms — motions of the DOFs without mass that need no
+  stiffness when the DOFs with mass are held (the rigid torsion of a free-free
+  beam with Nastran's default lumped mass, which has no torsional inertia) —
+  have neither mass nor stiffness: ``K − σM`` is singular for every σ.  Like
+  Nastran's ``PARAM,MECHFIX`` both solvers find them
+  (:func:`massless_mechanisms`: the null space of ``K_oo``, the stiffness of
+  the massless DOFs) and constrain one DOF per mechanism.  This is exact: a
+  massless mechanism ``n`` satisfies ``K n = 0`` and ``M n = 0``, so it may be
+  added to any eigenvector, and the constrained DOFs (chosen by pivoted QR so
+  that ``n`` restricted to them is well conditioned) only fix that arbitrary
+  component (to zero).
 * :func:`eigen_sparse` — the lowest modes of a large model by shift-invert
   Lanczos (ARPACK through :func:`scipy.sparse.linalg.eigsh`) about a
   *negative* shift σ: ``K − σM`` is positive definite even for free-free
@@ -44,7 +55,7 @@ from modalab.units import QUANTITY_UNITS, check_quantity
 
 log = logging.getLogger(__name__)
 
-__all__ = ["DEFAULT_SHIFT_HZ", "RIGID_HZ", "eigen_dense", "eigen_sparse", "normal_modes", "modes_of", "factorize",
+__all__ = ["DEFAULT_SHIFT_HZ", "RIGID_HZ", "massless_mechanisms", "eigen_dense", "eigen_sparse", "normal_modes", "modes_of", "factorize",
            "shift_invert_operator", "frf_direct", "frf_modal", "cholmod_available"]
 
 #: default negative shift: σ = −(2π · DEFAULT_SHIFT_HZ)²
@@ -86,6 +97,115 @@ def _normalise(phi, M):
     return phi * sg[None, :]
 
 
+#: a DOF whose mass row is below this fraction of the largest diagonal mass has no mass
+MASSLESS_TOL = 1e-13
+#: an eigenvalue of K_oo below this fraction of its largest diagonal entry is a mechanism
+MECHANISM_TOL = 1e-10
+#: massless components up to this size get a dense null space; larger ones shift-invert Lanczos
+_DENSE_NULL = 300
+
+
+def _massless(M) -> np.ndarray:
+    """Indices of the DOFs whose whole mass row is (numerically) zero."""
+    Ms = sp.csr_matrix(M)
+    scale = np.abs(Ms.diagonal()).max(initial=0.0)
+    if scale <= 0:
+        raise ModalabValueError("the mass matrix is zero; give the elements density or add lumped masses")
+    rowmax = np.zeros(Ms.shape[0])
+    A = abs(Ms).tocsr()
+    nz = np.diff(A.indptr) > 0
+    rowmax[nz] = np.maximum.reduceat(A.data, A.indptr[:-1][nz])
+    return np.flatnonzero(rowmax <= MASSLESS_TOL * scale)
+
+
+def _null_space_psd(A) -> np.ndarray:
+    """Orthonormal basis of the (numerical) null space of a symmetric positive semi-definite matrix."""
+    n = A.shape[0]
+    d = float(np.abs(A.diagonal()).max(initial=0.0))
+    if d <= 0:
+        return np.eye(n)
+    if n <= _DENSE_NULL:
+        w, U = np.linalg.eigh(A.toarray() if sp.issparse(A) else np.asarray(A))
+        return U[:, w <= MECHANISM_TOL * d]
+    delta = 1e-6 * d
+    k = min(8, n - 2)
+    while True:
+        w, U = spla.eigsh(sp.csc_matrix(A), k=k, sigma=-delta, which="LM")
+        null = w <= MECHANISM_TOL * d
+        if not null.all() or k >= n - 2:
+            return U[:, null]
+        k = min(2 * k, n - 2)
+
+
+def massless_mechanisms(K, M) -> tuple[np.ndarray, np.ndarray]:
+    """Mechanisms of the DOFs without mass, and the DOFs that constrain them (Nastran's MECHFIX).
+
+    Returns ``(dofs, N)``: the indices of one DOF per mechanism to constrain, and the mechanisms as columns
+    of ``N`` (on all DOFs).  A mechanism is a null vector of ``K_oo``, the stiffness between the massless
+    DOFs o (with the DOFs with mass held); for a positive semi-definite K it satisfies ``K n = 0`` and, being
+    massless, ``M n = 0``.  Each connected group of massless DOFs (graph of ``K_oo``) is treated on its own:
+    dense eigenvalues up to 300 DOFs, shift-invert Lanczos above.
+    """
+    n = K.shape[0]
+    o = _massless(M)
+    empty = (np.zeros(0, int), np.zeros((n, 0)))
+    if o.size == 0:
+        return empty
+    Koo = sp.csr_matrix(K)[o][:, o]
+    from scipy.sparse.csgraph import connected_components
+    nc, lab = connected_components(abs(Koo) > 0, directed=False)
+    fix, cols = [], []
+    for c in range(nc):
+        idx = np.flatnonzero(lab == c)
+        Nc = _null_space_psd(Koo[idx][:, idx])
+        if Nc.shape[1] == 0:
+            continue
+        _, _, piv = sla.qr(Nc.T, mode="economic", pivoting=True)
+        fix.extend(o[idx[piv[:Nc.shape[1]]]])
+        for j in range(Nc.shape[1]):
+            v = np.zeros(n)
+            v[o[idx]] = Nc[:, j]
+            cols.append(v)
+    if not fix:
+        return empty
+    log.info("massless mechanisms: %d (constrained at DOF index %s, as Nastran's MECHFIX)", len(fix),
+             ", ".join(map(str, fix[:10])) + (" ..." if len(fix) > 10 else ""))
+    return np.asarray(fix, int), np.column_stack(cols)
+
+
+def _drop_mechanisms(K, M):
+    """``(keep, K_kk, M_kk)`` without one DOF per massless mechanism (``keep`` None when there is none)."""
+    fix, _ = massless_mechanisms(K, M)
+    if fix.size == 0:
+        return None, K, M
+    keep = np.setdiff1d(np.arange(K.shape[0]), fix)
+    if sp.issparse(K):
+        Kc, Mc = sp.csr_matrix(K), sp.csr_matrix(M)
+        return keep, Kc[keep][:, keep], Mc[keep][:, keep]
+    return keep, np.asarray(K)[np.ix_(keep, keep)], np.asarray(M)[np.ix_(keep, keep)]
+
+
+def _restore(phi, keep, n):
+    if keep is None:
+        return phi
+    out = np.zeros((n, phi.shape[1]), phi.dtype)
+    out[keep] = phi
+    return out
+
+
+def _check_definite(lam, sigma, K, M):
+    """Refuse eigenvalues below zero beyond rounding: the stiffness matrix is indefinite (never clip them).
+    Rounding is relative to the shift, the largest eigenvalue found and the stiffness-to-mass scale of the
+    diagonals (a very stiff connector next to a small inertia makes rigid-body eigenvalues noisy)."""
+    kd = np.abs(K.diagonal()).max(initial=0.0)
+    md = max(np.abs(M.diagonal()).max(initial=0.0), 1e-300)
+    tol = max(1e-6 * abs(sigma), 1e-10 * float(np.abs(lam).max(initial=0.0)), 1e-12 * kd / md)
+    if lam.size and lam.min() < -tol:
+        raise ModalabValueError(f"an eigenvalue is negative (ω² = {lam.min():.4g} rad²/s²): the stiffness matrix is "
+                                "not positive semi-definite (a negative spring, a buckled or pre-stressed member, or "
+                                "a wrong material constant); check the model")
+
+
 # --------------------------------------------------------------------- dense
 def eigen_dense(K, M, n_modes: int | None = None, *, shift: float | None = None,
                 shift_hz: float | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -100,6 +220,8 @@ def eigen_dense(K, M, n_modes: int | None = None, *, shift: float | None = None,
     """
     Kd = K.toarray() if sp.issparse(K) else np.asarray(K, float)
     Md = M.toarray() if sp.issparse(M) else np.asarray(M, float)
+    n_all = Kd.shape[0]
+    keep, Kd, Md = _drop_mechanisms(Kd, Md)
     n = Kd.shape[0]
     scale = np.abs(np.diag(Md)).max(initial=0.0)
     if scale <= 0:
@@ -123,8 +245,9 @@ def eigen_dense(K, M, n_modes: int | None = None, *, shift: float | None = None,
     lam = sigma + 1.0 / mu
     o = np.argsort(lam)
     lam, phi = lam[o], phi[:, o]
+    _check_definite(lam, sigma, Kd, Md)
     phi = _normalise(phi, Md)
-    return np.sqrt(np.clip(lam, 0, None)), phi
+    return np.sqrt(np.clip(lam, 0, None)), _restore(phi, keep, n_all)
 
 
 # -------------------------------------------------------------------- sparse
@@ -197,24 +320,26 @@ def eigen_sparse(K, M, n_modes: int, *, shift: float | None = None, shift_hz: fl
         raise ModalabValueError(f"n_modes = {n_modes}; expected 1..{n - 1} for a sparse solve of {n} DOFs "
                                 "(use eigen_dense for all modes)")
     sigma = _shift(shift, shift_hz)
+    keep, K, M = _drop_mechanisms(sp.csr_matrix(K), sp.csr_matrix(M))
     K = sp.csc_matrix(K)
     M = sp.csc_matrix(M)
     op = shift_invert_operator(K, M, sigma, solver, permc_spec)
     try:
         w2, phi = spla.eigsh(K, k=n_modes, M=M, sigma=sigma, which="LM", OPinv=op, tol=tol,
-                             ncv=ncv or min(n, max(2 * n_modes + 1, 20)))
+                             ncv=ncv or min(K.shape[0], max(2 * n_modes + 1, 20)))
     except spla.ArpackNoConvergence as e:
         raise ConvergenceError(f"Lanczos did not converge for {n_modes} modes ({e}); increase ncv or move the "
                                "shift closer to the wanted frequencies") from None
     o = np.argsort(w2)
     w2, phi = w2[o], phi[:, o]
+    _check_definite(w2, sigma, K, M)
     phi = _normalise(phi, M)
     if info is not None:
         info.update(factor_time=op.factor.factor_time, n_solves=op.factor.n_solves,
                     solve_time=op.factor.solve_time, total_time=time.perf_counter() - t0, shift=sigma)
     log.debug("eigen_sparse: %d modes of %d DOFs, factor %.3fs, %d solves", n_modes, n,
               op.factor.factor_time, op.factor.n_solves)
-    return np.sqrt(np.clip(w2, 0, None)), phi
+    return np.sqrt(np.clip(w2, 0, None)), _restore(phi, keep, n)
 
 
 def normal_modes(K, M, n_modes: int | None = None, *, method: str = "auto", dense_limit: int = 2000,
