@@ -158,7 +158,7 @@ def test_cli_roving_export_with_exp_beta(tmp_path, capsys):
     js = json.loads(out_json.read_text())
     assert js["window_correction"] == {"beta_per_s": BETA, "source": "option"}
     assert js["reciprocity"]["applied"] is True
-    fn = np.array(js["modes"]["freq_hz"])
+    fn = np.array(js["freq_hz"])                     # modes.json: the ModeSet at the top level (its schema)
     inband = d["modes"]["freq_hz"][(d["modes"]["freq_hz"] > 96) & (d["modes"]["freq_hz"] < 164)]
     np.testing.assert_allclose(fn, inband, rtol=5e-4)
     # a beta in the file and a different --exp-beta: refused (exit 2, one line), accepted with --force-window
