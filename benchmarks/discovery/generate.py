@@ -79,12 +79,11 @@ def simulate(case):
     return f, A, H1, coh
 
 
-def generate_one(seed: int, out: Path) -> dict:
-    t0 = time.perf_counter()
-    case = make_case(seed)
+def write_case(case, out: Path, sim) -> Path:
+    """Write the four files of ``case`` from its simulated test ``sim`` = simulate(case); returns the folder."""
+    f, A, H1, coh = sim
     d = Path(out) / case.name
     d.mkdir(parents=True, exist_ok=True)
-    f, A, H1, coh = simulate(case)
     write_bdf(case, d / "nominal.bdf")
     write_params(case, d / "params.toml")
     write_uff(case, f, H1, coh, d / "measured.uff")
@@ -93,6 +92,13 @@ def generate_one(seed: int, out: Path) -> dict:
     extra = {"median_random_error_from_coherence": float(np.round(np.median(rnd), 6)),
              "median_coherence": float(np.round(np.median(coh), 6))}
     write_truth(case, d / "truth.json", extra)
+    return d
+
+
+def generate_one(seed: int, out: Path) -> dict:
+    t0 = time.perf_counter()
+    case = make_case(seed)
+    d = write_case(case, out, simulate(case))
     return {"seed": seed, "case": case.name, "kind": case.physics["physics"] if case.physics else "control",
             "seconds": time.perf_counter() - t0, "dir": str(d)}
 
