@@ -156,7 +156,7 @@ def clamped_portal(rng):
 
 
 def mounted_frame(rng):
-    f = Frame("mounted_frame", "ladder frame on four elastomer mounts (CELAS2, 3 translations each)", _mat(rng))
+    f = Frame("mounted_frame", "ladder frame on four elastomer mounts (CELAS springs, 3 translations each)", _mat(rng))
     _ladder(f, rng, _len(rng, 0.8, 1.1), _len(rng, 0.4, 0.6), 0.1, int(rng.integers(2, 4)))
     corners = [f.members[0]["nodes"][0], f.members[0]["nodes"][-1], f.members[1]["nodes"][0],
                f.members[1]["nodes"][-1]]

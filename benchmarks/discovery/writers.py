@@ -1,7 +1,7 @@
 """What the diagnosis receives, written as a Nastran user and a test lab would write it.
 
 * ``nominal.bdf``: a SOL 103 input file typed card by card in small-field format (GRID, MAT1, PBARL/PBEAML
-  TUBE or BOX, CBAR/CBEAM with an orientation vector, SPC1 123456, CELAS2 mounts, CONM2, EIGRL, TABDMP1 with
+  TUBE or BOX, CBAR/CBEAM with an orientation vector, SPC1 123456, CELAS2 or CELAS1/PELAS mounts, CONM2, EIGRL, TABDMP1 with
   SDAMPING in case control) by this module's own text writer (not the project's bulk writer).
 * ``measured.uff``: geometry (2411) and, per (response, reference), an H1 accelerance (58, func 4,
   m/s^2/N) followed by its coherence (58, func 6), written with pyuff in mode='add' to a new file, ASCII or
@@ -95,9 +95,20 @@ def write_bdf(case, path) -> None:
     eid = 10000
     if fr.mounts:
         L.append("$ elastomer mounts to ground")
-        for n, c, k, ge in fr.mounts:
-            eid += 1
-            L += _card("CELAS2", [eid, k, n, c, None, None, ge])
+        if (case.seed // 16) % 2:              # CELAS1 + PELAS (one property per stiffness) in half the decks
+            pel = {}
+            for n, c, k, ge in fr.mounts:
+                pel.setdefault((k, ge), 100 + len(pel) + 1)
+            for (k, ge), pid in pel.items():
+                L.append(f"$ name: mount_{pid - 100}")
+                L += _card("PELAS", [pid, k, ge])
+            for n, c, k, ge in fr.mounts:
+                eid += 1
+                L += _card("CELAS1", [eid, pel[(k, ge)], n, c])
+        else:
+            for n, c, k, ge in fr.mounts:
+                eid += 1
+                L += _card("CELAS2", [eid, k, n, c, None, None, ge])
     if fr.masses:
         L.append("$ lumped masses")
         for n, m in fr.masses:
