@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .truthsim import box, tube
+
 __all__ = ["nas8", "write_bdf", "write_uff", "write_params", "write_truth"]
 
 
@@ -66,7 +68,7 @@ def write_bdf(case, path) -> None:
     L.append("  METHOD = 10")
     if case.nominal_damping == "TABDMP1":
         L.append("  SDAMPING = 20")
-    L += ["  DISPLACEMENT(PLOT) = ALL", "BEGIN BULK", "PARAM,POST,-1"]
+    L += ["  DISPLACEMENT(PLOT) = ALL", "BEGIN BULK", "PARAM,POST,-1", "PARAM,COUPMASS,1"]
     L += _card("EIGRL", [10, None, float(round(1.5 * case.band_hz[1])), None])
     if case.nominal_damping == "TABDMP1":
         L += _card("TABDMP1", [20, "CRIT", None, None, None, None, None, None, 0.0, 0.005, 2000.0, 0.005, "ENDT"])
@@ -76,17 +78,21 @@ def write_bdf(case, path) -> None:
         L += _card("GRID", [nid, None, float(x), float(y), float(z)])
     L.append(f"$ {mat['name']}")
     L += _card("MAT1", [1, mat["E"], None, mat["nu"], mat["rho"]])
-    prop = "PBEAML" if case.element_card == "CBEAM" else "PBARL"
     pids = {}
     for i, (name, s) in enumerate(sorted(fr.sections.items()), start=1):
         pids[name] = i
-        if s["kind"] == "TUBE":
-            dims = list(s["dims"])                            # DIM1 = outer radius, DIM2 = inner radius
-        else:
-            b, h, t = s["dims"]                               # b along element y (DIM2), h along z (DIM1)
-            dims = [h, b, t, t]
         L.append(f"$ name: {name}")
-        L += _card(prop, [i, 1, None, s["kind"], None, None, None, None, *dims])
+        if case.element_card == "CBEAM":                      # the section library: PBEAML TUBE / BOX
+            if s["kind"] == "TUBE":
+                dims = list(s["dims"])                        # DIM1 = outer radius, DIM2 = inner radius
+            else:
+                b, h, t = s["dims"]                           # b along element y (DIM2), h along z (DIM1)
+                dims = [h, b, t, t]
+            L += _card("PBEAML", [i, 1, None, s["kind"], None, None, None, None, *dims])
+        else:                                                 # hand-computed PBAR with shear factors K1 K2
+            c = tube(*s["dims"]) if s["kind"] == "TUBE" else box(*s["dims"])
+            L.append(f"$ {s['kind'].lower()} {' x '.join(f'{1000 * v:g}' for v in s['dims'])} mm")
+            L += _card("PBAR", [i, 1, c.A, c.Iz, c.Iy, c.J, None, None, *([None] * 8), c.ky, c.kz])
     L.append("$ members")
     for eid, a, b, mi in fr.elements():
         mem = fr.members[mi]
