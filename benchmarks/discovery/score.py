@@ -175,15 +175,26 @@ def score_case(truth: dict, diag: dict | None, res: dict) -> dict:
     res["value_error"] = None
     if res["right"]:
         f = fnd[match[1]]
-        tv = t["value"]
-        if t["physics"] == "boundary_flexibility" and f["dofs"] and not any("R" in d.split("+")[-1].split("-")[-1]
-                                                                           for d in f["dofs"]):
-            tv = t.get("k_translation", tv)          # a translational clamp stiffness: compare with kt
+        tv = _comparable_truth_value(t, f["unit"])
         if f["value"] is not None and tv:
             res["value_error"] = (float(f["value"]) - tv) / tv
     used = {match[1]} if res["right"] else set()
     res["spurious"] = len([i for i in range(len(fnd)) if i not in used and i not in allowed])
     return res
+
+
+def _unit_key(u: str) -> str:
+    u = (u or "").replace("·", "*").replace(" ", "").lower()
+    return {"": "eta", "-": "eta", "1": "eta", "lossfactor": "eta"}.get(u, u)
+
+
+def _comparable_truth_value(t: dict, unit: str):
+    """The truth value in the finding's unit, or None when they measure different things (a rotary inertia
+    against a point mass, a dashpot against a loss factor).  A clamp: kr (N*m/rad) or kt (N/m)."""
+    fu = _unit_key(unit)
+    if t["physics"] == "boundary_flexibility" and fu == "n/m":
+        return t.get("k_translation")
+    return t["value"] if fu == _unit_key(t.get("unit", "")) else None
 
 
 def _num(v):
@@ -296,10 +307,12 @@ def main(argv=None) -> int:
     ap.add_argument("--cases", help="regular expression on the case folder names (e.g. 'portal|t_joint')")
     ap.add_argument("--jobs", type=int, default=1, help="cases run at the same time (default 1)")
     ap.add_argument("--timeout", type=float, default=1800.0, help="seconds before a case counts as failed")
+    ap.add_argument("--follow", type=int, metavar="N", help="score cases as generate.py writes them, until N are "
+                                                              "scored (one at a time, in seed order)")
     ap.add_argument("--out", help="folder for score.md, score.json and the per-case logs (default ROOT/score)")
     a = ap.parse_args(argv)
     cases = select_cases(Path(a.root), a.seeds, a.cases)
-    if not cases:
+    if not cases and not a.follow:
         print(f"no cases in {a.root} for --seeds {a.seeds} --cases {a.cases}", file=sys.stderr)
         return 2
     out = Path(a.out or Path(a.root) / "score")
@@ -309,13 +322,23 @@ def main(argv=None) -> int:
     def done(r):
         results.append(r)
         status = "CRASH " + r["error"] if r["error"] else ("; ".join(r["findings"]) or "no finding")
-        print(f"[{len(results)}/{len(cases)}] {r['case']}: truth {r['truth']} {r['truth_where']} -> {status} "
+        print(f"[{len(results)}/{a.follow or len(cases)}] {r['case']}: truth {r['truth']} {r['truth_where']} -> {status} "
               f"({r['wall_s']:.0f} s)", flush=True)
         partial = sorted(results, key=lambda x: x["seed"])
         (out / "score.json").write_text(json.dumps({"results": partial, "summary": summary(partial)[1]},
                                                    indent=1, default=str))
 
-    if a.jobs > 1:
+    if a.follow:
+        # score cases while generate.py is still writing them (truth.json is written last), in seed order
+        seen = set()
+        while len(seen) < a.follow:
+            todo = [c for c in select_cases(Path(a.root), a.seeds, a.cases) if c.name not in seen]
+            if not todo:
+                time.sleep(20)
+                continue
+            seen.add(todo[0].name)
+            done(run_case(todo[0], out, a.timeout))
+    elif a.jobs > 1:
         from concurrent.futures import ThreadPoolExecutor
         with ThreadPoolExecutor(a.jobs) as ex:
             for r in ex.map(lambda c: run_case(c, out, a.timeout), cases):

@@ -134,7 +134,8 @@ def test_same_seed_gives_byte_identical_files(control_case, tmp_path):
 
 def test_score_counts_a_finding_within_one_node_and_flags_control_findings():
     truth = {"control": False, "seed": 1, "environment": [],
-             "concealed": [{"physics": "added_mass", "nodes": [3], "elements": [], "dofs": ["3"], "value": 0.1}],
+             "concealed": [{"physics": "added_mass", "nodes": [3], "elements": [], "dofs": ["3"], "value": 0.1,
+                            "unit": "kg"}],
              "nominal": {"edges": [[1, 2], [2, 3], [3, 4], [4, 5]],
                          "elements": {"1": [1, 2], "2": [2, 3], "3": [3, 4], "4": [4, 5]}}}
     diag = {"findings": [{"physics": "added_mass", "nodes": [4], "elements": [], "dofs": ["4"],
