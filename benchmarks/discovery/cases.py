@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .topologies import TOPOLOGIES, Frame, build_topology
+from .topologies import Frame, build_topology
 from .truthsim import TruthModel, box, tube
 
 __all__ = ["Case", "make_case", "build_truth", "TOPOLOGY_ORDER", "KINDS"]
