@@ -76,6 +76,9 @@ class FRFData:
         den = self.den[r][:, c][:, :, f]
         resp = self.responses if rows is None else [self.responses[i] for i in np.atleast_1d(rows)]
         refs = self.references if cols is None else [self.references[i] for i in np.atleast_1d(cols)]
+        if not resp or not refs or H.shape[2] == 0:
+            raise ModalabValueError(f"an FRF subset with {len(resp)} response(s), {len(refs)} reference(s) and "
+                                    f"{H.shape[2]} line(s) is empty; nothing to compare a model with")
         return FRFData(self.s[f], H, coh, resp, refs, den, self.n_averages, self.floor, self.homogeneous)
 
 
@@ -118,7 +121,9 @@ def frf_data(frf: FRF, *, max_lines: int = 200, band_hz=None, min_coherence: flo
 def _indices(model_dofs, data: FRFData):
     mi, ms = locate(model_dofs, data.responses, "measured response DOF")
     ri, rs = locate(model_dofs, data.references, "measured reference DOF")
-    return np.asarray(mi), np.asarray(ms, float), np.asarray(ri), np.asarray(rs, float)
+    # integer arrays even when empty (``np.asarray([])`` is float and cannot index)
+    return (np.asarray(mi, dtype=np.intp), np.asarray(ms, float), np.asarray(ri, dtype=np.intp),
+            np.asarray(rs, float))
 
 
 def model_frf(structure, data: FRFData) -> np.ndarray:

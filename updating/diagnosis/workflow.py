@@ -142,16 +142,30 @@ def _with_damping(model: FEModel, params: list) -> tuple[list, list]:
 
 
 def _split(data: FRFData, holdout: str | None):
+    """Training and held-out parts of ``data`` and a description of the held-out part.
+
+    Response rows are held out by default (every fourth response that is not a driving point: the residual
+    needs the response where the force acts); when no such row exists (e.g. every accelerometer is also hit,
+    the FRFs stored as accelerometers x hammer points) reference columns are held out, then blocks of lines.
+    Neither part is ever empty.
+    """
     n_m, n_r, n_s = data.H.shape
-    if holdout in (None, "rows") and n_m >= 4:
-        # never hold out a driving point: the residual needs the response where the force acts
-        refs = {(d.node, d.axis) for d in data.references}
-        cand = [i for i, d in enumerate(data.responses) if (d.node, d.axis) not in refs]
+    if holdout not in (None, "rows", "columns", "lines"):
+        raise ModalabValueError(f"holdout={holdout!r}: expected 'rows', 'columns', 'lines' or None")
+    refs = {(d.node, d.axis) for d in data.references}
+    cand = [i for i, d in enumerate(data.responses) if (d.node, d.axis) not in refs]
+    if holdout in (None, "rows") and n_m >= 4 and cand:
         held = np.asarray(cand[1::4] if len(cand) >= 4 else cand[:1], int)
         train = np.setdiff1d(np.arange(n_m), held)
         return data.take(rows=train), data.take(rows=held), f"response DOFs {', '.join(str(data.responses[i]) for i in held)}"
     if holdout in (None, "columns") and n_r >= 2:
-        return data.take(cols=np.arange(n_r - 1)), data.take(cols=[n_r - 1]), f"reference {data.references[-1]}"
+        held = np.arange(n_r)[1::4] if n_r >= 4 else np.array([n_r - 1])
+        train = np.setdiff1d(np.arange(n_r), held)
+        return data.take(cols=train), data.take(cols=held), \
+            f"reference{'s' if held.size > 1 else ''} {', '.join(str(data.references[i]) for i in held)}"
+    if holdout in ("rows", "columns"):
+        raise ModalabValueError(f"holdout={holdout!r} needs at least 4 responses that are not driving points "
+                                f"(rows) or 2 references (columns); the data have {n_m} x {n_r}")
     lines = np.arange(n_s)
     held = lines[(lines // 8) % 4 == 3]
     train = np.setdiff1d(lines, held)
