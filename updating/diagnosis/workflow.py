@@ -357,41 +357,118 @@ def peak_modes(measured: FRF, *, band_hz=None, max_modes: int = 12, prominence: 
                    metadata={"source": "quadrature peak picking"})
 
 
+#: pairing in the fit blocks: smallest MAC and largest relative frequency difference of an accepted pair
+PAIR_MAC_MIN = 0.6
+PAIR_MAX_FREQ_ERROR = 0.25
+#: modes below this fraction of the model's first elastic frequency are rigid-body or suspension modes
+SUSPENSION_RATIO = 0.5
+
+
+def _rigid_fraction(structure, phi: np.ndarray) -> np.ndarray:
+    """Share of each mode's kinetic energy (mass-weighted) in the span of the six rigid-body motions of the
+    model's nodes (translations and small rotations about the centroid, from the node coordinates)."""
+    coords = getattr(structure, "coords", None) or {}
+    if not coords:
+        return np.zeros(phi.shape[1])
+    x0 = np.mean(np.array(list(coords.values()), float), axis=0)
+    R = np.zeros((structure.n_dof, 6))
+    for i, d in enumerate(structure.dofs):
+        xyz = coords.get(d.node)
+        if xyz is None:
+            continue
+        r = np.asarray(xyz, float) - x0
+        a = d.axis - 1
+        if a < 3:
+            R[i, a] = 1.0                                  # translation along the axis
+            # rotation θ about axis b moves the node by θ e_b × r; component a of it
+            for b in range(3):
+                e = np.zeros(3)
+                e[b] = 1.0
+                R[i, 3 + b] = np.cross(e, r)[a]
+        else:
+            R[i, a] = 1.0
+        R[i] *= d.sign
+    M = structure.M
+    MR = M @ R
+    G = R.T @ MR
+    keep = np.flatnonzero(np.diag(G) > 1e-12 * max(np.diag(G).max(), 1e-300))
+    if keep.size == 0:
+        return np.zeros(phi.shape[1])
+    Rk, Gk = R[:, keep], G[np.ix_(keep, keep)]
+    c = np.linalg.lstsq(Gk, MR[:, keep].T @ phi, rcond=None)[0]       # M-orthogonal projection coefficients
+    proj = Rk @ c
+    num = np.einsum("ij,ij->j", proj, M @ proj)
+    den = np.einsum("ij,ij->j", phi, M @ phi)
+    return np.clip(num / np.maximum(den, 1e-300), 0.0, 1.0)
+
+
+def pair_test_modes(structure, test_modes: ModeSet) -> dict:
+    """THE pairing of the diagnosis (every fit block and frequency table goes through here).
+
+    Rigid-body and suspension modes are excluded on purpose: a model mode whose kinetic energy lies for more
+    than 90 % in the rigid-body motions and whose frequency is below :data:`SUSPENSION_RATIO` × the first
+    elastic model frequency, and a test mode below that frequency.  The rest are paired by MAC (optimal
+    assignment, :func:`updating.correlation.correlate`) with at least :data:`PAIR_MAC_MIN` and a relative
+    frequency difference of at most :data:`PAIR_MAX_FREQ_ERROR`; a mode without such a partner is unpaired.
+
+    Returns ``pairs`` [(model freq, test index)], ``freq_error_pct``, ``mac``, ``excluded_test_hz``,
+    ``excluded_model_hz``, ``unpaired_test_hz``, ``cutoff_hz``.
+    """
+    from ..correlation import analysis_modes, correlate
+    n = min(structure.n_dof, 2 * test_modes.n_modes + 12)
+    ana = analysis_modes(structure, n)
+    top = (1 + PAIR_MAX_FREQ_ERROR) * float(np.max(test_modes.freq_hz, initial=0.0))
+    while n < structure.n_dof and ana.freq_hz[-1] < top:          # every model mode a test mode could pair with
+        n = min(structure.n_dof, 2 * n)
+        ana = analysis_modes(structure, n)
+    rigid = _rigid_fraction(structure, np.asarray(ana.shapes)) > 0.9
+    fa = np.asarray(ana.freq_hz, float)
+    elastic = fa[~rigid]
+    cutoff = SUSPENSION_RATIO * float(elastic[0]) if elastic.size else 0.0
+    drop_a = rigid & (fa < cutoff)
+    fx = np.asarray(test_modes.freq_hz, float)
+    keep_x = np.flatnonzero(fx >= cutoff)
+    keep_a = np.flatnonzero(~drop_a)
+    out = {"pairs": [], "freq_error_pct": [], "mac": [], "cutoff_hz": cutoff,
+           "excluded_test_hz": [float(f) for f in fx[fx < cutoff]],
+           "excluded_model_hz": [float(f) for f in fa[drop_a]]}
+    if keep_x.size and keep_a.size:
+        c = correlate(ana.select_modes(keep_a), test_modes.select_modes(keep_x), mac_min=PAIR_MAC_MIN,
+                      max_freq_error=PAIR_MAX_FREQ_ERROR)
+        for (a, t), e in zip(c.pairs, c.freq_error_pct):
+            out["pairs"].append((float(fa[keep_a[a]]), int(keep_x[t])))
+            out["freq_error_pct"].append(float(e))
+            out["mac"].append(float(c.mac[a, t]))
+    paired = {t for _, t in out["pairs"]}
+    out["unpaired_test_hz"] = [float(fx[t]) for t in keep_x if t not in paired]
+    return out
+
+
 def _paired_frequencies(structure, test_modes, n_modes: int, band) -> list:
-    """Model frequencies (Hz) aligned with the test modes by MAC pairing (None where unpaired); without
-    test modes, the model's frequencies inside the band (rigid-body and mechanism modes left out)."""
+    """Model frequencies (Hz) aligned with the test modes by :func:`pair_test_modes` (None where unpaired);
+    without test modes, the model's frequencies inside the band (rigid-body and mechanism modes left out)."""
     if test_modes is not None:
-        from ..correlation import correlate
-        try:
-            c = correlate(structure, test_modes, mac_min=0.3)
-        except ModalabError:
-            c = None
-        if c is not None:
-            out = [None] * test_modes.n_modes
-            fa = np.asarray(c.analysis.freq_hz)
-            for a, t in c.pairs:
-                out[t] = float(fa[a])
-            return out
+        out = [None] * test_modes.n_modes
+        for f, t in pair_test_modes(structure, test_modes)["pairs"]:
+            out[t] = f
+        return out
     w, _ = structure.normal_modes(min(n_modes + 12, structure.n_dof))
     fx = np.atleast_1d(w) / (2 * np.pi)
     return [float(x) for x in fx if 0.5 * band[0] < x <= 1.1 * band[1]][:n_modes]
 
 
 def _mode_metrics(structure, test_modes) -> dict:
-    """``freq_error_max_pct`` and ``mac_min`` over the test modes paired with the model's modes."""
+    """``freq_error_max_pct`` and ``mac_min`` over the test modes paired by :func:`pair_test_modes`, with
+    the counts of pairs, unpaired test modes and the rigid-body/suspension modes left out on purpose."""
     if test_modes is None:
         return {"freq_error_max_pct": None, "mac_min": None}
-    from ..correlation import correlate
-    try:
-        c = correlate(structure, test_modes, mac_min=0.3)
-    except ModalabError as e:
-        log.info("correlation failed: %s", e)
-        return {"freq_error_max_pct": None, "mac_min": None}
-    if not len(c.pairs):
-        return {"freq_error_max_pct": None, "mac_min": 0.0}
-    macs = [float(c.mac[a, t]) for a, t in c.pairs]
-    return {"freq_error_max_pct": float(np.max(np.abs(c.freq_error_pct))), "mac_min": float(np.min(macs)),
-            "n_pairs": len(c.pairs)}
+    p = pair_test_modes(structure, test_modes)
+    out = {"freq_error_max_pct": float(np.max(np.abs(p["freq_error_pct"]))) if p["pairs"] else None,
+           "mac_min": float(np.min(p["mac"])) if p["pairs"] else None, "n_pairs": len(p["pairs"]),
+           "n_unpaired_test": len(p["unpaired_test_hz"]),
+           "suspension_cutoff_hz": p["cutoff_hz"],
+           "excluded_test_hz": p["excluded_test_hz"], "excluded_model_hz": p["excluded_model_hz"]}
+    return out
 
 
 def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int = 160, holdout: str | None = None,
