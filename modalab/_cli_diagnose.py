@@ -6,13 +6,15 @@ from pathlib import Path
 
 
 def diagnose_files(model_path, measured_path, *, modes=None, params=None, json_path=None, report_dir=None,
-                   progress=None, criterion: str = "auto"):
+                   progress=None, criterion: str = "auto", kinds=None):
     """Diagnose one configuration from files; returns the :class:`~updating.diagnosis.Diagnosis`."""
     from updating.diagnosis import diagnose
+    from updating.diagnosis.library import validate_kinds
 
     from .frf import FRF
     from .pipeline import load_model, load_modes, load_params
 
+    kinds = validate_kinds(kinds)                  # a misspelt kind fails before any file is read
     model = load_model(model_path)
     plist = load_params(params, model) if params else None
     kw = {}
@@ -24,7 +26,7 @@ def diagnose_files(model_path, measured_path, *, modes=None, params=None, json_p
         d = diagnose_modes(model, kw["test_modes"], parameters=plist)
     else:
         measured = FRF.from_uff(measured_path)
-        d = diagnose(model, measured, parameters=plist, progress=progress, criterion=criterion, **kw)
+        d = diagnose(model, measured, parameters=plist, progress=progress, criterion=criterion, kinds=kinds, **kw)
     if report_dir is not None:
         if hasattr(d, "save"):
             d.save(report_dir)
@@ -45,7 +47,8 @@ def cmd_diagnose(a):
 
         raise PlanError("give measured FRFs (MEASURED.uff) or --modes MODES.uff (a GVT's modes alone)")
     d = diagnose_files(a.model, a.measured, modes=a.modes, params=a.params, json_path=a.json,
-                       report_dir=a.report, progress=lambda m: _print(m), criterion=a.criterion)
+                       report_dir=a.report, progress=lambda m: _print(m), criterion=a.criterion,
+                       kinds=a.kinds)
     dd = d.to_dict()
     for f in dd["findings"]:
         vals = ", ".join(f"{v['name']} = {v['value']:.4g} {v['unit']} (± {v['std']:.2g})" for v in f["values"])
@@ -58,6 +61,8 @@ def cmd_diagnose(a):
 
 
 def register(sub):
+    from updating.diagnosis.library import KINDS
+
     s = sub.add_parser("diagnose", help="locate and name the physics a model leaves out, model it, prove it")
     s.add_argument("model", help="nominal FE model as Nastran bulk data (.bdf)")
     s.add_argument("measured", nargs="?", help="measured FRFs with coherence (UFF 58); node ids and directions "
@@ -69,4 +74,6 @@ def register(sub):
     s.add_argument("--criterion", choices=("auto", "mci", "frf"), default="auto",
                    help="how candidate physics is judged with the parameters re-fitted: by the MCI (thesis 3.2.4) "
                         "or by the FRF fit; auto: MCI up to 200 DOFs, FRF fit above (default: auto)")
+    s.add_argument("--kinds", nargs="+", metavar="KIND",
+                   help="kinds of missing physics to consider, among " + ", ".join(KINDS) + " (default: all)")
     s.set_defaults(func=cmd_diagnose)

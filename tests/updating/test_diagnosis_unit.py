@@ -209,3 +209,21 @@ def test_sparse_and_dense_paths_agree(seed):
     for u, v in zip(a, b):
         np.testing.assert_allclose(u, v, rtol=1e-9, atol=1e-12 * np.abs(u).max())
     np.testing.assert_allclose(ca, cb, rtol=1e-9, atol=1e-14)
+
+
+def test_kinds_are_a_validated_set():
+    from modalab.errors import ModalabValueError
+    from updating.diagnosis.library import KINDS, validate_kinds
+    assert validate_kinds(None) == frozenset(KINDS)
+    assert validate_kinds(["added_mass", "ground_spring"]) == {"added_mass", "ground_spring"}
+    with pytest.raises(ModalabValueError, match="'ground_sprng'.*did you mean 'ground_spring'"):
+        build_library(_small(), kinds=["ground_sprng"])
+    with pytest.raises(ModalabValueError, match="no kind"):
+        validate_kinds([])
+
+
+def test_cli_kinds_typo_is_an_error_suggesting_the_closest(capsys):
+    from modalab.cli import main
+    rc = main(["diagnose", str(CONTROL / "nominal.bdf"), str(CONTROL / "measured.uff"), "--kinds", "joint_flex"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "did you mean 'joint_flexibility'" in err and "Traceback" not in err

@@ -42,7 +42,7 @@ from modalab.frf import FRF
 from ..fe import FEModel, Parameter, ParametricFEModel
 from .fit import RITZ_LIMIT, FRFData, fit_frf, frf_data, frf_error, model_frf, quick_frf_error
 from .frfscreen import frf_screen
-from .library import Candidate, _nodes_of, build_library
+from .library import Candidate, _nodes_of, build_library, validate_kinds
 from .screen import mci_update, rank_candidates, residual_map, residual_system
 
 log = logging.getLogger(__name__)
@@ -481,6 +481,7 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
     t0 = time.perf_counter()
     timings = {}
     say = progress or (lambda msg: log.info(msg))
+    kinds = validate_kinds(kinds)
     model = promote_measured(model, list(measured.responses) + list(measured.references))
     measured = _on_model_dofs(model, measured)
     params = list(parameters) if parameters is not None else default_parameters(model)
