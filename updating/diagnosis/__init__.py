@@ -32,9 +32,9 @@ from .frfscreen import frf_screen
 from .ritz import RitzBasis
 from .library import Candidate, build_library
 from .screen import ScreenResult, residual_map, screen
-from .workflow import Diagnosis, Finding, default_parameters, diagnose, peak_modes
+from .workflow import Diagnoser, DiagnoserConfig, Diagnosis, Finding, default_parameters, diagnose, peak_modes
 from .modes import diagnose_modes, fit_modes, modes_data
 
-__all__ = ["diagnose", "diagnose_modes", "fit_modes", "modes_data", "peak_modes", "Diagnosis", "Finding", "default_parameters", "build_library", "Candidate", "screen",
+__all__ = ["diagnose", "Diagnoser", "DiagnoserConfig", "diagnose_modes", "fit_modes", "modes_data", "peak_modes", "Diagnosis", "Finding", "default_parameters", "build_library", "Candidate", "screen",
            "ScreenResult", "residual_map", "fit_frf", "frf_data", "frf_error", "model_frf", "FRFData", "frf_screen",
            "RitzBasis"]
