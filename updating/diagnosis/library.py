@@ -327,6 +327,28 @@ def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, g
                     return m, Parameter(f"kbc_{spc.node}_{c}", "k", elements=(eid,), mode="value"), 1.0
                 cands.append(Candidate("boundary_flexibility", f"support flexibility at {lbl}", (spc.node,), (lbl,),
                                        (), "k", _unit("boundary_flexibility", c), "K", False, release, None))
+            # a clamp elastic in several components: its translations (one stiffness) and its rotations (one
+            # rotational stiffness) released together, a rank-2..3 change each
+            for group in ([c for c in active if c <= 3], [c for c in active if c >= 4]):
+                if len(group) < 2:
+                    continue
+                lbls = tuple(f"{spc.node}+{DIRECTION_NAMES[c]}" for c in group)
+
+                def release_group(m, eid, spc=spc, group=tuple(group)):
+                    m = m.copy()
+                    m.spcs = [s for s in m.spcs if s is not spc]
+                    rest = tuple(x for x in spc.components if x not in group)
+                    if rest:
+                        m.add_spc(spc.node, "".join(map(str, rest)))
+                    for k, c in enumerate(group):
+                        m.add_element(Spring(eid + k, a=(spc.node, c), b=None, k=0.0, group=f"diag_bc_{eid}"))
+                    m._changed()
+                    return m, Parameter(f"kbc_{spc.node}_{''.join(map(str, group))}", "k",
+                                        elements=tuple(eid + k for k in range(len(group))), mode="value"), 1.0
+                what = "translations" if group[0] <= 3 else "rotations"
+                cands.append(Candidate("boundary_flexibility", f"support flexibility at node {spc.node} ({what} "
+                                       f"{', '.join(DIRECTION_NAMES[c] for c in group)})", (spc.node,), lbls, (),
+                                       "k", _unit("boundary_flexibility", group[0]), "K", False, release_group, None))
 
     # ---------------------------------------------------------------- joint flexibility
     if "joint_flexibility" in kinds:
