@@ -5,6 +5,28 @@ import json
 from pathlib import Path
 
 
+def _priors(path) -> dict:
+    """``prior`` of each ``[[parameter]]`` of a parameter file: a relative standard deviation (0.05 = ±5 %) or
+    ``"free"``; parameters without it keep the defaults (E, G ±5 %, density ±3 %, sections ±5 %, damping free)."""
+    import tomllib
+
+    from .errors import PlanError
+
+    try:
+        d = tomllib.loads(Path(path).read_text())
+    except (OSError, tomllib.TOMLDecodeError) as e:
+        raise PlanError(f"cannot read parameter file {str(path)!r}: {e}") from None
+    out = {}
+    for it in d.get("parameter") or d.get("parameters") or []:
+        if isinstance(it, dict) and "prior" in it and "name" in it:
+            v = it["prior"]
+            if not (v == "free" or (isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0)):
+                raise PlanError(f"{path}: parameter {it['name']!r}: prior = {v!r}; expected a relative standard "
+                                "deviation > 0 (0.05 = ±5 %) or \"free\"")
+            out[str(it["name"])] = v
+    return out
+
+
 def diagnose_files(model_path, measured_path, *, modes=None, params=None, json_path=None, report_dir=None,
                    progress=None, criterion: str = "auto", kinds=None):
     """Diagnose one configuration from files; returns the :class:`~updating.diagnosis.Diagnosis`."""
@@ -18,6 +40,9 @@ def diagnose_files(model_path, measured_path, *, modes=None, params=None, json_p
     model = load_model(model_path)
     plist = load_params(params, model) if params else None
     kw = {}
+    priors = _priors(params) if params else None
+    if priors:
+        kw["priors"] = priors
     if modes:
         kw["test_modes"] = load_modes(modes)
     if measured_path is None:

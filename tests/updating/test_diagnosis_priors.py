@@ -76,3 +76,16 @@ def test_a_plain_finding_is_not_ambiguous():
     a, _ = _beam_cands()
     d = Finding(a, 0.12, 0.01, "because").to_dict()
     assert d["ambiguous"] is False and d["alternatives"] == [] and d["parts"] == [] and " or " not in d["description"]
+
+
+def test_priors_from_the_parameter_file(tmp_path):
+    from modalab._cli_diagnose import _priors
+    from modalab.errors import PlanError
+    f = tmp_path / "p.toml"
+    f.write_text('[[parameter]]\nname = "E_a"\nfield = "E"\nproperties = ["a"]\nprior = 0.2\n\n'
+                 '[[parameter]]\nname = "rho_a"\nfield = "rho"\nproperties = ["a"]\nprior = "free"\n\n'
+                 '[[parameter]]\nname = "h_a"\nfield = "h"\nproperties = ["a"]\n')
+    assert _priors(f) == {"E_a": 0.2, "rho_a": "free"}
+    f.write_text('[[parameter]]\nname = "E_a"\nfield = "E"\nproperties = ["a"]\nprior = -3\n')
+    with pytest.raises(PlanError, match="E_a.*prior = -3"):
+        _priors(f)
