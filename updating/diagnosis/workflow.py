@@ -1,28 +1,30 @@
 """The diagnosis workflow: baseline updating, localisation, naming, modelling, proof.
 
-:func:`diagnose` runs, on an :class:`~updating.fe.FEModel` and measured FRFs:
+``Diagnoser(DiagnoserConfig(...)).fit(model, frf)`` (:func:`diagnose` is a thin wrapper) runs, on an
+:class:`~updating.fe.FEModel` and measured FRFs:
 
-1. correlate the nominal model (FRF error; frequencies/MAC when test modes are given);
-2. parameter-only updating of the declared parameters (the thesis' way) — the baseline;
-3. localisation: the condensed force residual (MCI) per measured DOF and frequency of the
-   updated model (:mod:`~updating.diagnosis.screen`);
-4. naming: every shared candidate of the library (:mod:`~updating.diagnosis.library`) is screened
-   (a) linearly on the MCI residual (:func:`~updating.diagnosis.screen.rank_candidates`) and
-   (b) exactly on the FRFs, added at its best value by a low-rank update
-   (:func:`~updating.diagnosis.frfscreen.frf_screen`, around the nominal and the updated parameters);
-   the best few of both, and the joint and boundary candidates near the located nodes, are then added
-   to the model one at a time and judged with the parameters re-estimated — by the MCI minimisation
-   (thesis 3.2.4; ``criterion='mci'``) or by the FRF fit (``criterion='frf'``).  ``'auto'`` uses the
-   MCI for models up to :data:`~updating.diagnosis.fit.RITZ_LIMIT` DOFs and the FRF fit above: with a
-   few tens of measured DOFs on a model of hundreds, the expansion dominates the MCI (the truth model
-   of the GARTEUR benchmark lowers it by 4 % against 84 % for a wrong one) while the FRF error is
-   unambiguous.  A term stays only if it passes an information criterion (``penalty`` × ln N per term,
-   ten times BIC's, neighbouring lines and DOFs being far from independent) and, on the FRF criterion,
-   lowers the training FRF error by ``min_gain``;
-5. modelling: the selected elements are added to the FE model as cards and their values updated
-   jointly with the parameters; backward elimination drops terms that no longer earn their place;
-6. proof: nominal, parameter-only and physics-augmented models compared on response DOFs held out
-   of steps 2–5.  Findings are kept only if the held-out error falls by ``min_holdout_gain``.
+1. **baseline** — the FRFs as receptance with a noise estimate per value (:attr:`~.fit.FRFData.sigma`:
+   coherence and number of averages, the leakage bound of spectral lines, a 1 % floor), split into training
+   and held-out parts (response rows, else reference columns, else blocks of lines); the nominal model with
+   its loss factor fitted; parameter-only updating as a maximum a posteriori fit with priors on the
+   parameters (E, G ±5 %, density ±3 %, sections ±5 %, damping free; :func:`parameter_priors`);
+2. **localise** — the condensed force residual (MCI, thesis 3.2.4) of the model for models up to
+   :data:`~updating.diagnosis.fit.RITZ_LIMIT` DOFs, or the training FRF error above (``criterion``);
+3. **screen** — one term at a time: every candidate of the library (:mod:`~updating.diagnosis.library`) is
+   screened linearly on the MCI residual and exactly on the FRFs by a low-rank update
+   (:func:`~updating.diagnosis.frfscreen.frf_screen`); the best few, joints near the located nodes and every
+   support release (single components and a clamp's translations/rotations together) are fitted with the
+   parameters.  The best term is kept only if (a) it passes an information criterion (``penalty`` × ln N),
+   (b) its χ² gain is significant against the noise on the training **and** on the held-out FRFs (scaled
+   by the reduced χ² left when model-form error dominates: an F-test), the held-out error falling by
+   ``min_holdout_gain``, and (c) it changes an in-band natural frequency by :data:`MIN_FREQ_EFFECT` or the
+   modal damping by :data:`MIN_DAMPING_EFFECT` of the background (smaller effects are the size of model-form
+   error).  Candidates elsewhere that fit as well (within the criterion's margin) make the finding ambiguous;
+4. **model** — the selected terms updated jointly with the parameters on the FRFs; backward elimination
+   drops terms that no longer earn their place;
+5. **prove** — nominal, parameter-only and augmented models compared on the held-out FRFs and on the test
+   modes (:func:`pair_test_modes`: rigid-body and suspension modes excluded on purpose, MAC ≥
+   :data:`PAIR_MAC_MIN` within a :data:`PAIR_MAX_FREQ_ERROR` frequency window).
 
 FRF fits of models above :data:`~updating.diagnosis.fit.RITZ_LIMIT` DOFs run in a Ritz basis
 (:mod:`~updating.diagnosis.ritz`), checked against the exact receptance.
