@@ -10,7 +10,7 @@ import pytest
 
 from modalab.errors import ModalabValueError
 from modalab.frf import FRF
-from updating.diagnosis import diagnose, frf_data
+from updating.diagnosis import Diagnoser, DiagnoserConfig, diagnose, frf_data
 from updating.diagnosis.workflow import _split
 from updating.models.beams import thesis_beam, thesis_beam_parameters
 
@@ -44,7 +44,17 @@ def test_an_empty_subset_is_refused():
 
 def test_five_fixed_accelerometers_as_references_diagnose_without_crash():
     nominal = thesis_beam("analytical", cord_stiffness=None)
-    d = diagnose(nominal, _five_accelerometers(), parameters=thesis_beam_parameters(nominal), max_lines=60,
-                 max_findings=1)
-    assert d.findings == []
-    assert d.fit["nominal"]["frf_error_held_out"] < 1e-6
+    est = Diagnoser(DiagnoserConfig(parameters=thesis_beam_parameters(nominal), max_lines=60, max_findings=1))
+    assert est.fit(nominal, _five_accelerometers()) is est
+    assert est.findings_ == [] and est.ranking_ and est.fit_ is est.diagnosis_.fit
+    assert est.fit_["nominal"]["frf_error_held_out"] < 1e-6
+    assert est.diagnosis_.steps["held_out"].startswith("reference")
+
+
+def test_the_configuration_is_validated():
+    with pytest.raises(ModalabValueError, match="did you mean 'added_mass'"):
+        DiagnoserConfig(kinds=["added_mas"])
+    with pytest.raises(ModalabValueError, match="criterion"):
+        DiagnoserConfig(criterion="both")
+    with pytest.raises(TypeError):
+        diagnose(None, None, max_lnes=3)
