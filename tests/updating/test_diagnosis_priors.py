@@ -89,3 +89,9 @@ def test_priors_from_the_parameter_file(tmp_path):
     f.write_text('[[parameter]]\nname = "E_a"\nfield = "E"\nproperties = ["a"]\nprior = -3\n')
     with pytest.raises(PlanError, match="E_a.*prior = -3"):
         _priors(f)
+
+
+def test_a_zero_nominal_value_has_no_relative_prior():
+    params = [Parameter("di", "di", properties=(1,), mode="value")]
+    _, sig = parameter_priors(params, [0.0])
+    assert np.isinf(sig[0])

@@ -155,6 +155,10 @@ PRIOR_SIGMA = {"E": 0.05, "G": 0.05, "rho": 0.03, "t": 0.05, "h": 0.05, "b": 0.0
                "A": 0.05, "Iy": 0.05, "Iz": 0.05, "J": 0.05}
 #: a parameter further than this many prior standard deviations from its nominal has run into its prior
 AT_PRIOR_Z = 2.0
+#: the fits are bounded at this many prior standard deviations (E ±15 %, density ±9 % by default): with
+#: thousands of FRF values against a few parameters, model-form error outweighs any Gaussian prior, and a
+#: parameter far outside its physical range is absorbing something else
+PRIOR_BOUND = 3.0
 
 
 def parameter_priors(params: list, p_nom, overrides: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -184,7 +188,9 @@ def parameter_priors(params: list, p_nom, overrides: dict | None = None) -> tupl
         if isinstance(rel, str) or not float(rel) > 0:
             raise ModalabValueError(f"prior of {par.name!r}: {rel!r}; expected a relative standard deviation > 0 "
                                     "(0.05 = ±5 %) or 'free'")
-        sig[i] = float(rel) * (1.0 if par.mode == "factor" else max(abs(mean[i]), 1e-300))
+        if par.mode != "factor" and mean[i] == 0:
+            continue                                   # a relative prior of a zero nominal value: free
+        sig[i] = float(rel) * (1.0 if par.mode == "factor" else abs(mean[i]))
     return mean, sig
 
 
@@ -696,7 +702,11 @@ class Diagnoser:
         self.pm = pm = ParametricFEModel(model, params)
         self.p_nom = np.array(pm.p0, float)
         self.p_nom[len(params) - len(damp):] = dstart
+        # the priors (their means: the nominal values) also bound the fits at PRIOR_BOUND standard deviations
+        self.pmean, self.psig = parameter_priors(params, self.p_nom, cfg.priors)
         self.lo, self.hi = _bounds(params, self.p_nom)
+        self.lo = np.maximum(self.lo, self.pmean - PRIOR_BOUND * self.psig)
+        self.hi = np.minimum(self.hi, self.pmean + PRIOR_BOUND * self.psig)
         self.data = frf_data(measured, max_lines=cfg.max_lines, band_hz=cfg.band_hz)
         self.train, self.held, self.held_desc = _split(self.data, cfg.holdout)
         self.band = (float(self.data.freq_hz.min()), float(self.data.freq_hz.max()))
@@ -709,7 +719,6 @@ class Diagnoser:
         self.p_nomd = self.nom.p
         # the parameters' priors (MAP fits from here on): one prior σ weighs as much as an average independent
         # observation of the nominal model's residual, with one independent value per 10 FRF values
-        self.pmean, self.psig = parameter_priors(params, self.p_nomd, cfg.priors)
         n_eff = max(self.train.H.size / 10.0, 1.0)
         self.prior = Prior(self.pmean, self.psig,
                            float(self.nom.error * np.sqrt(np.sum(self.train.quality ** 2) / n_eff)))
