@@ -1086,9 +1086,9 @@ class Diagnoser:
                               "prior_std": float(self.psig[k]) if np.isfinite(self.psig[k]) else None,
                               "prior_z": float(z_fin[k]), "at_prior": bool(abs(z_fin[k]) > AT_PRIOR_Z)}
             if abs(z_fin[k]) > AT_PRIOR_Z or abs(z_upd[k]) > AT_PRIOR_Z:
-                log.warning("parameter %s runs into its prior: %.4g is %.1f prior standard deviations from %.4g "
-                            "(parameters only: %.4g); the model may miss something the candidates do not cover",
-                            par.name, fit.p[k], z_fin[k], self.pmean[k], upd.p[k])
+                log.warning("parameter %s runs into its prior (mean %.4g, std %.3g): %.4g in the final fit (%+.1f std), "
+                            "%.4g with parameters only (%+.1f std); the model may miss something the candidates do "
+                            "not cover", par.name, self.pmean[k], self.psig[k], fit.p[k], z_fin[k], upd.p[k], z_upd[k])
         return pars
 
     def _overlays(self, findings) -> tuple[dict, dict]:
