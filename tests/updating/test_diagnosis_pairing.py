@@ -43,3 +43,10 @@ def test_a_far_mode_is_unpaired_not_paired():
     assert 8 not in {t for _, t in p["pairs"]}
     assert max(abs(e) for e in p["freq_error_pct"]) < 1.0
     assert f[8] in p["unpaired_test_hz"]
+
+
+def test_fit_block_metrics_are_numbers():
+    """The fit blocks hold numbers only (the report tabulates them); the mode lists go to 'pairing'."""
+    free = garteur_model(suspension=False).structure()
+    m = _mode_metrics(free, _z_modes(garteur_model(suspension=True).structure(), 16))
+    assert all(isinstance(v, (int, float)) for v in m.values()), m

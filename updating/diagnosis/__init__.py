@@ -25,7 +25,10 @@ figures and ``augmented.bdf``.
                  "frf_error_train": 0.03,
                  "freq_error_max_pct": 1.2,    # vs test modes (given, or peak-picked from the FRFs), MAC-paired
                  "mac_min": 0.98, "n_pairs": 6, "n_unpaired_test": 0, "suspension_cutoff_hz": 2.7,
-                 "excluded_test_hz": [...], "excluded_model_hz": [...]}},   # rigid-body/suspension modes
+                 "n_excluded_test": 0, "n_excluded_model": 6}},   # rigid-body/suspension modes left out
+     "pairing": {"nominal" | ...: {"pairs": [{"model_hz", "test_hz", "mac", "freq_error_pct"}],
+                                   "unpaired_test_hz": [...], "excluded_test_hz": [...], "excluded_model_hz": [...],
+                                   "cutoff_hz": 2.7}},
      "statement": "...", "ranking": [...], "timings_s": {...}}
 
 ``"findings": []`` means nothing is missing beyond parameter error.  Values are in SI units (``unit``);

@@ -104,6 +104,7 @@ class Diagnosis:
     ranking: list = field(default_factory=list)
     curves: dict = field(default_factory=dict)
     frequencies: dict = field(default_factory=dict)
+    pairing: dict = field(default_factory=dict)     # per fit block: pairs and the modes left out on purpose
 
     def save(self, directory, *, figures: bool = True, bulk: bool = True):
         """Write ``diagnosis.json``, the figures (:mod:`~updating.diagnosis.report`) and the augmented,
@@ -132,6 +133,7 @@ class Diagnosis:
                 "fit": self.fit, "statement": self.statement,
                 "ranking": [{"candidate": c.label, "physics": c.physics, "explained": round(g, 4)}
                             for c, _, g in self.ranking[:12]],
+                "pairing": self.pairing,
                 "timings_s": {k: round(v, 3) for k, v in self.timings.items()}}
 
 
@@ -626,7 +628,7 @@ def _mode_metrics(structure, test_modes) -> dict:
            "mac_min": float(np.min(p["mac"])) if p["pairs"] else None, "n_pairs": len(p["pairs"]),
            "n_unpaired_test": len(p["unpaired_test_hz"]),
            "suspension_cutoff_hz": p["cutoff_hz"],
-           "excluded_test_hz": p["excluded_test_hz"], "excluded_model_hz": p["excluded_model_hz"]}
+           "n_excluded_test": len(p["excluded_test_hz"]), "n_excluded_model": len(p["excluded_model_hz"])}
     return out
 
 
@@ -1031,6 +1033,16 @@ class Diagnoser:
         fit_blocks = {"nominal": metrics(self.pm, self.p_nomd), "parameters_only": metrics(self.pm, self.upd.p)}
         fit_blocks["with_physics"] = metrics(self.best_pm, self.best_fit.p) if self.current else \
             dict(fit_blocks["parameters_only"])
+        pairing = {}
+        if test_modes is not None:
+            for key, (pmod, pv) in (("nominal", (self.pm, self.p_nomd)), ("parameters_only", (self.pm, self.upd.p)),
+                                    ("with_physics", (self.best_pm, self.best_fit.p))):
+                pr = pair_test_modes(pmod.structure(pv), test_modes)
+                pairing[key] = {"pairs": [{"model_hz": fm, "test_hz": float(test_modes.freq_hz[t]), "mac": mc,
+                                           "freq_error_pct": fe}
+                                          for (fm, t), mc, fe in zip(pr["pairs"], pr["mac"], pr["freq_error_pct"])],
+                                "unpaired_test_hz": pr["unpaired_test_hz"], "excluded_test_hz": pr["excluded_test_hz"],
+                                "excluded_model_hz": pr["excluded_model_hz"], "cutoff_hz": pr["cutoff_hz"]}
         if self.current and fit_blocks["with_physics"]["frf_error_held_out"] > \
                 fit_blocks["parameters_only"]["frf_error_held_out"] * (1 - cfg.min_holdout_gain):
             log.info("augmentation did not improve held-out data enough; reporting no missing physics")
@@ -1054,7 +1066,8 @@ class Diagnoser:
                          parametric=self.best_pm, p=self.best_fit.p,
                          steps={"held_out": self.held_desc, "band_hz": self.band, "hot_nodes": self.hot_nodes,
                                 "n_candidates": self.n_lib, **steps_modes},
-                         maps=maps, timings=self.timings, ranking=self.ranking or [], curves=curves, frequencies=freqs)
+                         maps=maps, timings=self.timings, ranking=self.ranking or [], curves=curves, frequencies=freqs,
+                         pairing=pairing)
         self.timings["total"] = time.perf_counter() - self._t0
         return diag
 
