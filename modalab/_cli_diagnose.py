@@ -5,9 +5,12 @@ from pathlib import Path
 
 
 def _options(a):
+    from updating.diagnosis.library import validate_kinds
+
     from .stages import DiagnoseOptions
 
-    return DiagnoseOptions(parameters=a.params, criterion=a.criterion, dofmap=getattr(a, "map", None))
+    kinds = tuple(sorted(validate_kinds(a.kinds))) if a.kinds else None   # a misspelt kind fails before any file is read
+    return DiagnoseOptions(parameters=a.params, criterion=a.criterion, dofmap=getattr(a, "map", None), kinds=kinds)
 
 
 def cmd_diagnose(a):
@@ -48,6 +51,8 @@ def _campaign(a, measured):
 
 
 def register(sub):
+    from updating.diagnosis.library import KINDS
+
     s = sub.add_parser("diagnose", help="locate and name the physics a model leaves out, model it, prove it")
     s.add_argument("model", help="nominal FE model as Nastran bulk data (.bdf)")
     s.add_argument("measured", nargs="*", help="measured FRFs with coherence (UFF 58); node ids and directions "
@@ -65,4 +70,6 @@ def register(sub):
                         "or by the FRF fit; auto: MCI up to 200 DOFs, FRF fit above (default: auto)")
     s.add_argument("--dask", help="address of an existing Dask scheduler (tcp://host:port) for campaigns")
     s.add_argument("--workers", type=int, help="local processes for campaigns (default: the number of CPUs)")
+    s.add_argument("--kinds", nargs="+", metavar="KIND",
+                   help="kinds of missing physics to consider, among " + ", ".join(KINDS) + " (default: all)")
     s.set_defaults(func=cmd_diagnose)

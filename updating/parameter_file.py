@@ -9,6 +9,8 @@ Format (TOML)::
     mode = "factor"                # factor (p multiplies the nominal; default) or value (p is the SI value)
     lower = 0.5                    # optional bounds, in the units of p
     upper = 2.0
+    prior = 0.05                   # diagnosis: prior relative standard deviation, or "free" (default: E, G
+                                   # ±5 %, density ±3 %, sections ±5 %, damping free)
 
 A misspelt key is an error naming the file, the parameter, the key and the closest valid key.
 """
@@ -20,9 +22,10 @@ from pathlib import Path
 
 from modalab.errors import PlanError
 
-__all__ = ["PARAMETER_KEYS", "read_parameter_file"]
+__all__ = ["PARAMETER_KEYS", "read_parameter_file", "read_priors"]
 
-PARAMETER_KEYS = ("name", "field", "mode", "properties", "materials", "groups", "elements", "lower", "upper")
+PARAMETER_KEYS = ("name", "field", "mode", "properties", "materials", "groups", "elements", "lower", "upper",
+                  "prior")
 _TOP_KEYS = ("parameter",)
 
 
@@ -86,3 +89,19 @@ def read_parameter_file(path) -> tuple[list, list, list]:
         lo.append(bounds[0])
         hi.append(bounds[1])
     return params, lo, hi
+
+
+def read_priors(path) -> dict:
+    """``prior`` of each ``[[parameter]]`` that gives one: a relative standard deviation (0.05 = ±5 %) or
+    ``"free"``; the file is checked by :func:`read_parameter_file` first."""
+    read_parameter_file(path)
+    p = Path(path)
+    out = {}
+    for it in tomllib.loads(p.read_text()).get("parameter", []):
+        if "prior" in it:
+            v = it["prior"]
+            if not (v == "free" or (isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0)):
+                raise PlanError(f"{p}: parameter {it['name']!r}: prior = {v!r}; expected a relative standard "
+                                "deviation > 0 (0.05 = ±5 %) or \"free\"")
+            out[str(it["name"])] = v
+    return out

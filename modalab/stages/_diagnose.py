@@ -55,6 +55,11 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
                         "measured FRFs")
     model = load_model(model_path)
     params = load_parameters(opts.parameters, model)[0] if opts.parameters else None
+    priors = None
+    if opts.parameters:
+        from updating.parameter_file import read_priors
+
+        priors = read_priors(opts.parameters) or None
     test_modes = load_modes(modes_path) if modes_path else None
     H = None
     if frf_path is None:
@@ -74,6 +79,8 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
               if getattr(opts, k) is not None}
         if opts.kinds:
             kw["kinds"] = list(opts.kinds)
+        if priors:
+            kw["priors"] = priors
         diag = _diagnose(model, H, parameters=params, test_modes=test_modes, criterion=opts.criterion,
                          progress=progress, **kw)
     files = []

@@ -31,7 +31,10 @@ def _run(k):
     if k not in _cache:
         nominal = thesis_beam("analytical", cord_stiffness=None)
         meas = _measured(k)
-        _cache[k] = (diagnose(nominal, meas, parameters=thesis_beam_parameters(nominal)), meas)
+        params = thesis_beam_parameters(nominal)
+        # the thesis' pseudo-experimental beam differs by up to 20 % in E and 10 % in diameter (Tables 3-4):
+        # far outside the default priors, so they are declared free, as a user who knows it would
+        _cache[k] = (diagnose(nominal, meas, parameters=params, priors={p.name: "free" for p in params}), meas)
     return _cache[k]
 
 

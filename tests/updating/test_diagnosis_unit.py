@@ -209,3 +209,58 @@ def test_sparse_and_dense_paths_agree(seed):
     for u, v in zip(a, b):
         np.testing.assert_allclose(u, v, rtol=1e-9, atol=1e-12 * np.abs(u).max())
     np.testing.assert_allclose(ca, cb, rtol=1e-9, atol=1e-14)
+
+
+def test_kinds_are_a_validated_set():
+    from modalab.errors import ModalabValueError
+    from updating.diagnosis.library import KINDS, validate_kinds
+    assert validate_kinds(None) == frozenset(KINDS)
+    assert validate_kinds(["added_mass", "ground_spring"]) == {"added_mass", "ground_spring"}
+    with pytest.raises(ModalabValueError, match="'ground_sprng'.*did you mean 'ground_spring'"):
+        build_library(_small(), kinds=["ground_sprng"])
+    with pytest.raises(ModalabValueError, match="no kind"):
+        validate_kinds([])
+
+
+def test_cli_kinds_typo_is_an_error_suggesting_the_closest(capsys):
+    from modalab.cli import main
+    rc = main(["diagnose", str(CONTROL / "nominal.bdf"), str(CONTROL / "measured.uff"), "--kinds", "joint_flex"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "did you mean 'joint_flexibility'" in err and "Traceback" not in err
+
+
+def test_a_clamp_releases_its_rotations_together_into_one_stiffness():
+    from updating.fe import Beam3D
+    m = FEModel("post")
+    for i in range(4):
+        m.add_node(i + 1, (0.0, 0.0, 0.3 * i))
+    m.add_material(Material(1, E=210e9, rho=7850.0))
+    m.add_property(BeamProperty(1, 1, TubeSection(0.04, 0.034), name="post"))
+    for i in range(3):
+        m.add_element(Beam3D(i + 1, i + 1, i + 2, 1, orientation=(1.0, 0.0, 0.0)))
+    m.add_spc(1, "123456")
+    base = m.structure()
+    cands = [c for c in build_library(m, kinds=["boundary_flexibility"]) if "rotations" in c.label]
+    assert len(cands) == 1 and set(cands[0].dofs) == {"1+RX", "1+RY", "1+RZ"}
+    pm, s = _apply(m, cands[0], 2e4)
+    assert s.n_dof == base.n_dof + 3
+    for lbl in ("1+RX", "1+RY", "1+RZ"):
+        i = _idx(s, lbl)
+        assert s.K.toarray()[i, i] == pytest.approx(2e4 + _own_stiffness(m, cands[0], lbl), rel=1e-9)
+    # very stiff rotations give back the clamped frequencies
+    _, stiff = _apply(m, cands[0], 1e12)
+    f0 = np.sort(_gen(base))[:4]
+    f1 = np.sort(_gen(stiff))[:4]
+    np.testing.assert_allclose(f1, f0, rtol=1e-4)
+
+
+def _gen(st):
+    import scipy.linalg as sla
+    return sla.eigh(st.K.toarray(), st.M.toarray(), eigvals_only=True)
+
+
+def _own_stiffness(m, cand, lbl):
+    """The diagonal stiffness of the released component without the spring (value 0)."""
+    _, s0 = _apply(m, cand, 0.0)
+    i = _idx(s0, lbl)
+    return s0.K.toarray()[i, i]

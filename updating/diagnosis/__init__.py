@@ -1,6 +1,6 @@
 """Missing-physics diagnosis: locate the mismatch, name the physics, model it, prove it.
 
-:func:`diagnose` (workflow on measured FRFs; ``criterion='auto'|'mci'|'frf'``), :func:`diagnose_modes` (from
+:class:`Diagnoser` / :func:`diagnose` (workflow on measured FRFs; ``criterion='auto'|'mci'|'frf'``), :func:`diagnose_modes` (from
 identified modes only), :func:`build_library` (candidate augmentations), :func:`screen` (MCI localisation and
 candidate ranking), :func:`frf_screen` (exact single-candidate FRF screening by low-rank updates),
 :func:`fit_frf` (non-linear FRF fit; in a :class:`RitzBasis` for large models), :func:`peak_modes` (test modes by
@@ -14,14 +14,21 @@ figures and ``augmented.bdf``.
                               | "boundary_flexibility",
                    "nodes": [14], "dofs": ["14+Z"], "elements": [], "description": "spring to ground at 14+Z",
                    "values": [{"name": "k", "value": 210.0, "unit": "N/m", "std": 16.0}],
+                   "parts": [...],          # same-physics terms next to it (a mass lumped on two nodes)
+                   "ambiguous": false, "alternatives": [{"physics", "nodes", "dofs", "description", "value",
+                                                         "unit"}],   # explaining the data as well
                    "evidence": "..."}],
      "parameters": {"E_wing": {"initial": 1.0, "updated": 0.97, "parameters_only": 0.99, "std": 0.01,
-                               "mode": "factor"}},
+                               "mode": "factor", "prior_std": 0.05, "prior_z": -0.6, "at_prior": false}},
      "fit": {"nominal" | "parameters_only" | "with_physics":
                 {"frf_error_held_out": 0.04,   # coherence-weighted relative RMS on held-out response rows
                  "frf_error_train": 0.03,
                  "freq_error_max_pct": 1.2,    # vs test modes (given, or peak-picked from the FRFs), MAC-paired
-                 "mac_min": 0.98, "n_pairs": 6}},
+                 "mac_min": 0.98, "n_pairs": 6, "n_unpaired_test": 0, "suspension_cutoff_hz": 2.7,
+                 "n_excluded_test": 0, "n_excluded_model": 6}},   # rigid-body/suspension modes left out
+     "pairing": {"nominal" | ...: {"pairs": [{"model_hz", "test_hz", "mac", "freq_error_pct"}],
+                                   "unpaired_test_hz": [...], "excluded_test_hz": [...], "excluded_model_hz": [...],
+                                   "cutoff_hz": 2.7}},
      "statement": "...", "ranking": [...], "timings_s": {...}}
 
 ``"findings": []`` means nothing is missing beyond parameter error.  Values are in SI units (``unit``);
@@ -32,9 +39,9 @@ from .frfscreen import frf_screen
 from .ritz import RitzBasis
 from .library import Candidate, build_library
 from .screen import ScreenResult, residual_map, screen
-from .workflow import Diagnosis, Finding, default_parameters, diagnose, peak_modes
+from .workflow import Diagnoser, DiagnoserConfig, Diagnosis, Finding, default_parameters, diagnose, peak_modes
 from .modes import diagnose_modes, fit_modes, modes_data
 
-__all__ = ["diagnose", "diagnose_modes", "fit_modes", "modes_data", "peak_modes", "Diagnosis", "Finding", "default_parameters", "build_library", "Candidate", "screen",
+__all__ = ["diagnose", "Diagnoser", "DiagnoserConfig", "diagnose_modes", "fit_modes", "modes_data", "peak_modes", "Diagnosis", "Finding", "default_parameters", "build_library", "Candidate", "screen",
            "ScreenResult", "residual_map", "fit_frf", "frf_data", "frf_error", "model_frf", "FRFData", "frf_screen",
            "RitzBasis"]

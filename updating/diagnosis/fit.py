@@ -26,7 +26,7 @@ from modalab.frf import FRF
 from .dynamics import solve_columns
 
 log = logging.getLogger(__name__)
-__all__ = ["FRFData", "frf_data", "model_frf", "frf_error", "fit_frf", "FitResult"]
+__all__ = ["FRFData", "frf_data", "model_frf", "frf_error", "fit_frf", "FitResult", "Prior"]
 
 
 @dataclass
@@ -42,6 +42,7 @@ class FRFData:
     n_averages: int = 1
     floor: float = 0.01
     homogeneous: bool = False        # True: H holds mode shapes (one column) at s = iω_j, no force
+    bias: np.ndarray = field(default=None)   # (n_s,) bound of the relative systematic error per line (leakage)
 
     def __post_init__(self):
         if self.den is None:
@@ -49,19 +50,28 @@ class FRFData:
             # structurally zero pairs (a response orthogonal to the force, e.g. out-of-plane to in-plane on
             # a symmetric structure: numerical noise in model and data alike) from counting as large errors
             a = np.abs(self.H)
-            rms = np.sqrt(np.mean(a ** 2, axis=2, keepdims=True))
-            col = np.sqrt(np.mean(a ** 2, axis=(0, 2), keepdims=True)) if a.size else 0.0
+            rms = _local_rms(a, np.abs(np.asarray(self.s).imag))
+            col = np.sqrt(np.mean(rms ** 2, axis=0, keepdims=True)) if a.size else 0.0
             self.den = a + 0.2 * rms + 1e-4 * col + 1e-300
+        if self.bias is None:
+            self.bias = np.zeros(np.shape(self.s))
+
+    @property
+    def sigma(self) -> np.ndarray:
+        """Relative standard error of each FRF value, (n_m, n_r, n_s): ``√(floor² + ε² + b²)`` with
+        ε² = (1 − γ²)/(2 n γ²) the variance of the relative random error of an H1 estimate from n averages
+        (Bendat & Piersol), ``b`` the line's bound of the relative leakage error (:func:`frf_data`) and
+        ``floor`` the smallest relative error trusted (systematic errors of the test: 1 %)."""
+        g2 = np.clip(self.coherence, 1e-3, 1.0)
+        eps2 = (1 - g2) / (2 * max(int(self.n_averages), 1) * g2)
+        return np.sqrt(self.floor ** 2 + eps2 + np.asarray(self.bias)[None, None, :] ** 2)
 
     @property
     def quality(self) -> np.ndarray:
-        """Line weights in (0, 1]: ``floor / √(floor² + ε²)`` with ε² = (1 − γ²)/(2 n γ²) the variance of the
-        relative random error of an H1 estimate from n averages (Bendat & Piersol), ``floor`` the smallest
-        relative error trusted (systematic errors of the test: 1 %).  Poor-coherence lines (near DC,
-        antiresonances) count little instead of dominating relative residuals."""
-        g2 = np.clip(self.coherence, 1e-3, 1.0)
-        eps2 = (1 - g2) / (2 * max(int(self.n_averages), 1) * g2)
-        return self.floor / np.sqrt(self.floor ** 2 + eps2)
+        """Line weights in (0, 1]: ``floor / σ`` (:attr:`sigma`).  Poor-coherence lines (near DC,
+        antiresonances) and lines a few resolution steps above DC count little instead of dominating
+        relative residuals."""
+        return self.floor / self.sigma
 
     @property
     def freq_hz(self) -> np.ndarray:
@@ -76,7 +86,27 @@ class FRFData:
         den = self.den[r][:, c][:, :, f]
         resp = self.responses if rows is None else [self.responses[i] for i in np.atleast_1d(rows)]
         refs = self.references if cols is None else [self.references[i] for i in np.atleast_1d(cols)]
-        return FRFData(self.s[f], H, coh, resp, refs, den, self.n_averages, self.floor, self.homogeneous)
+        if not resp or not refs or H.shape[2] == 0:
+            raise ModalabValueError(f"an FRF subset with {len(resp)} response(s), {len(refs)} reference(s) and "
+                                    f"{H.shape[2]} line(s) is empty; nothing to compare a model with")
+        return FRFData(self.s[f], H, coh, resp, refs, den, self.n_averages, self.floor, self.homogeneous,
+                       np.asarray(self.bias)[f])
+
+
+#: half-width of the frequency window of the local RMS in the error's denominator (a factor in frequency)
+LOCAL_BAND = 1.5
+
+
+def _local_rms(a: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """RMS of ``|H|`` over the lines within a factor :data:`LOCAL_BAND` in frequency of each line, per pair
+    (n_m, n_r, n_s): the level an antiresonance is judged against.  Local, because a receptance spans decades
+    (∝ 1/ω²): a global RMS is set by the lowest lines and would make every error above them negligible."""
+    if a.shape[-1] == 0:
+        return a
+    lw = np.log(np.maximum(omega, 1e-12 * max(float(omega.max(initial=0)), 1e-300)))
+    near = np.abs(lw[:, None] - lw[None, :]) <= np.log(LOCAL_BAND)            # (n_s, n_s), diagonal True
+    wts = near / near.sum(axis=0, keepdims=True)
+    return np.sqrt(np.einsum("mrk,kf->mrf", a ** 2, wts))
 
 
 def frf_data(frf: FRF, *, max_lines: int = 200, band_hz=None, min_coherence: float = 0.5) -> FRFData:
@@ -112,13 +142,30 @@ def frf_data(frf: FRF, *, max_lines: int = 200, band_hz=None, min_coherence: flo
     s = 1j * 2 * np.pi * rec.freq_hz[idx] + beta
     return FRFData(s=s, H=rec.H[..., idx], coherence=np.clip(coh[..., idx], 0, 1),
                    responses=list(rec.responses), references=list(rec.references),
-                   n_averages=int(frf.metadata.get("n_averages") or 1))
+                   n_averages=int(frf.metadata.get("n_averages") or 1), bias=leakage_bias(frf, rec.freq_hz[idx]))
+
+
+def leakage_bias(frf: FRF, freq_hz) -> np.ndarray:
+    """Bound of the relative systematic error of spectral lines estimated from finite records: ``Δf / f``.
+
+    A response that has not died out at the end of a record of length T = 1/Δf (rigid-body and suspension
+    motion, even under an exponential window) leaves a tail whose truncation adds ``x(T) e^{-iωT} / (iω + β)``
+    to the transform: an error falling as 1/ω, of order 1 at the first line and ``1/k`` at line k.  Data
+    whose metadata name no spectral estimator (synthesised FRFs, analyser exports without it) get none.
+    The resolution Δf is the smallest line spacing of ``frf``."""
+    f = np.asarray(freq_hz, float)
+    if not frf.metadata.get("estimator") or frf.freq_hz.size < 2:
+        return np.zeros(f.shape)
+    df = float(np.min(np.diff(frf.freq_hz)))
+    return df / np.maximum(f, df)
 
 
 def _indices(model_dofs, data: FRFData):
     mi, ms = locate(model_dofs, data.responses, "measured response DOF")
     ri, rs = locate(model_dofs, data.references, "measured reference DOF")
-    return np.asarray(mi), np.asarray(ms, float), np.asarray(ri), np.asarray(rs, float)
+    # integer arrays even when empty (``np.asarray([])`` is float and cannot index)
+    return (np.asarray(mi, dtype=np.intp), np.asarray(ms, float), np.asarray(ri, dtype=np.intp),
+            np.asarray(rs, float))
 
 
 def model_frf(structure, data: FRFData) -> np.ndarray:
@@ -133,6 +180,38 @@ def frf_error(H_model: np.ndarray, data: FRFData) -> float:
     e = np.abs(H_model - data.H) / data.den
     w = data.quality ** 2
     return float(np.sqrt(np.sum(w * e ** 2) / max(np.sum(w), 1e-300)))
+
+
+@dataclass
+class Prior:
+    """Gaussian prior of the first ``len(mean)`` parameters of a fit (further ones, e.g. candidate values, are
+    free): the fit is then a maximum a posteriori estimate.  ``sigma`` is the prior standard deviation in
+    the parameter's own unit (``inf``: free).  ``scale`` is the weight of one prior standard deviation in
+    the units of the FRF residual: with ``scale = √(Σr₀² / N_eff)`` (r₀ the residual at a reference point,
+    N_eff the number of independent observations) one prior σ costs as much as an average independent
+    observation at the reference point — the data term tempered to N_eff, as its values are far from
+    independent across neighbouring lines."""
+
+    mean: np.ndarray
+    sigma: np.ndarray
+    scale: float = 1.0
+
+    def rows(self, p: np.ndarray, free: np.ndarray):
+        """Residual rows of the prior for the free parameters and their (diagonal) Jacobian."""
+        n = len(self.mean)
+        idx = np.flatnonzero(np.asarray(free[:n], bool) & np.isfinite(self.sigma))
+        r = self.scale * (np.asarray(p)[idx] - self.mean[idx]) / self.sigma[idx]
+        J = np.zeros((idx.size, int(np.sum(free))))
+        col = np.cumsum(free) - 1                           # position of each free parameter among the free
+        J[np.arange(idx.size), col[idx]] = self.scale / self.sigma[idx]
+        return r, J
+
+    def z(self, p) -> np.ndarray:
+        """How many prior standard deviations each parameter lies from its mean (0 where free)."""
+        n = len(self.mean)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = (np.asarray(p)[:n] - self.mean) / self.sigma
+        return np.where(np.isfinite(self.sigma), z, 0.0)
 
 
 @dataclass
@@ -232,8 +311,10 @@ def quick_frf_error(structure, data: FRFData) -> float:
 
 
 def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None, max_nfev: int = 40,
-            x_scale=None, reduced: bool | None = None, rounds: int = 3, tol: float = 0.01) -> FitResult:
-    """Bounded non-linear least squares of the FRF residual over the free parameters.
+            x_scale=None, reduced: bool | None = None, rounds: int = 3, tol: float = 0.01,
+            prior: Prior | None = None) -> FitResult:
+    """Bounded non-linear least squares of the FRF residual over the free parameters (with a
+    :class:`Prior`: the maximum a posteriori estimate; the returned error is that of the data alone).
 
     ``reduced`` (default: models above :data:`RITZ_LIMIT` DOFs) evaluates the receptance and its Jacobian
     in a Ritz basis built at the start (:class:`~updating.diagnosis.ritz.RitzBasis`: modes to 3× the band
@@ -263,7 +344,7 @@ def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None
             st = st0 if rnd == 0 else pmodel.structure(p_cur)
             mi, _, ri, _ = _indices(st.dofs, data)
             basis = RitzBasis(st, np.concatenate([mi, ri]), float(np.max(np.abs(data.s))) / (2 * np.pi))
-        sol = _least_squares(pmodel, data, p_cur, free, lo, hi, max_nfev, x_scale, history, basis)
+        sol = _least_squares(pmodel, data, p_cur, free, lo, hi, max_nfev, x_scale, history, basis, prior)
         total_nfev += sol.nfev
         p = p_cur.copy()
         p[free] = sol.x
@@ -272,26 +353,23 @@ def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None
         if not reduced:
             break
         # the reduced error, in the same measure
-        r = sol.fun
+        r = sol.fun[:2 * data.H.size]
         e_red = np.sqrt(float(r @ r) / max(float(np.sum(data.quality ** 2)), 1e-300))
         log.debug("Ritz fit round %d: reduced error %.5g, exact %.5g", rnd, e_red, err)
         if abs(err - e_red) <= tol * max(err, 1e-12):
             break
         p_cur = p
     std = np.zeros(npar)
-    try:
-        J = sol.jac
-        dof = max(sol.fun.size - free.sum(), 1)
-        s2 = float(sol.fun @ sol.fun) / dof
-        cov = np.linalg.pinv(J.T @ J) * s2
-        std[free] = np.sqrt(np.clip(np.diag(cov), 0, None))
-    except (np.linalg.LinAlgError, ValueError):  # pragma: no cover
-        pass
+    J = sol.jac
+    dof = max(sol.fun.size - free.sum(), 1)
+    s2 = float(sol.fun @ sol.fun) / dof
+    cov = np.linalg.pinv(J.T @ J) * s2                      # a failure here is a failure, not a zero std
+    std[free] = np.sqrt(np.clip(np.diag(cov), 0, None))
     return FitResult(p, std, err, history, bool(sol.success), str(sol.message) + (
         f" ({total_nfev} evaluations in a Ritz basis)" if reduced else ""))
 
 
-def _least_squares(pmodel, data, p_start, free, lo, hi, max_nfev, x_scale, history, basis):
+def _least_squares(pmodel, data, p_start, free, lo, hi, max_nfev, x_scale, history, basis, prior=None):
     p_fixed = p_start.copy()
 
     def full(x):
@@ -315,6 +393,8 @@ def _least_squares(pmodel, data, p_start, free, lo, hi, max_nfev, x_scale, histo
     def fun(x):
         r = state(x)["res"]
         history.append(float(np.sqrt(np.mean(r ** 2))))
+        if prior is not None:
+            r = np.concatenate([r, prior.rows(full(x), free)[0]])
         return r
 
     def jac(x):
@@ -324,6 +404,8 @@ def _least_squares(pmodel, data, p_start, free, lo, hi, max_nfev, x_scale, histo
                 c["jac"] = _jacobian(pmodel, full(x), data, free, c["ctx"])
             else:
                 c["jac"] = _jacobian_ritz(pmodel, full(x), data, free, c["ctx"])
+            if prior is not None:
+                c["jac"] = np.vstack([c["jac"], prior.rows(full(x), free)[1]])
         return c["jac"]
 
     x0 = np.clip(p_start[free], lo[free] + 1e-12 * np.abs(lo[free]), hi[free])

@@ -41,6 +41,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from modalab.dof import DIRECTION_NAMES, Dof
+from modalab.errors import ModalabValueError
 
 from ..fe import Damper, FEModel, LumpedMass, Parameter, Spring
 from ..fe.assembly import assemble
@@ -146,6 +147,31 @@ def _plausible_inertia(model: FEModel) -> tuple[float, float]:
     return PLAUSIBLE_MASS_FRACTION * mass, PLAUSIBLE_MASS_FRACTION * mass * max(size, 1e-3) ** 2
 
 
+#: the kinds of missing physics the library builds (``modalab diagnose --kinds``)
+KINDS = ("ground_spring", "added_mass", "local_damping", "joint_flexibility", "boundary_flexibility")
+
+
+def validate_kinds(kinds) -> frozenset:
+    """``kinds`` as a set of :data:`KINDS` (None or empty: all of them).  A name that is not a kind is an
+    error naming it and suggesting the closest kind; a misspelt kind never silently yields zero candidates."""
+    import difflib
+    if kinds is None:
+        return frozenset(KINDS)
+    if isinstance(kinds, str):
+        kinds = [k for k in kinds.replace(",", " ").split() if k]
+    out = set()
+    for k in kinds:
+        k = str(k).strip()
+        if k not in KINDS:
+            close = difflib.get_close_matches(k, KINDS, n=1, cutoff=0.5)
+            hint = f"did you mean {close[0]!r}? " if close else ""
+            raise ModalabValueError(f"unknown kind of missing physics {k!r}; {hint}expected some of {', '.join(KINDS)}")
+        out.add(k)
+    if not out:
+        raise ModalabValueError(f"no kind of missing physics selected; expected some of {', '.join(KINDS)}")
+    return frozenset(out)
+
+
 def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, group_size: int = 2,
                   stiffness_scale: float | None = None) -> list[Candidate]:
     """All candidates of the requested ``kinds`` for ``model``.
@@ -156,8 +182,7 @@ def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, g
     group_size : element groups for local damping are single elements and runs of this many
         neighbouring elements sharing a node.
     """
-    kinds = set(kinds or ("ground_spring", "added_mass", "local_damping", "joint_flexibility",
-                          "boundary_flexibility"))
+    kinds = validate_kinds(kinds)
     red = model.reduction()
     full = red.full_dofs
     fidx = {(d.node, d.axis): i for i, d in enumerate(full)}
@@ -302,6 +327,28 @@ def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, g
                     return m, Parameter(f"kbc_{spc.node}_{c}", "k", elements=(eid,), mode="value"), 1.0
                 cands.append(Candidate("boundary_flexibility", f"support flexibility at {lbl}", (spc.node,), (lbl,),
                                        (), "k", _unit("boundary_flexibility", c), "K", False, release, None))
+            # a clamp elastic in several components: its translations (one stiffness) and its rotations (one
+            # rotational stiffness) released together, a rank-2..3 change each
+            for group in ([c for c in active if c <= 3], [c for c in active if c >= 4]):
+                if len(group) < 2:
+                    continue
+                lbls = tuple(f"{spc.node}+{DIRECTION_NAMES[c]}" for c in group)
+
+                def release_group(m, eid, spc=spc, group=tuple(group)):
+                    m = m.copy()
+                    m.spcs = [s for s in m.spcs if s is not spc]
+                    rest = tuple(x for x in spc.components if x not in group)
+                    if rest:
+                        m.add_spc(spc.node, "".join(map(str, rest)))
+                    for k, c in enumerate(group):
+                        m.add_element(Spring(eid + k, a=(spc.node, c), b=None, k=0.0, group=f"diag_bc_{eid}"))
+                    m._changed()
+                    return m, Parameter(f"kbc_{spc.node}_{''.join(map(str, group))}", "k",
+                                        elements=tuple(eid + k for k in range(len(group))), mode="value"), 1.0
+                what = "translations" if group[0] <= 3 else "rotations"
+                cands.append(Candidate("boundary_flexibility", f"support flexibility at node {spc.node} ({what} "
+                                       f"{', '.join(DIRECTION_NAMES[c] for c in group)})", (spc.node,), lbls, (),
+                                       "k", _unit("boundary_flexibility", group[0]), "K", False, release_group, None))
 
     # ---------------------------------------------------------------- joint flexibility
     if "joint_flexibility" in kinds:

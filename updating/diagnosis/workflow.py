@@ -1,34 +1,37 @@
 """The diagnosis workflow: baseline updating, localisation, naming, modelling, proof.
 
-:func:`diagnose` runs, on an :class:`~updating.fe.FEModel` and measured FRFs:
+``Diagnoser(DiagnoserConfig(...)).fit(model, frf)`` (:func:`diagnose` is a thin wrapper) runs, on an
+:class:`~updating.fe.FEModel` and measured FRFs:
 
-1. correlate the nominal model (FRF error; frequencies/MAC when test modes are given);
-2. parameter-only updating of the declared parameters (the thesis' way) — the baseline;
-3. localisation: the condensed force residual (MCI) per measured DOF and frequency of the
-   updated model (:mod:`~updating.diagnosis.screen`);
-4. naming: every shared candidate of the library (:mod:`~updating.diagnosis.library`) is screened
-   (a) linearly on the MCI residual (:func:`~updating.diagnosis.screen.rank_candidates`) and
-   (b) exactly on the FRFs, added at its best value by a low-rank update
-   (:func:`~updating.diagnosis.frfscreen.frf_screen`, around the nominal and the updated parameters);
-   the best few of both, and the joint and boundary candidates near the located nodes, are then added
-   to the model one at a time and judged with the parameters re-estimated — by the MCI minimisation
-   (thesis 3.2.4; ``criterion='mci'``) or by the FRF fit (``criterion='frf'``).  ``'auto'`` uses the
-   MCI for models up to :data:`~updating.diagnosis.fit.RITZ_LIMIT` DOFs and the FRF fit above: with a
-   few tens of measured DOFs on a model of hundreds, the expansion dominates the MCI (the truth model
-   of the GARTEUR benchmark lowers it by 4 % against 84 % for a wrong one) while the FRF error is
-   unambiguous.  A term stays only if it passes an information criterion (``penalty`` × ln N per term,
-   ten times BIC's, neighbouring lines and DOFs being far from independent) and, on the FRF criterion,
-   lowers the training FRF error by ``min_gain``;
-5. modelling: the selected elements are added to the FE model as cards and their values updated
-   jointly with the parameters; backward elimination drops terms that no longer earn their place;
-6. proof: nominal, parameter-only and physics-augmented models compared on response DOFs held out
-   of steps 2–5.  Findings are kept only if the held-out error falls by ``min_holdout_gain``.
+1. **baseline** — the FRFs as receptance with a noise estimate per value (:attr:`~.fit.FRFData.sigma`:
+   coherence and number of averages, the leakage bound of spectral lines, a 1 % floor), split into training
+   and held-out parts (response rows, else reference columns, else blocks of lines); the nominal model with
+   its loss factor fitted; parameter-only updating as a maximum a posteriori fit with priors on the
+   parameters (E, G ±5 %, density ±3 %, sections ±5 %, damping free; :func:`parameter_priors`);
+2. **localise** — the condensed force residual (MCI, thesis 3.2.4) of the model for models up to
+   :data:`~updating.diagnosis.fit.RITZ_LIMIT` DOFs, or the training FRF error above (``criterion``);
+3. **screen** — one term at a time: every candidate of the library (:mod:`~updating.diagnosis.library`) is
+   screened linearly on the MCI residual and exactly on the FRFs by a low-rank update
+   (:func:`~updating.diagnosis.frfscreen.frf_screen`); the best few, joints near the located nodes and every
+   support release (single components and a clamp's translations/rotations together) are fitted with the
+   parameters.  The best term is kept only if (a) it passes an information criterion (``penalty`` × ln N),
+   (b) its χ² gain is significant against the noise on the training **and** on the held-out FRFs (scaled
+   by the reduced χ² left when model-form error dominates: an F-test), the held-out error falling by
+   ``min_holdout_gain``, and (c) it changes an in-band natural frequency by :data:`MIN_FREQ_EFFECT` or the
+   modal damping by :data:`MIN_DAMPING_EFFECT` of the background (smaller effects are the size of model-form
+   error).  Candidates elsewhere that fit as well (within the criterion's margin) make the finding ambiguous;
+4. **model** — the selected terms updated jointly with the parameters on the FRFs; backward elimination
+   drops terms that no longer earn their place;
+5. **prove** — nominal, parameter-only and augmented models compared on the held-out FRFs and on the test
+   modes (:func:`pair_test_modes`: rigid-body and suspension modes excluded on purpose, MAC ≥
+   :data:`PAIR_MAC_MIN` within a :data:`PAIR_MAX_FREQ_ERROR` frequency window).
 
 FRF fits of models above :data:`~updating.diagnosis.fit.RITZ_LIMIT` DOFs run in a Ritz basis
 (:mod:`~updating.diagnosis.ritz`), checked against the exact receptance.
 """
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from dataclasses import dataclass, field
@@ -40,13 +43,13 @@ from modalab.modes import ModeSet
 from modalab.frf import FRF
 
 from ..fe import FEModel, Parameter, ParametricFEModel
-from .fit import RITZ_LIMIT, FRFData, fit_frf, frf_data, frf_error, model_frf, quick_frf_error
+from .fit import RITZ_LIMIT, FRFData, Prior, fit_frf, frf_data, frf_error, model_frf, quick_frf_error
 from .frfscreen import frf_screen
-from .library import Candidate, _nodes_of, build_library
+from .library import Candidate, _nodes_of, build_library, validate_kinds
 from .screen import mci_update, rank_candidates, residual_map, residual_system
 
 log = logging.getLogger(__name__)
-__all__ = ["diagnose", "Diagnosis", "Finding", "default_parameters"]
+__all__ = ["diagnose", "Diagnoser", "DiagnoserConfig", "Diagnosis", "Finding", "default_parameters"]
 
 
 @dataclass
@@ -56,12 +59,33 @@ class Finding:
     std: float
     evidence: str
     gain_train: float = 0.0
+    parts: list = field(default_factory=list)          # [(Candidate, value, std)] refining this finding nearby
+    alternatives: list = field(default_factory=list)   # [(Candidate, value)] explaining the data equally well
+
+    @property
+    def ambiguous(self) -> bool:
+        return bool(self.alternatives)
+
+    @property
+    def label(self) -> str:
+        c = self.candidate
+        s = c.label + "".join(f" with {_fmt(v, o.unit)} at {', '.join(o.dofs) or o.nodes}" for o, v, _ in self.parts)
+        if self.alternatives:
+            s += " or " + " or ".join(o.label for o, _ in self.alternatives)
+        return s
 
     def to_dict(self) -> dict:
         c = self.candidate
         return {"physics": c.physics, "nodes": [int(n) for n in c.nodes], "dofs": list(c.dofs),
-                "elements": [int(e) for e in c.elements], "description": c.label,
+                "elements": [int(e) for e in c.elements], "description": self.label,
                 "values": [{"name": c.value_name, "value": float(self.value), "unit": c.unit, "std": float(self.std)}],
+                "parts": [{"physics": o.physics, "nodes": [int(n) for n in o.nodes], "dofs": list(o.dofs),
+                           "description": o.label, "value": float(v), "unit": o.unit, "std": float(sd)}
+                          for o, v, sd in self.parts],
+                "ambiguous": self.ambiguous,
+                "alternatives": [{"physics": o.physics, "nodes": [int(n) for n in o.nodes], "dofs": list(o.dofs),
+                                  "elements": [int(e) for e in o.elements], "description": o.label,
+                                  "value": float(v), "unit": o.unit} for o, v in self.alternatives],
                 "evidence": self.evidence}
 
 
@@ -80,6 +104,7 @@ class Diagnosis:
     ranking: list = field(default_factory=list)
     curves: dict = field(default_factory=dict)
     frequencies: dict = field(default_factory=dict)
+    pairing: dict = field(default_factory=dict)     # per fit block: pairs and the modes left out on purpose
 
     def save(self, directory, *, figures: bool = True, bulk: bool = True):
         """Write ``diagnosis.json``, the figures (:mod:`~updating.diagnosis.report`) and the augmented,
@@ -108,6 +133,7 @@ class Diagnosis:
                 "fit": self.fit, "statement": self.statement,
                 "ranking": [{"candidate": c.label, "physics": c.physics, "explained": round(g, 4)}
                             for c, _, g in self.ranking[:12]],
+                "pairing": self.pairing,
                 "timings_s": {k: round(v, 3) for k, v in self.timings.items()}}
 
 
@@ -126,6 +152,50 @@ def default_parameters(model: FEModel) -> list:
     return params
 
 
+#: default prior standard deviations (relative to nominal) by parameter field; fields not listed are free
+PRIOR_SIGMA = {"E": 0.05, "G": 0.05, "rho": 0.03, "t": 0.05, "h": 0.05, "b": 0.05, "do": 0.05, "di": 0.05,
+               "A": 0.05, "Iy": 0.05, "Iz": 0.05, "J": 0.05}
+#: a parameter further than this many prior standard deviations from its nominal has run into its prior
+AT_PRIOR_Z = 2.0
+#: the fits are bounded at this many prior standard deviations (E ±15 %, density ±9 % by default): with
+#: thousands of FRF values against a few parameters, model-form error outweighs any Gaussian prior, and a
+#: parameter far outside its physical range is absorbing something else
+PRIOR_BOUND = 3.0
+
+
+def parameter_priors(params: list, p_nom, overrides: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Prior means (the nominal values) and standard deviations of ``params``.
+
+    Defaults (:data:`PRIOR_SIGMA`): E and G ±5 %, density ±3 %, thickness and section ±5 %, damping and
+    everything else free.  ``overrides`` maps a parameter name to a relative standard deviation (a number
+    > 0) or ``None``/``"free"`` (no prior); for ``mode='value'`` parameters the relative value multiplies
+    the nominal value.  An override naming no parameter is an error suggesting the closest name.
+    """
+    import difflib
+    overrides = dict(overrides or {})
+    names = [p.name for p in params]
+    for k in overrides:
+        if k not in names:
+            close = difflib.get_close_matches(str(k), names, n=1)
+            raise ModalabValueError(f"prior for {k!r}: no such parameter" + (f"; did you mean {close[0]!r}?" if close
+                                                                             else f"; parameters: {', '.join(names)}"))
+    mean = np.asarray(p_nom, float)[:len(params)].copy()
+    sig = np.full(len(params), np.inf)
+    for i, par in enumerate(params):
+        rel = overrides.get(par.name, PRIOR_SIGMA.get(par.field)) if par.name in overrides else \
+            PRIOR_SIGMA.get(par.field)
+        if rel in (None, "free") or par.field in ("ge", "global_ge", "c", "rayleigh_alpha", "rayleigh_beta") \
+                and par.name not in overrides:
+            continue
+        if isinstance(rel, str) or not float(rel) > 0:
+            raise ModalabValueError(f"prior of {par.name!r}: {rel!r}; expected a relative standard deviation > 0 "
+                                    "(0.05 = ±5 %) or 'free'")
+        if par.mode != "factor" and mean[i] == 0:
+            continue                                   # a relative prior of a zero nominal value: free
+        sig[i] = float(rel) * (1.0 if par.mode == "factor" else abs(mean[i]))
+    return mean, sig
+
+
 def _with_damping(model: FEModel, params: list) -> tuple[list, list]:
     """A background damping parameter (global hysteretic loss factor, PARAM G) unless declared.
 
@@ -142,16 +212,30 @@ def _with_damping(model: FEModel, params: list) -> tuple[list, list]:
 
 
 def _split(data: FRFData, holdout: str | None):
+    """Training and held-out parts of ``data`` and a description of the held-out part.
+
+    Response rows are held out by default (every fourth response that is not a driving point: the residual
+    needs the response where the force acts); when no such row exists (e.g. every accelerometer is also hit,
+    the FRFs stored as accelerometers x hammer points) reference columns are held out, then blocks of lines.
+    Neither part is ever empty.
+    """
     n_m, n_r, n_s = data.H.shape
-    if holdout in (None, "rows") and n_m >= 4:
-        # never hold out a driving point: the residual needs the response where the force acts
-        refs = {(d.node, d.axis) for d in data.references}
-        cand = [i for i, d in enumerate(data.responses) if (d.node, d.axis) not in refs]
+    if holdout not in (None, "rows", "columns", "lines"):
+        raise ModalabValueError(f"holdout={holdout!r}: expected 'rows', 'columns', 'lines' or None")
+    refs = {(d.node, d.axis) for d in data.references}
+    cand = [i for i, d in enumerate(data.responses) if (d.node, d.axis) not in refs]
+    if holdout in (None, "rows") and n_m >= 4 and cand:
         held = np.asarray(cand[1::4] if len(cand) >= 4 else cand[:1], int)
         train = np.setdiff1d(np.arange(n_m), held)
         return data.take(rows=train), data.take(rows=held), f"response DOFs {', '.join(str(data.responses[i]) for i in held)}"
     if holdout in (None, "columns") and n_r >= 2:
-        return data.take(cols=np.arange(n_r - 1)), data.take(cols=[n_r - 1]), f"reference {data.references[-1]}"
+        held = np.arange(n_r)[1::4] if n_r >= 4 else np.array([n_r - 1])
+        train = np.setdiff1d(np.arange(n_r), held)
+        return data.take(cols=train), data.take(cols=held), \
+            f"reference{'s' if held.size > 1 else ''} {', '.join(str(data.references[i]) for i in held)}"
+    if holdout in ("rows", "columns"):
+        raise ModalabValueError(f"holdout={holdout!r} needs at least 4 responses that are not driving points "
+                                f"(rows) or 2 references (columns); the data have {n_m} x {n_r}")
     lines = np.arange(n_s)
     held = lines[(lines // 8) % 4 == 3]
     train = np.setdiff1d(lines, held)
@@ -173,12 +257,12 @@ def _bounds(params, p0):
     return np.array(lo), np.array(hi)
 
 
-def _fit_continued(pm, train, p_start, damp_mask, lo, hi, max_nfev, *, levels=(0.08,)):
+def _fit_continued(pm, train, p_start, damp_mask, lo, hi, max_nfev, *, levels=(0.08,), prior=None):
     """FRF fit with continuation in damping: the parameters are first fitted with the damping raised to
     each of ``levels`` (a smoother error surface: a resonance shifted by more than its half-power
     bandwidth leaves a plain FRF fit in a local minimum), then everything from there with the damping
     back at its start; the better of this and a direct fit is returned."""
-    direct = fit_frf(pm, train, p_start, lower=lo, upper=hi, max_nfev=max_nfev)
+    direct = fit_frf(pm, train, p_start, lower=lo, upper=hi, max_nfev=max_nfev, prior=prior)
     damp_mask = np.asarray(damp_mask, bool)
     if not damp_mask.any():
         return direct
@@ -187,14 +271,105 @@ def _fit_continued(pm, train, p_start, damp_mask, lo, hi, max_nfev, *, levels=(0
         ps = p.copy()
         ps[damp_mask] = np.maximum(ps[damp_mask], level)
         try:
-            sm = fit_frf(pm, train, ps, lower=lo, upper=hi, free=~damp_mask, max_nfev=max_nfev)
+            sm = fit_frf(pm, train, ps, lower=lo, upper=hi, free=~damp_mask, max_nfev=max_nfev, prior=prior)
         except (np.linalg.LinAlgError, ModalabValueError) as e:  # pragma: no cover - keep the direct fit
             log.info("damping continuation failed: %s", e)
             return direct
         p[~damp_mask] = sm.p[~damp_mask]
-    cont = fit_frf(pm, train, p, lower=lo, upper=hi, max_nfev=max_nfev)
+    cont = fit_frf(pm, train, p, lower=lo, upper=hi, max_nfev=max_nfev, prior=prior)
     log.info("parameter fit: direct %.4g, with damping continuation %.4g", direct.error, cont.error)
     return cont if cont.error < direct.error else direct
+
+
+def _same_place(a: Candidate, b: Candidate, model: FEModel) -> bool:
+    """Whether two candidates act at the same or neighbouring nodes (sharing a node, or joined by one
+    element)."""
+    na, nb = set(a.nodes) | _element_nodes(a, model), set(b.nodes) | _element_nodes(b, model)
+    if na & nb:
+        return True
+    return any(na & set(ns) and nb & set(ns) for ns in (_nodes_of(e) for e in model.elements.values()))
+
+
+def _element_nodes(c: Candidate, model: FEModel) -> set:
+    return {n for e in c.elements if e in model.elements for n in _nodes_of(model.elements[e])}
+
+
+#: a stiffness or inertia term must move an in-band natural frequency by at least this much (relative): FRF
+#: errors near lightly damped resonances grow as Δf/(ζ f), so frequency shifts of the order of an FE model's own
+#: discretisation error (0.1-0.4 %) already give large FRF gains that a term would absorb
+MIN_FREQ_EFFECT = 0.004
+#: a damping term must add at least this fraction of the background loss factor to some in-band mode
+MIN_DAMPING_EFFECT = 0.25
+
+
+def term_effect(pm, p, n_par: int, c: Candidate, band) -> tuple[float, float]:
+    """The size of the last term of ``pm`` at ``p`` (its value at ``p[-1]``, the other values as they are):
+    the largest relative change of an in-band elastic natural frequency between the model with the term and
+    without it (value 0; for a joint or support release, 10⁴ times stiffer: the rigid connection), and the
+    largest modal loss factor it adds to an in-band mode relative to the background loss factor (first order,
+    mass-normalised modes: ``φᵀΔDφ/ω² + φᵀΔCφ/ω``)."""
+    p = np.asarray(p, float)
+    p0 = p.copy()
+    p0[-1] = p[-1] * 1e4 if c.physics in ("joint_flexibility", "boundary_flexibility") else 0.0
+    with_, without = pm.structure(p), pm.structure(p0)
+
+    def elastic(st):
+        n = st.n_dof
+        k = min(n, 40)
+        while True:
+            w, phi = st.normal_modes(k)
+            f = np.atleast_1d(w) / (2 * np.pi)
+            if k >= n or f[-1] > 1.2 * band[1]:
+                return f, phi
+            k = min(n, 2 * k)
+
+    fa, phia = elastic(with_)
+    fb, _ = elastic(without)
+    m = min(fa.size, fb.size)
+    ok = (fb[:m] >= band[0]) & (fb[:m] <= band[1]) & (fb[:m] > 1e-6 * max(band[1], 1.0))
+    df = float(np.max(np.abs(fa[:m][ok] - fb[:m][ok]) / fb[:m][ok])) if ok.any() else 0.0
+    deta = 0.0
+    if c.matrix in ("C", "D"):
+        sel = np.flatnonzero((fa >= band[0]) & (fa <= band[1]) & (fa > 0))
+        om = 2 * np.pi * fa[sel]
+        ph = phia[:, sel]
+        add = np.zeros(sel.size)
+        for A, B, f in ((with_.D, without.D, lambda x: x / om ** 2), (with_.C, without.C, lambda x: x / om)):
+            if A is None:
+                continue
+            dA = A - B if B is not None else A
+            add += f(np.einsum("ij,ij->j", ph, dA @ ph))
+        eta_bg = max(float(with_.D.diagonal().sum() / max(with_.K.diagonal().sum(), 1e-300))
+                     if with_.D is not None else 0.0, 1e-3)
+        deta = float(np.max(np.abs(add))) / eta_bg if add.size else 0.0
+    return df, deta
+
+
+def _chi2(structure, data: FRFData) -> tuple[float, int]:
+    """χ² of ``structure`` against ``data`` in units of the data's noise (:attr:`FRFData.sigma`: coherence,
+    averages, leakage, 1 % floor) and the number of complex FRF values."""
+    e = frf_error(model_frf(structure, data), data)
+    q2 = float(np.sum(data.quality ** 2))
+    return e * e * q2 / data.floor ** 2, int(data.H.size)
+
+
+def _term_holds(pm_cur, p_cur, pm_new, p_new, train: FRFData, held: FRFData, penalty: float,
+                min_holdout_gain: float) -> tuple[bool, str]:
+    """Whether a term chosen on the training data earns its place on the FRFs: its χ² improvement must be
+    significant against the noise — more than ``penalty`` × ln N, scaled up by the reduced χ² left when
+    the residual is above the noise (an F-test: model-form error is not noise) — on the training FRFs
+    **and** on the held-out FRFs, where the error must also fall by ``min_holdout_gain``."""
+    parts = []
+    for name, d in (("training", train), ("held-out", held)):
+        c0, n = _chi2(pm_cur.structure(p_cur), d)
+        c1, _ = _chi2(pm_new.structure(p_new), d)
+        need = penalty * np.log(max(n, 2)) * max(1.0, c1 / n)
+        parts.append(f"{name} χ²/N {c0 / n:.3g} -> {c1 / n:.3g} (gain {c0 - c1:.3g}, needed {need:.3g})")
+        if not c0 - c1 > need:
+            return False, "; ".join(parts) + f": not significant on the {name} FRFs"
+        if name == "held-out" and not np.sqrt(c1 / c0) <= 1 - min_holdout_gain:
+            return False, "; ".join(parts) + f": the held-out FRF error falls by less than {100 * min_holdout_gain:.0f} %"
+    return True, "; ".join(parts)
 
 
 def promote_measured(model: FEModel, dofs) -> FEModel:
@@ -343,146 +518,343 @@ def peak_modes(measured: FRF, *, band_hz=None, max_modes: int = 12, prominence: 
                    metadata={"source": "quadrature peak picking"})
 
 
+#: pairing in the fit blocks: smallest MAC and largest relative frequency difference of an accepted pair
+PAIR_MAC_MIN = 0.6
+PAIR_MAX_FREQ_ERROR = 0.25
+#: modes below this fraction of the model's first elastic frequency are rigid-body or suspension modes
+SUSPENSION_RATIO = 0.5
+
+
+def _rigid_fraction(structure, phi: np.ndarray) -> np.ndarray:
+    """Share of each mode's kinetic energy (mass-weighted) in the span of the six rigid-body motions of the
+    model's nodes (translations and small rotations about the centroid, from the node coordinates)."""
+    coords = getattr(structure, "coords", None) or {}
+    if not coords:
+        return np.zeros(phi.shape[1])
+    x0 = np.mean(np.array(list(coords.values()), float), axis=0)
+    R = np.zeros((structure.n_dof, 6))
+    for i, d in enumerate(structure.dofs):
+        xyz = coords.get(d.node)
+        if xyz is None:
+            continue
+        r = np.asarray(xyz, float) - x0
+        a = d.axis - 1
+        if a < 3:
+            R[i, a] = 1.0                                  # translation along the axis
+            # rotation θ about axis b moves the node by θ e_b × r; component a of it
+            for b in range(3):
+                e = np.zeros(3)
+                e[b] = 1.0
+                R[i, 3 + b] = np.cross(e, r)[a]
+        else:
+            R[i, a] = 1.0
+        R[i] *= d.sign
+    M = structure.M
+    MR = M @ R
+    G = R.T @ MR
+    keep = np.flatnonzero(np.diag(G) > 1e-12 * max(np.diag(G).max(), 1e-300))
+    if keep.size == 0:
+        return np.zeros(phi.shape[1])
+    Rk, Gk = R[:, keep], G[np.ix_(keep, keep)]
+    c = np.linalg.lstsq(Gk, MR[:, keep].T @ phi, rcond=None)[0]       # M-orthogonal projection coefficients
+    proj = Rk @ c
+    num = np.einsum("ij,ij->j", proj, M @ proj)
+    den = np.einsum("ij,ij->j", phi, M @ phi)
+    return np.clip(num / np.maximum(den, 1e-300), 0.0, 1.0)
+
+
+def pair_test_modes(structure, test_modes: ModeSet) -> dict:
+    """THE pairing of the diagnosis (every fit block and frequency table goes through here).
+
+    Rigid-body and suspension modes are excluded on purpose: a model mode whose kinetic energy lies for more
+    than 90 % in the rigid-body motions and whose frequency is below :data:`SUSPENSION_RATIO` × the first
+    elastic model frequency, and a test mode below that frequency.  The rest are paired by MAC (optimal
+    assignment, :func:`updating.correlation.correlate`) with at least :data:`PAIR_MAC_MIN` and a relative
+    frequency difference of at most :data:`PAIR_MAX_FREQ_ERROR`; a mode without such a partner is unpaired.
+
+    Returns ``pairs`` [(model freq, test index)], ``freq_error_pct``, ``mac``, ``excluded_test_hz``,
+    ``excluded_model_hz``, ``unpaired_test_hz``, ``cutoff_hz``.
+    """
+    from ..correlation import analysis_modes, correlate
+    n = min(structure.n_dof, 2 * test_modes.n_modes + 12)
+    ana = analysis_modes(structure, n)
+    top = (1 + PAIR_MAX_FREQ_ERROR) * float(np.max(test_modes.freq_hz, initial=0.0))
+    while n < structure.n_dof and ana.freq_hz[-1] < top:          # every model mode a test mode could pair with
+        n = min(structure.n_dof, 2 * n)
+        ana = analysis_modes(structure, n)
+    rigid = _rigid_fraction(structure, np.asarray(ana.shapes)) > 0.9
+    fa = np.asarray(ana.freq_hz, float)
+    elastic = fa[~rigid]
+    cutoff = SUSPENSION_RATIO * float(elastic[0]) if elastic.size else 0.0
+    drop_a = rigid & (fa < cutoff)
+    fx = np.asarray(test_modes.freq_hz, float)
+    keep_x = np.flatnonzero(fx >= cutoff)
+    keep_a = np.flatnonzero(~drop_a)
+    out = {"pairs": [], "freq_error_pct": [], "mac": [], "cutoff_hz": cutoff,
+           "excluded_test_hz": [float(f) for f in fx[fx < cutoff]],
+           "excluded_model_hz": [float(f) for f in fa[drop_a]]}
+    if keep_x.size and keep_a.size:
+        c = correlate(ana.select_modes(keep_a), test_modes.select_modes(keep_x), mac_min=PAIR_MAC_MIN,
+                      max_freq_error=PAIR_MAX_FREQ_ERROR)
+        for (a, t), e in zip(c.pairs, c.freq_error_pct):
+            out["pairs"].append((float(fa[keep_a[a]]), int(keep_x[t])))
+            out["freq_error_pct"].append(float(e))
+            out["mac"].append(float(c.mac[a, t]))
+    paired = {t for _, t in out["pairs"]}
+    out["unpaired_test_hz"] = [float(fx[t]) for t in keep_x if t not in paired]
+    return out
+
+
 def _paired_frequencies(structure, test_modes, n_modes: int, band) -> list:
-    """Model frequencies (Hz) aligned with the test modes by MAC pairing (None where unpaired); without
-    test modes, the model's frequencies inside the band (rigid-body and mechanism modes left out)."""
+    """Model frequencies (Hz) aligned with the test modes by :func:`pair_test_modes` (None where unpaired);
+    without test modes, the model's frequencies inside the band (rigid-body and mechanism modes left out)."""
     if test_modes is not None:
-        from ..correlation import correlate
-        try:
-            c = correlate(structure, test_modes, mac_min=0.3, max_freq_error=None, freq_weight=0.0)
-        except ModalabError:
-            c = None
-        if c is not None:
-            out = [None] * test_modes.n_modes
-            fa = np.asarray(c.analysis.freq_hz)
-            for a, t in c.pairs:
-                out[t] = float(fa[a])
-            return out
+        out = [None] * test_modes.n_modes
+        for f, t in pair_test_modes(structure, test_modes)["pairs"]:
+            out[t] = f
+        return out
     w, _ = structure.normal_modes(min(n_modes + 12, structure.n_dof))
     fx = np.atleast_1d(w) / (2 * np.pi)
     return [float(x) for x in fx if 0.5 * band[0] < x <= 1.1 * band[1]][:n_modes]
 
 
 def _mode_metrics(structure, test_modes) -> dict:
-    """``freq_error_max_pct`` and ``mac_min`` over the test modes paired with the model's modes."""
+    """``freq_error_max_pct`` and ``mac_min`` over the test modes paired by :func:`pair_test_modes`, with
+    the counts of pairs, unpaired test modes and the rigid-body/suspension modes left out on purpose."""
     if test_modes is None:
         return {"freq_error_max_pct": None, "mac_min": None}
-    from ..correlation import correlate
-    try:
-        c = correlate(structure, test_modes, mac_min=0.3, max_freq_error=None, freq_weight=0.0)
-    except ModalabError as e:
-        log.info("correlation failed: %s", e)
-        return {"freq_error_max_pct": None, "mac_min": None}
-    if not len(c.pairs):
-        return {"freq_error_max_pct": None, "mac_min": 0.0}
-    macs = [float(c.mac[a, t]) for a, t in c.pairs]
-    return {"freq_error_max_pct": float(np.max(np.abs(c.freq_error_pct))), "mac_min": float(np.min(macs)),
-            "n_pairs": len(c.pairs)}
+    p = pair_test_modes(structure, test_modes)
+    out = {"freq_error_max_pct": float(np.max(np.abs(p["freq_error_pct"]))) if p["pairs"] else None,
+           "mac_min": float(np.min(p["mac"])) if p["pairs"] else None, "n_pairs": len(p["pairs"]),
+           "n_unpaired_test": len(p["unpaired_test_hz"]),
+           "suspension_cutoff_hz": p["cutoff_hz"],
+           "n_excluded_test": len(p["excluded_test_hz"]), "n_excluded_model": len(p["excluded_model_hz"])}
+    return out
 
 
-def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int = 160, holdout: str | None = None,
-             kinds=None, max_findings: int = 3, min_gain: float = 0.05, min_holdout_gain: float = 0.10,
-             penalty: float = 10.0,
-             band_hz=None, progress=None, max_nfev: int = 30, n_try: int = 5,
-             min_term_gain: float = 0.15, test_modes: ModeSet | None = None, criterion: str = "auto",
-             min_extra_gain: float = 0.25) -> Diagnosis:
-    """Locate what an FE model leaves out, name it, model it and prove it on held-out data (module docstring)."""
-    t0 = time.perf_counter()
-    timings = {}
-    say = progress or (lambda msg: log.info(msg))
-    model = promote_measured(model, list(measured.responses) + list(measured.references))
-    measured = _on_model_dofs(model, measured)
-    params = list(parameters) if parameters is not None else default_parameters(model)
-    damp, dstart = _with_damping(model, params)
-    params = params + damp
-    pm = ParametricFEModel(model, params)
-    p_nom = np.array(pm.p0, float)
-    p_nom[len(params) - len(damp):] = dstart
-    lo, hi = _bounds(params, p_nom)
-    data = frf_data(measured, max_lines=max_lines, band_hz=band_hz)
-    train, held, held_desc = _split(data, holdout)
-    band = (float(data.freq_hz.min()), float(data.freq_hz.max()))
-    # 1. nominal (damping fitted so that errors compare like with like)
-    say("step 1/6: correlating the nominal model")
-    free_d = np.zeros(len(params), bool)
-    free_d[len(params) - len(damp):] = True
-    nom = fit_frf(pm, train, p_nom, lower=lo, upper=hi, free=free_d, max_nfev=max_nfev)
-    p_nomd = nom.p
-    timings["1 nominal"] = time.perf_counter() - t0
-    # 2. parameter-only updating
-    say("step 2/6: updating the declared parameters (baseline)")
-    t1 = time.perf_counter()
-    upd = _fit_continued(pm, train, p_nomd, free_d, lo, hi, max_nfev)
-    timings["2 parameters"] = time.perf_counter() - t1
-    st_upd = pm.structure(upd.p)
-    # 3-5. localise, name and model, one term at a time, on the MCI (thesis 3.2.4): the parameters are
-    # estimated by iterating expansion and solution; each candidate of the library is ranked by the share
-    # of the remaining residual it alone explains; the best few (and the joint/support candidates near the
-    # worst-fitting nodes) are added to the model in turn, the MCI minimised again with them, and a term
-    # is kept only if it removes at least ``min_gain`` of the residual.
-    say("step 3/6: localising the residual (MCI) and 4/6: ranking candidate physics")
-    t1 = time.perf_counter()
-    # the MCI starts from the nominal model with the default damping: the damping fitted to the FRFs of a
-    # poor nominal model is often inflated to hide the mismatch
-    free_mci = np.ones(len(params), bool)
-    large = pm.structure(p_nom).n_dof > RITZ_LIMIT
-    if criterion == "auto":
-        criterion = "frf" if large else "mci"
-    if criterion not in ("mci", "frf"):
-        raise ModalabValueError(f"criterion={criterion!r}: expected 'auto', 'mci' or 'frf'")
-    use_mci = criterion == "mci"
-    if use_mci:
-        p_mci, rss_cur, W = mci_update(pm, p_nom, train, lo, hi, free=free_mci)
-        p_cur = p_mci
-    else:
-        # the FRF criterion: a candidate is judged by the training FRF error of the model fitted with it
-        p_mci, W = p_nomd, None
-        p_cur, rss_cur = (upd.p, upd.error ** 2) if upd.error <= nom.error else (p_nomd, nom.error ** 2)
-    current: list = []                      # [Candidate]
-    pm_cur = pm
-    lo_cur, hi_cur = lo, hi
-    ranking, hot_nodes, n_lib = None, [], 0
-    n_eq = train.H.size * 2
-    for it in range(max_findings):
-        lib = build_library(pm_cur.model_at(p_cur), kinds=kinds)
-        n_lib = max(n_lib, len(lib))
-        have = {c.key for c in current}
+@dataclass
+class DiagnoserConfig:
+    """Settings of a :class:`Diagnoser` (the keywords of :func:`diagnose`)."""
+
+    parameters: list | None = None        # updating parameters (default: E and ρ per property group)
+    max_lines: int = 160
+    holdout: str | None = None            # 'rows', 'columns', 'lines' or None (rows, else columns, else lines)
+    kinds: object = None                  # kinds of physics (validated, :data:`~updating.diagnosis.library.KINDS`)
+    max_findings: int = 3
+    min_gain: float = 0.05
+    min_holdout_gain: float = 0.10
+    penalty: float = 10.0
+    band_hz: tuple | None = None
+    progress: object = None
+    max_nfev: int = 30
+    n_try: int = 5
+    min_term_gain: float = 0.15
+    test_modes: ModeSet | None = None
+    criterion: str = "auto"
+    min_extra_gain: float = 0.25
+    priors: dict | None = None            # parameter name -> relative prior σ or 'free'
+
+    def __post_init__(self):
+        self.kinds = validate_kinds(self.kinds)
+        if self.criterion not in ("auto", "mci", "frf"):
+            raise ModalabValueError(f"criterion={self.criterion!r}: expected 'auto', 'mci' or 'frf'")
+        if self.holdout not in (None, "rows", "columns", "lines"):
+            raise ModalabValueError(f"holdout={self.holdout!r}: expected 'rows', 'columns', 'lines' or None")
+
+
+class Diagnoser:
+    """Missing-physics diagnosis as an estimator: ``Diagnoser(config).fit(model, frf)`` runs the steps
+    :meth:`baseline`, :meth:`localise`, :meth:`screen` (one term at a time), :meth:`model` and :meth:`prove`
+    (module docstring) and exposes ``findings_`` (list of :class:`Finding`), ``fit_`` (the fit blocks),
+    ``ranking_`` (the first screening) and ``diagnosis_`` (the whole :class:`Diagnosis`)."""
+
+    def __init__(self, config: DiagnoserConfig | None = None, **kw):
+        self.config = dataclasses.replace(config or DiagnoserConfig(), **kw) if kw else (config or DiagnoserConfig())
+
+    def _say(self, msg):
+        (self.config.progress or log.info)(msg)
+
+    def fit(self, model: FEModel, measured: FRF) -> "Diagnoser":
+        self._t0 = time.perf_counter()
+        self.timings = {}
+        self.baseline(model, measured)
+        self.localise()
+        for it in range(self.config.max_findings):
+            if not self.screen(it):
+                break
+        self.timings["3-4 localise+name"] = time.perf_counter() - self._t1
+        self.model()
+        self.diagnosis_ = self.prove()
+        self.findings_, self.fit_, self.ranking_ = self.diagnosis_.findings, self.diagnosis_.fit, self.diagnosis_.ranking
+        return self
+
+    def _fit(self, *a, **k):
+        """A MAP FRF fit with the parameters' priors."""
+        return fit_frf(*a, prior=self.prior, **k)
+
+    # ------------------------------------------------------------------ steps 1-2
+    def baseline(self, model: FEModel, measured: FRF):
+        """The data and their split, the nominal model with fitted damping, the priors, parameter updating."""
+        cfg = self.config
+        self.model0 = model = promote_measured(model, list(measured.responses) + list(measured.references))
+        self.measured = measured = _on_model_dofs(model, measured)
+        params = list(cfg.parameters) if cfg.parameters is not None else default_parameters(model)
+        damp, dstart = _with_damping(model, params)
+        self.params = params = params + damp
+        self.pm = pm = ParametricFEModel(model, params)
+        self.p_nom = np.array(pm.p0, float)
+        self.p_nom[len(params) - len(damp):] = dstart
+        # the priors (their means: the nominal values) also bound the fits at PRIOR_BOUND standard deviations
+        self.pmean, self.psig = parameter_priors(params, self.p_nom, cfg.priors)
+        self.lo, self.hi = _bounds(params, self.p_nom)
+        self.lo = np.maximum(self.lo, self.pmean - PRIOR_BOUND * self.psig)
+        self.hi = np.minimum(self.hi, self.pmean + PRIOR_BOUND * self.psig)
+        self.data = frf_data(measured, max_lines=cfg.max_lines, band_hz=cfg.band_hz)
+        self.train, self.held, self.held_desc = _split(self.data, cfg.holdout)
+        self.band = (float(self.data.freq_hz.min()), float(self.data.freq_hz.max()))
+        self._say("step 1/6: correlating the nominal model")
+        # 1. nominal (damping fitted so that errors compare like with like)
+        self.free_d = np.zeros(len(params), bool)
+        self.free_d[len(params) - len(damp):] = True
+        self.nom = fit_frf(pm, self.train, self.p_nom, lower=self.lo, upper=self.hi, free=self.free_d,
+                           max_nfev=cfg.max_nfev)
+        self.p_nomd = self.nom.p
+        # the parameters' priors (MAP fits from here on): one prior σ weighs as much as an average independent
+        # observation of the nominal model's residual, with one independent value per 10 FRF values
+        n_eff = max(self.train.H.size / 10.0, 1.0)
+        self.prior = Prior(self.pmean, self.psig,
+                           float(self.nom.error * np.sqrt(np.sum(self.train.quality ** 2) / n_eff)))
+        self.timings["1 nominal"] = time.perf_counter() - self._t0
+        # 2. parameter-only updating
+        self._say("step 2/6: updating the declared parameters (baseline)")
+        t1 = time.perf_counter()
+        self.upd = _fit_continued(pm, self.train, self.p_nomd, self.free_d, self.lo, self.hi, cfg.max_nfev,
+                                  prior=self.prior)
+        self.timings["2 parameters"] = time.perf_counter() - t1
+
+    # ------------------------------------------------------------------ step 3
+    def localise(self):
+        """The criterion and its starting point: the MCI minimised over the parameters (thesis 3.2.4), or the
+        training FRF error of the better of nominal and updated."""
+        cfg = self.config
+        self._say("step 3/6: localising the residual (MCI) and 4/6: ranking candidate physics")
+        self._t1 = time.perf_counter()
+        self.large = self.pm.structure(self.p_nom).n_dof > RITZ_LIMIT
+        crit = cfg.criterion if cfg.criterion != "auto" else ("frf" if self.large else "mci")
+        self.use_mci = crit == "mci"
+        self.free_mci = np.ones(len(self.params), bool)
+        if self.use_mci:
+            # from the nominal model with the default damping: the damping fitted to the FRFs of a poor nominal
+            # model is often inflated to hide the mismatch
+            self.p_mci, self.rss_cur, self.W = mci_update(self.pm, self.p_nom, self.train, self.lo, self.hi,
+                                                          free=self.free_mci)
+            self.p_cur = self.p_mci
+        else:
+            self.p_mci, self.W = self.p_nomd, None
+            upd, nom = self.upd, self.nom
+            self.p_cur, self.rss_cur = (upd.p, upd.error ** 2) if upd.error <= nom.error else (self.p_nomd,
+                                                                                             nom.error ** 2)
+        self.current, self.alternatives = [], {}
+        self.pm_cur, self.lo_cur, self.hi_cur = self.pm, self.lo, self.hi
+        self.ranking, self.hot_nodes, self.n_lib = None, [], 0
+
+    # ------------------------------------------------------------------ step 4, one term
+    def screen(self, it: int) -> bool:
+        """Screen the library around the current model, try the best options with the parameters re-fitted,
+        and add the best term if it earns its place; False when none does."""
+        cfg = self.config
+        options = self._options(it)
+        best, evaluated = None, []
+        for c, th in options:
+            r = self._try(c, th, it)
+            if r is None:
+                continue
+            evaluated.append((c, r[1], float(r[3][-1] * r[6])))
+            if best is None or r[1] < best[1]:
+                best = r[:6]
+        # a term must earn its place: an information criterion with a penalty of ``penalty`` × ln N per term
+        # (ten times BIC's by default, because neighbouring lines and DOFs are far from independent); on the
+        # FRF criterion it must also lower the training FRF error by ``min_gain``
+        rss_cur = self.rss_cur
+        n_eq = (self.W.size * len(self.train.responses) * 2) if self.use_mci else self.train.H.size * 2
+        if best is None or not (best[1] < rss_cur and n_eq * np.log(rss_cur / max(best[1], 1e-300))
+                                > cfg.penalty * np.log(n_eq)):
+            return False
+        # a further term must do more: model-form error (a finer truth mesh, per-element scatter) is what a
+        # small second term would otherwise absorb
+        need = cfg.min_gain if not self.current else max(cfg.min_gain, cfg.min_extra_gain)
+        if not self.use_mci and np.sqrt(best[1]) > np.sqrt(rss_cur) * (1 - need):
+            return False
+        ok, why = _term_holds(self.pm_cur, self.p_cur, best[2], best[3], self.train, self.held, cfg.penalty,
+                              cfg.min_holdout_gain)
+        if ok:
+            df, deta = term_effect(best[2], best[3], len(self.params), best[0], self.band)
+            why += f"; effect: frequencies {100 * df:.2g} %, damping {100 * deta:.2g} % of the background"
+            if df < MIN_FREQ_EFFECT and deta < MIN_DAMPING_EFFECT:
+                ok = False
+                why += (f": below {100 * MIN_FREQ_EFFECT:.1f} % in frequency and {100 * MIN_DAMPING_EFFECT:.0f} % in "
+                        "damping, the size of model-form error")
+        log.info("candidate %s on the FRFs: %s", best[0].label, why)
+        if not ok:
+            self._say(f"  rejected: {best[0].label} ({why})")
+            return False
+        c, self.rss_cur, self.pm_cur, self.p_cur, self.lo_cur, self.hi_cur = best
+        self.current.append(c)
+        # equally good explanations elsewhere: within the information criterion's margin of the best
+        margin = self.rss_cur * cfg.penalty * np.log(n_eq) / n_eq
+        alts = [(o, v) for o, r, v in sorted(evaluated, key=lambda t: t[1])
+                if o.key != c.key and not _same_place(o, c, self.pm_cur.model_at(self.p_cur))
+                and r - self.rss_cur <= margin]
+        if alts:
+            self.alternatives[c.key] = alts[:2]
+            self._say(f"  ambiguous: {c.label} or {' or '.join(o.label for o, _ in alts[:2])} explain it equally well")
+        self._say(f"  found: {c.label} ({'MCI residual' if self.use_mci else 'training FRF error'} down to "
+                  f"{self.rss_cur if self.use_mci else np.sqrt(self.rss_cur):.3g})")
+        return True
+
+    def _options(self, it: int) -> list:
+        """[(candidate, start value or None)] to try: the best of the linear MCI ranking and of the exact FRF
+        screening, joints near the located nodes and every support release."""
+        cfg = self.config
+        pm_cur, p_cur = self.pm_cur, self.p_cur
+        lib = build_library(pm_cur.model_at(p_cur), kinds=cfg.kinds)
+        self.n_lib = max(self.n_lib, len(lib))
+        have = {c.key for c in self.current}
         # exact single-candidate FRF screening (non-linear in the value; strong effects that the linear MCI
         # screening mis-ranks), around the nominal parameters first (parameter updating may have bent them
         # to hide the effect), then around the current model
         screens = []
-        for p_scr in ([p_nomd, upd.p] if it == 0 else [p_cur]):
+        for p_scr in ([self.p_nomd, self.upd.p] if it == 0 else [p_cur]):
             try:
-                screens.append(frf_screen(pm_cur.structure(p_scr), lib, train,
+                screens.append(frf_screen(pm_cur.structure(p_scr), lib, self.train,
                                           loss_factor=float(pm_cur.model_at(p_scr).global_ge or 0.0)))
             except (np.linalg.LinAlgError, ModalabValueError) as e:
-                log.info("FRF screening failed: %s", e)
-        fs = screens[0] if screens else []
-        if use_mci:
-            rk, _, energy = rank_candidates(pm_cur, p_cur, lib, train, W)
+                log.warning("FRF screening around parameters %s failed and is left out: %s", np.round(p_scr, 4), e)
+        if self.use_mci:
+            rk, _, energy = rank_candidates(pm_cur, p_cur, lib, self.train, self.W)
             if it == 0:
                 # also rank around the nominal parameters: after parameter-only updating the parameters have
                 # often absorbed part of what is missing, which hides it from a linear look
-                rk0, _, _ = rank_candidates(pm, p_nom, lib, train, W)
+                rk0, _, _ = rank_candidates(self.pm, self.p_nom, lib, self.train, self.W)
                 seen_keys = {c.key for c, _, _ in rk[:4]}
                 rk = rk[:4] + [t for t in rk0[:4] if t[0].key not in seen_keys] + rk[4:]
             node_e: dict = {}
-            for d, e in zip(train.responses, energy):
+            for d, e in zip(self.train.responses, energy):
                 node_e[d.node] = node_e.get(d.node, 0.0) + float(e) ** 2
             hot = [n for n, _ in sorted(node_e.items(), key=lambda kv: -kv[1])[:2]]
         else:
-            rk = fs
-            hot = list(dict.fromkeys(n for c, _, _ in fs[:4] for n in c.nodes))[:2]
-        if ranking is None:
-            ranking, hot_nodes = rk, hot
-        options = [(c, th) for c, th, g in rk[:n_try if use_mci else 0] if c.key not in have and g > 0.02]
+            rk = screens[0] if screens else []
+            hot = list(dict.fromkeys(n for c, _, _ in rk[:4] for n in c.nodes))[:2]
+        if self.ranking is None:
+            self.ranking, self.hot_nodes = rk, hot
+        options = [(c, th) for c, th, g in rk[:cfg.n_try if self.use_mci else 0] if c.key not in have and g > 0.02]
         # FRF-screen picks: the best two overall and the best of each kind of matrix
         listed = {c.key for c, _ in options}
         for scr in screens:
             by_kind: dict = {}
             for c, v, g in scr:
                 by_kind.setdefault(c.matrix, []).append((c, v, g))
-            for c, v, g in scr[:2 if use_mci else 3] + [lst[0] for lst in by_kind.values()]:
+            for c, v, g in scr[:2 if self.use_mci else 3] + [lst[0] for lst in by_kind.values()]:
                 if c.key not in listed and c.key not in have and g > 0.05:
                     options.append((c, v))
                     listed.add(c.key)
@@ -491,209 +863,254 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
         near |= {b for e in pm_cur.model_at(p_cur).elements.values()
                  if near & set(_nodes_of(e)) for b in _nodes_of(e)}
         options += [(c, None) for c in lib if not c.shared and c.physics == "joint_flexibility"
-                    and near & set(c.nodes) and c.key not in have][:n_try]
+                    and near & set(c.nodes) and c.key not in have][:cfg.n_try]
         options += [(c, None) for c in lib if c.physics == "boundary_flexibility" and c.key not in have]
-        best = None
-        for c, th in options:
-            m_aug, cpar, scales = _augment(model, current + [c])
-            pm_aug = ParametricFEModel(m_aug, params + cpar)
-            clo = np.concatenate([lo, np.zeros(len(cpar))])
-            chi = np.concatenate([hi, _upper(current + [c], scales)])
-            prev = list(p_cur[len(params):])
-            try:
-                if th is None and use_mci:
-                    kd = float(np.median(np.abs(pm_cur.structure(p_cur).K.diagonal())) or 1.0)
-                    trials = []
-                    for v in kd * np.logspace(-3, 2, 6):
-                        y = residual_system(pm_aug.structure(np.concatenate([p_cur[:len(params)], prev, [v]])),
-                                           train, W).y
-                        trials.append((float(y @ y), v))
-                    th = min(trials, key=lambda t: t[0])[1]
-                th0 = th
-                p_aug, rss_aug = None, np.inf
-                if use_mci:
-                    starts = (p_cur[:len(params)], p_nom[:len(params)]) if it == 0 and not large else \
-                        (p_cur[:len(params)],)
+        return options
+
+    def _start_value(self, c, pm_aug, p_par, prev) -> float:
+        """A start value for a candidate without one: on the MCI, the best of six decades around the median
+        stiffness; on the FRFs, the error (in a Ritz basis when large) over six decades around the stiffness
+        of the DOF concerned, then refined — a joint or support spring's error is far from convex in it."""
+        p_cur, n = self.p_cur, len(self.params)
+        if self.use_mci:
+            kd = float(np.median(np.abs(self.pm_cur.structure(p_cur).K.diagonal())) or 1.0)
+            trials = []
+            for v in kd * np.logspace(-3, 2, 6):
+                y = residual_system(pm_aug.structure(np.concatenate([p_cur[:n], prev, [v]])), self.train, self.W).y
+                trials.append((float(y @ y), v))
+            return min(trials, key=lambda t: t[0])[1]
+
+        def qerr(v):
+            return quick_frf_error(pm_aug.structure(np.concatenate([p_par, prev, [v]])), self.train)
+        kd = _dof_stiffness(self.pm_cur.structure(p_cur), c)
+        grid = kd * np.logspace(-4, 2, 21)           # steps of 2: a resonance's basin is narrow
+        errs = [qerr(v) for v in grid]
+        k = int(np.argmin(errs))
+        fine = np.geomspace(grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)], 7)
+        errs_f = [qerr(v) for v in fine]
+        return float(fine[int(np.argmin(errs_f))]) if min(errs_f) < errs[k] else float(grid[k])
+
+    def _try(self, c, th, it: int):
+        """The current terms plus ``c`` fitted with the parameters (MCI or FRF fit, from one or two starts):
+        (c, criterion, pm, p, lower, upper, value scale), or None when the candidate cannot be evaluated."""
+        cfg, n = self.config, len(self.params)
+        m_aug, cpar, scales = _augment(self.model0, self.current + [c])
+        pm_aug = ParametricFEModel(m_aug, self.params + cpar)
+        clo = np.concatenate([self.lo, np.zeros(len(cpar))])
+        chi = np.concatenate([self.hi, _upper(self.current + [c], scales)])
+        prev = list(self.p_cur[n:])
+        p_aug, rss_aug = None, np.inf
+        try:
+            if th is None and self.use_mci:
+                th = self._start_value(c, pm_aug, None, prev)
+            if self.use_mci:
+                starts = (self.p_cur[:n], self.p_nom[:n]) if it == 0 and not self.large else (self.p_cur[:n],)
+            else:
+                starts = (self.p_cur[:n], self.p_nomd) if it == 0 else (self.p_cur[:n],)
+            for p_par in starts:
+                v = th if th is not None else self._start_value(c, pm_aug, p_par, prev)
+                v = min(v, getattr(c, "upper", np.inf))
+                start = np.concatenate([p_par, prev, [v / scales[-1]]])
+                if self.use_mci:
+                    pa, ra, _ = mci_update(pm_aug, start, self.train, clo, chi, weights=self.W,
+                                           iters=3 if self.large else 6,
+                                           free=np.concatenate([self.free_mci, np.ones(len(cpar), bool)]))
                 else:
-                    starts = (p_cur[:len(params)], p_nomd) if it == 0 else (p_cur[:len(params)],)
-                for p_par in starts:
-                    th = th0
-                    if th is None:
-                        # the FRF error (in a Ritz basis when large) over six decades around the stiffness of
-                        # the DOF concerned, for these parameters, then refined: a joint or support spring's
-                        # error is far from convex in its value
-                        def qerr(v, p_par=p_par):
-                            return quick_frf_error(pm_aug.structure(np.concatenate([p_par, prev, [v]])), train)
-                        kd = _dof_stiffness(pm_cur.structure(p_cur), c)
-                        grid = kd * np.logspace(-4, 2, 21)           # steps of 2: a resonance's basin is narrow
-                        errs = [qerr(v) for v in grid]
-                        k = int(np.argmin(errs))
-                        fine = np.geomspace(grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)], 7)
-                        errs_f = [qerr(v) for v in fine]
-                        th = float(fine[int(np.argmin(errs_f))]) if min(errs_f) < errs[k] else float(grid[k])
-                    th = min(th, getattr(c, "upper", np.inf))
-                    log.debug("candidate %s: start value %.4g", c.label, th)
-                    start = np.concatenate([p_par, prev, [th / scales[-1]]])
-                    if use_mci:
-                        pa, ra, _ = mci_update(pm_aug, start, train, clo, chi, weights=W, iters=3 if large else 6,
-                                               free=np.concatenate([free_mci, np.ones(len(cpar), bool)]))
-                    else:
-                        fr = fit_frf(pm_aug, train, start, lower=clo, upper=chi, max_nfev=max(8, max_nfev // 2))
-                        pa, ra = fr.p, fr.error ** 2
-                    if ra < rss_aug:
-                        p_aug, rss_aug = pa, ra
-            except (np.linalg.LinAlgError, ModalabValueError) as e:
-                log.info("candidate %s could not be evaluated: %s", c.label, e)
-                continue
-            log.info("candidate %s: %s %.4g (current %.4g)", c.label, "MCI residual" if use_mci else
-                     "FRF error²", rss_aug, rss_cur)
-            if best is None or rss_aug < best[1]:
-                best = (c, rss_aug, pm_aug, p_aug, clo, chi)
-        # a term must earn its place: an information criterion with a penalty of ``penalty`` × ln N per term
-        # (ten times BIC's by default, because neighbouring lines and DOFs are far from independent); on the
-        # FRF criterion it must also lower the training FRF error by ``min_gain``
-        n_eq = (W.size * len(train.responses) * 2) if use_mci else train.H.size * 2
-        if best is None or not (best[1] < rss_cur and n_eq * np.log(rss_cur / max(best[1], 1e-300))
-                                > penalty * np.log(n_eq)):
-            break
-        # a further term must do more: model-form error (a finer truth mesh, per-element scatter) is what a
-        # small second term would otherwise absorb
-        if not use_mci and np.sqrt(best[1]) > np.sqrt(rss_cur) * (1 - (min_gain if not current else
-                                                                       max(min_gain, min_extra_gain))):
-            break
-        c, rss_cur, pm_cur, p_cur, lo_cur, hi_cur = best
-        current.append(c)
-        say(f"  found: {c.label} ({'MCI residual' if use_mci else 'training FRF error'} down to "
-            f"{rss_cur if use_mci else np.sqrt(rss_cur):.3g})")
-    timings["3-4 localise+name"] = time.perf_counter() - t1
-    # 5. model: the augmented model updated on the FRFs (jointly: parameters and the new elements)
-    say("step 5/6: modelling the selected physics and updating jointly on the FRFs")
-    t1 = time.perf_counter()
-    scales_cur = _augment(model, current)[2] if current else []
-    if current:
-        polish = fit_frf(pm_cur, train, p_cur, lower=lo_cur, upper=hi_cur, max_nfev=max_nfev)
-        # a second start: the nominal parameters (with fitted damping) and the MCI values of the new terms
-        alt = fit_frf(pm_cur, train, np.concatenate([p_nomd, p_cur[len(params):]]), lower=lo_cur, upper=hi_cur,
-                      max_nfev=max_nfev)
-        if alt.error < polish.error:
-            polish = alt
-        log.info("joint FRF fit from the MCI solution %s: error %.4g (%s)", np.round(p_cur, 4), polish.error, polish.message)
-        mci_err = frf_error(model_frf(pm_cur.structure(p_cur), train), train)
-        best_fit = polish if polish.error <= mci_err else \
-            type(polish)(p_cur, np.zeros_like(p_cur), mci_err, [], True, "MCI solution")
-        best_pm, best_scales = pm_cur, scales_cur
-    else:
-        best_fit, best_pm, best_scales = upd, pm, []
-    # parameter-only baseline: the better of the FRF fit from nominal and from the MCI parameters
-    upd2 = fit_frf(pm, train, p_mci, lower=lo, upper=hi, max_nfev=max_nfev)
-    if upd2.error < upd.error:
-        upd = upd2
-    # backward elimination: a term whose removal (value 0, the rest as fitted) barely changes the training
-    # FRF error has not earned its place
-    n_par0 = len(params)
-    while len(current) > 1:
-        H0 = best_fit.error
+                    fr = self._fit(pm_aug, self.train, start, lower=clo, upper=chi, max_nfev=max(8, cfg.max_nfev // 2))
+                    pa, ra = fr.p, fr.error ** 2
+                if ra < rss_aug:
+                    p_aug, rss_aug = pa, ra
+        except (np.linalg.LinAlgError, ModalabValueError) as e:
+            log.info("candidate %s could not be evaluated: %s", c.label, e)
+            return None
+        log.info("candidate %s: %s %.4g (current %.4g)", c.label, "MCI residual" if self.use_mci else
+                 "FRF error²", rss_aug, self.rss_cur)
+        return None if p_aug is None else (c, rss_aug, pm_aug, p_aug, clo, chi, scales[-1])
+
+    # ------------------------------------------------------------------ step 5
+    def model(self):
+        """The augmented model updated jointly on the FRFs; backward elimination of terms that no longer earn
+        their place; the parameter-only baseline from a second start."""
+        cfg = self.config
+        self._say("step 5/6: modelling the selected physics and updating jointly on the FRFs")
+        t1 = time.perf_counter()
+        current, pm_cur, p_cur, n = self.current, self.pm_cur, self.p_cur, len(self.params)
+        if current:
+            polish = self._fit(pm_cur, self.train, p_cur, lower=self.lo_cur, upper=self.hi_cur, max_nfev=cfg.max_nfev)
+            # a second start: the nominal parameters (with fitted damping) and the MCI values of the new terms
+            alt = self._fit(pm_cur, self.train, np.concatenate([self.p_nomd, p_cur[n:]]), lower=self.lo_cur,
+                            upper=self.hi_cur, max_nfev=cfg.max_nfev)
+            if alt.error < polish.error:
+                polish = alt
+            log.info("joint FRF fit from the MCI solution %s: error %.4g (%s)", np.round(p_cur, 4), polish.error,
+                     polish.message)
+            mci_err = frf_error(model_frf(pm_cur.structure(p_cur), self.train), self.train)
+            self.best_fit = polish if polish.error <= mci_err else \
+                type(polish)(p_cur, np.zeros_like(p_cur), mci_err, [], True, "MCI solution")
+            self.best_pm, self.best_scales = pm_cur, _augment(self.model0, current)[2]
+        else:
+            self.best_fit, self.best_pm, self.best_scales = self.upd, self.pm, []
+        # parameter-only baseline: the better of the FRF fit from nominal and from the MCI parameters
+        upd2 = self._fit(self.pm, self.train, self.p_mci, lower=self.lo, upper=self.hi, max_nfev=cfg.max_nfev)
+        if upd2.error < self.upd.error:
+            self.upd = upd2
+        while len(self.current) > 1 and self._eliminate():
+            pass
+        if self.current and self.best_fit.error > self.upd.error * (1 - cfg.min_gain):
+            log.info("the augmented model does not fit the training FRFs better than parameter updating alone")
+            self.current = []
+        if not self.current:
+            self.best_fit, self.best_pm, self.best_scales = self.upd, self.pm, []
+        self.timings["5 model"] = time.perf_counter() - t1
+
+    def _eliminate(self) -> bool:
+        """Backward elimination: the term whose removal (value 0, the rest as fitted) changes the training FRF
+        error least is refitted away; dropped (True) when the error rises by less than ``min_term_gain``."""
+        cfg, current, best_fit, n0 = self.config, self.current, self.best_fit, len(self.params)
         worst, worst_err = None, np.inf
         for k in range(len(current)):
             pz = best_fit.p.copy()
-            pz[n_par0 + k] = 0.0
+            pz[n0 + k] = 0.0
             try:
-                ek = frf_error(model_frf(best_pm.structure(pz), train), train)
-            except (np.linalg.LinAlgError, ModalabValueError):
+                ek = frf_error(model_frf(self.best_pm.structure(pz), self.train), self.train)
+            except (np.linalg.LinAlgError, ModalabValueError) as e:
+                log.info("term %s cannot be removed (%s): kept", current[k].label, e)
                 continue
             if ek < worst_err:
                 worst, worst_err = k, ek
         if worst is None:
-            break
-        # the weakest term, refitted without it
+            return False
         rest = current[:worst] + current[worst + 1:]
-        m_aug, cpar, sc = _augment(model, rest)
-        pm_rest = ParametricFEModel(m_aug, params + cpar)
-        keep = np.r_[np.arange(n_par0), n_par0 + np.array([k for k in range(len(current)) if k != worst], int)]
-        clo_r = np.concatenate([lo, np.zeros(len(cpar))])
-        chi_r = np.concatenate([hi, _upper(rest, sc)])
-        refit = fit_frf(pm_rest, train, best_fit.p[keep], lower=clo_r, upper=chi_r, max_nfev=max_nfev)
-        # also from the MCI solution of the reduced set (the removed term may have dragged the others)
+        m_aug, cpar, sc = _augment(self.model0, rest)
+        pm_rest = ParametricFEModel(m_aug, self.params + cpar)
+        keep = np.r_[np.arange(n0), n0 + np.array([k for k in range(len(current)) if k != worst], int)]
+        clo_r = np.concatenate([self.lo, np.zeros(len(cpar))])
+        chi_r = np.concatenate([self.hi, _upper(rest, sc)])
+        refit = self._fit(pm_rest, self.train, best_fit.p[keep], lower=clo_r, upper=chi_r, max_nfev=cfg.max_nfev)
+        # also from the MCI solution of the reduced set (the removed term may have dragged the others), and from
+        # the nominal parameters
+        starts = [np.concatenate([self.p_nomd, best_fit.p[keep][n0:]])]
         try:
-            if use_mci:
-                start = np.concatenate([p_mci, best_fit.p[keep][n_par0:]])
-                p_r, _, _ = mci_update(pm_rest, start, train, clo_r, chi_r, weights=W)
-                refit2 = fit_frf(pm_rest, train, p_r, lower=clo_r, upper=chi_r, max_nfev=max_nfev)
-                if refit2.error < refit.error:
-                    refit = refit2
-            refit3 = fit_frf(pm_rest, train, np.concatenate([p_nomd, best_fit.p[keep][n_par0:]]), lower=clo_r,
-                             upper=chi_r, max_nfev=max_nfev)
-            if refit3.error < refit.error:
-                refit = refit3
-        except (np.linalg.LinAlgError, ModalabValueError) as e:  # pragma: no cover
-            log.info("MCI restart failed: %s", e)
-        if refit.error > H0 * (1 + min_term_gain):
-            break
+            if self.use_mci:
+                p_r, _, _ = mci_update(pm_rest, np.concatenate([self.p_mci, best_fit.p[keep][n0:]]), self.train,
+                                       clo_r, chi_r, weights=self.W)
+                starts.insert(0, p_r)
+            for s0 in starts:
+                r2 = self._fit(pm_rest, self.train, s0, lower=clo_r, upper=chi_r, max_nfev=cfg.max_nfev)
+                if r2.error < refit.error:
+                    refit = r2
+        except (np.linalg.LinAlgError, ModalabValueError) as e:  # pragma: no cover - the first refit stands
+            log.info("restart of the reduced fit failed: %s", e)
+        if refit.error > best_fit.error * (1 + cfg.min_term_gain):
+            return False
         log.info("dropping %s: without it the training FRF error is %.4g (with %.4g)", current[worst].label,
-                 refit.error, H0)
-        current, best_pm, best_fit, best_scales = rest, pm_rest, refit, sc
-    if current and best_fit.error > upd.error * (1 - min_gain):
-        log.info("the augmented model does not fit the training FRFs better than parameter updating alone")
-        current, best_fit, best_pm, best_scales = [], upd, pm, []
-    if not current:
-        best_fit, best_pm = upd, pm
-    st_upd = pm.structure(upd.p)
-    timings["5 model"] = time.perf_counter() - t1
-    scr_ranking = ranking or []
-    # 6. proof on held-out data
-    say("step 6/6: comparing nominal, parameter-only and augmented models on held-out data")
-    t1 = time.perf_counter()
+                 refit.error, best_fit.error)
+        self.current, self.best_pm, self.best_fit, self.best_scales = rest, pm_rest, refit, sc
+        return True
 
-    if test_modes is None:
+    # ------------------------------------------------------------------ step 6
+    def prove(self) -> Diagnosis:
+        """Nominal, parameter-only and augmented models on the held-out FRFs and the test modes; the findings."""
+        cfg = self.config
+        self._say("step 6/6: comparing nominal, parameter-only and augmented models on held-out data")
+        t1 = time.perf_counter()
+        test_modes, modes_source = cfg.test_modes, "given test modes"
+        if test_modes is None:
+            try:
+                test_modes, modes_source = peak_modes(self.measured, band_hz=cfg.band_hz), "peaks of the measured FRFs"
+            except ModalabError as e:
+                log.info("no test modes: %s", e)
+                modes_source = None
+        self.test_modes = test_modes
+
+        def metrics(pmodel, p):
+            st = pmodel.structure(p)
+            out = {"frf_error_held_out": frf_error(model_frf(st, self.held), self.held),
+                   "frf_error_train": frf_error(model_frf(st, self.train), self.train)}
+            out.update(_mode_metrics(st, test_modes))
+            return out
+
+        fit_blocks = {"nominal": metrics(self.pm, self.p_nomd), "parameters_only": metrics(self.pm, self.upd.p)}
+        fit_blocks["with_physics"] = metrics(self.best_pm, self.best_fit.p) if self.current else \
+            dict(fit_blocks["parameters_only"])
+        pairing = {}
+        if test_modes is not None:
+            for key, (pmod, pv) in (("nominal", (self.pm, self.p_nomd)), ("parameters_only", (self.pm, self.upd.p)),
+                                    ("with_physics", (self.best_pm, self.best_fit.p))):
+                pr = pair_test_modes(pmod.structure(pv), test_modes)
+                pairing[key] = {"pairs": [{"model_hz": fm, "test_hz": float(test_modes.freq_hz[t]), "mac": mc,
+                                           "freq_error_pct": fe}
+                                          for (fm, t), mc, fe in zip(pr["pairs"], pr["mac"], pr["freq_error_pct"])],
+                                "unpaired_test_hz": pr["unpaired_test_hz"], "excluded_test_hz": pr["excluded_test_hz"],
+                                "excluded_model_hz": pr["excluded_model_hz"], "cutoff_hz": pr["cutoff_hz"]}
+        if self.current and fit_blocks["with_physics"]["frf_error_held_out"] > \
+                fit_blocks["parameters_only"]["frf_error_held_out"] * (1 - cfg.min_holdout_gain):
+            log.info("augmentation did not improve held-out data enough; reporting no missing physics")
+            self.current, self.best_fit, self.best_pm, self.best_scales = [], self.upd, self.pm, []
+            fit_blocks["with_physics"] = dict(fit_blocks["parameters_only"])
+        self.timings["6 proof"] = time.perf_counter() - t1
+        findings = self._findings()
+        steps_modes = {"test_modes": modes_source, "test_freq_hz": [float(x) for x in test_modes.freq_hz]} \
+            if modes_source else {}
+        st_upd, st_fin = self.pm.structure(self.upd.p), self.best_pm.structure(self.best_fit.p)
+        maps = {"freq_hz": self.train.freq_hz, "responses": [str(d) for d in self.train.responses],
+                "before": residual_map(st_upd, self.train), "after": residual_map(st_fin, self.train)}
+        final_model = self.best_pm.model_at(self.best_fit.p) if hasattr(self.best_pm, "model_at") else self.model0
         try:
-            test_modes = peak_modes(measured, band_hz=band_hz)
-            modes_source = "peaks of the measured FRFs"
-        except ModalabError as e:
-            log.info("no test modes: %s", e)
-            modes_source = None
-    else:
-        modes_source = "given test modes"
+            curves, freqs = self._overlays(findings)
+        except (ModalabError, np.linalg.LinAlgError) as e:  # pragma: no cover - figures are a by-product
+            log.warning("FRF overlays/frequency table not prepared: %s", e)
+            curves, freqs = {}, {}
+        diag = Diagnosis(findings=findings, parameters=self._parameters(), fit=fit_blocks,
+                         statement=statement(findings, fit_blocks, self.held_desc), model=final_model,
+                         parametric=self.best_pm, p=self.best_fit.p,
+                         steps={"held_out": self.held_desc, "band_hz": self.band, "hot_nodes": self.hot_nodes,
+                                "n_candidates": self.n_lib, **steps_modes},
+                         maps=maps, timings=self.timings, ranking=self.ranking or [], curves=curves, frequencies=freqs,
+                         pairing=pairing)
+        self.timings["total"] = time.perf_counter() - self._t0
+        return diag
 
-    def metrics(pmodel, p):
-        st = pmodel.structure(p)
-        out = {"frf_error_held_out": frf_error(model_frf(st, held), held),
-               "frf_error_train": frf_error(model_frf(st, train), train)}
-        out.update(_mode_metrics(st, test_modes))
-        return out
+    def _findings(self) -> list:
+        n_par, findings, ranking = len(self.params), [], self.ranking or []
+        m_fin = self.best_pm.model_at(self.best_fit.p) if self.current else self.model0
+        for k, (c, scale) in enumerate(zip(self.current, self.best_scales)):
+            val = self.best_fit.p[n_par + k] * scale
+            std = self.best_fit.std[n_par + k] * scale
+            # a term of the same physics next to an earlier finding refines it (a mass between two nodes is
+            # lumped on both): one finding with two parts, not two findings
+            host = next((f for f in findings if f.candidate.physics == c.physics and
+                         _same_place(f.candidate, c, m_fin)), None)
+            if host is not None:
+                host.parts.append((c, float(val), float(std)))
+                continue
+            same = [(o, t, g) for o, t, g in ranking if set(o.nodes) & set(c.nodes) and o.key != c.key]
+            gain = next((g for o, t, g in ranking if o.key == c.key), 0.0)
+            findings.append(Finding(c, float(val), float(std), _evidence(c, gain, same, self.band, self.use_mci), gain,
+                                    alternatives=list(self.alternatives.get(c.key, []))))
+        return findings
 
-    fit_blocks = {"nominal": metrics(pm, p_nomd), "parameters_only": metrics(pm, upd.p)}
-    fit_blocks["with_physics"] = metrics(best_pm, best_fit.p) if current else dict(fit_blocks["parameters_only"])
-    if modes_source:
-        steps_modes = {"test_modes": modes_source, "test_freq_hz": [float(x) for x in test_modes.freq_hz]}
-    else:
-        steps_modes = {}
-    if current and fit_blocks["with_physics"]["frf_error_held_out"] > \
-            fit_blocks["parameters_only"]["frf_error_held_out"] * (1 - min_holdout_gain):
-        log.info("augmentation did not improve held-out data enough; reporting no missing physics")
-        current, best_fit, best_pm, best_scales = [], upd, pm, []
-        fit_blocks["with_physics"] = dict(fit_blocks["parameters_only"])
-    timings["6 proof"] = time.perf_counter() - t1
-    # findings
-    n_par = len(params)
-    findings = []
-    for k, (c, scale) in enumerate(zip(current, best_scales)):
-        val = best_fit.p[n_par + k] * scale
-        std = best_fit.std[n_par + k] * scale
-        same = [(o, t, g) for o, t, g in scr_ranking if set(o.nodes) & set(c.nodes) and o.key != c.key]
-        gain = next((g for o, t, g in scr_ranking if o.key == c.key), 0.0)
-        findings.append(Finding(c, float(val), float(std), _evidence(c, gain, same, band, use_mci), gain))
-    pars = {}
-    for k, par in enumerate(params):
-        pars[par.name] = {"initial": float(p_nomd[k]), "updated": float(best_fit.p[k]),
-                          "parameters_only": float(upd.p[k]), "std": float(best_fit.std[k]), "mode": par.mode}
-    maps = {"freq_hz": train.freq_hz, "responses": [str(d) for d in train.responses],
-            "before": residual_map(st_upd, train), "after": residual_map(best_pm.structure(best_fit.p), train)}
-    final_model = best_pm.model_at(best_fit.p) if hasattr(best_pm, "model_at") else model
-    # FRF overlays at the located DOFs (findings' measured DOFs, else the worst-fitting nodes) and frequencies
-    curves, freqs = {}, {}
-    try:
-        st_nom, st_par, st_phys = pm.structure(p_nomd), pm.structure(upd.p), best_pm.structure(best_fit.p)
-        want = [d for f in findings for d in f.candidate.dofs] + [f"{n}+Z" for n in hot_nodes]
+    def _parameters(self) -> dict:
+        pars, fit, upd = {}, self.best_fit, self.upd
+        z_fin, z_upd = self.prior.z(fit.p), self.prior.z(upd.p)
+        for k, par in enumerate(self.params):
+            pars[par.name] = {"initial": float(self.p_nomd[k]), "updated": float(fit.p[k]),
+                              "parameters_only": float(upd.p[k]), "std": float(fit.std[k]), "mode": par.mode,
+                              "prior_std": float(self.psig[k]) if np.isfinite(self.psig[k]) else None,
+                              "prior_z": float(z_fin[k]), "at_prior": bool(abs(z_fin[k]) > AT_PRIOR_Z)}
+            if abs(z_fin[k]) > AT_PRIOR_Z or abs(z_upd[k]) > AT_PRIOR_Z:
+                log.warning("parameter %s runs into its prior (mean %.4g, std %.3g): %.4g in the final fit (%+.1f std), "
+                            "%.4g with parameters only (%+.1f std); the model may miss something the candidates do "
+                            "not cover", par.name, self.pmean[k], self.psig[k], fit.p[k], z_fin[k], upd.p[k], z_upd[k])
+        return pars
+
+    def _overlays(self, findings) -> tuple[dict, dict]:
+        """FRF overlays at the located DOFs (findings' measured DOFs, else the worst-fitting nodes) and the
+        paired frequencies of the three models, for the report's figures."""
+        data, test_modes = self.data, self.test_modes
+        st_nom, st_par = self.pm.structure(self.p_nomd), self.pm.structure(self.upd.p)
+        st_phys = self.best_pm.structure(self.best_fit.p)
+        want = [d for f in findings for d in f.candidate.dofs] + [f"{n}+Z" for n in self.hot_nodes]
         labels = [str(r) for r in data.responses]
         rows = []
         for w in want:
@@ -705,18 +1122,16 @@ def diagnose(model: FEModel, measured: FRF, *, parameters=None, max_lines: int =
         curves = {"freq_hz": data.freq_hz, "pairs": [(f"{labels[i]} / {data.references[0]}",
                                                       {k: v[i, 0] for k, v in H.items()}) for i in rows]}
         nm = len(test_modes.freq_hz) + 2 if test_modes is not None else 8
-        for key, stx in (("nominal", st_nom), ("parameters_only", st_par), ("with_physics", st_phys)):
-            freqs[key] = _paired_frequencies(stx, test_modes, nm, band)
+        freqs = {key: _paired_frequencies(stx, test_modes, nm, self.band)
+                 for key, stx in (("nominal", st_nom), ("parameters_only", st_par), ("with_physics", st_phys))}
         freqs["test"] = [float(x) for x in test_modes.freq_hz] if test_modes is not None else []
-    except (ModalabError, np.linalg.LinAlgError) as e:  # pragma: no cover - figures are a by-product
-        log.info("FRF overlays/frequency table not prepared: %s", e)
-    diag = Diagnosis(findings=findings, parameters=pars, fit=fit_blocks,
-                     statement=statement(findings, fit_blocks, held_desc), model=final_model, parametric=best_pm,
-                     p=best_fit.p, steps={"held_out": held_desc, "band_hz": band, "hot_nodes": hot_nodes,
-                                          "n_candidates": n_lib, **steps_modes},
-                     maps=maps, timings=timings, ranking=scr_ranking, curves=curves, frequencies=freqs)
-    timings["total"] = time.perf_counter() - t0
-    return diag
+        return curves, freqs
+
+
+def diagnose(model: FEModel, measured: FRF, **kw) -> Diagnosis:
+    """Locate what an FE model leaves out, name it, model it and prove it on held-out data (module docstring):
+    ``Diagnoser(DiagnoserConfig(**kw)).fit(model, measured).diagnosis_``."""
+    return Diagnoser(DiagnoserConfig(**kw)).fit(model, measured).diagnosis_
 
 
 _PHRASES = {
@@ -743,6 +1158,15 @@ class _Pct(float):
         return format(float(self), ".1f" if abs(self) < 9.95 else ".0f")
 
 
+def _describe(f: Finding) -> str:
+    s = f"{f.candidate.label} of {_fmt(f.value, f.candidate.unit)}"
+    s += "".join(f" (with {_fmt(v, o.unit)} at {', '.join(o.dofs) or o.nodes})" for o, v, _ in f.parts)
+    if f.alternatives:
+        s = "either " + s + "".join(f" or {o.label} of {_fmt(v, o.unit)}" for o, v in f.alternatives) + \
+            " (the data cannot tell them apart)"
+    return s
+
+
 def statement(findings, fit, held_desc: str) -> str:
     e_par = _Pct(100 * fit["parameters_only"]["frf_error_held_out"])
     e_phys = _Pct(100 * fit["with_physics"]["frf_error_held_out"])
@@ -757,7 +1181,7 @@ def statement(findings, fit, held_desc: str) -> str:
     parts = []
     for kind, fs in by_kind.items():
         head, tail = _PHRASES[kind]
-        items = " and ".join(f"{f.candidate.label} of {_fmt(f.value, f.candidate.unit)}" for f in fs)
+        items = " and ".join(_describe(f) for f in fs)
         parts.append(f"{head}: {items}, {tail}.")
     return (" ".join(parts) + f" Adding {'them' if len(findings) > 1 else 'it'} cuts the held-out FRF error "
             f"({held_desc}) from {e_par} % to {e_phys} %; updating the model's own parameters reached "
