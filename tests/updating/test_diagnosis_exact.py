@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from modalab import uff
-from modalab.pipeline import frf_from_file, simulate_hits
+from modalab.stages import FRFOptions, SimOptions, frf, sim
 from updating.bulk import build_model, read_bdf
 from updating.diagnosis import diagnose
 
@@ -19,15 +19,15 @@ NOMINAL = Path(__file__).resolve().parents[2] / "examples" / "concealed" / "bar_
 @pytest.fixture(scope="module")
 def hits(tmp_path_factory):
     d = tmp_path_factory.mktemp("exact")
-    simulate_hits(d / "hits.uff", structure=str(NOMINAL), points=[f"{i}+Z" for i in range(1, 10)],
-                  references=["3+Z", "8+Z"], seed=3, sample_rate_hz=1024.0, n_samples=4096)
+    sim(d / "hits.uff", SimOptions(structure=str(NOMINAL), points=[f"{i}+Z" for i in range(1, 10)],
+                                   references=["3+Z", "8+Z"], seed=3, sample_rate_hz=1024.0, n_samples=4096))
     return d
 
 
 @pytest.mark.parametrize("exp_end", [0.01, None])
 def test_data_simulated_from_the_nominal_give_no_finding(hits, exp_end):
     out = hits / f"frf_{exp_end}.uff"
-    frf_from_file(hits / "hits.uff", out, exp_end_level=exp_end)
+    frf(hits / "hits.uff", out, FRFOptions(exp_end_level=exp_end))
     model = build_model(read_bdf(NOMINAL))
     d = diagnose(model, uff.read_frf(out), max_lines=120)
     dd = d.to_dict()
