@@ -25,6 +25,9 @@ embedded demo, ``examples/demo_project/project.toml``)::
 
     [correlate]
     mac_min = 0.5
+    # freq_window = 0.35          # largest relative frequency distance of a pair
+    # map = "map.toml"            # test DOF -> model DOF; or geometry = "geometry.uff", or same_ids = true;
+    #                             # default: the test geometry carried by the modes (from the FRF file)
 
     [update]
     parameters = "params.toml"    # [[parameter]] name, field, properties|materials|groups|elements, mode
@@ -76,9 +79,12 @@ STAGE_OPTIONS = {
     "identify": {"band_hz": (list, None), "max_order": (int, None), "select": ((str, list), "auto"),
                  "weighting": (str, None)},
     "model": {"bulk": (str, None), "n_modes": (int, 20)},
-    "correlate": {"mac_min": (float, 0.5), "freq_weight": (float, 0.0)},
+    # correlate: the same defaults as ``modalab correlate`` (freq_weight None: the pairing rule's 1 with
+    # frequencies; test DOFs mapped by the modes' geometry unless map, geometry or same_ids says otherwise)
+    "correlate": {"mac_min": (float, 0.5), "freq_weight": (float, None), "freq_window": (float, 0.35),
+                  "map": (str, None), "geometry": (str, None), "same_ids": (bool, False)},
     "update": {"parameters": (str, None), "max_iter": (int, 20), "regularisation": ((str, float), "lcurve"),
-               "use_shapes": (bool, True), "freq_sigma": (float, 0.01), "shape_sigma": (float, 0.05)},
+               "use_shapes": (bool, True), "freq_sigma": ((float, list), None), "shape_sigma": (float, 0.05)},
     "diagnose": {"parameters": (str, None), "max_lines": (int, 120), "band_hz": (list, None),
                  "max_findings": (int, 3), "max_nfev": (int, 30), "holdout": (str, None), "kinds": (list, None),
                  "enabled": (bool, True)},

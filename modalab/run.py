@@ -292,7 +292,10 @@ def stage_identify(ctx: _Context) -> tuple[list, dict]:
 def _correlate_options(ctx: _Context) -> stages.CorrelateOptions:
     o = ctx.project.options["correlate"]
     return stages.CorrelateOptions(mac_min=o["mac_min"], freq_weight=o["freq_weight"],
-                                   n_modes=ctx.project.options["model"]["n_modes"])
+                                   n_modes=ctx.project.options["model"]["n_modes"], freq_window=o["freq_window"],
+                                   dofmap=str(ctx.project.resolve(o["map"])) if o["map"] else None,
+                                   geometry=str(ctx.project.resolve(o["geometry"])) if o["geometry"] else None,
+                                   same_ids=o["same_ids"])
 
 
 def stage_correlate(ctx: _Context) -> tuple[list, dict]:
@@ -349,6 +352,10 @@ def _inputs(project: Project, stage: str, backend: str) -> dict:
             files["plan"] = project.plan_path
     if stage in ("correlate", "update", "diagnose"):
         files["model"] = project.bulk_path
+    if stage in ("correlate", "update"):
+        for key in ("map", "geometry"):
+            if o["correlate"][key]:
+                files[key] = project.resolve(o["correlate"][key])
     if stage == "update" and o["update"]["parameters"]:
         files["parameters"] = project.resolve(o["update"]["parameters"])
     if stage == "diagnose" and o["diagnose"]["parameters"]:

@@ -29,7 +29,7 @@ shipped in ``modalab/schemas``.  Library code logs; ``progress`` callables let t
 from __future__ import annotations
 
 from ._common import StageResult, load_model, load_modes, load_parameters
-from ._correlate import CorrelateOptions, correlate
+from ._correlate import CorrelateOptions, DofMapping, analysis_modes_covering, correlate, resolve_dof_map
 from ._diagnose import DiagnoseOptions, diagnose
 from ._frf import FRFOptions, frf
 from ._identify import IdentifyOptions, identify, mode_table
@@ -39,4 +39,5 @@ from ._update import UPDATE_METHODS, UpdateOptions, update
 
 __all__ = ["StageResult", "SimOptions", "FRFOptions", "IdentifyOptions", "CorrelateOptions", "UpdateOptions",
            "DiagnoseOptions", "sim", "frf", "identify", "correlate", "update", "diagnose", "report",
-           "load_model", "load_modes", "load_parameters", "mode_table", "demo_fe_model", "UPDATE_METHODS"]
+           "load_model", "load_modes", "load_parameters", "mode_table", "demo_fe_model", "UPDATE_METHODS",
+           "DofMapping", "resolve_dof_map", "analysis_modes_covering"]

@@ -53,6 +53,9 @@ def identify(frf_path, out_uff, opts: IdentifyOptions = IdentifyOptions(), *, js
              report_path=None) -> StageResult:
     """FRFs in a UFF → modes (UFF 55) by poly-reference PolyMAX (:func:`identification.identify`).
 
+    The FRF file's node coordinates (datasets 2411/15) are written with the modes (dataset 2411), so
+    correlate and update can put the test nodes on the model's grids by geometry.
+
     json_path : ``modes.json`` (schema ``modalab/schemas/modes.schema.json``).
     plots_dir : stabilisation diagram, synthesis and AutoMAC figures.
     report_path : ``identification.json`` (settings, stabilisation, timings).
@@ -70,6 +73,9 @@ def identify(frf_path, out_uff, opts: IdentifyOptions = IdentifyOptions(), *, js
     if modes.n_modes == 0:
         raise ModalabValueError(f"{frf_path}: identification found no modes in "
                                 f"{H.freq_hz[0]:g}-{H.freq_hz[-1]:g} Hz; widen the band or raise the model order")
+    if {"2411", "15"} & set(uff.info(frf_path).get("datasets", {})):
+        # the test geometry travels with the modes, so correlate/update can map test nodes onto model grids
+        modes.coordinates = uff.read_geometry(frf_path)
     out = Path(out_uff)
     out.parent.mkdir(parents=True, exist_ok=True)
     uff.write_modes(out, modes)                # atomic; never over an input (modalab._output)
