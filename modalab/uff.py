@@ -970,11 +970,16 @@ def _node_rotations(blocks, path, cur=None) -> dict[int, np.ndarray]:
     return out
 
 
-def read_geometry(path) -> dict[int, tuple[float, float, float]]:
-    """Node coordinates from datasets 2411 and 15: ``{node: (x, y, z)}``."""
+def read_geometry(path, *, required: bool = True) -> dict[int, tuple[float, float, float]]:
+    """Node coordinates from datasets 2411 and 15: ``{node: (x, y, z)}``.
+
+    A file without a node dataset is an error, or ``{}`` with ``required=False``; a damaged node dataset is
+    always an error."""
     with _guard(path) as cur:
         out = _global_nodes(_blocks(path, cur), path, cur)
         if out is None:
+            if not required:
+                return {}
             raise UffError("no node coordinates (dataset 2411 or 15) in the file", path=path)
         return out
 

@@ -28,10 +28,7 @@ class FRFOptions:
 def _geometry(path) -> dict:
     from .. import uff
 
-    try:
-        return dict(uff.read_geometry(path))
-    except Exception:  # noqa: BLE001 - a file without geometry is fine
-        return {}
+    return dict(uff.read_geometry(path, required=False))     # a file without geometry is fine, a damaged one not
 
 
 def frf(in_uff, out_uff, opts: FRFOptions = FRFOptions(), *, plot_path=None, details_dir=None, exact=None,

@@ -73,9 +73,10 @@ def identify(frf_path, out_uff, opts: IdentifyOptions = IdentifyOptions(), *, js
     if modes.n_modes == 0:
         raise ModalabValueError(f"{frf_path}: identification found no modes in "
                                 f"{H.freq_hz[0]:g}-{H.freq_hz[-1]:g} Hz; widen the band or raise the model order")
-    if {"2411", "15"} & set(uff.info(frf_path).get("datasets", {})):
+    geometry = uff.read_geometry(frf_path, required=False)
+    if geometry:
         # the test geometry travels with the modes, so correlate/update can map test nodes onto model grids
-        modes.coordinates = uff.read_geometry(frf_path)
+        modes.coordinates = geometry
     out = Path(out_uff)
     out.parent.mkdir(parents=True, exist_ok=True)
     uff.write_modes(out, modes)                # atomic; never over an input (modalab._output)
