@@ -6,7 +6,7 @@ This is the bench engineer's stage (``modalab acquire``): a test plan is run on 
 DAQ backend, every hit is checked, accepted or rejected, stored durably and
 averaged into H1 FRFs with coherence, exported as one UFF.  It depends on the
 :mod:`modalab` core only (the simulated lab in :mod:`hardware_sim` satisfies
-:class:`DaqBackend` structurally and is wired in by :mod:`modalab.pipeline`).
+:class:`DaqBackend` structurally and is wired in by :mod:`modalab.app.pipeline`).
 
 Test plans (:mod:`acquisition.plan`)
 ------------------------------------
@@ -21,7 +21,7 @@ DAQ backends (:mod:`acquisition.backend`, :mod:`acquisition.nidaqmx_backend`)
 .. autosummary::
 
    DaqBackend           -- protocol: configure / notify_point / arm / wait / abort / close, context manager
-   open_backend         -- a backend by name ('nidaqmx'; 'sim' comes from modalab.pipeline.make_sim_backend)
+   open_backend         -- a backend by name ('nidaqmx'; 'sim' comes from modalab.app.pipeline.make_sim_backend)
    NidaqmxBackend       -- NI-DAQmx: IEPE force/accel channels, finite timing, analog reference trigger
    BACKENDS             -- the backend names
 
@@ -98,7 +98,7 @@ prompter and summaries in :mod:`acquisition.session_summary`, resume checks and 
 Example
 -------
 >>> from acquisition import load_plan, AcquisitionSession        # doctest: +SKIP
->>> from modalab.pipeline import make_sim_backend                 # doctest: +SKIP
+>>> from modalab.app.pipeline import make_sim_backend                 # doctest: +SKIP
 >>> plan = load_plan("examples/plans/demo_roving_hammer.toml")    # doctest: +SKIP
 >>> session = AcquisitionSession(plan, make_sim_backend(plan), "session", mode="auto")  # doctest: +SKIP
 >>> summary = session.run(); session.export()                     # doctest: +SKIP

@@ -6,9 +6,9 @@ implementations exist: :class:`acquisition.nidaqmx_backend.NidaqmxBackend`
 (real NI hardware) and :class:`hardware_sim.daq.SimDaqBackend` (the simulated
 lab, which depends on the core only and satisfies this protocol structurally).
 
-``wait`` returns a :class:`modalab.records.TimeRecord` in engineering units
+``wait`` returns a :class:`modalab.core.records.TimeRecord` in engineering units
 with per-channel overload flags, or raises
-:class:`modalab.errors.DaqTimeoutError` when no hit arrived in time (the
+:class:`modalab.core.errors.DaqTimeoutError` when no hit arrived in time (the
 session then simply waits again).  ``notify_point`` tells the backend where the
 operator will excite or where the roving sensor sits; real hardware ignores it
 and the simulator uses it to place the hit.
@@ -17,10 +17,10 @@ from __future__ import annotations
 
 from typing import Protocol, Sequence, runtime_checkable
 
-from modalab.daqconfig import AcquisitionConfig, ChannelConfig
-from modalab.dof import Dof
-from modalab.errors import PlanError
-from modalab.records import TimeRecord
+from modalab.core.daqconfig import AcquisitionConfig, ChannelConfig
+from modalab.core.dof import Dof
+from modalab.core.errors import PlanError
+from modalab.core.records import TimeRecord
 
 __all__ = ["DaqBackend", "open_backend", "BACKENDS"]
 
@@ -62,5 +62,5 @@ def open_backend(name: str, **kw) -> DaqBackend:
         return NidaqmxBackend(**kw)
     if name == "sim":
         raise PlanError("the 'sim' backend is built by the caller from hardware_sim (acquisition may not import "
-                        "it); use modalab.pipeline.make_backend('sim', ...) or the CLI's --backend sim")
+                        "it); use modalab.app.pipeline.make_backend('sim', ...) or the CLI's --backend sim")
     raise PlanError(f"backend {name!r} unknown; expected one of {', '.join(BACKENDS)}")

@@ -1,6 +1,6 @@
 """Per-hit quality checks for impact testing.
 
-:func:`check_hit` inspects one :class:`modalab.records.TimeRecord` and returns a
+:func:`check_hit` inspects one :class:`modalab.core.records.TimeRecord` and returns a
 :class:`HitReport`; every threshold lives in the frozen :class:`HitCheckConfig`.
 The checks (Ewins 2000, ch. 3; Brandt 2011, ch. 13):
 
@@ -44,8 +44,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from modalab.errors import ModalabValueError
-from modalab.records import TimeRecord
+from modalab.core.errors import ModalabValueError
+from modalab.core.records import TimeRecord
 
 __all__ = ["HitCheckConfig", "HitReport", "check_hit", "check_hits", "FLAGS"]
 

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from modalab.errors import ModalabValueError, ShapeError
+from modalab.core.errors import ModalabValueError, ShapeError
 
 __all__ = ["CrossSpectra", "cross_spectra", "h1", "h2", "hv", "coherence", "multiple_coherence", "ESTIMATORS"]
 

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import logging
 
-from modalab.errors import ModalabValueError, SerialProtocolError
+from modalab.core.errors import ModalabValueError, SerialProtocolError
 
 log = logging.getLogger(__name__)
 __all__ = ["LineTransport", "IEPEConditioner", "AutoHammer", "open_serial"]

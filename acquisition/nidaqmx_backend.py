@@ -12,10 +12,10 @@
 * optional TEDS (``PhysicalChannel.configure_teds`` then the ``add_teds_*`` variants).
 
 nidaqmx is imported only here and only when the backend is created.  Errors
-map to ours: the missing NI driver raises :class:`modalab.errors.DaqNotFoundError`
+map to ours: the missing NI driver raises :class:`modalab.core.errors.DaqNotFoundError`
 (not a DaqError) telling to install NI-DAQmx or use ``--backend sim``; a read
-timeout raises :class:`modalab.errors.DaqTimeoutError` ("no hit yet", the task
-stays armed); other driver errors raise :class:`modalab.errors.DaqError` with
+timeout raises :class:`modalab.core.errors.DaqTimeoutError` ("no hit yet", the task
+stays armed); other driver errors raise :class:`modalab.core.errors.DaqError` with
 the NI error code and what to check.
 """
 from __future__ import annotations
@@ -25,11 +25,11 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from modalab.daqconfig import AcquisitionConfig, ChannelConfig
-from modalab.dof import Dof
-from modalab.errors import DaqError, DaqNotFoundError, DaqTimeoutError, PlanError
-from modalab.records import TimeRecord
-from modalab.units import G
+from modalab.core.daqconfig import AcquisitionConfig, ChannelConfig
+from modalab.core.dof import Dof
+from modalab.core.errors import DaqError, DaqNotFoundError, DaqTimeoutError, PlanError
+from modalab.core.records import TimeRecord
+from modalab.core.units import G
 
 log = logging.getLogger(__name__)
 __all__ = ["NidaqmxBackend"]

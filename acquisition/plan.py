@@ -75,9 +75,9 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from modalab.daqconfig import AcquisitionConfig, ChannelConfig, sensitivity_to_si
-from modalab.dof import Dof
-from modalab.errors import DofError, ModalabValueError, PlanError
+from modalab.core.daqconfig import AcquisitionConfig, ChannelConfig, sensitivity_to_si
+from modalab.core.dof import Dof
+from modalab.core.errors import DofError, ModalabValueError, PlanError
 
 __all__ = ["TestPlan", "load_plan", "PlanChannel", "exponential_window", "SECTION_KEYS", "CHANNEL_KEYS", "SIM_KEYS"]
 

@@ -15,7 +15,7 @@ Signs: a DOF label carries the direction in which the sensor measures or the ham
 (``3-Z``: hit in −Z).  The FRF between two signed labels is the same number whichever is the
 input, so the transpose keeps each value with its pair of labels; :func:`reorder_by_reciprocity` can
 restate the result on positive directions (``positive=True``), negating the data once for each
-negative label, which is what :meth:`modalab.frf.FRF.select` does with opposite signs.
+negative label, which is what :meth:`modalab.core.frf.FRF.select` does with opposite signs.
 
 :func:`reciprocity_check` compares, for every pair of DOFs measured both ways (a response of
 one column is the reference of another and vice versa), ``H_ab`` with ``H_ba``.
@@ -27,9 +27,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from modalab.dof import Dof
-from modalab.errors import ModalabValueError
-from modalab.frf import FRF
+from modalab.core.dof import Dof
+from modalab.core.errors import ModalabValueError
+from modalab.core.frf import FRF
 
 __all__ = ["reorder_by_reciprocity", "ReciprocityPair", "ReciprocityReport", "reciprocity_check"]
 
@@ -55,7 +55,7 @@ def reorder_by_reciprocity(frf: FRF, *, positive: bool = False, references=None)
     ``measured_references`` (the hit DOFs the data were measured with).
     """
     if not isinstance(frf, FRF):
-        raise ModalabValueError(f"reorder_by_reciprocity expects a modalab.frf.FRF; got {type(frf).__name__}")
+        raise ModalabValueError(f"reorder_by_reciprocity expects a modalab.core.frf.FRF; got {type(frf).__name__}")
     src = frf if references is None else frf.select(responses=references)
     out = src.transpose()
     if positive:
@@ -143,7 +143,7 @@ def reciprocity_check(frf: FRF, *, band_hz: tuple | None = None, min_coherence: 
     ReciprocityReport with one :class:`ReciprocityPair` per unordered pair, worst first.
     """
     if not isinstance(frf, FRF):
-        raise ModalabValueError(f"reciprocity_check expects a modalab.frf.FRF; got {type(frf).__name__}")
+        raise ModalabValueError(f"reciprocity_check expects a modalab.core.frf.FRF; got {type(frf).__name__}")
     lines = np.ones(frf.n_freq, bool)
     if band_hz is not None:
         lo, hi = band_hz

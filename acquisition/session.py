@@ -31,7 +31,7 @@ session records exactly the hits of an uninterrupted one.
 Nothing is lost: every accepted (or candidate) hit is written and ``fsync``-ed
 by :class:`acquisition.store.HitStore` *before the next arm*.  ``resume=True``
 continues at the first unfinished point with all stored hits intact.  When the
-device disappears (:class:`modalab.errors.DeviceLostError`) the session calls
+device disappears (:class:`modalab.core.errors.DeviceLostError`) the session calls
 the backend's ``reconnect()`` (if it has one), reconfigures and retries, at most
 ``max_reconnects`` times per session; after that it stops cleanly (summary
 written, ``complete=False``) so the run continues with ``--resume``.
@@ -46,10 +46,10 @@ from typing import Callable
 
 import numpy as np
 
-from modalab.dof import Dof
-from modalab.errors import DaqError, DaqTimeoutError, DeviceLostError, ModalabError, PlanError
-from modalab.frf import FRF
-from modalab.records import TimeRecord
+from modalab.core.dof import Dof
+from modalab.core.errors import DaqError, DaqTimeoutError, DeviceLostError, ModalabError, PlanError
+from modalab.core.frf import FRF
+from modalab.core.records import TimeRecord
 
 from .plan import TestPlan
 from .session_results import _averager, _band, best_subset, export_session, frf_from_hits, mean_coherence, session_frf

@@ -11,9 +11,9 @@ from typing import Iterable
 
 import numpy as np
 
-from modalab.errors import PlanError
-from modalab.frf import FRF, concat
-from modalab.records import TimeRecord
+from modalab.core.errors import PlanError
+from modalab.core.frf import FRF, concat
+from modalab.core.records import TimeRecord
 
 from .plan import TestPlan
 from .store import HitStore
@@ -129,7 +129,7 @@ def export_session(store: HitStore, plan: TestPlan, path) -> Path:
 
     Written to a temporary file and renamed, so a crash during export never leaves a half file in place.
     """
-    from modalab import uff
+    from modalab.core import uff
 
     path = Path(path)
     tmp = path.with_name(path.name + ".part")

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 
-from modalab.errors import DaqError, ModalabError, PlanError
+from modalab.core.errors import DaqError, ModalabError, PlanError
 
 __all__: list[str] = []
 

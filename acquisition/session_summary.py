@@ -9,9 +9,9 @@ import math
 from dataclasses import dataclass, field
 from typing import Iterable
 
-from modalab.errors import PlanError
-from modalab.frf import FRF
-from modalab.records import TimeRecord
+from modalab.core.errors import PlanError
+from modalab.core.frf import FRF
+from modalab.core.records import TimeRecord
 
 __all__ = ["SessionObserver", "ScriptedPrompter", "PointSummary", "SessionSummary", "suggest_range",
            "STANDARD_RANGES"]

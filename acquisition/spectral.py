@@ -5,7 +5,7 @@ By task
 Arrays (scipy.signal style, ``axis=`` is the time axis)
     :func:`cross_spectra` → :class:`CrossSpectra`; :func:`h1`, :func:`h2`, :func:`hv`,
     :func:`coherence`, :func:`multiple_coherence` return ``(freq_hz, values)``.
-Hits (:class:`modalab.records.TimeRecord`) → labelled :class:`modalab.frf.FRF`
+Hits (:class:`modalab.core.records.TimeRecord`) → labelled :class:`modalab.core.frf.FRF`
     :func:`estimate_frf` (one channel layout, SIMO or MIMO), :func:`estimate_frf_roving`
     (hits grouped by hammer DOF, concatenated along the references),
     :class:`SpectralAverager` (running average: ``add(record)`` / ``remove(hit_id)`` / ``frf()``).
@@ -36,11 +36,11 @@ from typing import Sequence
 
 import numpy as np
 
-from modalab.dof import Dof
-from modalab.errors import ModalabValueError
-from modalab.frf import FRF, concat
-from modalab.records import TimeRecord
-from modalab.units import to_si
+from modalab.core.dof import Dof
+from modalab.core.errors import ModalabValueError
+from modalab.core.frf import FRF, concat
+from modalab.core.records import TimeRecord
+from modalab.core.units import to_si
 
 from .estimators import (ESTIMATORS, CrossSpectra, _check_estimator, _one_sided_factor, _spectra_sums, coherence,
                          cross_spectra, h1, h2, hv, multiple_coherence)
@@ -118,7 +118,7 @@ class _Layout:
     @classmethod
     def of(cls, rec: TimeRecord) -> "_Layout":
         if not isinstance(rec, TimeRecord):
-            raise ModalabValueError(f"expected a modalab.records.TimeRecord; got {type(rec).__name__}")
+            raise ModalabValueError(f"expected a modalab.core.records.TimeRecord; got {type(rec).__name__}")
         fi, ri = tuple(rec.force_channels), tuple(rec.response_channels)
         if not fi:
             raise ModalabValueError(f"hit {rec.hit_id} has no force channel (roles {rec.roles}); mark the hammer "
@@ -322,7 +322,7 @@ def estimate_frf(records: Sequence[TimeRecord] | TimeRecord, *, estimator: str =
 
     Parameters
     ----------
-    records : hits (:class:`~modalab.records.TimeRecord`), all with the same sampling rate, length,
+    records : hits (:class:`~modalab.core.records.TimeRecord`), all with the same sampling rate, length,
         force DOFs and response DOFs.  Data in engineering units (N; m/s², m/s or m, or g etc.,
         converted to SI).
     estimator : 'H1', 'H2' (one force channel) or 'Hv'.

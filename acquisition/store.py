@@ -44,8 +44,8 @@ from pathlib import Path
 
 import numpy as np
 
-from modalab.errors import StoreError
-from modalab.records import TimeRecord
+from modalab.core.errors import StoreError
+from modalab.core.records import TimeRecord
 
 log = logging.getLogger(__name__)
 __all__ = ["HitStore", "PointState"]

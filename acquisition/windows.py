@@ -68,7 +68,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from modalab.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError
 
 __all__ = [
     "ForceWindow",

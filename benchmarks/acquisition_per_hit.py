@@ -27,7 +27,7 @@ import numpy as np
 
 
 def make_hit(rng, n_ch: int, fs: float, n: int, pre: int, hit_id: int):
-    from modalab.records import TimeRecord
+    from modalab.core.records import TimeRecord
 
     t = (np.arange(n) - pre) / fs
     width = 0.8e-3

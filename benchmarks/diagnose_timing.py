@@ -29,7 +29,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from modalab.frf import FRF  # noqa: E402
+from modalab.core.frf import FRF  # noqa: E402
 from updating.diagnosis import diagnose  # noqa: E402
 from updating.fe import Spring  # noqa: E402
 from updating.models.garteur import garteur_model  # noqa: E402

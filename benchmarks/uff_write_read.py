@@ -1,4 +1,4 @@
-"""Benchmark: write and read 500 FRFs x 8192 lines with modalab.uff and with pyuff.
+"""Benchmark: write and read 500 FRFs x 8192 lines with modalab.core.uff and with pyuff.
 
 Run ``python benchmarks/uff_write_read.py [--sets 500] [--lines 8192] [--pyuff-sets 100]``.
 Both writers get the same data (binary 58b, complex double).  pyuff's
@@ -27,7 +27,7 @@ def main(argv=None):
 
     import pyuff
     from modalab import FRF
-    from modalab.uff import read_frf, write_frf
+    from modalab.core.uff import read_frf, write_frf
 
     n_sets, n_lines = args.sets, args.lines
     n_ref = 5 if n_sets % 5 == 0 else 1

@@ -21,8 +21,8 @@ import difflib
 import time
 from typing import Sequence
 
-from modalab.dof import locate
-from modalab.errors import DofError, PlanError
+from modalab.core.dof import locate
+from modalab.core.errors import DofError, PlanError
 
 from .hammer import Hammer
 from .lab import SimulatedLab

@@ -36,7 +36,7 @@ Functions
 ---------
 BeamSection       section and material of a grillage member.
 grillage          assemble M, K of a planar grillage.
-demo_structure    the demo :class:`modalab.structure.Structure`.
+demo_structure    the demo :class:`modalab.core.structure.Structure`.
 demo_channels     hammer (2.25 mV/N) + three accelerometers (50 mV/g) at 19+Z, 12+Z, 1+Z.
 demo_setup        2048 Hz, 8192 samples (4 s, 0.25 Hz lines), 128 pretrigger samples.
 demo_lab          a ready :class:`SimulatedLab` on the demo structure (hammer ``DEMO_HAMMER``: 100 N, medium tip).
@@ -50,9 +50,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from modalab.errors import ModalabValueError
-from modalab.structure import Structure
-from modalab.units import G as G_STANDARD
+from modalab.core.errors import ModalabValueError
+from modalab.core.structure import Structure
+from modalab.core.units import G as G_STANDARD
 
 from .hammer import Hammer
 from .lab import SimulatedLab

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from modalab.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError
 
 __all__ = ["Hammer", "Pulse", "TIP_STIFFNESS_N_PER_M", "contact_time_s"]
 

@@ -1,7 +1,7 @@
 """The simulated lab: a structure, a hammer, sensors and a DAQ that deliver raw hits.
 
 :class:`SimulatedLab` produces what a real triggered DAQ delivers after a
-hammer hit, as a :class:`modalab.records.TimeRecord` in engineering units with
+hammer hit, as a :class:`modalab.core.records.TimeRecord` in engineering units with
 overload flags and ``trigger_index = pretrigger_samples``.
 
 How a hit is synthesised (exact for a linear structure): see :mod:`hardware_sim.synthesis`.
@@ -26,11 +26,11 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from modalab.dof import Dof, locate, parse_dofs
-from modalab.errors import DaqError, DaqTimeoutError, DeviceLostError, ModalabValueError
-from modalab.frf import FRF
-from modalab.records import TimeRecord
-from modalab.structure import ModalModel, Structure
+from modalab.core.dof import Dof, locate, parse_dofs
+from modalab.core.errors import DaqError, DaqTimeoutError, DeviceLostError, ModalabValueError
+from modalab.core.frf import FRF
+from modalab.core.records import TimeRecord
+from modalab.core.structure import ModalModel, Structure
 
 from .hammer import Hammer
 from .setup import AcquisitionSetup, ChannelSetup, FaultConfig
@@ -46,11 +46,11 @@ class SimulatedLab(_HitSynthesis):
 
     Parameters
     ----------
-    structure : :class:`modalab.structure.Structure` or :class:`modalab.structure.ModalModel`.
+    structure : :class:`modalab.core.structure.Structure` or :class:`modalab.core.structure.ModalModel`.
         Placement scatter needs node coordinates (``Structure.coords``); a bare
         modal model is hit exactly at the point.
     channels : sequence of :class:`ChannelSetup` (or objects with the attributes of
-        ``modalab.daqconfig.ChannelConfig``), exactly one with role 'force'.  May be
+        ``modalab.core.daqconfig.ChannelConfig``), exactly one with role 'force'.  May be
         given later with :meth:`configure`.
     setup : :class:`AcquisitionSetup` (default: 2048 Hz, 8192 samples, 128 pretrigger).
     hammer : :class:`Hammer` (default: 0.16 kg, medium tip, manual, 200 N).
@@ -80,7 +80,7 @@ class SimulatedLab(_HitSynthesis):
             self.coords = {}
         else:
             raise ModalabValueError(f"structure {type(structure).__name__!r} is neither a modalab Structure nor a "
-                                    "ModalModel; build one with modalab.structure.Structure(M=..., K=..., dofs=...)")
+                                    "ModalModel; build one with modalab.core.structure.Structure(M=..., K=..., dofs=...)")
         if oversample is not None and int(oversample) < 1:
             raise ModalabValueError(f"oversample={oversample!r} must be an integer >= 1 (or None for automatic)")
         if not hit_interval_s >= 0:
@@ -118,7 +118,7 @@ class SimulatedLab(_HitSynthesis):
 
     # ------------------------------------------------------------------ config
     def configure(self, channels: Sequence, setup=None) -> None:
-        """Set channels and acquisition (either our setup classes or ``modalab.daqconfig`` ones)."""
+        """Set channels and acquisition (either our setup classes or ``modalab.core.daqconfig`` ones)."""
         if self._state in ("closed", "lost"):
             self._check_usable()
         chans = [ChannelSetup.from_config(c) for c in channels]

@@ -1,6 +1,6 @@
 """Frozen configuration of the simulated lab: channels, acquisition, injected faults.
 
-The field names follow :mod:`modalab.daqconfig` where the meaning is the same
+The field names follow :mod:`modalab.core.daqconfig` where the meaning is the same
 (``dof``, ``role``, ``sensitivity``, ``iepe``, ``highpass_hz``, ``noise_v_rms``,
 ``sample_rate_hz``, ``n_samples``, ``pretrigger_samples``, ``trigger_level``,
 ``trigger_slope``, ``timeout_s``), so a backend can translate one into the
@@ -11,8 +11,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from modalab.dof import Dof
-from modalab.errors import ModalabValueError
+from modalab.core.dof import Dof
+from modalab.core.errors import ModalabValueError
 
 from .signal_chain import AA_FILTERS, quantization_step
 
@@ -76,7 +76,7 @@ class ChannelSetup:
 
     @classmethod
     def from_config(cls, cfg, **overrides) -> "ChannelSetup":
-        """Build from any object with the attributes of :class:`modalab.daqconfig.ChannelConfig`.
+        """Build from any object with the attributes of :class:`modalab.core.daqconfig.ChannelConfig`.
 
         Its range in engineering units (``range``) becomes ``range_v = range × sensitivity``
         unless the object has ``range_v`` itself.
@@ -153,7 +153,7 @@ class AcquisitionSetup:
 
     @classmethod
     def from_config(cls, cfg, **overrides) -> "AcquisitionSetup":
-        """Build from any object with the attributes of :class:`modalab.daqconfig.AcquisitionConfig`."""
+        """Build from any object with the attributes of :class:`modalab.core.daqconfig.AcquisitionConfig`."""
         if isinstance(cfg, cls):
             return cls(**{**cfg.__dict__, **overrides})
         names = ("sample_rate_hz", "n_samples", "pretrigger_samples", "trigger_level", "trigger_slope",

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from modalab.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError
 
 __all__ = ["half_sine", "half_sine_spectrum", "iepe_highpass", "antialias_response", "AA_FILTERS",
            "quantization_step", "quantize", "synthesis_taper"]

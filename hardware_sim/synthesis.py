@@ -37,8 +37,8 @@ import math
 import numpy as np
 import scipy.fft as sfft
 
-from modalab.dof import Dof, locate, parse_dofs
-from modalab.records import TimeRecord
+from modalab.core.dof import Dof, locate, parse_dofs
+from modalab.core.records import TimeRecord
 
 from .signal_chain import (antialias_response, half_sine_spectrum, iepe_highpass, quantization_step, quantize,
                            synthesis_taper)

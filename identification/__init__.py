@@ -12,7 +12,7 @@ Estimator
 :class:`PolyMAX`
     scikit-learn style estimator: ``PolyMAX(max_order=64, weighting=None, ...).fit(frf)`` sets
     ``orders_``, ``poles_``, ``participation_``, ``stabilisation_``, ``selected_``, ``lsfd_``,
-    ``modes_``.  Raises :class:`modalab.errors.NotFittedError` before ``fit``.
+    ``modes_``.  Raises :class:`modalab.core.errors.NotFittedError` before ``fit``.
 :func:`reduced_normal_matrix`, :func:`poles_at_order`, :func:`frequency_weights`
     the building blocks: reduced normal equations built once for the highest order (Toeplitz lag
     sums, vectorised over outputs), poles and participation vectors of any lower order from its

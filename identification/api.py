@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from acquisition.reciprocity import reorder_by_reciprocity
-from modalab.errors import ModalabValueError, fmt_error
-from modalab.frf import FRF
-from modalab.modes import ModeSet
+from modalab.core.errors import ModalabValueError, fmt_error
+from modalab.core.frf import FRF
+from modalab.core.modes import ModeSet
 from .lsfd import LSFDResult
 from .polymax import PolyMAX
 from .selection import SelectedPoles, SelectionOptions

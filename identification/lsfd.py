@@ -33,9 +33,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from acquisition.windows import correct_poles
-from modalab.errors import ModalabValueError, ShapeError, fmt_error
-from modalab.frf import FRF
-from modalab.modes import ModeSet
+from modalab.core.errors import ModalabValueError, ShapeError, fmt_error
+from modalab.core.frf import FRF
+from modalab.core.modes import ModeSet
 from . import indicators as ind
 from .stabilisation import pole_freq_damping
 
@@ -499,7 +499,7 @@ def frf_noise_variance(frf: FRF):
         from the residual of the local fit (least reliable: model error counts as noise).
 
     Raises ``ModalabValueError`` naming the bad value when ``n_averages`` is not a positive integer
-    (the variance itself is checked by :class:`~modalab.frf.FRF`: shape, finite, >= 0).
+    (the variance itself is checked by :class:`~modalab.core.frf.FRF`: shape, finite, >= 0).
     """
     H = frf.H
     if frf.variance is not None:

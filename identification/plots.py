@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from modalab.frf import FRF
-from modalab.modes import ModeSet
-from modalab.plots import save
+from modalab.core.frf import FRF
+from modalab.core.modes import ModeSet
+from modalab.core.plots import save
 from .indicators import auto_mac, frf_correlation
 from .stabilisation import StabilisationDiagram
 

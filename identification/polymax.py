@@ -51,8 +51,8 @@ import logging
 
 import numpy as np
 
-from modalab.errors import ModalabValueError, NotFittedError, ShapeError, fmt_error
-from modalab.frf import FRF
+from modalab.core.errors import ModalabValueError, NotFittedError, ShapeError, fmt_error
+from modalab.core.frf import FRF
 
 log = logging.getLogger(__name__)
 

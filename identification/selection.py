@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from modalab.errors import ModalabValueError, fmt_error
+from modalab.core.errors import ModalabValueError, fmt_error
 from .stabilisation import StabilisationDiagram, mac_vectors, pole_freq_damping
 
 log = logging.getLogger(__name__)

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from modalab.errors import ModalabValueError, fmt_error
+from modalab.core.errors import ModalabValueError, fmt_error
 
 __all__ = ["StabilisationCriteria", "StabilisationDiagram", "stabilise", "mac_vectors", "pole_freq_damping"]
 

@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from modalab.dof import parse_dofs
-from modalab.errors import ModalabValueError
-from modalab.frf import FRF
-from modalab.structure import ModalModel
+from modalab.core.dof import parse_dofs
+from modalab.core.errors import ModalabValueError
+from modalab.core.frf import FRF
+from modalab.core.structure import ModalModel
 
 __all__ = ["modal_system", "noisy_frf", "TEN_MODES_HZ", "TEN_MODES_DAMPING"]
 

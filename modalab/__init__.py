@@ -11,21 +11,22 @@ Containers
 Structures
     :class:`Structure` — sparse M, K, C, D with exact FRFs; :class:`ModalModel`.
 Files
-    :mod:`modalab.uff` — universal file I/O (15, 2411, 55, 58/58b, 164).
+    :mod:`modalab.core.uff` — universal file I/O (15, 2411, 55, 58/58b, 164).
 Errors
-    :class:`ModalabError` and its subclasses in :mod:`modalab.errors`.
+    :class:`ModalabError` and its subclasses in :mod:`modalab.core.errors`.
 
-The stages live in their own top-level packages: ``acquisition`` →
-``identification`` → ``updating``, with ``hardware_sim`` beside acquisition.
+The core lives in :mod:`modalab.core`; the stages in their own top-level packages (``acquisition`` →
+``identification`` → ``updating``, with ``hardware_sim`` beside acquisition); the command line, stage
+runner, campaigns and report in :mod:`modalab.app` on top.
 """
 import logging
 
-from .dof import Dof, parse_dofs
-from .errors import ModalabError
-from .frf import FRF, concat
-from .modes import ModeSet
-from .records import TimeRecord
-from .structure import ModalModel, Structure
+from .core.dof import Dof, parse_dofs
+from .core.errors import ModalabError
+from .core.frf import FRF, concat
+from .core.modes import ModeSet
+from .core.records import TimeRecord
+from .core.structure import ModalModel, Structure
 
 __version__ = "0.1.0"
 __all__ = ["Dof", "parse_dofs", "ModalabError", "FRF", "concat", "ModeSet", "TimeRecord",

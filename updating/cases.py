@@ -79,7 +79,7 @@ def six_dof_model(which: str = "experimental", *, damping: bool = False, damping
     DOFs are labelled ``'1+X' .. '6+X'`` (one translation per mass).
     """
     if which not in ("experimental", "analytical"):
-        from modalab.errors import ModalabValueError
+        from modalab.core.errors import ModalabValueError
         raise ModalabValueError(f"which={which!r}; expected 'experimental' or 'analytical'")
     col = 0 if which == "experimental" else 1
     terms, p0 = [], []

@@ -1,7 +1,7 @@
 """Test–analysis correlation — thesis section 2.2.
 
 Mode-shape criteria (shapes are ``(n_dof, n_modes)`` arrays or
-:class:`~modalab.modes.ModeSet` objects on the same DOFs):
+:class:`~modalab.core.modes.ModeSet` objects on the same DOFs):
 
 * :func:`mac` — Modal Assurance Criterion, eq. 2.63 (complex-aware, optional weighting);
   :func:`automac` — MAC of a set with itself; :func:`macx` — the complex MAC (MACX).
@@ -41,10 +41,10 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import linear_sum_assignment
 
-from modalab.errors import ModalabValueError, ShapeError
-from modalab.frf import FRF
-from modalab.modes import ModeSet
-from modalab.structure import Structure
+from modalab.core.errors import ModalabValueError, ShapeError
+from modalab.core.frf import FRF
+from modalab.core.modes import ModeSet
+from modalab.core.structure import Structure
 
 from .dofmap import as_dofmap
 
@@ -668,13 +668,13 @@ def frf_correlation(analysis, test: FRF, *, dofmap=None, rtol: float = 1e-9) -> 
 
     Parameters
     ----------
-    analysis : :class:`~modalab.frf.FRF` on model labels (same frequency lines as the test),
-        or a :class:`~modalab.structure.Structure` whose exact FRFs are synthesised at the test lines.
+    analysis : :class:`~modalab.core.frf.FRF` on model labels (same frequency lines as the test),
+        or a :class:`~modalab.core.structure.Structure` whose exact FRFs are synthesised at the test lines.
     test : measured FRF.
     dofmap : maps test labels onto model DOFs (oblique sensors allowed: ``H_t = C_o H_a C_iᵀ``).
     """
     if not isinstance(test, FRF):
-        raise ModalabValueError(f"test: got {type(test).__name__}; expected a modalab.frf.FRF")
+        raise ModalabValueError(f"test: got {type(test).__name__}; expected a modalab.core.frf.FRF")
     dm = as_dofmap(dofmap)
     if isinstance(analysis, Structure):
         Co_full = dm.matrix(test.responses, analysis.dofs)
@@ -840,7 +840,7 @@ class CorrelationResult:
 
 
 def analysis_modes(structure: Structure, n_modes: int | None = None) -> ModeSet:
-    """Mass-normalised normal modes of a Structure as a :class:`~modalab.modes.ModeSet` (Hz, undamped)."""
+    """Mass-normalised normal modes of a Structure as a :class:`~modalab.core.modes.ModeSet` (Hz, undamped)."""
     if not isinstance(structure, Structure):
         raise ModalabValueError(f"expected a Structure; got {type(structure).__name__}")
     if n_modes is not None and not 1 <= int(n_modes) <= structure.n_dof:
@@ -861,7 +861,7 @@ def correlate(analysis, test: ModeSet, *, dofmap=None, mac_min: float = MAC_MIN,
     (:class:`~updating.dofmap.DofMap`, dict, TOML/CSV path, or None for the same
     node numbers — the CLI refuses that without ``--same-ids`` and maps by geometry
     instead, :func:`updating.dofmap.geometry_map`; unmapped test DOFs raise
-    :class:`~modalab.errors.DofError`).  Then: MAC matrix (eq. 2.63), the one
+    :class:`~modalab.core.errors.DofError`).  Then: MAC matrix (eq. 2.63), the one
     pairing rule :func:`pair_modes` (Hungarian assignment on MAC and frequency, a
     frequency window, unobservable and rigid-body analysis modes kept out and said
     so), frequency errors (section 2.2.1), MSF (eq. 2.62), COMAC (eq. 2.64) and
@@ -869,19 +869,19 @@ def correlate(analysis, test: ModeSet, *, dofmap=None, mac_min: float = MAC_MIN,
     complex-aware).  A frequency-only test set (no shapes) is paired by frequency order
     inside the window.
 
-    ``analysis`` may also be a :class:`~modalab.structure.Structure`: its lowest
+    ``analysis`` may also be a :class:`~modalab.core.structure.Structure`: its lowest
     ``n_analysis_modes`` normal modes are used (default: twice the number of test
     modes plus 5, at most the model size).  ``dof_mapping``/``geometry`` only label the
     result (how the map was made, distances of a geometry map).
     """
     if isinstance(analysis, Structure):
         if not isinstance(test, ModeSet):
-            raise ModalabValueError(f"test: got {type(test).__name__}; expected a modalab.modes.ModeSet")
+            raise ModalabValueError(f"test: got {type(test).__name__}; expected a modalab.core.modes.ModeSet")
         n = n_analysis_modes or min(analysis.n_dof, 2 * test.n_modes + 5)
         analysis = analysis_modes(analysis, n)
     for name, ms in (("analysis", analysis), ("test", test)):
         if not isinstance(ms, ModeSet):
-            raise ModalabValueError(f"{name}: got {type(ms).__name__}; expected a modalab.modes.ModeSet")
+            raise ModalabValueError(f"{name}: got {type(ms).__name__}; expected a modalab.core.modes.ModeSet")
     if dof_mapping is None:
         dof_mapping = ("same node ids (no map given)" if dofmap is None else
                        f"DOF map {getattr(as_dofmap(dofmap), 'name', '') or 'given'}")

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from modalab.errors import ModalabValueError, ShapeError
-from modalab.frf import FRF
+from modalab.core.errors import ModalabValueError, ShapeError
+from modalab.core.frf import FRF
 
 __all__ = ["plot_mac", "plot_frequencies", "plot_frf_overlay", "plot_comac", "save_correlation_plots"]
 
@@ -113,7 +113,7 @@ def plot_frf_overlay(analysis: FRF, test: FRF, path, *, responses=None, referenc
     """
     for nm, f in (("analysis", analysis), ("test", test)):
         if not isinstance(f, FRF):
-            raise ModalabValueError(f"{nm}: got {type(f).__name__}; expected a modalab.frf.FRF")
+            raise ModalabValueError(f"{nm}: got {type(f).__name__}; expected a modalab.core.frf.FRF")
     resp = list(test.responses if responses is None else responses)[:max_panels]
     ref = test.references[0] if reference is None else reference
     if analysis.quantity != test.quantity:

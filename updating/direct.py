@@ -40,7 +40,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from modalab.errors import ModalabValueError, ShapeError
+from modalab.core.errors import ModalabValueError, ShapeError
 
 __all__ = [
     "DirectUpdate",

@@ -59,9 +59,9 @@ from typing import Mapping
 import numpy as np
 import scipy.sparse as sp
 
-from modalab.dof import Dof, parse_dofs
-from modalab.errors import DofError, ModalabValueError, ShapeError
-from modalab.modes import ModeSet
+from modalab.core.dof import Dof, parse_dofs
+from modalab.core.errors import DofError, ModalabValueError, ShapeError
+from modalab.core.modes import ModeSet
 
 __all__ = ["DofMap", "as_dofmap", "observation_matrix", "geometry_map"]
 
@@ -261,7 +261,7 @@ class DofMap:
     def matrix(self, test_dofs, model_dofs) -> sp.csr_matrix:
         """Observation matrix ``C`` (n_test × n_model) with ``x_test = C x_model``.
 
-        Raises :class:`~modalab.errors.DofError` naming every test DOF whose model DOFs are missing.
+        Raises :class:`~modalab.core.errors.DofError` naming every test DOF whose model DOFs are missing.
         """
         tl = parse_dofs(test_dofs)
         ml = parse_dofs(model_dofs)
@@ -293,7 +293,7 @@ class DofMap:
     def selection(self, test_dofs, model_dofs) -> tuple[np.ndarray, np.ndarray]:
         """Model row index and factor of each test DOF when each reads exactly one model DOF.
 
-        Raises :class:`~modalab.errors.ModalabValueError` for oblique test DOFs (a combination of model DOFs).
+        Raises :class:`~modalab.core.errors.ModalabValueError` for oblique test DOFs (a combination of model DOFs).
         """
         C = self.matrix(test_dofs, model_dofs).tocsr()
         tl = parse_dofs(test_dofs)
@@ -397,7 +397,7 @@ def geometry_map(test_coords: Mapping, model_coords: Mapping, test_nodes=None, *
 
     Returns the :class:`DofMap` (``same_nodes=False``: every test node is mapped) and a report
     ``{"rotation", "translation", "tol_m", "max_distance_m", "rms_distance_m", "nodes":
-    {test node: {"model_node", "distance_m"}}}``.  Raises :class:`~modalab.errors.DofError`
+    {test node: {"model_node", "distance_m"}}}``.  Raises :class:`~modalab.core.errors.DofError`
     naming the nodes that have no model node within ``tol``, or two test nodes that land on the
     same model node.
     """

@@ -39,8 +39,8 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from modalab.errors import ModalabValueError, NotFittedError, ShapeError
-from modalab.modes import ModeSet
+from modalab.core.errors import ModalabValueError, NotFittedError, ShapeError
+from modalab.core.modes import ModeSet
 
 from .sensitivity import StackedDerivatives
 
@@ -116,7 +116,7 @@ class EigendynamicConstraint:
     max_iter, tol : iterations (re-expansion / re-linearisation) and the
         convergence threshold on the largest relative parameter change.
 
-    ``fit(model, test_modes, dofmap=None)``: ``test_modes`` a :class:`~modalab.modes.ModeSet`
+    ``fit(model, test_modes, dofmap=None)``: ``test_modes`` a :class:`~modalab.core.modes.ModeSet`
     (real shapes used).  Mass-normalised sets (``scaling='unit_modal_mass'``) use (3.37);
     others only (3.36).  Test DOFs are located on the model DOFs by label (signs honoured).
 

@@ -63,8 +63,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from modalab.errors import ModalabValueError, NotFittedError, ShapeError
-from modalab.modes import ModeSet
+from modalab.core.errors import ModalabValueError, NotFittedError, ShapeError
+from modalab.core.modes import ModeSet
 
 from .sensitivity import (StackedDerivatives, eigenvalue_sensitivities, eigenvector_sensitivities,
                           solve_modes)
@@ -417,7 +417,7 @@ class InverseEigensensitivity:
 
     def fit(self, model, test_modes: ModeSet, dofmap=None, p_init=None) -> "InverseEigensensitivity":
         if not isinstance(test_modes, ModeSet):
-            raise ModalabValueError(f"test_modes must be a modalab.modes.ModeSet; got {type(test_modes).__name__}")
+            raise ModalabValueError(f"test_modes must be a modalab.core.modes.ModeSet; got {type(test_modes).__name__}")
         if self.tikhonov not in ("step", "initial"):
             raise ModalabValueError(f"tikhonov={self.tikhonov!r}; expected 'step' or 'initial'")
         idx = _param_indices(model, self.params)

@@ -13,7 +13,7 @@
   analytical modes that pair with the test modes (see
   :func:`updating.correlation.correlate`), as the thesis recommends.
 
-Test modes are :class:`~modalab.modes.ModeSet` objects on the test labels;
+Test modes are :class:`~modalab.core.modes.ModeSet` objects on the test labels;
 a :class:`~updating.dofmap.DofMap` (or None for the same node numbers) maps them
 onto the model DOFs.  SEREP and modal expansion accept oblique sensors (a test
 DOF reading several model DOFs); Kidder needs each test DOF on one model DOF.
@@ -27,10 +27,10 @@ import logging
 import numpy as np
 import scipy.sparse as sp
 
-from modalab.dof import parse_dofs
-from modalab.errors import ModalabValueError, ShapeError
-from modalab.modes import ModeSet
-from modalab.structure import Structure
+from modalab.core.dof import parse_dofs
+from modalab.core.errors import ModalabValueError, ShapeError
+from modalab.core.modes import ModeSet
+from modalab.core.structure import Structure
 
 from .dofmap import as_dofmap
 from .reduction import _Factor, _sub, _dense, _square
@@ -56,7 +56,7 @@ def _model(model):
 
 def _check_modes(test, what="test"):
     if not isinstance(test, ModeSet):
-        raise ModalabValueError(f"{what} modes: got {type(test).__name__}; expected a modalab.modes.ModeSet")
+        raise ModalabValueError(f"{what} modes: got {type(test).__name__}; expected a modalab.core.modes.ModeSet")
     if test.n_modes == 0:
         raise ModalabValueError(f"the {what} mode set is empty; nothing to expand")
 
@@ -75,7 +75,7 @@ def kidder(model, test: ModeSet, *, dofmap=None, static: bool = False) -> ModeSe
 
     Parameters
     ----------
-    model : :class:`~modalab.structure.Structure` or ``(K, M, dofs)`` with dense or sparse matrices.
+    model : :class:`~modalab.core.structure.Structure` or ``(K, M, dofs)`` with dense or sparse matrices.
     test : measured modes on test labels (real or complex shapes).
     dofmap : :class:`~updating.dofmap.DofMap`, dict, file path or None (same node numbers).
     static : use ω = 0 for every mode (Guyan's static expansion, eq. 2.5).

@@ -48,9 +48,9 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from modalab.dof import locate, parse_dofs
-from modalab.errors import ModalabValueError, NotFittedError, ShapeError
-from modalab.frf import FRF
+from modalab.core.dof import locate, parse_dofs
+from modalab.core.errors import ModalabValueError, NotFittedError, ShapeError
+from modalab.core.frf import FRF
 
 from .sensitivity import StackedDerivatives
 
@@ -98,7 +98,7 @@ class MeasuredColumns:
     def w(self) -> np.ndarray:
         """Complex angular frequency ``ω − iβ`` at which the model is compared with the data.
 
-        Windowed data are transfer functions at ``s = iω + β`` (:attr:`modalab.frf.FRF.s`); with
+        Windowed data are transfer functions at ``s = iω + β`` (:attr:`modalab.core.frf.FRF.s`); with
         ``w = s/i`` the dynamic stiffness ``K − w²M + iwC + iD = K + s²M + sC + iD`` keeps its form,
         so every model FRF, expansion and MCI below is evaluated at ``s`` (``w = ω`` without a window).
         """
@@ -106,14 +106,14 @@ class MeasuredColumns:
 
 
 def measured_columns(model, frf: FRF, *, references=None, bands=None) -> MeasuredColumns:
-    """Map an :class:`~modalab.frf.FRF` onto the model's DOFs as receptance columns.
+    """Map an :class:`~modalab.core.frf.FRF` onto the model's DOFs as receptance columns.
 
     ``references`` picks reference DOFs (default all of the FRF's); ``bands`` a
     list of (f_lo, f_hi) in Hz keeps only lines inside any band.  Lines at 0 Hz
     are dropped (the receptance of a measured accelerance is undefined there).
     """
     if not isinstance(frf, FRF):
-        raise ModalabValueError(f"expected a modalab.frf.FRF; got {type(frf).__name__}. "
+        raise ModalabValueError(f"expected a modalab.core.frf.FRF; got {type(frf).__name__}. "
                                 "Build one with FRF.from_arrays(freq_hz, H, responses, references)")
     if references is not None:
         frf = frf.select(references=parse_dofs(references))

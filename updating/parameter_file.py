@@ -20,7 +20,7 @@ import difflib
 import tomllib
 from pathlib import Path
 
-from modalab.errors import PlanError
+from modalab.core.errors import PlanError
 
 __all__ = ["PARAMETER_KEYS", "read_parameter_file", "read_priors"]
 

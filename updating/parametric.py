@@ -14,9 +14,9 @@ from typing import Protocol, Sequence, runtime_checkable
 import numpy as np
 import scipy.sparse as sp
 
-from modalab.dof import Dof, parse_dofs
-from modalab.errors import ModalabValueError, ShapeError
-from modalab.structure import Structure
+from modalab.core.dof import Dof, parse_dofs
+from modalab.core.errors import ModalabValueError, ShapeError
+from modalab.core.structure import Structure
 
 __all__ = ["ParametricModel", "Derivative", "MatrixModel", "parameter_indices"]
 
@@ -37,13 +37,13 @@ class ParametricModel(Protocol):
 
     Attributes
     ----------
-    dofs : list of :class:`~modalab.dof.Dof`, one per matrix row (after constraints).
+    dofs : list of :class:`~modalab.core.dof.Dof`, one per matrix row (after constraints).
     parameter_names : names of the updating parameters.
     p0 : nominal parameter values.
 
     Methods
     -------
-    structure(p) -> :class:`~modalab.structure.Structure` with M, K (C, D) at ``p``.
+    structure(p) -> :class:`~modalab.core.structure.Structure` with M, K (C, D) at ``p``.
     derivatives(p) -> list of :class:`Derivative`, one per parameter, exact at ``p``.
     """
 

@@ -19,7 +19,7 @@ sparse LU factorisation of ``K_ss`` (computed once) so large sparse models
 reduce without forming dense ``n × n`` matrices.  Masters are given by DOF
 label (``"12+Z"``, with ``dofs``) or by integer row index; a master label of
 opposite sign to the model DOF flips that reduced coordinate.
-:func:`reduce` does the same for a :class:`~modalab.structure.Structure` and
+:func:`reduce` does the same for a :class:`~modalab.core.structure.Structure` and
 also reduces its damping matrices.
 """
 from __future__ import annotations
@@ -33,10 +33,10 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from modalab.dof import Dof, locate, parse_dofs
-from modalab.errors import ConvergenceError, DofError, ModalabValueError, ShapeError
-from modalab.modes import ModeSet
-from modalab.structure import Structure
+from modalab.core.dof import Dof, locate, parse_dofs
+from modalab.core.errors import ConvergenceError, DofError, ModalabValueError, ShapeError
+from modalab.core.modes import ModeSet
+from modalab.core.structure import Structure
 
 __all__ = ["ReducedModel", "guyan", "irs", "serep", "reduce", "master_indices"]
 
@@ -219,7 +219,7 @@ class ReducedModel:
                        metadata={"source": f"{self.method} reduced model"})
 
     def structure(self, name: str = "") -> Structure:
-        """The reduced model as a :class:`~modalab.structure.Structure` on the master labels."""
+        """The reduced model as a :class:`~modalab.core.structure.Structure` on the master labels."""
         if self.masters is None:
             raise DofError("the reduced model has no DOF labels; reduce with dofs=[...] to build a Structure")
         return Structure(M=self.M, K=self.K, C=self.C, D=self.D, dofs=self.masters,
@@ -285,7 +285,7 @@ def irs(K, M, masters, *, dofs=None, iterate: bool = True, tol: float = 1e-10, m
     K, M, masters, dofs : as for :func:`guyan`.
     tol : relative change of the reduced eigenvalues that ends the iteration.
     max_iter : iteration limit.
-    on_no_convergence : 'raise' (:class:`~modalab.errors.ConvergenceError`) or 'warn'
+    on_no_convergence : 'raise' (:class:`~modalab.core.errors.ConvergenceError`) or 'warn'
         (log a warning, return the last iterate with ``converged=False``).
     """
     if on_no_convergence not in ("raise", "warn"):
@@ -362,7 +362,7 @@ def serep(K, M, masters, *, dofs=None, modes=None, n_modes: int | None = None, r
     Parameters
     ----------
     K, M, masters, dofs : as for :func:`guyan`.
-    modes : (n, r) retained mode shapes (any scaling), a :class:`~modalab.modes.ModeSet` on ``dofs``,
+    modes : (n, r) retained mode shapes (any scaling), a :class:`~modalab.core.modes.ModeSet` on ``dofs``,
         or None to use the lowest ``n_modes`` modes of (K, M).
     n_modes : number of lowest modes when ``modes`` is None (default: the number of masters).
     rcond : cut-off of the pseudo-inverse (eqs. 2.41–2.42).
@@ -402,7 +402,7 @@ def serep(K, M, masters, *, dofs=None, modes=None, n_modes: int | None = None, r
 
 
 def reduce(structure: Structure, masters, method: str = "guyan", *, dofmap=None, **kw) -> ReducedModel:
-    """Reduce a :class:`~modalab.structure.Structure` onto labelled masters by ``'guyan'``, ``'irs'`` or ``'serep'``.
+    """Reduce a :class:`~modalab.core.structure.Structure` onto labelled masters by ``'guyan'``, ``'irs'`` or ``'serep'``.
 
     With ``dofmap`` (a :class:`~updating.dofmap.DofMap`, dict or file), ``masters``
     are *test* DOF labels: each is mapped onto its model DOF (sign and factor

@@ -37,8 +37,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-from modalab.errors import ModalabValueError, NotFittedError, ShapeError
-from modalab.frf import FRF
+from modalab.core.errors import ModalabValueError, NotFittedError, ShapeError
+from modalab.core.frf import FRF
 
 from .mci import (MeasuredColumns, _bounds, _mats, _param_indices, _zdense, _zsparse, dynamic_expansion,
                   measured_columns)
@@ -271,7 +271,7 @@ class ResponseFunctionMethod:
         return N, g, float(np.sum(np.abs(b) ** 2))
 
     def predicted_frf(self, model, freq_hz, responses=None, references=None, quantity="accelerance"):
-        """FRFs of the updated model (exact, :meth:`modalab.structure.Structure.frf`)."""
+        """FRFs of the updated model (exact, :meth:`modalab.core.structure.Structure.frf`)."""
         if not hasattr(self, "p_"):
             raise NotFittedError("fit the ResponseFunctionMethod first")
         return model.structure(self.p_).frf(freq_hz, responses, references, quantity, method="direct")

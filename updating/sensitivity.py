@@ -47,7 +47,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from modalab.errors import ModalabValueError, ShapeError
+from modalab.core.errors import ModalabValueError, ShapeError
 
 log = logging.getLogger(__name__)
 

@@ -4,7 +4,7 @@
     python benchmarks/discovery/score.py /tmp/disc --seeds odd --jobs 1 --out /tmp/disc/score
 
 Every case is run through the project's single diagnose entry point exactly as a user runs it
-(``python -m modalab.cli diagnose nominal.bdf measured.uff --params params.toml --json ...`` in a subprocess,
+(``python -m modalab.app.cli diagnose nominal.bdf measured.uff --params params.toml --json ...`` in a subprocess,
 with this checkout first on PYTHONPATH), so a crash is caught with its message and counted as a failure.
 ``truth.json`` is read only here.  Writes ``score.md`` (table + summary) and ``score.json`` into ``--out``.
 
@@ -93,10 +93,10 @@ def node_distance(finding, target, truth):
 
 
 # ------------------------------------------------------------------ one case
-# ``modalab <args>`` (modalab.cli.main, the console script's function), then the CPU seconds of the process and
+# ``modalab <args>`` (modalab.app.cli.main, the console script's function), then the CPU seconds of the process and
 # its children on stderr: wall time on a shared machine says little, CPU time says what the case costs
 _WRAPPER = """import resource, sys
-from modalab.cli import main
+from modalab.app.cli import main
 try:
     rc = main(sys.argv[1:])
 finally:

@@ -40,7 +40,7 @@ from acquisition.reciprocity import reorder_by_reciprocity  # noqa: E402
 from acquisition.spectral import estimate_frf_roving  # noqa: E402
 from acquisition.windows import ExponentialWindow  # noqa: E402
 from hardware_sim import AcquisitionSetup, ChannelSetup, Hammer, SimulatedLab, simulate_roving_test  # noqa: E402
-from modalab import uff  # noqa: E402
+from modalab.core import uff  # noqa: E402
 from updating.bulk import write_bdf  # noqa: E402
 from updating.fe import Beam3D, BeamProperty, FEModel, LumpedMass, Material, RectangularSection, Spring  # noqa: E402
 

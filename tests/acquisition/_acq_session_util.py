@@ -9,7 +9,7 @@ import numpy as np
 import tomli_w
 
 from acquisition.session import SessionObserver
-from modalab.dof import locate
+from modalab.core.dof import locate
 
 ROOT = Path(__file__).resolve().parents[2]
 PLANS = ROOT / "examples" / "plans"

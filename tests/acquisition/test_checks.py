@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from acquisition.checks import FLAGS, HitCheckConfig, HitReport, check_hit, check_hits
-from modalab.errors import ModalabValueError
-from modalab.records import TimeRecord
+from modalab.core.errors import ModalabValueError
+from modalab.core.records import TimeRecord
 
 FS, N, TI = 10000.0, 8192, 200
 

@@ -7,14 +7,14 @@ import sys
 import pytest
 
 from _acq_session_util import ROOT, accepted_hits, journal, small_plan
-from modalab import uff
-from modalab.cli import _ConsoleObserver, main
+from modalab.core import uff
+from modalab.app.cli import _ConsoleObserver, main
 
 
 def _run(args, stdin=None):
     env = {**os.environ, "MPLBACKEND": "Agg"}
     env.pop("DISPLAY", None)
-    return subprocess.run([sys.executable, "-m", "modalab.cli", *map(str, args)], cwd=ROOT, env=env, input=stdin,
+    return subprocess.run([sys.executable, "-m", "modalab.app.cli", *map(str, args)], cwd=ROOT, env=env, input=stdin,
                           capture_output=True, text=True, timeout=300)
 
 

@@ -8,7 +8,7 @@ import pytest
 
 from acquisition.instruments import AutoHammer, IEPEConditioner, LineTransport
 from hardware_sim import serial_devices as sd
-from modalab.errors import ModalabValueError, SerialProtocolError
+from modalab.core.errors import ModalabValueError, SerialProtocolError
 
 
 @pytest.fixture(autouse=True)

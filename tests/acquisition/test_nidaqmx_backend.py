@@ -21,9 +21,9 @@ from nidaqmx.task.triggering import Triggers  # noqa: E402
 from nidaqmx.task.triggering._reference_trigger import ReferenceTrigger  # noqa: E402
 
 from acquisition.nidaqmx_backend import NidaqmxBackend  # noqa: E402
-from modalab.daqconfig import AcquisitionConfig, ChannelConfig  # noqa: E402
-from modalab.errors import DaqError, DaqNotFoundError, DaqTimeoutError  # noqa: E402
-from modalab.units import G  # noqa: E402
+from modalab.core.daqconfig import AcquisitionConfig, ChannelConfig  # noqa: E402
+from modalab.core.errors import DaqError, DaqNotFoundError, DaqTimeoutError  # noqa: E402
+from modalab.core.units import G  # noqa: E402
 
 CHANNELS = [
     ChannelConfig("cDAQ1Mod1/ai0", "5+Z", "force", sensitivity=2.25e-3, range=500.0),

@@ -4,8 +4,8 @@ import copy
 import pytest
 
 from acquisition.plan import TestPlan, load_plan
-from modalab.errors import PlanError
-from modalab.units import G
+from modalab.core.errors import PlanError
+from modalab.core.units import G
 
 BASE = {
     "acquisition": {"sample_rate_hz": 2048.0, "bandwidth_hz": 800.0, "record_s": 2.0, "pretrigger_s": 0.02,
@@ -189,8 +189,8 @@ def test_session_and_modalab_frf_window_the_same_hits_alike(tmp_path, beta):
 
     from acquisition.session import frf_from_hits
     from hardware_sim import demo_lab
-    from modalab import uff
-    from modalab.stages import FRFOptions, frf
+    from modalab.core import uff
+    from modalab.app.stages import FRFOptions, frf
 
     lab = demo_lab(rng=1)
     recs = [lab.hit("14+Z", force_n=150.0) for _ in range(3)]

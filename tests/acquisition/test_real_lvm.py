@@ -12,8 +12,8 @@ import scipy.signal as ss
 from acquisition.checks import check_hit
 from acquisition.spectral import estimate_frf
 from acquisition.windows import ExponentialWindow, ForceWindow
-from modalab.lvm import LvmError, parse_lvm, read_lvm
-from modalab.units import G
+from modalab.core.lvm import LvmError, parse_lvm, read_lvm
+from modalab.core.units import G
 
 DATA = Path("/work/shared/data/real/ladisk-impact-hit/acceleration.lvm")
 if not DATA.exists():  # the data may sit beside the checkout elsewhere

@@ -3,10 +3,10 @@ import numpy as np
 import pytest
 
 from acquisition.reciprocity import ReciprocityReport, reorder_by_reciprocity, reciprocity_check
-from modalab.dof import Dof
-from modalab.errors import ModalabValueError
-from modalab.frf import FRF
-from modalab.structure import Structure
+from modalab.core.dof import Dof
+from modalab.core.errors import ModalabValueError
+from modalab.core.frf import FRF
+from modalab.core.structure import Structure
 
 
 def random_structure(n, seed=0, zeta_scale=2e-3):

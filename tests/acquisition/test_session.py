@@ -17,8 +17,8 @@ from acquisition.session import STANDARD_RANGES, ScriptedPrompter, frf_from_hits
 from acquisition.store import HitStore
 from acquisition.windows import beta_from_end_level
 from hardware_sim import serial_devices
-from modalab import uff
-from modalab.pipeline import acquire, make_sim_backend
+from modalab.core import uff
+from modalab.app.pipeline import acquire, make_sim_backend
 
 N_REC, PRE, FS = 2048, 64, 2048.0          # small_plan: 1 s records, 64 pretrigger samples
 BETA = beta_from_end_level(0.01, N_REC, FS, PRE)
@@ -228,7 +228,7 @@ def test_interactive_prompt_shows_the_flags_of_a_double_hit(tmp_path):
 
 
 def test_resume_with_a_changed_plan_is_refused(tmp_path):
-    from modalab.errors import PlanError
+    from modalab.core.errors import PlanError
 
     plan_path = small_plan(tmp_path, points=("1+Z", "19+Z"))
     out = tmp_path / "s"
@@ -297,7 +297,7 @@ def test_a_corrupted_accepted_hit_reopens_its_point_and_the_session_is_not_compl
 
 def test_lost_session_json_with_a_changed_plan_is_refused(tmp_path):
     # issue 14 #13: without session.json the plan check was skipped and a changed plan (averages = 4) mixed in
-    from modalab.errors import PlanError
+    from modalab.core.errors import PlanError
 
     plan_path = small_plan(tmp_path, points=("1+Z", "19+Z"))
     out = tmp_path / "s"

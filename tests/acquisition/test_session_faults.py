@@ -10,8 +10,8 @@ import pytest
 from _acq_session_util import Recorder, accepted_hits, journal, rel_errors, small_plan
 from acquisition.session import ScriptedPrompter
 from acquisition.windows import beta_from_end_level
-from modalab import uff
-from modalab.pipeline import acquire
+from modalab.core import uff
+from modalab.app.pipeline import acquire
 
 BETA = beta_from_end_level(0.01, 2048, 2048.0, 64)
 
@@ -157,7 +157,7 @@ def test_dead_accelerometer_is_reported_and_the_others_are_exact(tmp_path):
     ({"seed": -3}, r"sim\.seed = -3 must be a whole number >= 0"),
 ])
 def test_sim_section_errors_are_clear(tmp_path, bad, match):
-    from modalab.errors import PlanError
+    from modalab.core.errors import PlanError
 
     plan = small_plan(tmp_path, points=("14+Z",), sim=bad)
     with pytest.raises(PlanError, match=r"plan\.toml: .*" + match):

@@ -1,6 +1,6 @@
 """Kill -9 an acquisition at random points, resume, and show that no accepted hit is lost or duplicated.
 
-``python -m modalab.cli acquire PLAN --backend sim --auto -o DIR`` runs with a real-time simulated
+``python -m modalab.app.cli acquire PLAN --backend sim --auto -o DIR`` runs with a real-time simulated
 lab (``[sim] realtime = true``, a small ``hit_interval_s``); the test SIGKILLs it at random moments
 (chosen as a random number of journal lines plus a random delay), then tears the journal's last
 line as a power loss would, and resumes with ``--resume`` until the session completes.  The simulator
@@ -17,12 +17,12 @@ import time
 import numpy as np
 
 from _acq_session_util import ROOT, accepted_hits, journal, small_plan
-from modalab import uff
-from modalab.pipeline import acquire
+from modalab.core import uff
+from modalab.app.pipeline import acquire
 
 
 def _start(plan, out, resume):
-    cmd = [sys.executable, "-m", "modalab.cli", "acquire", str(plan), "--backend", "sim", "--auto", "--quiet",
+    cmd = [sys.executable, "-m", "modalab.app.cli", "acquire", str(plan), "--backend", "sim", "--auto", "--quiet",
            "-o", str(out)] + (["--resume"] if resume else [])
     env = {**os.environ, "MPLBACKEND": "Agg"}
     env.pop("DISPLAY", None)

@@ -8,7 +8,7 @@ import pytest
 import tomli_w
 
 from acquisition.plan import HAMMER_TIPS, load_plan
-from modalab.pipeline import acquire, make_sim_backend
+from modalab.app.pipeline import acquire, make_sim_backend
 
 ROOT = Path(__file__).resolve().parents[2]
 SHIPPED = sorted(p for d in ("examples", "modalab/demo_data") for p in (ROOT / d).rglob("*.toml"))
@@ -32,12 +32,12 @@ def test_every_shipped_toml_passes_its_parser(path):
         return
     raw = tomllib.loads(path.read_text())
     if "parameter" in raw:                       # a parameter file of the updating stage
-        from modalab.project import load_parameters
+        from modalab.app.project import load_parameters
 
         params, lo, hi = load_parameters(path)
         assert len(params) == len(raw["parameter"])
     else:                                        # a project file (it names a plan and the model)
-        from modalab.project import load_project
+        from modalab.app.project import load_project
 
         proj = load_project(path)
         if proj.plan_path is not None:
@@ -45,7 +45,7 @@ def test_every_shipped_toml_passes_its_parser(path):
 
 
 def test_demo_data_copies_match_the_examples():
-    for p in (ROOT / "modalab/demo_data/demo_project").glob("*"):
+    for p in (ROOT / "modalab/app/demo_data/demo_project").glob("*"):
         twin = ROOT / "examples/demo_project" / p.name
         assert twin.exists() and twin.read_bytes() == p.read_bytes(), p.name
 

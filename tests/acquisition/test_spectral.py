@@ -1,7 +1,7 @@
 """FRF estimators: hand-derivable array cases, then hits of a known structure against its exact FRF.
 
 The structure tests synthesise each hit exactly: the continuous Fourier transform of a half-sine
-force times the exact FRF of :class:`modalab.structure.Structure` (its ModalModel), band-limited
+force times the exact FRF of :class:`modalab.core.structure.Structure` (its ModalModel), band-limited
 by an identical zero-phase anti-alias filter on every channel (as a DAQ's filters are matched),
 inverse-transformed on a grid 8x longer than the record (no wrap-around) and truncated to the record.
 """
@@ -14,11 +14,11 @@ from acquisition.spectral import (CrossSpectra, SpectralAverager, coherence, cro
                                   estimate_frf_roving, group_by_reference, h1, h2, hv, multiple_coherence,
                                   quantity_from_unit)
 from acquisition.windows import ExponentialWindow, ForceWindow, correct_damping
-from modalab.dof import Dof, parse_dofs
-from modalab.errors import ModalabError, ModalabValueError, ShapeError
-from modalab.records import TimeRecord
-from modalab.structure import Structure
-from modalab.units import G
+from modalab.core.dof import Dof, parse_dofs
+from modalab.core.errors import ModalabError, ModalabValueError, ShapeError
+from modalab.core.records import TimeRecord
+from modalab.core.structure import Structure
+from modalab.core.units import G
 
 
 # ------------------------------------------------------------------------------------------ synthesis

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from acquisition.store import HitStore
-from modalab.errors import StoreError
-from modalab.records import TimeRecord
+from modalab.core.errors import StoreError
+from modalab.core.records import TimeRecord
 
 
 def rec(seed=0):

@@ -4,7 +4,7 @@ import pytest
 
 from acquisition.windows import (ExponentialWindow, ForceWindow, beta_from_end_level, correct_damping, correct_poles,
                                  exponential_window, force_window)
-from modalab.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError
 
 
 class TestForceWindow:

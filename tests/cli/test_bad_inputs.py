@@ -3,7 +3,7 @@
 The corpus is made from small valid files of each kind (raw hits, FRFs, modes UFF and JSON, a bulk-data deck,
 a project file): truncated at 10, 50 and 99 % and in the middle of a line, random bytes, empty, a file of the
 wrong type and a folder.  Commands run in-process through ``main([...])``; the broken-pipe case needs a real
-pipe and runs ``python -m modalab.cli`` in a subprocess.
+pipe and runs ``python -m modalab.app.cli`` in a subprocess.
 """
 import os
 import shutil
@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from modalab.cli import main
-from modalab.modes import ModeSet
+from modalab.app.cli import main
+from modalab.core.modes import ModeSet
 
 ROOT = Path(__file__).resolve().parents[2]
 VARIANTS = ("cut10", "cut50", "cut99", "midline", "random", "empty", "wrongtype", "folder")
@@ -155,7 +155,7 @@ def test_force_replaces_an_output_atomically_with_the_umask(good, tmp_path, caps
 
 def test_a_failed_write_leaves_the_old_output(good, tmp_path, monkeypatch):
     """An exception while writing: the temporary file is removed and the previous output is untouched."""
-    from modalab import uff
+    from modalab.core import uff
 
     out = tmp_path / "frf.uff"
     out.write_bytes(b"previous")
@@ -164,7 +164,7 @@ def test_a_failed_write_leaves_the_old_output(good, tmp_path, monkeypatch):
     def boom(*a, **k):
         raise RuntimeError("disk full")
 
-    monkeypatch.setattr("modalab._uff_core.format_58", boom)
+    monkeypatch.setattr("modalab.core._uff_core.format_58", boom)
     monkeypatch.setattr(uff, "format_58", boom)
     with pytest.raises(RuntimeError):
         uff.write_frf(out, frf)
@@ -172,9 +172,9 @@ def test_a_failed_write_leaves_the_old_output(good, tmp_path, monkeypatch):
 
 
 def test_writers_never_replace_a_protected_input(good, tmp_path):
-    from modalab import uff
-    from modalab._output import protect
-    from modalab.errors import OutputError
+    from modalab.core import uff
+    from modalab.core._output import protect
+    from modalab.core.errors import OutputError
 
     p = tmp_path / "in.uff"
     shutil.copy(good["frf"], p)
@@ -191,7 +191,7 @@ def test_writers_never_replace_a_protected_input(good, tmp_path):
 def test_info_into_a_closed_pipe_is_quiet(good):
     """``modalab info x.uff | head -1``: no BrokenPipeError traceback."""
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    code = ("import sys; from modalab.cli import main; sys.exit(main(sys.argv[1:]))")
+    code = ("import sys; from modalab.app.cli import main; sys.exit(main(sys.argv[1:]))")
     p1 = subprocess.Popen([sys.executable, "-c", code, "info", str(good["hits"])], stdout=subprocess.PIPE,
                           stderr=subprocess.PIPE, env=env)
     p1.stdout.readline()

@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from modalab import uff
-from modalab.cli import main
-from modalab.outputs import validate
+from modalab.core import uff
+from modalab.app.cli import main
+from modalab.app.outputs import validate
 
 CASES = Path(__file__).resolve().parents[2] / "examples" / "concealed"
 

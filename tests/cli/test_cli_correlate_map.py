@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from modalab.cli import main
+from modalab.app.cli import main
 
 
 @pytest.fixture(scope="module")
@@ -22,7 +22,7 @@ def case(tmp_path_factory):
     # renumber the test nodes 1..n, as a lab would; coordinates of the grids they sit on
     nodes = sorted({x.node for x in dofs})
     ren = {g: k + 1 for k, g in enumerate(nodes)}
-    from modalab.modes import ModeSet
+    from modalab.core.modes import ModeSet
     t2 = ModeSet(freq_hz=test.freq_hz, shapes=test.shapes, dofs=[f"{ren[x.node]}+Z" for x in dofs])
     t2.to_uff(d / "nogeo.uff")
     t2.coordinates = {ren[g]: tuple(nominal.nodes[g].xyz) for g in nodes}

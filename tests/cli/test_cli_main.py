@@ -4,9 +4,9 @@ import json
 import numpy as np
 import pytest
 
-from modalab.cli import build_parser, main
-from modalab.frf import FRF
-from modalab.outputs import validate
+from modalab.app.cli import build_parser, main
+from modalab.core.frf import FRF
+from modalab.app.outputs import validate
 
 
 @pytest.fixture(scope="module")
@@ -34,8 +34,8 @@ def test_help_lists_every_command(capsys):
 def test_sim_shows_progress_and_exports_the_model_it_simulated(tmp_path, capsys):
     from hardware_sim.demo import demo_structure
 
-    from modalab.project import load_parameters
-    from modalab.stages import load_model
+    from modalab.app.project import load_parameters
+    from modalab.app.stages import load_model
 
     assert main(["sim", "-o", str(tmp_path / "h.uff"), "--points", "1+Z", "19+Z", "--hits", "1", "--samples", "2048",
                  "--no-plot", "--export-model", str(tmp_path / "m")]) == 0
@@ -84,7 +84,7 @@ def test_identify_cli(hits, tmp_path, capsys):
     modes_path = tmp_path / "modes.uff"
     assert main(["identify", str(frf_path), "--band", "10", "300", "-o", str(modes_path),
                  "--json", str(tmp_path / "m.json"), "--plots", str(tmp_path / "p")]) == 0
-    from modalab.modes import ModeSet
+    from modalab.core.modes import ModeSet
 
     m = ModeSet.from_uff(modes_path)
     # demo structure elastic modes observable from fuselage/wing-tip points in 10-300 Hz
@@ -118,7 +118,7 @@ def test_the_cli_limits_blas_threads(monkeypatch, tmp_path):
 
     import threadpoolctl
 
-    from modalab import cli
+    from modalab.app import cli
 
     limits, seen = [], []
 
@@ -157,7 +157,7 @@ def test_stage_progress_is_a_bar_on_a_terminal_and_lines_otherwise():
 
     from rich.console import Console
 
-    from modalab._cli_run import _StageProgress
+    from modalab.app._cli_run import _StageProgress
 
     def feed(console):
         p = _StageProgress(console=console)

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from modalab.cli import main
+from modalab.app.cli import main
 
 
 @pytest.fixture(scope="module")
@@ -56,7 +56,7 @@ def test_update_cli_recovers_parameters_and_writes_deck(case, capsys):
     after = max(abs(p["freq_error_pct"]) for p in s["correlation_after"]["pairs"])
     assert after < 0.1 < before
     # the exported deck re-imports with the updated frequencies
-    from modalab.pipeline import load_model
+    from modalab.app.pipeline import load_model
 
     upd = load_model(out / "updated.bdf").modes(20)
     f = upd.freq_hz[upd.freq_hz > 1.0][:test.n_modes]

@@ -32,7 +32,7 @@ def test_plan_example_is_valid():
 
 
 def test_parameter_example_loads(tmp_path):
-    from modalab.pipeline import load_params
+    from modalab.app.pipeline import load_params
     from updating.models.garteur import garteur_model
 
     (tmp_path / "p.toml").write_text(_blocks("toml")[1])
@@ -54,8 +54,8 @@ def _commands_in_practice() -> list:
 
 def test_commands_in_practice_run_as_written(tmp_path, monkeypatch, capsys):
     """Every line, in order, in a folder holding only a clone's examples/ (in-process: main() per line)."""
-    from modalab.cli import main
-    from modalab.outputs import validate
+    from modalab.app.cli import main
+    from modalab.app.outputs import validate
 
     shutil.copytree(ROOT / "examples", tmp_path / "examples")
     monkeypatch.chdir(tmp_path)

@@ -2,8 +2,8 @@
 import pytest
 from hypothesis import given, strategies as st
 
-from modalab.dof import Dof, locate, parse_dofs
-from modalab.errors import DofError, ModalabError
+from modalab.core.dof import Dof, locate, parse_dofs
+from modalab.core.errors import DofError, ModalabError
 
 
 class TestParse:

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from modalab.errors import DofError, ModalabValueError, ShapeError
-from modalab.frf import FRF, concat
+from modalab.core.errors import DofError, ModalabValueError, ShapeError
+from modalab.core.frf import FRF, concat
 
 
 def make(n_out=3, n_in=2, n=16, seed=0):

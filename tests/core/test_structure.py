@@ -4,8 +4,8 @@ import pytest
 import scipy.sparse as sp
 from hypothesis import given, settings, strategies as st
 
-from modalab.errors import ModalabValueError, ShapeError
-from modalab.structure import Structure
+from modalab.core.errors import ModalabValueError, ShapeError
+from modalab.core.structure import Structure
 
 
 def chain(n, k=1e4, m=1.0, ground=True):

@@ -1,4 +1,4 @@
-"""Unit tests of modalab.uff with hand-built tiny universal files.
+"""Unit tests of modalab.core.uff with hand-built tiny universal files.
 
 The ASCII files below are written by hand from the UFF dataset 58 description
 (SDRL "Universal Dataset Number 58", records 1-12; record 6 is
@@ -11,9 +11,9 @@ import pytest
 
 import pyuff
 from modalab import FRF, ModeSet, TimeRecord
-from modalab.errors import UffError
-from modalab.units import G
-from modalab import uff
+from modalab.core.errors import UffError
+from modalab.core.units import G
+from modalab.core import uff
 
 
 # ----------------------------------------------------------------------------- hand-built files
@@ -343,7 +343,7 @@ class TestFrfIO:
         assert [int(h.split()[4]) for h in heads] == [10 * 16, 10 * 8]   # complex FRF, real coherence
 
     def test_unknown_label_requested(self, tmp_path):
-        from modalab.errors import DofError
+        from modalab.core.errors import DofError
         p = tmp_path / "f.uff"
         uff.write_frf(p, _frf())
         with pytest.raises(DofError, match="99\\+Z"):

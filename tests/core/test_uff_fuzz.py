@@ -1,6 +1,6 @@
 """Fuzz the universal-file readers: truncated, corrupted and mislabelled files.
 
-Every reader must either raise :class:`modalab.errors.UffError` or return a
+Every reader must either raise :class:`modalab.core.errors.UffError` or return a
 complete result: truncations give the original result or an error; corrupted
 or mislabelled files give an error or a result of the original structure
 (same FRF matrix shape, same hits and channels, same number of nodes and
@@ -17,8 +17,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from modalab import FRF, ModeSet, TimeRecord
-from modalab.errors import UffError
-from modalab import uff
+from modalab.core.errors import UffError
+from modalab.core import uff
 
 FUZZ = dict(max_examples=int(os.environ.get('UFF_FUZZ_EXAMPLES', 120)), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 import pyuff
 
-from modalab import uff
-from modalab.cli import info_table, main
-from modalab.errors import UffError
-from modalab.frf import FRF
-from modalab.modes import ModeSet
-from modalab.records import TimeRecord
+from modalab.core import uff
+from modalab.app.cli import info_table, main
+from modalab.core.errors import UffError
+from modalab.core.frf import FRF
+from modalab.core.modes import ModeSet
+from modalab.core.records import TimeRecord
 
 
 def _frf_set(resp, rdir, ref, fdir, y, *, spec=12, units="m/s^2", ref_node=None, func_type=4, x=None):
@@ -305,7 +305,7 @@ def test_info_table_of_frfs_has_no_python_reprs(tmp_path, capsys):
 
 
 def test_modes_json_of_identify_is_read_and_damage_is_named(tmp_path):
-    from modalab.errors import ModalabValueError
+    from modalab.core.errors import ModalabValueError
 
     m = ModeSet(freq_hz=[4.0, 8.0], damping=[0.01, 0.03], shapes=[[1.0, 0.5], [0.2, -1.0]], dofs=["1+Z", "2+Y"])
     p = tmp_path / "identify.json"

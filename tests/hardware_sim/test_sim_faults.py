@@ -5,7 +5,7 @@ from dataclasses import replace
 
 from hardware_sim import ChannelSetup, FaultConfig, Hammer, SimulatedLab, demo_channels, demo_lab, demo_setup
 from hardware_sim.demo import demo_structure
-from modalab.errors import DaqError, DaqTimeoutError, DeviceLostError, ModalabValueError
+from modalab.core.errors import DaqError, DaqTimeoutError, DeviceLostError, ModalabValueError
 
 
 def pulses_in(force, frac=0.1):

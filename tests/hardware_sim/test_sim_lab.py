@@ -15,10 +15,10 @@ from hypothesis import given, settings, strategies as st
 
 from hardware_sim import (AcquisitionSetup, ChannelSetup, FaultConfig, Hammer, SimulatedLab, demo_lab, demo_setup,
                           demo_structure, simulate_roving_test)
-from modalab.dof import Dof, locate
-from modalab.errors import DaqError, DaqTimeoutError, DofError, ModalabValueError
-from modalab.records import TimeRecord
-from modalab.structure import Structure
+from modalab.core.dof import Dof, locate
+from modalab.core.errors import DaqError, DaqTimeoutError, DofError, ModalabValueError
+from modalab.core.records import TimeRecord
+from modalab.core.structure import Structure
 
 
 def laplace_accelerance(mm, s, responses, references):
@@ -355,7 +355,7 @@ class TestDaqApi:
         assert np.allclose(a.force, b.force) and np.allclose(a.response, -b.response, atol=1e-4)
 
     def test_configure_from_modalab_daqconfig(self):
-        daqconfig = pytest.importorskip("modalab.daqconfig")
+        daqconfig = pytest.importorskip("modalab.core.daqconfig")
         chans = [daqconfig.ChannelConfig("ai0", "4+Z", "force", 2.25e-3, 2000.0, highpass_hz=1.0),
                  daqconfig.ChannelConfig("ai1", "19+Z", "response", 0.0102, 400.0)]
         acq = daqconfig.AcquisitionConfig(sample_rate_hz=1024.0, n_samples=2048, pretrigger_samples=64,

@@ -12,7 +12,7 @@ from hypothesis import given, settings, strategies as st
 from hardware_sim import (AcquisitionSetup, ChannelSetup, Hammer, SimulatedLab, antialias_response, half_sine,
                           half_sine_spectrum, iepe_highpass, quantization_step, quantize,
                           synthesis_taper)
-from modalab.structure import Structure
+from modalab.core.structure import Structure
 
 
 def one_dof(f_hz=1700.0, zeta=0.01, m=1.0, dof="1+Z"):

@@ -9,8 +9,8 @@ import numpy as np
 
 from identification import identify
 from identification.synthetic import modal_system
-from modalab.cli import main
-from modalab.frf import FRF
+from modalab.app.cli import main
+from modalab.core.frf import FRF
 
 
 def _e13(v):

@@ -12,7 +12,7 @@ import pytest
 
 from identification import (PolyMAX, identify, load_selection_file, mac_vectors, modal_system, noisy_frf)
 from identification.synthetic import TEN_MODES_DAMPING, TEN_MODES_HZ
-from modalab.modes import ModeSet
+from modalab.core.modes import ModeSet
 
 FREQ = np.linspace(0.25, 1000.0, 4000)
 

@@ -4,7 +4,7 @@ import pytest
 
 from identification import (driving_points, lsfd, mcf, modal_system, modes_from_poles, mov, mpc, mpd,
                             plot_automac, plot_synthesis, refine_poles, frf_correlation, synthesis_error)
-from modalab.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError
 
 FN = np.array([35.0, 80.0, 150.0, 260.0])
 ZETA = np.array([0.02, 0.01, 0.015, 0.01])

@@ -11,7 +11,7 @@ import pytest
 from identification import PolyMAX, identify, modal_system
 from identification.lsfd import frf_noise_variance, pole_uncertainty, window_corrected_covariance
 from identification.stabilisation import pole_freq_damping
-from modalab.errors import ModalabValueError, ShapeError
+from modalab.core.errors import ModalabValueError, ShapeError
 
 FN = np.array([40.0, 95.0, 170.0])          # well separated
 ZETA = np.array([0.015, 0.010, 0.020])

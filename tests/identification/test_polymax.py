@@ -4,7 +4,7 @@ import pytest
 
 from identification import PolyMAX, frequency_weights, modal_system, poles_at_order, reduced_normal_matrix
 from identification.stabilisation import mac_vectors
-from modalab.errors import ModalabValueError, NotFittedError
+from modalab.core.errors import ModalabValueError, NotFittedError
 
 
 def _brute_reduced(H, w, theta, p):

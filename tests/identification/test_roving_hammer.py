@@ -13,9 +13,9 @@ import pytest
 
 from identification import identify
 from identification.api import resolve_window, roving_hammer_layout
-from modalab.cli import main
-from modalab.errors import ModalabValueError
-from modalab.frf import FRF
+from modalab.app.cli import main
+from modalab.core.errors import ModalabValueError
+from modalab.core.frf import FRF
 from roving_lab import ACCEL_POINTS, BETA, PAIR, SINGLE, roving_hammer_export
 
 

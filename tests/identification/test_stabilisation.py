@@ -6,7 +6,7 @@ import pytest
 
 from identification import (PolyMAX, SelectionOptions, StabilisationCriteria, auto_select, load_selection_file,
                             modal_system, plot_stabilisation, select_frequencies, select_poles, stabilise)
-from modalab.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError
 
 
 def _pole(f, z):

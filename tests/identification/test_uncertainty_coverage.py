@@ -14,7 +14,7 @@ Deterministic: fixed seeds, one BLAS thread (tests/conftest.py).
 import numpy as np
 
 from identification import identify
-from modalab.frf import FRF
+from modalab.core.frf import FRF
 from roving_lab import roving_hammer_export
 
 SEEDS = range(101, 117, 2)

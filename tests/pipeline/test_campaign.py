@@ -7,10 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from modalab import uff
-from modalab.campaign import CampaignError, identify_many, run_many
-from modalab.errors import ModalabValueError
-from modalab.stages import IdentifyOptions
+from modalab.core import uff
+from modalab.app.campaign import CampaignError, identify_many, run_many
+from modalab.core.errors import ModalabValueError
+from modalab.app.stages import IdentifyOptions
 
 
 def _eigs(seed: int) -> list:

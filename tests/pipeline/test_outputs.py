@@ -1,4 +1,4 @@
-"""The application's one writer (:mod:`modalab.outputs`): umask permissions, atomic replace, shipped schemas."""
+"""The application's one writer (:mod:`modalab.app.outputs`): umask permissions, atomic replace, shipped schemas."""
 from __future__ import annotations
 
 import json
@@ -8,7 +8,7 @@ import stat
 import numpy as np
 import pytest
 
-from modalab import outputs
+from modalab.app import outputs
 
 
 @pytest.mark.parametrize("mask", [0o022, 0o077, 0o002])

@@ -16,9 +16,9 @@ import subprocess
 import numpy as np
 import pytest
 
-from modalab import uff
-from modalab.frf import FRF
-from modalab.report import (build_report, plot_coherence_map, plot_convergence, plot_frf_overlays,
+from modalab.core import uff
+from modalab.core.frf import FRF
+from modalab.app.report import (build_report, plot_coherence_map, plot_convergence, plot_frf_overlays,
                             plot_mci_maps)
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")

@@ -18,10 +18,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from modalab.demo_project import DEMO_FILES, _ERRORS, DEMO_PARAMETERS, demo_project_dir, run_demo
-from modalab.errors import PlanError
-from modalab.project import STAGES, load_project
-from modalab.run import Manifest, content_hash, run_project, sha256_file
+from modalab.app.demo_project import DEMO_FILES, _ERRORS, DEMO_PARAMETERS, demo_project_dir, run_demo
+from modalab.core.errors import PlanError
+from modalab.app.project import STAGES, load_project
+from modalab.app.run import Manifest, content_hash, run_project, sha256_file
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -45,7 +45,7 @@ def _hit_times(out: Path) -> list:
 def demo(tmp_path_factory):
     out = tmp_path_factory.mktemp("demo_run")
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", MPLBACKEND="Agg")
-    code = f"from modalab.demo_project import run_demo; run_demo({str(out)!r}, quick=True)"
+    code = f"from modalab.app.demo_project import run_demo; run_demo({str(out)!r}, quick=True)"
     proc = subprocess.Popen([sys.executable, "-c", code], cwd=REPO, env=env, stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE)
     t_end = time.time() + 240
@@ -99,7 +99,7 @@ def test_end_to_end_artifacts_and_manifest(demo):
 
 def test_outputs_follow_the_schemas(demo):
     """modes.json, diagnosis.json and summary.json of a run follow the schemas shipped with the package."""
-    from modalab.outputs import validate
+    from modalab.app.outputs import validate
 
     out = demo["out"]
     validate(out / "identify" / "modes.json", "modes")
@@ -145,7 +145,7 @@ def test_diagnosis_finds_the_concealed_effect(demo):
 
 def test_run_command_prints_a_line_per_stage_and_the_report_last(demo, capsys):
     """Not on a terminal: one line per stage with its time (or 'up to date'), the report's path last."""
-    from modalab.cli import main
+    from modalab.app.cli import main
 
     proj = demo["out"] / "project" / "project_quick.toml"
     assert main(["run", str(proj), "-o", str(demo["out"]), "--from", "report"]) == 0
@@ -162,7 +162,7 @@ def test_ctrl_c_during_run_says_how_to_continue(tmp_path):
     for name in DEMO_FILES:
         (d / name).write_bytes((demo_project_dir() / name).read_bytes())
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", MPLBACKEND="Agg", PYTHONPATH=str(REPO))
-    proc = subprocess.Popen([sys.executable, "-m", "modalab.cli", "run", "project_quick.toml", "-o", "out"], cwd=d,
+    proc = subprocess.Popen([sys.executable, "-m", "modalab.app.cli", "run", "project_quick.toml", "-o", "out"], cwd=d,
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     t_end = time.time() + 240
@@ -186,7 +186,7 @@ def test_rerun_skips_and_changed_options_rerun_only_dependents(demo, tmp_path):
     assert all(v == "skipped" for v in r.status.values()), r.status
     assert time.perf_counter() - t0 < 20
     # the command line: the same, with per-stage progress
-    from modalab.cli import main
+    from modalab.app.cli import main
 
     assert main(["run", str(proj_path), "-o", str(out), "--quiet"]) == 0
     # a report option: only the report
@@ -252,7 +252,7 @@ def test_examples_folder_matches_the_packaged_demo():
 # ----------------------------------------------------------------------------- manifest unit tests
 from hypothesis import given, settings, strategies as st  # noqa: E402
 
-from modalab.run import stage_key  # noqa: E402
+from modalab.app.run import stage_key  # noqa: E402
 
 _opt_values = st.one_of(st.integers(-5, 5), st.floats(-10, 10, allow_nan=False), st.text(max_size=5), st.booleans(),
                         st.none(), st.lists(st.floats(0, 100, allow_nan=False), max_size=3))
@@ -286,8 +286,8 @@ def test_manifest_atomic_entries_and_output_hashes(tmp_path):
     f.write_bytes(b"dat4")
     assert not Manifest(out).valid("frf", "k1")
     # in a UFF the writer's time stamp does not count, the data does
-    from modalab import uff
-    from modalab.frf import FRF
+    from modalab.core import uff
+    from modalab.core.frf import FRF
 
     frf = FRF(freq_hz=np.linspace(1, 10, 10), H=np.ones((1, 1, 10), complex), responses=["1+Z"], references=["1+Z"])
     uff.write_frf(f, frf)

@@ -1,9 +1,9 @@
 """The correlate/update stage options: one set of defaults for the CLI and ``modalab run``."""
 import pytest
 
-from modalab.errors import PlanError
-from modalab.project import STAGE_OPTIONS
-from modalab.stages import CorrelateOptions, UpdateOptions
+from modalab.core.errors import PlanError
+from modalab.app.project import STAGE_OPTIONS
+from modalab.app.stages import CorrelateOptions, UpdateOptions
 
 
 def test_run_correlate_defaults_are_the_cli_defaults():

@@ -6,9 +6,9 @@ from hypothesis.extra.numpy import arrays
 from acquisition.reciprocity import reciprocity_check
 from acquisition.spectral import coherence, estimate_frf, estimate_frf_roving, h1, hv, multiple_coherence
 from acquisition.windows import ExponentialWindow, ForceWindow
-from modalab.dof import Dof, parse_dofs
-from modalab.records import TimeRecord
-from modalab.structure import Structure
+from modalab.core.dof import Dof, parse_dofs
+from modalab.core.records import TimeRecord
+from modalab.core.structure import Structure
 
 finite = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False, width=64)
 

@@ -1,4 +1,4 @@
-"""Hypothesis round-trips of modalab.uff: write -> read returns the same DOFs, signs, units and values.
+"""Hypothesis round-trips of modalab.core.uff: write -> read returns the same DOFs, signs, units and values.
 
 Binary 58b and dataset 2411 / exact dataset 55 are bit-exact; ASCII 58 carries
 13 significant digits (the standard's E20.12 field), checked to rtol 1e-11.
@@ -10,7 +10,7 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from modalab import FRF, Dof, ModeSet, TimeRecord
-from modalab import uff
+from modalab.core import uff
 
 SETTINGS = dict(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

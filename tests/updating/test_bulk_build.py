@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from modalab.errors import BulkDataError
+from modalab.core.errors import BulkDataError
 from updating.bulk import build_model, read_bdf, section_properties, to_bulk, write_bdf
 from updating.fe import GeneralSection, ParametricFEModel, RectangularSection, TubeSection
 from updating.models.garteur import garteur_model, garteur_parameters

@@ -4,7 +4,7 @@ import math
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from modalab.errors import BulkDataError
+from modalab.core.errors import BulkDataError
 from updating.bulk.fields import (Line, card_lines, fits_exactly, format_real, group_cards, parse_int,
                                   parse_real)
 

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from modalab.errors import BulkDataError
+from modalab.core.errors import BulkDataError
 from updating.bulk import read_bdf
 from updating.bulk import cards as C
 

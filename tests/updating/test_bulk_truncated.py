@@ -4,7 +4,7 @@ import warnings
 
 import pytest
 
-from modalab.errors import BulkDataError
+from modalab.core.errors import BulkDataError
 from updating.bulk import read_bdf
 
 DECK = ("GRID    1               0.      0.      0.\n"

@@ -4,7 +4,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from modalab.errors import BulkDataError
+from modalab.core.errors import BulkDataError
 from updating.bulk import build_model, read_bdf, to_bulk, write_bdf
 from updating.bulk import cards as C
 from updating.fe import Beam2D, BeamProperty, Damper, LumpedMass, Parameter, ParametricFEModel, Spring

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-from modalab.errors import DofError, ModalabValueError, ShapeError
-from modalab.frf import FRF
-from modalab.modes import ModeSet
-from modalab.structure import Structure
+from modalab.core.errors import DofError, ModalabValueError, ShapeError
+from modalab.core.frf import FRF
+from modalab.core.modes import ModeSet
+from modalab.core.structure import Structure
 from updating.correlation import (automac, comac, correlate, cross_orthogonality, csac, csf, ecomac, frac,
                                   frequency_table, frf_correlation, mac, macx, mixed_orthogonality, msf)
 from updating.dofmap import DofMap

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from modalab.frf import FRF
+from modalab.core.frf import FRF
 from updating.diagnosis import diagnose, frf_data, frf_error, model_frf
 from updating.models.beams import thesis_beam, thesis_beam_parameters
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from modalab import uff
+from modalab.core import uff
 from updating.bulk import build_model, read_bdf
 from updating.diagnosis import diagnose
 

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from modalab import uff
-from modalab.stages import FRFOptions, SimOptions, frf, sim
+from modalab.core import uff
+from modalab.app.stages import FRFOptions, SimOptions, frf, sim
 from updating.bulk import build_model, read_bdf
 from updating.diagnosis import diagnose
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from modalab.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError
 from updating.diagnosis.workflow import promote_measured
 from updating.models.garteur import garteur_model
 

@@ -12,7 +12,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from modalab.frf import FRF
+from modalab.core.frf import FRF
 from updating.diagnosis import diagnose
 from updating.fe import LumpedMass, Spring
 from updating.models.garteur import garteur_model

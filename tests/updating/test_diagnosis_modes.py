@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from modalab.modes import ModeSet
+from modalab.core.modes import ModeSet
 from updating.diagnosis import diagnose_modes
 
 HERE = Path(__file__).resolve().parents[2] / "examples" / "concealed"
@@ -61,7 +61,7 @@ def test_modes_only_control_finds_nothing(noise):
 
 
 def test_modes_only_needs_two_modes():
-    from modalab.errors import ModalabValueError
+    from modalab.core.errors import ModalabValueError
     nominal, test, rec, cat = _truth_modes("bar_control", n_modes=1)
     with pytest.raises(ModalabValueError, match="at least 2"):
         diagnose_modes(nominal, test)
@@ -151,8 +151,8 @@ def test_lumped_deck_nominal_modes_leave_everything_at_nominal(tmp_path, monkeyp
 
 
 def test_a_failing_eigen_solution_is_an_error_not_a_residual():
-    from modalab.errors import ModalabValueError
-    from modalab.structure import Structure
+    from modalab.core.errors import ModalabValueError
+    from modalab.core.structure import Structure
     from updating.diagnosis.modes import ModalResidual
     r = ModalResidual(ModeSet(freq_hz=[0.3, 0.5], shapes=np.ones((3, 2)), dofs=["1+Z", "2+Z", "3+Z"]))
     for k2, msg in ((-100.0, "not positive definite"), (-1.0, "not positive semi-definite")):
@@ -215,7 +215,7 @@ def test_map_puts_test_nodes_on_model_grids(tmp_path):
 
 
 def test_cli_map_needs_modes_alone(tmp_path):
-    from modalab.cli import main
+    from modalab.app.cli import main
     _gvt_deck(tmp_path / "gvt.bdf")
     (tmp_path / "m.uff").write_text("")
     (tmp_path / "map.csv").write_text("1+Z,1+Z\n")
@@ -227,7 +227,7 @@ def test_cli_diagnose_modes_with_map(tmp_path, capsys):
     # test nodes 1001.. (sensor numbering) on model grids 1..: without the map the run refuses, with it the
     # nominal model's own modes leave nothing to find
     import json
-    from modalab.cli import main
+    from modalab.app.cli import main
     model = _gvt_deck(tmp_path / "gvt.bdf")
     ms = model.modes(16)
     z = ms.select_dofs([f"{i + 1}+Z" for i in range(_NEL + 1)])

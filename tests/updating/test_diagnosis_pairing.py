@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from modalab.modes import ModeSet
+from modalab.core.modes import ModeSet
 from updating.correlation import analysis_modes
 from updating.diagnosis.workflow import _mode_metrics, _rigid_fraction, pair_test_modes
 from updating.models.garteur import garteur_model

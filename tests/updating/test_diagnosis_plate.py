@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from modalab.frf import FRF
+from modalab.core.frf import FRF
 from updating.diagnosis import diagnose
 from updating.fe import FEModel, LumpedMass, Material, Quad4, ShellProperty, Spring
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from modalab.errors import ModalabValueError
-from modalab.frf import FRF
+from modalab.core.errors import ModalabValueError
+from modalab.core.frf import FRF
 from updating.diagnosis import build_library, fit_frf, frf_data
 from updating.diagnosis.fit import Prior
 from updating.diagnosis.workflow import Finding, _describe, parameter_priors
@@ -79,8 +79,8 @@ def test_a_plain_finding_is_not_ambiguous():
 
 
 def test_priors_from_the_parameter_file(tmp_path):
-    from modalab._cli_diagnose import _priors
-    from modalab.errors import PlanError
+    from modalab.app._cli_diagnose import _priors
+    from modalab.core.errors import PlanError
     f = tmp_path / "p.toml"
     f.write_text('[[parameter]]\nname = "E_a"\nfield = "E"\nproperties = ["a"]\nprior = 0.2\n\n'
                  '[[parameter]]\nname = "rho_a"\nfield = "rho"\nproperties = ["a"]\nprior = "free"\n\n'

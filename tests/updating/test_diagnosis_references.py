@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from modalab.errors import ModalabValueError
-from modalab.frf import FRF
+from modalab.core.errors import ModalabValueError
+from modalab.core.frf import FRF
 from updating.diagnosis import Diagnoser, DiagnoserConfig, diagnose, frf_data
 from updating.diagnosis.workflow import _split
 from updating.models.beams import thesis_beam, thesis_beam_parameters

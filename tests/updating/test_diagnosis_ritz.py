@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from modalab.frf import FRF
+from modalab.core.frf import FRF
 from updating.diagnosis.dynamics import solve_columns
 from updating.diagnosis.fit import fit_frf, frf_data, frf_error, model_frf
 from updating.diagnosis.frfscreen import frf_screen

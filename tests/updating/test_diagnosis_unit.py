@@ -149,7 +149,7 @@ CONTROL = Path(__file__).resolve().parents[2] / "examples" / "concealed" / "bar_
 
 
 def test_diagnosis_json_schema(tmp_path):
-    from modalab import uff
+    from modalab.core import uff
     from updating.bulk import build_model, read_bdf
     from updating.diagnosis import diagnose
     model = build_model(read_bdf(CONTROL / "nominal.bdf"))
@@ -212,7 +212,7 @@ def test_sparse_and_dense_paths_agree(seed):
 
 
 def test_kinds_are_a_validated_set():
-    from modalab.errors import ModalabValueError
+    from modalab.core.errors import ModalabValueError
     from updating.diagnosis.library import KINDS, validate_kinds
     assert validate_kinds(None) == frozenset(KINDS)
     assert validate_kinds(["added_mass", "ground_spring"]) == {"added_mass", "ground_spring"}
@@ -223,7 +223,7 @@ def test_kinds_are_a_validated_set():
 
 
 def test_cli_kinds_typo_is_an_error_suggesting_the_closest(capsys):
-    from modalab.cli import main
+    from modalab.app.cli import main
     rc = main(["diagnose", str(CONTROL / "nominal.bdf"), str(CONTROL / "measured.uff"), "--kinds", "joint_flex"])
     err = capsys.readouterr().err
     assert rc == 2 and "did you mean 'joint_flexibility'" in err and "Traceback" not in err

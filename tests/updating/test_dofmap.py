@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from modalab.errors import DofError, ModalabValueError, ShapeError
-from modalab.modes import ModeSet
+from modalab.core.errors import DofError, ModalabValueError, ShapeError
+from modalab.core.modes import ModeSet
 from updating.dofmap import DofMap, as_dofmap, observation_matrix
 
 MODEL = [f"{n}+{d}" for n in (12, 13, 14) for d in ("X", "Y", "Z", "RX", "RY", "RZ")]

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from modalab.errors import ModalabValueError
-from modalab.modes import ModeSet
+from modalab.core.errors import ModalabValueError
+from modalab.core.modes import ModeSet
 from updating.cases import six_dof_pair
 from updating.eigendynamic import EigendynamicConstraint, eigendynamic_system, kidder_expand
 from updating.sensitivity import solve_modes

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from modalab.errors import ModalabValueError, NotFittedError
-from modalab.modes import ModeSet
+from modalab.core.errors import ModalabValueError, NotFittedError
+from modalab.core.modes import ModeSet
 from updating.eigensensitivity import (InverseEigensensitivity, choose_alpha, identifiability,
                                        sensitivity_ranking, sensitivity_system)
 from updating.parametric import Derivative, MatrixModel

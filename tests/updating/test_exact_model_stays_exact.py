@@ -5,7 +5,7 @@ does not have.  The noise is drawn with fixed seeds (deterministic)."""
 import numpy as np
 import pytest
 
-from modalab.modes import ModeSet
+from modalab.core.modes import ModeSet
 from updating.correlation import correlate
 
 

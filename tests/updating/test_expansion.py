@@ -4,9 +4,9 @@ import pytest
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from modalab.errors import DofError, ModalabValueError
-from modalab.modes import ModeSet
-from modalab.structure import Structure
+from modalab.core.errors import DofError, ModalabValueError
+from modalab.core.modes import ModeSet
+from modalab.core.structure import Structure
 from updating.dofmap import DofMap
 from updating.expansion import kidder, modal_expand, serep_expand
 

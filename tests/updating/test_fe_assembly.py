@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from modalab.dof import Dof
+from modalab.core.dof import Dof
 from updating.fe import (Beam3D, BeamProperty, FEModel, LumpedMass, Material, RectangularSection, Spring,
                          eigen_dense)
 from updating.models.beams import beam_model

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-from modalab.errors import BulkDataError, ModalabValueError
+from modalab.core.errors import BulkDataError, ModalabValueError
 from updating.bulk import build_model, read_bdf, to_bulk, write_bdf
 from updating.fe import (BeamProperty, FEModel, GeneralSection, Material, Parameter, ParametricFEModel, Quad4,
                          ShellProperty, Tria3, eigen_sparse)

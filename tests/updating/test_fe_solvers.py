@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from modalab.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError
 from updating.fe import (Damper, LumpedMass, ModalDampingTable, eigen_dense, eigen_sparse, frf_direct, frf_modal,
                          modes_of, rayleigh_coefficients)
 from updating.fe.solvers import cholmod_available, normal_modes

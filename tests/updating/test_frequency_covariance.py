@@ -4,7 +4,7 @@ import logging
 
 import numpy as np
 
-from modalab.modes import ModeSet
+from modalab.core.modes import ModeSet
 from updating.eigensensitivity import InverseEigensensitivity
 from updating.parametric import Derivative, MatrixModel
 from updating.sensitivity import solve_modes

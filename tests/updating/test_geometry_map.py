@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from modalab.errors import DofError
+from modalab.core.errors import DofError
 from updating.dofmap import geometry_map
 
 # model grids: a 5 x 3 plate of 0.1 m pitch; test nodes numbered 1.. at some of them
@@ -75,7 +75,7 @@ def test_missing_test_coordinates_are_named():
 
 
 def test_mode_file_carries_its_geometry(tmp_path):
-    from modalab.modes import ModeSet
+    from modalab.core.modes import ModeSet
 
     ms = ModeSet(freq_hz=[3.0, 7.0], shapes=np.eye(2), dofs=["1+Z", "2+Z"], coordinates={1: (0.0, 0.1, 0.2),
                                                                                         2: (1.5, -0.25, 0.0)})

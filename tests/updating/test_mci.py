@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from modalab.errors import ModalabValueError, NotFittedError
-from modalab.frf import FRF
+from modalab.core.errors import ModalabValueError, NotFittedError
+from modalab.core.frf import FRF
 from updating.cases import six_dof_model, six_dof_pair
 from updating.mci import (MCIUpdater, condensation_operator, dynamic_expansion, lsq_expansion, mci, mci_system,
                           measured_columns, miscorrelation, plot_convergence, plot_mci_map, plot_mci_maxima)

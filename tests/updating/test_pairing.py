@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from modalab.errors import ModalabValueError, ShapeError
-from modalab.modes import ModeSet
+from modalab.core.errors import ModalabValueError, ShapeError
+from modalab.core.modes import ModeSet
 from updating.correlation import correlate, pair_modes
 
 # Thesis Table 10 (scaled aircraft): experimental mode -> original FE mode, frequencies in Hz

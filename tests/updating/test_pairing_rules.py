@@ -8,8 +8,8 @@ not on the FE code: sin(nπx/L) sampled at 7 equally spaced sensors aliases mode
 import numpy as np
 import pytest
 
-from modalab.errors import ModalabValueError
-from modalab.modes import ModeSet
+from modalab.core.errors import ModalabValueError
+from modalab.core.modes import ModeSet
 from updating.correlation import correlate, observability, pair_modes
 
 L = 1.0

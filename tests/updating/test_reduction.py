@@ -4,8 +4,8 @@ import pytest
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from modalab.errors import ConvergenceError, DofError, ModalabValueError
-from modalab.structure import Structure
+from modalab.core.errors import ConvergenceError, DofError, ModalabValueError
+from modalab.core.structure import Structure
 from updating.reduction import guyan, irs, master_indices, reduce, serep
 
 

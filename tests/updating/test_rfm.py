@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from modalab.errors import ModalabValueError, NotFittedError
+from modalab.core.errors import ModalabValueError, NotFittedError
 from updating.cases import six_dof_model
 from updating.mci import dynamic_expansion, measured_columns
 from updating.parametric import Derivative, MatrixModel

@@ -17,7 +17,7 @@ Achieved accuracies (stated as the tolerances below; maximum relative parameter 
 import numpy as np
 import pytest
 
-from modalab.frf import FRF
+from modalab.core.frf import FRF
 
 from updating.cases import SIX_DOF_TABLE, six_dof_model, six_dof_pair
 from updating.direct import (direct_matrix_updating, error_matrix, lagrange_mass, lagrange_mass_stiffness,

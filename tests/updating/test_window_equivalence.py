@@ -11,7 +11,7 @@ tolerances below.
 import numpy as np
 import pytest
 
-from modalab.frf import FRF
+from modalab.core.frf import FRF
 from updating.cases import six_dof_model
 from updating.eigensensitivity import InverseEigensensitivity
 from updating.mci import MCIUpdater, measured_columns, mci

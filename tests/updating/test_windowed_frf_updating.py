@@ -4,7 +4,7 @@ e^{-βt} has the transform H(s + β)), written here from the matrices directly, 
 import numpy as np
 import pytest
 
-from modalab.frf import FRF
+from modalab.core.frf import FRF
 from updating.cases import six_dof_model
 from updating.mci import MCIUpdater, measured_columns
 from updating.rfm import ResponseFunctionMethod

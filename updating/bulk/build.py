@@ -38,7 +38,7 @@ TABDMP1             :class:`~updating.fe.ModalDampingTable` (chosen by ``SDAMPIN
                     only table)
 ==================  =================================================================
 
-Not supported (a :class:`~modalab.errors.BulkDataError` names the card): pin
+Not supported (a :class:`~modalab.core.errors.BulkDataError` names the card): pin
 flags, shell offsets (ZOFFS), material orientation (THETA/MCID ≠ 0), corner thicknesses,
 membrane-only / plane-strain / coupled PSHELL (MID2 blank or −1, MID4), offsets in the element
 system (OFFT 'O'), I12 ≠ 0, tapered PBEAM/PBEAML, PBEAM NSI/CW/M/N terms,
@@ -53,7 +53,7 @@ import re
 
 import numpy as np
 
-from modalab.errors import BulkDataError, ModalabError
+from modalab.core.errors import BulkDataError, ModalabError
 from updating.fe import (Beam3D, BeamProperty, Damper, FEModel, GeneralSection, LumpedMass, Material,
                          ModalDampingTable, Quad4, RectangularSection, Rod, RodProperty, ShellProperty, Spring,
                          Timoshenko3D, Tria3, TubeSection)

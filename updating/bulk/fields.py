@@ -23,7 +23,7 @@ comment; tabs expand to 8-column stops.
 Values: integers ``12``; reals need a decimal point or an exponent letter —
 ``1.``, ``.5``, ``1.-3`` (= 1e-3), ``.5+2`` (= 50), ``7.E3``, ``-1.2D-3``;
 blank fields take the card's default.  Every problem raises
-:class:`modalab.errors.BulkDataError` naming the card, the line and the file.
+:class:`modalab.core.errors.BulkDataError` naming the card, the line and the file.
 """
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ import math
 import re
 from dataclasses import dataclass, field
 
-from modalab.errors import BulkDataError
+from modalab.core.errors import BulkDataError
 
 __all__ = ["Line", "RawCard", "parse_int", "parse_real", "parse_value", "format_value", "format_real",
            "fits_exactly", "Verbatim", "group_cards", "card_lines", "REQUIRED", "BulkDataError"]

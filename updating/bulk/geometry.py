@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from modalab.errors import BulkDataError
+from modalab.core.errors import BulkDataError
 
 __all__ = ["CoordSystem", "BASIC", "resolve_coord"]
 

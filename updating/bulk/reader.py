@@ -16,14 +16,14 @@ ONE logged warning (logger ``updating.bulk.reader``); nothing is dropped silentl
 
 A deck file that is empty, not text, or looks cut short (its last line has no
 line break and there is no ``ENDDATA``; grids but no elements without
-``ENDDATA``) raises :class:`modalab.errors.BulkDataError` naming the file and
+``ENDDATA``) raises :class:`modalab.core.errors.BulkDataError` naming the file and
 line and saying that it looks truncated.
 
 Cross-reference checks (``xref=True``): duplicate grid, element, property,
 material and coordinate-system ids; elements referring to unknown grids,
 properties or materials; grids referring to unknown coordinate systems; SPC,
 RBE2 and CONM2 referring to unknown grids.  Each raises
-:class:`modalab.errors.BulkDataError` naming the card, line and file.
+:class:`modalab.core.errors.BulkDataError` naming the card, line and file.
 """
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from modalab.errors import BulkDataError
+from modalab.core.errors import BulkDataError
 
 from . import cards as C
 from .fields import Line, group_cards
@@ -475,7 +475,7 @@ def read_bdf(source, *, xref: bool = True, base_dir=None, whole_model: bool = Fa
 
 def _msg(e: BulkDataError) -> str:
     """The message of ``e`` without its 'file ..., line ...: ' prefix (to rebuild it with more text)."""
-    from modalab.errors import _where
+    from modalab.core.errors import _where
 
     prefix = _where(("file", e.path), ("line", e.line), ("card", e.card))
     text = str(e)

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from modalab.errors import BulkDataError
+from modalab.core.errors import BulkDataError
 from updating.fe import (Beam3D, BeamProperty, Damper, FEModel, LumpedMass, Material, Quad4,
                          RectangularSection, Rod, RodProperty, ShellProperty, Spring, Timoshenko3D, Tria3,
                          TubeSection)

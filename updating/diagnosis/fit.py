@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.optimize as so
 
-from modalab.dof import locate
-from modalab.errors import ModalabValueError
-from modalab.frf import FRF
+from modalab.core.dof import locate
+from modalab.core.errors import ModalabValueError
+from modalab.core.frf import FRF
 
 from .dynamics import solve_columns
 

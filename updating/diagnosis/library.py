@@ -40,8 +40,8 @@ from typing import Callable
 import numpy as np
 import scipy.sparse as sp
 
-from modalab.dof import DIRECTION_NAMES, Dof
-from modalab.errors import ModalabValueError
+from modalab.core.dof import DIRECTION_NAMES, Dof
+from modalab.core.errors import ModalabValueError
 
 from ..fe import Damper, FEModel, LumpedMass, Parameter, Spring
 from ..fe.assembly import assemble

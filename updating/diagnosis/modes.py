@@ -48,8 +48,8 @@ import scipy.linalg as sla
 import scipy.optimize as so
 import scipy.sparse as sp
 
-from modalab.errors import ModalabValueError
-from modalab.modes import ModeSet
+from modalab.core.errors import ModalabValueError
+from modalab.core.modes import ModeSet
 
 from ..fe import FEModel, ParametricFEModel
 from ..fe.solvers import (DEFAULT_SHIFT_HZ, _drop_mechanisms, eigen_dense, eigen_sparse, factorize,
@@ -252,7 +252,7 @@ class ModalResidual:
 
     def rows(self, structure):
         if self._loc is None or self._loc[0] is not structure.dofs:
-            from modalab.dof import locate
+            from modalab.core.dof import locate
             if self.dofs:
                 mi, ms = locate(structure.dofs, self.dofs, "test-mode DOF")
             else:
@@ -463,7 +463,7 @@ def fit_modal_residual(pmodel, resid: ModalResidual, p_start, *, lower, upper, r
         scale = np.where(np.abs(p0) > 0, np.maximum(np.abs(p0), 1e-12), 1.0)
         if big and (basis is None or attempt > 0):
             st0 = pmodel.structure(p_all)
-            from modalab.dof import parse_dofs
+            from modalab.core.dof import parse_dofs
             where = {(d.node, d.axis): i for i, d in enumerate(st0.dofs)}
             extra = [where[(d.node, d.axis)] for d in parse_dofs(list(cols)) if (d.node, d.axis) in where]
             basis = ModalSubspace(st0, np.concatenate([resid.rows(st0)[0], np.asarray(extra, int)]),
@@ -610,7 +610,7 @@ def _on_independent_dofs(cands, structure) -> list:
     DOF: a spring or mass there acts through the link on the independent node, where it is a candidate
     of its own)."""
     have = {(d.node, d.axis) for d in structure.dofs}
-    from modalab.dof import parse_dofs
+    from modalab.core.dof import parse_dofs
     out = []
     for c in cands:
         ds = parse_dofs(list(c.dofs)) if c.dofs else []
@@ -844,7 +844,7 @@ def modal_force_map(structure, data: FRFData) -> np.ndarray:
     modal force residual: thesis eq. 3.89 with f = 0, unmeasured DOFs expanded by the model), (n_m, n_modes).
     A massless mechanism (``K n = M n = 0``) is constrained at one DOF first, exactly as in the eigen-solvers:
     otherwise the expansion ``Z_ss`` is singular at every frequency."""
-    from modalab.dof import locate
+    from modalab.core.dof import locate
 
     from .dynamics import condensed_residual
     mi, ms = locate(structure.dofs, data.responses, "test-mode DOF")

@@ -30,7 +30,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from modalab.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError
 
 log = logging.getLogger(__name__)
 __all__ = ["RitzBasis"]
@@ -68,7 +68,7 @@ class RitzBasis:
 
     Parameters
     ----------
-    structure : :class:`~modalab.structure.Structure` (K, M, C, D on its constrained DOFs).
+    structure : :class:`~modalab.core.structure.Structure` (K, M, C, D on its constrained DOFs).
     cols : indices of the DOFs whose receptance is needed (measured and reference DOFs).
     f_max_hz : top of the frequency band.
     mode_factor : normal modes up to ``mode_factor × f_max_hz`` are kept (at least ``min_modes``).

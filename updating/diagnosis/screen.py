@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from modalab.dof import locate
+from modalab.core.dof import locate
 
 from .dynamics import condensed_residual
 

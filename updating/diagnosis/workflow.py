@@ -38,9 +38,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from modalab.errors import ModalabError, ModalabValueError
-from modalab.modes import ModeSet
-from modalab.frf import FRF
+from modalab.core.errors import ModalabError, ModalabValueError
+from modalab.core.modes import ModeSet
+from modalab.core.frf import FRF
 
 from ..fe import FEModel, Parameter, ParametricFEModel
 from .fit import RITZ_LIMIT, FRFData, Prior, fit_frf, frf_data, frf_error, model_frf, quick_frf_error
@@ -120,7 +120,7 @@ class Diagnosis:
             from .report import write_figures
             write_figures(self, d)
         if bulk and self.model is not None:
-            from modalab.errors import ModalabError
+            from modalab.core.errors import ModalabError
             try:
                 from ..bulk import write_bdf
                 write_bdf(self.model, d / "augmented.bdf")
@@ -379,7 +379,7 @@ def promote_measured(model: FEModel, dofs) -> FEModel:
     whose dependent node is measured and whose independent node is not is reversed — the same constraint,
     written the other way round, so the measured node keeps its own DOFs.  Returns ``model`` itself when
     nothing needs changing; measured DOFs that stay eliminated are reported by the caller's DOF lookup."""
-    from modalab.dof import parse_dofs
+    from modalab.core.dof import parse_dofs
     measured = {d.node for d in parse_dofs(list(dofs))}
     out = model
     # measured directions are basic: a measured grid with its own displacement system is written in basic
@@ -443,7 +443,7 @@ def _on_model_dofs(model: FEModel, measured: FRF) -> FRF:
 def _dof_stiffness(structure, c) -> float:
     """The diagonal stiffness at a candidate's DOF (at its first node, or its partner across a rigid link;
     else the median over DOFs of the same kind, translational or rotational)."""
-    from modalab.dof import parse_dofs
+    from modalab.core.dof import parse_dofs
     d = parse_dofs(c.dofs)[0] if c.dofs else None
     diag = np.abs(structure.K.diagonal())
     if d is not None:

@@ -35,12 +35,12 @@ Building a model (Python code or the Nastran bulk-data reader)
 
 Using a model
 -------------
-``m.dofs`` → list of :class:`~modalab.dof.Dof` (sorted node, axis; before constraints)
+``m.dofs`` → list of :class:`~modalab.core.dof.Dof` (sorted node, axis; before constraints)
 ``m.assemble()`` → :class:`Matrices` (K, M, C, D sparse CSR on ``m.dofs``)
 ``m.reduction()`` → :class:`Reduction` (``T``, ``dofs`` = independent DOFs, ``expand(x) = T x``)
 ``m.system()`` → :class:`FESystem` (constrained K, M, C, D, ``dofs``, ``reduction``, ``.structure()``)
-``m.structure()`` → :class:`~modalab.structure.Structure` on the constrained DOFs
-``m.modes(n_modes=None, full=True, method="auto", shift=None, solver="auto")`` → :class:`~modalab.modes.ModeSet`
+``m.structure()`` → :class:`~modalab.core.structure.Structure` on the constrained DOFs
+``m.modes(n_modes=None, full=True, method="auto", shift=None, solver="auto")`` → :class:`~modalab.core.modes.ModeSet`
 ``m.frf(freq_hz, responses, references, quantity="accelerance", method="direct"|"modal", n_modes=None)`` → FRF
 
 Solvers (:mod:`updating.fe.solvers`)

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from modalab.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError
 
 from .elements.base import AssemblyContext
 

@@ -21,8 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from modalab.dof import Dof
-from modalab.errors import ModalabValueError
+from modalab.core.dof import Dof
+from modalab.core.errors import ModalabValueError
 
 from .assembly import Matrices, dof_index
 

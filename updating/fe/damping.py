@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from modalab.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError
 
 __all__ = ["ModalDampingTable", "rayleigh_coefficients", "rayleigh", "modal_damping_matrix"]
 

@@ -19,9 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from modalab.dof import Dof
-from modalab.errors import ModalabValueError
-from modalab.structure import Structure
+from modalab.core.dof import Dof
+from modalab.core.errors import ModalabValueError
+from modalab.core.structure import Structure
 
 from .assembly import Matrices, assemble
 from .constraints import RBE2, SPC, Reduction, build_reduction, parse_components
@@ -256,11 +256,11 @@ class FEModel:
         return FESystem(K=m.K, M=m.M, C=m.C, D=m.D, dofs=m.dofs, reduction=red)
 
     def structure(self) -> Structure:
-        """:class:`~modalab.structure.Structure` on the constrained DOFs."""
+        """:class:`~modalab.core.structure.Structure` on the constrained DOFs."""
         return self.system().structure(coords=self.coords(), name=self.name)
 
     def modes(self, n_modes: int | None = None, *, full: bool = True, **kw):
-        """Normal modes as a :class:`~modalab.modes.ModeSet` (see :func:`updating.fe.solvers.normal_modes`).
+        """Normal modes as a :class:`~modalab.core.modes.ModeSet` (see :func:`updating.fe.solvers.normal_modes`).
 
         ``full=True`` maps the shapes back to every model DOF (dependent DOFs
         filled in by the rigid links, constrained DOFs zero).

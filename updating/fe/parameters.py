@@ -49,8 +49,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from modalab.errors import ModalabValueError, ShapeError
-from modalab.structure import Structure
+from modalab.core.errors import ModalabValueError, ShapeError
+from modalab.core.structure import Structure
 from updating.parametric import Derivative
 
 from .assembly import assemble

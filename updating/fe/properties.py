@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from modalab.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError
 
 __all__ = ["Material", "GeneralSection", "RectangularSection", "TubeSection", "CircularSection",
            "BeamProperty", "RodProperty", "ShellProperty", "SECTION_FIELDS"]

@@ -26,7 +26,7 @@ Normal modes solve ``K φ = ω² M φ`` (thesis eq. 2.1 and following):
   100k-DOF frame model, see ``benchmarks/fe_eigen_100k.py``) or, when
   scikit-sparse is importable, CHOLMOD.
 * :func:`normal_modes` picks one; :func:`modes_of` returns a
-  :class:`~modalab.modes.ModeSet` mapped back to all DOFs.
+  :class:`~modalab.core.modes.ModeSet` mapped back to all DOFs.
 
 FRFs (receptance ``H(ω) = (K + iD + iωC − ω²M)⁻¹``, converted to mobility or
 accelerance):
@@ -47,11 +47,11 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from modalab.dof import locate, parse_dofs
-from modalab.errors import ConvergenceError, ModalabValueError
-from modalab.frf import FRF
-from modalab.modes import ModeSet
-from modalab.units import QUANTITY_UNITS, check_quantity
+from modalab.core.dof import locate, parse_dofs
+from modalab.core.errors import ConvergenceError, ModalabValueError
+from modalab.core.frf import FRF
+from modalab.core.modes import ModeSet
+from modalab.core.units import QUANTITY_UNITS, check_quantity
 
 log = logging.getLogger(__name__)
 

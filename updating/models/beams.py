@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from modalab.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError
 from updating.fe import (Beam2D, Beam3D, BeamProperty, FEModel, Material, Parameter, Spring,
                          Timoshenko3D, TubeSection)
 

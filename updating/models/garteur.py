@@ -68,7 +68,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from modalab.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError
 from updating.fe import (Beam3D, BeamProperty, FEModel, LumpedMass, Material, Parameter, RectangularSection,
                          Spring, Timoshenko3D)
 

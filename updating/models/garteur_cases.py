@@ -40,8 +40,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from modalab.dof import Dof
-from modalab.modes import ModeSet
+from modalab.core.dof import Dof
+from modalab.core.modes import ModeSet
 from updating.fe import FEModel, ParametricFEModel
 
 from .garteur import garteur_model, garteur_parameters

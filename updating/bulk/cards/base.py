@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from modalab.errors import BulkDataError
+from modalab.core.errors import BulkDataError
 
 from ..fields import RawCard
 

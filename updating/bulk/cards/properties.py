@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from modalab.errors import BulkDataError
+from modalab.core.errors import BulkDataError
 
 from .base import Card, _meta
 from .sections import SECTION_DIMS, section_properties

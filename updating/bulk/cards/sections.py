@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from modalab.errors import BulkDataError
+from modalab.core.errors import BulkDataError
 
 
 __all__ = ["SECTION_DIMS", "SUPPORTED_SECTIONS", "section_properties"]

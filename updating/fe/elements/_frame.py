@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from modalab.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError
 
 
 def local_axes(x1, x2, v, eid) -> tuple[float, np.ndarray]:

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from modalab.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError
 
 from ._frame import _axial, _bending_K, _bending_M
 from .base import Element, ElementMatrices

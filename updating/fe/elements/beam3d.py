@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from modalab.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError
 
 from ._frame import frame_local_batch, local_axes, local_axes_batch, to_basic
 from .base import Element, ElementMatrices, six_dofs

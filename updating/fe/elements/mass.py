@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from modalab.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError
 
 from .base import Element, ElementMatrices
 

@@ -64,7 +64,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from modalab.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError
 
 from .base import Element, ElementMatrices, six_dofs
 from ..properties import ShellProperty

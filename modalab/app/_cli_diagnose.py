@@ -1,0 +1,75 @@
+"""``modalab diagnose``: locate what an FE model leaves out, name the physics, model it, prove it."""
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def _options(a):
+    from updating.diagnosis.library import validate_kinds
+
+    from modalab.app.stages import DiagnoseOptions
+
+    kinds = tuple(sorted(validate_kinds(a.kinds))) if a.kinds else None   # a misspelt kind fails before any file is read
+    return DiagnoseOptions(parameters=a.params, criterion=a.criterion, dofmap=getattr(a, "map", None), kinds=kinds)
+
+
+def cmd_diagnose(a):
+    from modalab.app.cli import _print
+    from modalab.app.stages import diagnose
+
+    measured = list(a.measured or [])
+    if len(measured) > 1:
+        return _campaign(a, measured)
+    r = diagnose(a.model, frf_path=measured[0] if measured else None, modes_path=a.modes, opts=_options(a),
+                 json_path=a.json, out_dir=a.report, progress=lambda m: _print(m))
+    dd = r.result.to_dict()
+    for f in dd["findings"]:
+        vals = ", ".join(f"{v['name']} = {v['value']:.4g} {v['unit']} (± {v['std']:.2g})" for v in f["values"])
+        _print(f"FINDING {f['physics']} at {', '.join(f['dofs']) or f['nodes']}: {vals}")
+    for name, blk in dd["fit"].items():
+        _print(f"{name:>16}: " + ", ".join(f"{k} = {v:.4g}" for k, v in blk.items() if isinstance(v, (int, float))))
+    _print("")
+    _print(dd["statement"])
+    return 0
+
+
+def _campaign(a, measured):
+    """Several FRF files (configurations of a GVT): one folder per input under --report, in parallel."""
+    from modalab.app.campaign import diagnose_many
+    from modalab.app.cli import _print
+    from modalab.core.errors import PlanError
+
+    if not a.report or a.json or a.modes:
+        raise PlanError("with several MEASURED files give --report FOLDER (one sub-folder with diagnosis.json "
+                        "per input; --json and --modes name one file and are for a single input)")
+    res = diagnose_many(a.model, measured, a.report, _options(a), dask=a.dask, workers=a.workers)
+    for r in res:
+        _print(f"{r['input']}: {len(r['findings'])} finding(s) -> {r['out']}")
+        _print(f"  {r['statement']}")
+    _print(f"campaign index: {Path(a.report) / 'campaign.json'}")
+    return 0
+
+
+def register(sub):
+    from updating.diagnosis.library import KINDS
+
+    s = sub.add_parser("diagnose", help="locate and name the physics a model leaves out, model it, prove it")
+    s.add_argument("model", help="nominal FE model as Nastran bulk data (.bdf)")
+    s.add_argument("measured", nargs="*", help="measured FRFs with coherence (UFF 58); node ids and directions "
+                                               "refer to the model's grids and basic system; several files = a "
+                                               "campaign (needs --report)")
+    s.add_argument("--modes", help="identified modes (UFF 55 or JSON); alone, a modes-only diagnosis")
+    s.add_argument("--map", help="with --modes alone: DOF map file (TOML/CSV, as for correlate: test DOF -> model "
+                                 "DOF with sign); default: test node ids are model grid ids")
+    s.add_argument("--params", help="TOML [[parameter]] file (default: E and rho multipliers per property group)")
+    s.add_argument("--json", help="diagnosis.json path (schema in the README)")
+    s.add_argument("--report", help="folder for diagnosis.json, MCI maps, FRF overlays and the augmented model (diagnosed.bdf); "
+                                     "with several inputs, one sub-folder per input")
+    s.add_argument("--criterion", choices=("auto", "mci", "frf"), default="auto",
+                   help="how candidate physics is judged with the parameters re-fitted: by the MCI (thesis 3.2.4) "
+                        "or by the FRF fit; auto: MCI up to 200 DOFs, FRF fit above (default: auto)")
+    s.add_argument("--dask", help="address of an existing Dask scheduler (tcp://host:port) for campaigns")
+    s.add_argument("--workers", type=int, help="local processes for campaigns (default: the number of CPUs)")
+    s.add_argument("--kinds", nargs="+", metavar="KIND",
+                   help="kinds of missing physics to consider, among " + ", ".join(KINDS) + " (default: all)")
+    s.set_defaults(func=cmd_diagnose)

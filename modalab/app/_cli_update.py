@@ -1,0 +1,62 @@
+"""``modalab update``: update an FE model to test modes or FRFs.
+
+Methods: ``eigensensitivity`` (thesis 3.2.2, modes), ``eigendynamic`` (3.2.1, modes), ``mci`` (3.2.4, FRFs),
+``rfm`` (3.2.3, FRFs) and the direct methods (3.1, modes; they change the matrices, not parameters):
+``direct-lagrange``, ``direct-error-matrix``, ``direct-matrix``, ``direct-mixing``.
+"""
+from __future__ import annotations
+
+
+def cmd_update(a):
+    from modalab.app.cli import _print
+    from modalab.app._cli_correlate import correlate_options
+    from modalab.app.stages import UpdateOptions, update
+
+    opts = UpdateOptions(method=a.method, parameters=a.params, max_iter=a.max_iter,
+                         bands=[tuple(b) for b in a.band] if a.band else None, freq_sigma=a.freq_sigma,
+                         correlation=correlate_options(a))
+    s = update(a.model, a.output, opts, modes_path=a.modes, frf_path=a.frf).result
+    if s.get("note"):
+        _print(s["note"])
+    if "table_before" in s:
+        _print("before:\n" + s["table_before"])
+        _print("after:\n" + s["table_after"])
+    for name, v in (s.get("parameters") or {}).items():
+        sd = "" if v["std"] is None else f" ± {v['std']:.3g}"
+        _print(f"{name:>20}: {v['initial']:.4g} -> {v['updated']:.4g}{sd}")
+    idf = s.get("identifiability")
+    if idf:
+        un = ", ".join(f"{k} ± {v:.3g}" if v is not None else f"{k} ± inf"
+                       for k, v in idf["std_unregularised"].items())
+        _print(f"condition number {idf['condition_number']:.3g}; unregularised std: {un}; frequency weights: "
+               f"{idf['frequency_weights']}")
+        if not idf["identifiable"]:
+            _print("WARNING: the parameters are not identifiable from these data (condition number above 1e3): the "
+                   "regularised ± above reflect the regularisation, not the data")
+    _print(f"results in {a.output}")
+    return 0
+
+
+def register(sub):
+    from modalab.app.stages import UPDATE_METHODS
+
+    s = sub.add_parser("update", help="update an FE model to test modes or FRFs")
+    s.add_argument("model", help="FE model as Nastran bulk data (.bdf)")
+    g = s.add_mutually_exclusive_group(required=True)
+    g.add_argument("--modes", help="test modes (UFF dataset 55 or JSON from 'modalab identify')")
+    g.add_argument("--frf", help="measured FRFs (UFF dataset 58) for mci / rfm")
+    s.add_argument("--method", default="eigensensitivity", choices=UPDATE_METHODS,
+                   help="updating method (default eigensensitivity)")
+    s.add_argument("--params", help="TOML file of [[parameter]] entries (default: E and rho multipliers per "
+                                    "property group)")
+    from modalab.app._cli_correlate import add_map_arguments
+
+    add_map_arguments(s)
+    s.add_argument("--freq-sigma", type=float, nargs="+",
+                   help="relative standard deviation of each test frequency (one value, or one per mode); default: "
+                        "the covariance stored with the modes, else 1 %%")
+    s.add_argument("--band", nargs=2, type=float, action="append", metavar=("LO", "HI"),
+                   help="updating band in Hz for mci/rfm (repeatable)")
+    s.add_argument("--max-iter", type=int, default=30, help="iteration limit (default 30)")
+    s.add_argument("-o", "--output", required=True, help="output folder (updated.bdf, update.json, figures)")
+    s.set_defaults(func=cmd_update)

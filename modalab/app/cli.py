@@ -1,0 +1,645 @@
+"""The ``modalab`` command line.  ``main(args=None)`` parses, builds the options and calls :mod:`modalab.app.stages`.
+
+The user's description (``modalab --help``) is :data:`DESCRIPTION`; each command is registered in
+:func:`build_parser` or in its ``modalab/_cli_<command>.py`` module.
+
+Outputs (:mod:`modalab.core._output`): an output is never written over an input (not even with ``--force``); an
+existing output file is replaced only with ``--force`` (``sim``: ``--overwrite``); files are written to a
+temporary file and renamed, with the user's umask, and what a failed command created is removed.  Bad input
+gives one line ``modalab COMMAND: error: ...`` naming the file (and line) and exit code 2.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import sys
+from pathlib import Path
+
+from modalab.core.errors import ModalabError
+
+log = logging.getLogger("modalab")
+DESCRIPTION = """\
+Modal testing from the bench to an updated FE model: impact tests on NI hardware or the simulated lab,
+FRFs with coherence, PolyMAX identification, correlation with a Nastran model, model updating, and a
+diagnosis of the physics the model leaves out.
+
+Try it without hardware:   modalab demo -o modalab-demo     (then open modalab-demo/report/report.html)
+Step by step:              modalab sim -> frf -> identify -> correlate -> update -> diagnose
+A whole project:           modalab run project.toml -o out  (reruns only what changed)
+
+Every command has --help, e.g. modalab identify --help."""
+UNITS_EPILOG = ("Units: SI throughout - frequencies in Hz, times in s, forces in N, accelerations in m/s^2, "
+                "stiffness in N/m (N*m/rad), masses in kg; DOFs as node+direction, e.g. 12+Z.")
+
+
+# ----------------------------------------------------------------------------- helpers
+def _print(*a):
+    print(*a, flush=True)
+
+
+class _CountProgress:
+    """Progress of a counted task (``progress(done, total, item)``): a bar on a terminal, else a line per item."""
+
+    def __init__(self, what: str):
+        self.what = what
+        self._bar = None
+        self._task = None
+
+    def __enter__(self):
+        return self
+
+    def __call__(self, done, total, item=""):
+        if self._bar is None:
+            from rich.console import Console
+
+            console = Console(stderr=False, highlight=False)
+            if console.is_terminal:
+                from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+                self._bar = Progress(TextColumn(f"[bold]{self.what}"), BarColumn(), MofNCompleteColumn(),
+                                     TextColumn("{task.description}"), TimeElapsedColumn(), console=console,
+                                     transient=True)
+                self._bar.start()
+                self._task = self._bar.add_task("", total=total)
+            else:
+                self._bar = False
+        if self._bar:
+            self._bar.update(self._task, completed=done, description=str(item))
+        else:
+            _print(f"  {self.what} {done}/{total}" + (f": {item}" if item else ""))
+
+    def __exit__(self, *exc):
+        if self._bar:
+            self._bar.stop()
+        return False
+
+
+class _TerminalPrompter:
+    """A key per choice at the terminal (the key, then Enter); end of input answers 'q' (quit, resume later)."""
+
+    def __call__(self, prompt: str, choices: str) -> str:
+        while True:
+            try:
+                a = input(prompt + " ").strip().lower()[:1]
+            except EOFError:
+                return "q"
+            if a in choices:
+                return a
+            _print(f"  please answer one of: {', '.join(choices)}")
+
+
+class _ConsoleObserver:
+    """Prints per-hit checks, decisions and a progress bar; previews per point.
+
+    A live plot window (force trace, force spectrum, running FRF and coherence, updated every hit) opens
+    only when ``live_plot`` is asked for *and* a display exists (``DISPLAY`` set) and an interactive
+    matplotlib backend loads; otherwise the last hit and the running FRF of every point are written as
+    PNG files to ``OUT/preview/``.
+    """
+
+    def __init__(self, out_dir: Path, live_plot: bool = False, quiet: bool = False):
+        self.out_dir = Path(out_dir)
+        self.quiet = quiet
+        self.live = bool(live_plot) and bool(os.environ.get("DISPLAY"))
+        self._progress = None
+        self._task = None
+        self._last = None
+        self._fig = None
+
+    def _say(self, msg):
+        if not self.quiet:
+            (self._progress.console.print if self._progress else _print)(msg)
+
+    def _bar(self, n):
+        if self._progress is None and not self.quiet:
+            try:
+                from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+
+                self._progress = Progress(TextColumn("[bold]points"), BarColumn(), MofNCompleteColumn(),
+                                          TextColumn("{task.description}"), transient=False)
+                self._progress.start()
+                self._task = self._progress.add_task("", total=n)
+            except ImportError:  # pragma: no cover
+                self._progress = False
+
+    def point_started(self, index, point, n_points):
+        self._bar(n_points)
+        if self._progress:
+            self._progress.update(self._task, completed=index, description=f"at {point}")
+
+    def _live_update(self, point, rec, running):
+        import numpy as np
+
+        try:
+            import matplotlib.pyplot as plt
+
+            if self._fig is None:
+                plt.switch_backend("TkAgg")
+                plt.ion()
+                self._fig, self._axes = plt.subplots(3, 1, figsize=(8, 8))
+            a1, a2, a3 = self._axes
+            for ax in self._axes:
+                ax.clear()
+            i = rec.force_channels[0]
+            a1.plot(rec.t * 1e3, rec.data[i], lw=0.8)
+            a1.set_xlabel("time [ms]")
+            a1.set_ylabel("force [N]")
+            F = np.abs(np.fft.rfft(rec.data[i])) / rec.sample_rate_hz
+            a2.semilogy(np.fft.rfftfreq(rec.n_samples, rec.dt), np.maximum(F, 1e-12), lw=0.8)
+            a2.set_ylabel("|F| [N s]")
+            if running is not None:
+                for r in range(running.n_out):
+                    a3.semilogy(running.freq_hz, np.abs(running.H[r, 0]), lw=0.8, label=str(running.responses[r]))
+                ac = a3.twinx()
+                ac.plot(running.freq_hz, running.coherence[:, 0].T, lw=0.5, alpha=0.5)
+                ac.set_ylim(0, 1.05)
+                a3.set_xlabel("frequency [Hz]")
+            self._fig.suptitle(f"hit at {point}")
+            plt.pause(0.001)
+        except Exception as e:  # noqa: BLE001 - no window: fall back to preview files
+            log.warning("live plot unavailable (%s); writing preview PNGs instead", e)
+            self.live = False
+
+    def hit(self, index, point, rec, report, running):
+        self._last = (rec, running)
+        if self.live:
+            self._live_update(point, rec, running)
+        peak = max(abs(rec.data[i]).max() for i in rec.force_channels)
+        flags = ", ".join(report.flags) if report.flags else "ok"
+        self._say(f"  hit at {point}: peak force {peak:.1f} N, checks: {flags}")
+
+    def decided(self, index, point, hit_id, decision, reasons):
+        if decision != "candidate" or reasons:
+            self._say(f"    hit {hit_id}: {decision}" + (f" ({', '.join(reasons)})" if reasons else ""))
+
+    def point_finished(self, index, point, summary):
+        if self._last is not None and not self.live:
+            rec, running = self._last
+            try:
+                from modalab.core.plots import plot_frf, plot_hit
+
+                prev = self.out_dir / "preview"
+                prev.mkdir(parents=True, exist_ok=True)
+                plot_hit(rec, path=prev / f"point_{index:03d}_hit.png", title=f"last hit at {point}")
+                if running is not None:
+                    plot_frf(running, path=prev / f"point_{index:03d}_frf.png", title=f"running H1 at {point}")
+            except Exception as e:  # noqa: BLE001 - a preview must never stop acquisition
+                log.warning("preview figure failed: %s", e)
+        self._last = None
+        coh = "" if summary.mean_coherence != summary.mean_coherence else f", mean coherence {summary.mean_coherence:.3f}"
+        self._say(f"  point {point}: {summary.accepted} accepted, {len(summary.rejected)} rejected{coh}"
+                  + (f" (skipped: {summary.skipped})" if summary.skipped else ""))
+        if self._progress:
+            self._progress.update(self._task, completed=index + 1)
+
+    def message(self, text):
+        self._say("  " + text)
+
+    def close(self):
+        if self._progress:
+            self._progress.stop()
+            self._progress = None
+
+
+# ----------------------------------------------------------------------------- commands
+def cmd_sim(a):
+    from modalab.app.stages import SimOptions, sim
+
+    opts = SimOptions(structure=a.structure, points=a.points, references=a.references, hits=a.hits, seed=a.seed,
+                      force_n=a.force, double_hit_probability=a.double_hits, sample_rate_hz=a.sample_rate,
+                      n_samples=a.samples)
+    with _CountProgress("points") as bar:
+        r = sim(a.output, opts, plot_dir=None if a.no_plot else Path(a.output).parent,
+                export_model=a.export_model, progress=bar)
+    recs = r.result
+    _print(f"wrote {len(recs)} hits x {recs[0].n_channels} channels to {r.files[0]}")
+    if a.export_model:
+        _print("FE model and updating parameters of the structure: "
+               + ", ".join(str(p) for p in r.files if Path(p).suffix in (".bdf", ".toml")))
+    return 0
+
+
+def cmd_frf(a):
+    from modalab.app.stages import FRFOptions, frf
+
+    plot = None if a.no_plot else (a.plot or str(Path(a.output).with_suffix(".png")))
+    opts = FRFOptions(estimator=a.estimator, force_fraction=a.force_window, exp_end_level=a.exp_end,
+                      exp_beta=a.exp_beta, reciprocity=not a.no_reciprocity, bandwidth_hz=a.bandwidth)
+    r = frf(a.input, a.output, opts, plot_path=plot)
+    H = r.result
+    _print(f"wrote {H.n_out} x {H.n_in} {H.metadata.get('estimator', a.estimator)} FRFs "
+           f"({H.n_freq} lines, {H.freq_hz[0]:g}-{H.freq_hz[-1]:g} Hz) with coherence to {r.files[0]}")
+    if plot:
+        _print(f"plot: {plot}")
+    return 0
+
+
+def _join(items, limit: int = 16) -> str:
+    items = [str(x) for x in items]
+    more = f" ... ({len(items)} in all)" if len(items) > limit else ""
+    return ", ".join(items[:limit]) + more if items else "none"
+
+
+def _g(v) -> str:
+    return "-" if v is None else f"{v:g}"
+
+
+def _value(v) -> str:
+    """A metadata value as text (no Python reprs: no None, no brackets or quotes)."""
+    if v is None:
+        return "none"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        return f"{v:g}"
+    if isinstance(v, (list, tuple)):
+        return _join([_value(x) for x in v], 8)
+    if isinstance(v, dict):
+        return "(" + ", ".join(f"{k} {_value(x)}" for k, x in v.items()) + ")"
+    return str(v)
+
+
+def info_table(info: dict) -> list[str]:
+    """The lines ``modalab info`` prints for a :func:`modalab.core.uff.info` dict."""
+    rows = [("file", info["path"]),
+            ("datasets", ", ".join(f"{k} x{v}" for k, v in info["datasets"].items())),
+            ("functions", ", ".join(f"{k} x{v}" for k, v in info["functions"].items()))]
+    if not info["functions"]:
+        rows.pop()
+    f = info.get("frf")
+    if f:
+        rows += [("FRFs", f"{len(f['responses'])} responses x {len(f['references'])} references, {f['quantity']} "
+                          f"[{f['units']}], {'with' if f['coherence'] else 'without'} coherence"),
+                 ("responses", _join(f["responses"])),
+                 ("references", _join(f["references"]) + (
+                     "  (more references than responses: a roving-hammer export; by reciprocity the "
+                     "accelerometers can be the references)" if len(f["references"]) > len(f["responses"]) else "")),
+                 ("frequency", f"{_g(f['freq_range_hz'][0])} - {_g(f['freq_range_hz'][1])} Hz, {f['lines']} lines"
+                               + (f", df {_g(f['df_hz'])} Hz" if f["df_hz"] else " (uneven)"))]
+        meta = f.get("metadata") or {}
+        if meta:
+            rows.append(("processing", ", ".join(f"{k.replace('_', ' ')} {_value(v)}" for k, v in meta.items())))
+    h = info.get("hits")
+    if h:
+        rows += [("hits", f"{h['hits']} hits, {_join(h['channels_per_hit'])} channels each"),
+                 ("hammer points", _join(f"{d} ({n} hit{'s' if n != 1 else ''})"
+                                         for d, n in h["hits_per_point"].items())),
+                 ("responses", _join(h["responses"])),
+                 ("sampling", f"{_join(_g(v) for v in h['sample_rate_hz'])} Hz, {_join(h['samples'])} samples, "
+                              f"{_g(h['time_range_s'][0])} to {_g(h['time_range_s'][1])} s"),
+                 ("units", ", ".join(f"{k}: {_join(v)}" for k, v in h["units"].items()))]
+    if info.get("other_functions"):
+        rows.append(("other functions", _join(info["other_functions"])))
+    if "nodes" in info:
+        rows.append(("geometry", f"{info['nodes']} nodes"))
+    if info.get("coordinate_systems"):
+        rows.append(("frames", ", ".join(f"{k}: {v}" for k, v in info["coordinate_systems"].items())
+                     + " (dataset 2420; modes and FRF triads measured in rotated frames are read in the global "
+                       "frame, raw time records in them are refused)"))
+    u = info.get("units")
+    if u:
+        rows.append(("unit system", f"{u['description'] or 'code ' + str(u['code'])}: length x{_g(u['length'])}, "
+                                    f"force x{_g(u['force'])} (dataset 164)"))
+    w = max(len(k) for k, _ in rows)
+    lines = [f"{k:<{w}}  {v}" for k, v in rows]
+    m = info.get("modes")
+    if m:
+        lines.append(f"{'modes':<{w}}  {m['n_modes']} modes "
+                     + (f"on {m['dofs']} DOFs, scaling {m['scaling']}" if m["dofs"] else
+                        "(frequencies and damping only, no shapes)"))
+        cplx = any(r["complex"] for r in m["table"])
+        if cplx:
+            lines.append(f"{'':<{w}}  f_n: undamped natural frequency |lambda|/2pi; f_d: damped, Im(lambda)/2pi")
+            stated = any("header_hz" in r for r in m["table"])
+            lines.append(f"{'':<{w}}  {'mode':>4} {'f_n [Hz]':>11} {'f_d [Hz]':>11} {'zeta [%]':>9}"
+                         + ("  the file's header" if stated else ""))
+        else:
+            lines.append(f"{'':<{w}}  {'mode':>4} {'f [Hz]':>11} {'zeta [%]':>9}")
+        for r in m["table"]:
+            if cplx:
+                fd = r.get("freq_damped_hz", r["freq_hz"])
+                hdr = (f"states {r['header_hz']:g} Hz ({r['header_states']})" if "header_hz" in r else "")
+                lines.append(f"{'':<{w}}  {r['mode']:>4} {r['freq_hz']:>11.4f} {fd:>11.4f} "
+                             f"{100 * r['damping']:>9.3f}  {hdr}".rstrip())
+            else:
+                lines.append(f"{'':<{w}}  {r['mode']:>4} {r['freq_hz']:>11.4f} {100 * r['damping']:>9.3f}")
+    return lines
+
+
+def cmd_info(a):
+    from modalab.core import uff
+
+    info = uff.info(a.file, quantity=getattr(a, "quantity", None))
+    if a.json:
+        _print(json.dumps(info, indent=1, default=str))
+    else:
+        for line in info_table(info):
+            _print(line)
+    return 0
+
+
+def cmd_acquire(a):
+    from modalab.app.pipeline import acquire
+
+    out = Path(a.output)
+    live = bool(getattr(a, "live_plot", False)) or os.environ.get("MODALAB_LIVE_PLOT", "") not in ("", "0")
+    obs = _ConsoleObserver(out, live_plot=live, quiet=a.quiet)
+    prompter = None if a.auto else _TerminalPrompter()
+    resume_cmd = (f"modalab acquire {a.plan} --backend {a.backend} {'--auto ' if a.auto else ''}--resume -o {out}")
+    try:
+        sess, summary, exported = acquire(a.plan, out, backend=a.backend, auto=a.auto, resume=a.resume,
+                                          prompter=prompter, observer=obs, seed=a.seed)
+    except KeyboardInterrupt:
+        obs.close()
+        _print(f"interrupted; every accepted hit is stored. Continue with: {resume_cmd}")
+        return 130
+    finally:
+        obs.close()
+    _print(summary.table())
+    for name, s in summary.range_suggestions.items():
+        _print(f"range suggestion: {name}: peak {s['peak']:g}, range {s['range']:g} -> {s['suggested']:g}")
+    for d in summary.resume:
+        _print(f"on resume: {d}")
+    if summary.stopped:
+        _print(summary.stopped)
+    if exported:
+        _print(f"session complete: {exported}")
+    else:
+        _print(f"session incomplete; continue with: {resume_cmd}")
+    return 0 if summary.complete else 3
+
+
+def cmd_demo(a):
+    from modalab.app._cli_run import run_with_progress
+    from modalab.app.demo_project import run_demo
+
+    out = Path(a.output)
+    again = f"modalab demo -o {out}" + (" --quick" if a.quick else "")
+    return run_with_progress(lambda progress: run_demo(out, quick=a.quick, progress=progress), again)
+
+
+# ----------------------------------------------------------------------------- parser
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="modalab", description=DESCRIPTION,
+                                formatter_class=argparse.RawDescriptionHelpFormatter,
+                                epilog=UNITS_EPILOG)
+    p.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv for debug)")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+
+    s = sub.add_parser("demo", help="simulate the demo structure's hammer test end to end (no hardware)")
+    s.add_argument("-o", "--output", default="modalab-demo", help="output folder (default: modalab-demo)")
+    s.add_argument("--quick", action="store_true", help="fewer points and hits (a smoke test)")
+    s.set_defaults(func=cmd_demo)
+
+    s = sub.add_parser("sim", help="simulate a roving-hammer test into a UFF of raw hits")
+    s.add_argument("-o", "--output", required=True, help="UFF file to write (raw hits, dataset 58 time records)")
+    s.add_argument("--structure", default="demo", help="'demo' or a Nastran bulk-data file (default: demo)")
+    s.add_argument("--points", nargs="+", help="DOFs to hit, e.g. 1+Z 3+Z (default: the demo's points)")
+    s.add_argument("--references", nargs="+", help="accelerometer DOFs (default: the demo's three)")
+    s.add_argument("--hits", type=int, default=3, help="hits per point (default 3)")
+    s.add_argument("--force", type=float, help="nominal peak force in N (default: the hammer's)")
+    s.add_argument("--double-hits", type=float, default=0.0, help="probability of a double hit, 0..1")
+    s.add_argument("--sample-rate", type=float, help="sampling rate in Hz (default 2048)")
+    s.add_argument("--samples", type=int, help="samples per record (default 8192)")
+    s.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    s.add_argument("--no-plot", action="store_true", help="do not write the hit figure")
+    s.add_argument("--export-model", metavar="FOLDER",
+                   help="also write the simulated structure's FE model (FOLDER/model.bdf, Nastran bulk data) and "
+                        "updating parameters (FOLDER/params.toml) for correlate, update and diagnose")
+    s.set_defaults(func=cmd_sim)
+
+    s = sub.add_parser("frf", help="raw hits -> H1 FRFs and coherence")
+    s.add_argument("input", help="UFF with raw hits (dataset 58 time records)")
+    s.add_argument("-o", "--output", required=True, help="UFF to write (FRFs func type 4, coherence func type 6)")
+    s.add_argument("--estimator", default="H1", choices=["H1", "H2", "Hv"], help="FRF estimator (default H1)")
+    s.add_argument("--force-window", type=float, default=0.05,
+                   help="force window length as a fraction of the record after the trigger (default 0.05; 0 = off)")
+    s.add_argument("--exp-end", type=float, help="exponential window: level at the record end, e.g. 0.01 (1 %%)")
+    s.add_argument("--exp-beta", type=float, help="exponential window decay rate beta in 1/s (instead of --exp-end)")
+    s.add_argument("--no-reciprocity", action="store_true",
+                   help="keep hit points as references (default: accelerometers become references)")
+    s.add_argument("--bandwidth", type=float, help="keep lines up to this frequency in Hz (default fs/2.56)")
+    s.add_argument("--plot", help="figure path (default: OUTPUT with .png)")
+    s.add_argument("--no-plot", action="store_true", help="no figure")
+    s.set_defaults(func=cmd_frf)
+
+    s = sub.add_parser("info", help="what a UFF file holds: datasets, DOFs, units, frequency range")
+    s.add_argument("file", help="a universal file (.uff/.unv)")
+    s.add_argument("--json", action="store_true", help="print JSON")
+    s.set_defaults(func=cmd_info)
+
+    s = sub.add_parser("acquire", help="run a test plan (impact test) on NI hardware or the simulated lab")
+    s.add_argument("plan", help="test plan (TOML; see the README)")
+    s.add_argument("--backend", default="sim", choices=["sim", "nidaqmx"], help="DAQ backend (default sim)")
+    s.add_argument("--auto", action="store_true", help="accept automatically: best N of M hits by coherence")
+    s.add_argument("--resume", action="store_true", help="continue an interrupted session in OUTPUT")
+    s.add_argument("-o", "--output", required=True, help="session folder")
+    s.add_argument("--seed", type=int, help="simulated lab seed (sim backend)")
+    s.add_argument("--quiet", action="store_true", help="no per-hit output")
+    s.add_argument("--live-plot", action="store_true",
+                   help="open a live plot window (only with a display; preview PNGs are always written)")
+    s.set_defaults(func=cmd_acquire)
+
+    _add_later_stages(sub)
+    for name in ("sim", "frf", "identify", "correlate", "diagnose"):
+        sp = sub.choices.get(name)
+        if sp is None:
+            continue
+        taken = any("--force" in act.option_strings for act in sp._actions)   # sim: --force is the hammer's
+        sp.add_argument(*(() if taken else ("--force",)), "--overwrite", dest="overwrite", action="store_true",
+                        help="replace existing output files (an input is never replaced)")
+    for name in ("info", "identify", "update", "diagnose"):
+        sp = sub.choices.get(name)
+        if sp is not None and not any("--quantity" in act.option_strings for act in sp._actions):
+            sp.add_argument("--quantity", choices=("accelerance", "mobility", "receptance"),
+                            help="what the FRFs are when the file does not say (ordinate data type 0/1 without "
+                                 "a units label); an error when the file says otherwise")
+    for sp in sub.choices.values():
+        sp.epilog = (sp.epilog + "\n" if sp.epilog else "") + UNITS_EPILOG
+    return p
+
+
+def _add_later_stages(sub):
+    """Stages whose commands live in their own modules (registered when importable)."""
+    for mod in ("identify", "correlate", "update", "diagnose", "run"):
+        try:
+            m = __import__(f"modalab.app._cli_{mod}", fromlist=["register"])
+        except ImportError:
+            continue
+        m.register(sub)
+
+
+def blas_threads(n: int | None = None):
+    """Context limiting the BLAS/OpenMP thread pools of this process to ``n`` threads (default: the
+    ``MODALAB_BLAS_THREADS`` environment variable, else 1), and setting the usual environment variables so
+    that worker processes start the same way.
+
+    modalab's work is many small dense products and solves (line-by-line FRFs, reduced bases, per-candidate
+    fits), for which threaded BLAS costs more than it gains: the demo's diagnosis takes 22 s on one thread and
+    42 s on two on a 2-core machine.  ``threadpoolctl`` (a dependency) does the limiting.
+    """
+    import contextlib
+
+    if n is None:
+        try:
+            n = max(int(os.environ.get("MODALAB_BLAS_THREADS", "1")), 1)
+        except ValueError:
+            raise ModalabError(f"MODALAB_BLAS_THREADS={os.environ['MODALAB_BLAS_THREADS']!r}; expected a "
+                               "positive integer (the number of BLAS threads)") from None
+    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, str(n))
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - a declared dependency; without it threads stay as they are
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=n)
+
+
+#: per command: argparse attributes naming input files, output files and output folders
+_IO = {
+    "sim": (("structure",), ("output",), ()),
+    "frf": (("input",), ("output", "plot"), ()),
+    "info": (("file",), (), ()),
+    "identify": (("inputs", "select"), ("output", "json"), ("plots",)),
+    "correlate": (("model", "modes", "map"), ("json",), ("plots",)),
+    "update": (("model", "modes", "frf", "params", "map"), (), ("output",)),
+    "diagnose": (("model", "measured", "modes", "params", "map"), ("json",), ("report",)),
+    "run": (("project",), (), ("output",)),
+    "demo": ((), (), ("output",)),
+}
+#: files a command writes into its output folder (checked against its inputs)
+_WRITES_INTO = {"update": ("output", ("updated.bdf", "update.json", "updated_matrices.npz", "mac_before.png",
+                                      "mac_after.png", "frequencies_after.png", "convergence.png")),
+                "diagnose": ("report", ("diagnosis.json", "diagnosed.bdf", "mci_maps.png", "frf_overlay.png"))}
+#: commands whose output folder is a resumable session/run: kept on failure unless empty
+_KEEP_FOLDER = {"run", "demo", "acquire"}
+
+
+def _values(a, names):
+    out = []
+    for n in names:
+        v = getattr(a, n, None)
+        if v is None or v is False:
+            continue
+        out += [str(x) for x in v] if isinstance(v, (list, tuple)) else [str(v)]
+    return out
+
+
+def _io_plan(a):
+    """(inputs, output files, output folders) of the parsed command ``a``."""
+    ins, files, folders = _IO.get(a.command, ((), (), ()))
+    inputs = [p for p in _values(a, ins) if os.path.isfile(p)]
+    files, folders = _values(a, files), _values(a, folders)
+    if a.command == "frf" and not a.no_plot and not a.plot:
+        files.append(str(Path(a.output).with_suffix(".png")))
+    if a.command == "identify" and len(a.inputs) > 1:      # a campaign: -o names a folder
+        files.remove(a.output)
+        folders.append(a.output)
+    return inputs, files, folders
+
+
+def _prepare_outputs(a):
+    """Refuse unsafe outputs before any work; returns the outputs this run creates (removed on failure)."""
+    from modalab.core._output import check_outputs
+
+    inputs, files, folders = _io_plan(a)
+    into = {}
+    if a.command in _WRITES_INTO:
+        attr, names = _WRITES_INTO[a.command]
+        into = {getattr(a, attr, None): names}
+    check_outputs(inputs, files, folders, force=bool(getattr(a, "overwrite", False)),
+                  writes_into=into)
+    created = [Path(p) for p in files + folders if not os.path.lexists(p)]
+    return inputs, created
+
+
+def _remove_created(a, created):
+    """After a failure: remove the outputs this run created (a session/run folder, or a campaign's folder
+    holding the results of the inputs that succeeded, only when empty)."""
+    import shutil
+
+    keep = a.command in _KEEP_FOLDER or (a.command == "identify" and len(a.inputs) > 1)
+    for p in created:
+        try:
+            if p.is_dir():
+                if keep:
+                    p.rmdir()             # fails (kept) when not empty
+                else:
+                    shutil.rmtree(p)
+            elif os.path.lexists(p):
+                p.unlink()
+        except OSError:
+            pass
+
+
+def _decode_failure(a, exc) -> str:
+    """A one-line message for a text/JSON decoding error, naming the input file that fails to decode."""
+    ins = _IO.get(a.command, ((),))[0] + (("plan",) if a.command == "acquire" else ())
+    for p in _values(a, ins):
+        if not os.path.isfile(p):
+            continue
+        try:
+            text = Path(p).read_bytes().decode("utf-8")
+        except UnicodeDecodeError as e:
+            return (f"'{p}' is not a text file (byte {e.start} is not UTF-8); expected "
+                    f"{'a ' + Path(p).suffix + ' file' if Path(p).suffix else 'a text file'}. Check the argument")
+        except OSError:
+            continue
+        if isinstance(exc, json.JSONDecodeError) and Path(p).suffix.lower() == ".json":
+            try:
+                json.loads(text)
+            except json.JSONDecodeError as e:
+                return (f"'{p}' is not valid JSON (line {e.lineno}, column {e.colno}: {e.msg}); the file is "
+                        "truncated or not JSON. Write it again (e.g. with 'modalab identify --json')")
+    return f"an input could not be decoded ({exc}); check the file arguments"
+
+
+def main(args=None) -> int:
+    parser = build_parser()
+    a = parser.parse_args(args)
+    level = logging.WARNING - 10 * min(a.verbose, 2)
+    if not logging.getLogger().handlers:
+        logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
+    if not getattr(a, "func", None):
+        parser.print_help()
+        return 2
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    from modalab.core._output import protect
+
+    created = []
+    try:
+        inputs, created = _prepare_outputs(a)
+        from modalab.core.uff import assume_quantity
+
+        with blas_threads(), protect(inputs), assume_quantity(getattr(a, "quantity", None)):
+            return int(a.func(a) or 0)
+    except BrokenPipeError:
+        # the reader of our output went away (``modalab info x.uff | head -3``): stop quietly
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        return 2
+    except KeyboardInterrupt:
+        _remove_created(a, created)
+        print(f"modalab {a.command}: interrupted", file=sys.stderr)
+        return 130
+    except (ModalabError, OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        _remove_created(a, created)
+        if isinstance(e, ModalabError):
+            msg = str(e)
+        elif isinstance(e, (UnicodeDecodeError, json.JSONDecodeError)):
+            msg = _decode_failure(a, e)
+        else:
+            name = e.filename if e.filename is not None else "a file"
+            msg = f"cannot use '{name}': {e.strerror or e}" + (
+                "; expected a file, not a folder" if isinstance(e, IsADirectoryError) else "")
+        print(f"modalab {a.command}: error: {msg}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

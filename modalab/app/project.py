@@ -1,0 +1,211 @@
+"""Project files for ``modalab run``: what to measure, which FE model, what to update (a TOML file).
+
+A project names the test plan (or measured FRFs), the FE model as Nastran bulk data, the updating
+parameters and the options of every stage.  Paths are relative to the project file.  Example (the
+embedded demo, ``examples/demo_project/project.toml``)::
+
+    [project]
+    name = "GARTEUR-like frame"
+
+    [test]
+    plan = "plan.toml"            # acquisition.plan test plan (or: frf = "measured.uff", no acquisition)
+    backend = "sim"               # 'sim' or 'nidaqmx'; --backend overrides
+    # truth = "pkg.module:function"  # sim only: a Python builder of the structure on the bench
+
+    [frf]
+    estimator = "H1"              # H1 | H2 | Hv
+    reciprocity = true            # roving hammer: reorder to the fixed accelerometers as references
+
+    [identify]
+    band_hz = [2.0, 80.0]
+    max_order = 40
+
+    [model]
+    bulk = "nominal.bdf"          # the FE model
+
+    [correlate]
+    mac_min = 0.5
+    # freq_window = 0.35          # largest relative frequency distance of a pair
+    # map = "map.toml"            # test DOF -> model DOF; or geometry = "geometry.uff", or same_ids = true;
+    #                             # default: the test geometry carried by the modes (from the FRF file)
+
+    [update]
+    parameters = "params.toml"    # [[parameter]] name, field, properties|materials|groups|elements, mode
+    max_iter = 20
+
+    [diagnose]
+    max_lines = 120
+    band_hz = [2.0, 80.0]
+
+    [report]
+    frf_dofs = ["218+Z", "200+Z"]  # FRF overlays at these response DOFs
+
+A parameter file::
+
+    [[parameter]]
+    name = "E_wing"
+    field = "E"                   # E, G, rho, h, b, mass, k, ... (updating.fe.parameters)
+    properties = ["wing"]         # selector: properties | materials | groups | elements
+    mode = "factor"               # p multiplies the nominal value ('value': p is the value)
+    lower = 0.5                   # optional bounds (in p units)
+    upper = 2.0
+
+:func:`load_project` validates everything it can without running anything and raises
+:class:`modalab.core.errors.ProjectError`-like :class:`modalab.core.errors.ModalabValueError` subclasses
+(``PlanError``) naming the file, the key, the bad value and what to write instead.
+"""
+from __future__ import annotations
+
+import logging
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from modalab.core.errors import PlanError
+
+log = logging.getLogger(__name__)
+
+__all__ = ["Project", "load_project", "load_parameters", "STAGES", "STAGE_OPTIONS"]
+
+#: the stages of ``modalab run``, in order
+STAGES = ("acquire", "frf", "identify", "correlate", "update", "diagnose", "report")
+
+#: the options each stage accepts (key -> type, default); unknown keys are refused
+STAGE_OPTIONS = {
+    "test": {"plan": (str, None), "frf": (str, None), "backend": (str, "sim"), "truth": (str, None),
+             "seed": (int, None), "hits": (int, None), "points": (list, None)},
+    "frf": {"estimator": (str, "H1"), "reciprocity": (bool, True), "force_fraction": (float, None),
+            "exp_end_level": (float, None)},
+    "identify": {"band_hz": (list, None), "max_order": (int, None), "select": ((str, list), "auto"),
+                 "weighting": (str, None)},
+    "model": {"bulk": (str, None), "n_modes": (int, 20)},
+    # correlate: the same defaults as ``modalab correlate`` (freq_weight None: the pairing rule's 1 with
+    # frequencies; test DOFs mapped by the modes' geometry unless map, geometry or same_ids says otherwise)
+    "correlate": {"mac_min": (float, 0.5), "freq_weight": (float, None), "freq_window": (float, 0.35),
+                  "map": (str, None), "geometry": (str, None), "same_ids": (bool, False)},
+    "update": {"parameters": (str, None), "max_iter": (int, 20), "regularisation": ((str, float), "lcurve"),
+               "use_shapes": (bool, True), "freq_sigma": ((float, list), None), "shape_sigma": (float, 0.05)},
+    "diagnose": {"parameters": (str, None), "max_lines": (int, 120), "band_hz": (list, None),
+                 "max_findings": (int, 3), "max_nfev": (int, 30), "holdout": (str, None), "kinds": (list, None),
+                 "enabled": (bool, True)},
+    "report": {"frf_dofs": (list, None), "title": (str, None)},
+    "project": {"name": (str, "modalab project")},
+}
+
+
+@dataclass
+class Project:
+    """A validated project: ``path`` (the TOML file), ``root`` (its folder) and one options dict per section."""
+
+    path: Path
+    root: Path
+    options: dict = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        return self.options["project"]["name"]
+
+    def section(self, name: str) -> dict:
+        return dict(self.options.get(name, {}))
+
+    def resolve(self, p) -> Path:
+        """A path from the project file, relative to the project folder."""
+        q = Path(p)
+        return q if q.is_absolute() else (self.root / q)
+
+    @property
+    def plan_path(self) -> Path | None:
+        t = self.options["test"]
+        return self.resolve(t["plan"]) if t.get("plan") else None
+
+    @property
+    def frf_path(self) -> Path | None:
+        t = self.options["test"]
+        return self.resolve(t["frf"]) if t.get("frf") else None
+
+    @property
+    def bulk_path(self) -> Path:
+        return self.resolve(self.options["model"]["bulk"])
+
+    @property
+    def parameters_path(self) -> Path | None:
+        p = self.options["update"].get("parameters")
+        return self.resolve(p) if p else None
+
+
+def _check_type(src, section, key, value, kind):
+    kinds = kind if isinstance(kind, tuple) else (kind,)
+    if float in kinds and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if not isinstance(value, kinds) or (bool not in kinds and isinstance(value, bool)):
+        names = " or ".join(k.__name__ for k in kinds)
+        raise PlanError(f"{src}: [{section}] {key} = {value!r}; expected {names}")
+    return value
+
+
+def _read_toml(path: Path, what: str) -> dict:
+    if path.is_dir():
+        raise PlanError(f"{what} {str(path)!r} is a folder; expected a TOML file")
+    if not path.is_file():
+        raise PlanError(f"{what} {str(path)!r} does not exist; check the path (relative paths are taken from the "
+                        "project file's folder)")
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except tomllib.TOMLDecodeError as e:
+        raise PlanError(f"{what} {str(path)!r} is not valid TOML: {e}") from None
+
+
+def load_project(path) -> Project:
+    """Read and validate a project file (see the module docstring); fills in every default."""
+    path = Path(path).resolve()
+    raw = _read_toml(path, "project file")
+    src = str(path)
+    unknown = set(raw) - set(STAGE_OPTIONS)
+    if unknown:
+        raise PlanError(f"{src}: unknown section(s) {sorted(unknown)}; expected some of {sorted(STAGE_OPTIONS)}")
+    opts = {}
+    for sec, spec in STAGE_OPTIONS.items():
+        given = raw.get(sec, {})
+        if not isinstance(given, dict):
+            raise PlanError(f"{src}: [{sec}] must be a table of keys")
+        bad = set(given) - set(spec)
+        if bad:
+            raise PlanError(f"{src}: [{sec}] unknown key(s) {sorted(bad)}; expected some of {sorted(spec)}")
+        o = {}
+        for key, (kind, default) in spec.items():
+            o[key] = _check_type(src, sec, key, given[key], kind) if key in given else default
+        opts[sec] = o
+    proj = Project(path=path, root=path.parent, options=opts)
+    t = opts["test"]
+    if bool(t["plan"]) == bool(t["frf"]):
+        raise PlanError(f"{src}: [test] needs exactly one of plan = 'test plan.toml' (acquire) or "
+                        "frf = 'measured.uff' (FRFs measured already)")
+    if t["backend"] not in ("sim", "nidaqmx"):
+        raise PlanError(f"{src}: [test] backend = {t['backend']!r}; expected 'sim' or 'nidaqmx'")
+    for p in (proj.plan_path, proj.frf_path):
+        if p is not None and not p.is_file():
+            raise PlanError(f"{src}: [test] file {str(p)!r} does not exist")
+    if t["truth"] and ":" not in t["truth"]:
+        raise PlanError(f"{src}: [test] truth = {t['truth']!r}; expected 'package.module:function'")
+    if not opts["model"]["bulk"]:
+        raise PlanError(f"{src}: [model] bulk = 'model.bdf' is missing; the FE model is needed to correlate, "
+                        "update and diagnose")
+    if not proj.bulk_path.is_file():
+        raise PlanError(f"{src}: [model] bulk file {str(proj.bulk_path)!r} does not exist")
+    for sec in ("identify", "diagnose"):
+        b = opts[sec]["band_hz"]
+        if b is not None and (len(b) != 2 or not 0 <= float(b[0]) < float(b[1])):
+            raise PlanError(f"{src}: [{sec}] band_hz = {b!r}; expected [low, high] in Hz with low < high")
+    if proj.parameters_path is not None:
+        load_parameters(proj.parameters_path)          # validate now, not after an hour of acquisition
+    if opts["diagnose"]["parameters"] is None:
+        opts["diagnose"]["parameters"] = opts["update"]["parameters"]
+    return proj
+
+
+def load_parameters(path) -> tuple[list, list, list]:
+    """A parameter file → (parameters, lower, upper bounds): :func:`updating.parameter_file.read_parameter_file`."""
+    from updating.parameter_file import read_parameter_file
+
+    return read_parameter_file(Path(path))

@@ -1,0 +1,136 @@
+"""The diagnose stage: locate, name, model and prove the physics the FE model leaves out."""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+from modalab.core.errors import PlanError
+from modalab.app.outputs import write_json, write_text
+from modalab.app.stages._common import StageResult, _band, _tuple, load_model, load_modes, load_parameters
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class DiagnoseOptions:
+    """``modalab diagnose``: parameter file (default E and density per property), band (Hz), and the engine's
+    settings (None: the engine's default): lines used, findings at most, function evaluations per fit,
+    held-out DOFs, candidate kinds, criterion ('auto', 'mci', 'frf'); ``overlay_dofs``: response DOFs of the
+    FRF overlay figure (default the first four)."""
+
+    parameters: str | None = None
+    band_hz: tuple | None = None
+    max_lines: int | None = None
+    max_findings: int | None = None
+    max_nfev: int | None = None
+    holdout: str | None = None
+    kinds: tuple | None = None
+    criterion: str = "auto"
+    overlay_dofs: tuple | None = None
+    dofmap: str | None = None              # modes-only: DOF map file (test DOF -> model DOF), as for correlate
+
+    def __post_init__(self):
+        for k in ("band_hz", "kinds", "overlay_dofs"):
+            object.__setattr__(self, k, _tuple(getattr(self, k)))
+
+
+def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOptions = DiagnoseOptions(),
+             json_path=None, out_dir=None, updated_model=None, progress: Callable | None = None) -> StageResult:
+    """Locate what the FE model leaves out, name the physics, model it, prove it on held-out FRF rows.
+
+    From measured FRFs (``frf_path``; the identified ``modes_path`` then give the frequency and MAC columns of
+    the fit), or from identified modes alone (a GVT). ``json_path``: ``diagnosis.json`` (schema
+    ``modalab/app/schemas/diagnosis.schema.json``). ``out_dir``: ``diagnosis.json`` there too, the MCI maps, the engine's figures (``figures/``), ``diagnosed.bdf`` (the augmented, updated model) and
+    ``frf_overlay.png`` (measured, nominal, diagnosed and, given ``updated_model``, the parameter-updated model).
+    """
+    from updating.diagnosis import diagnose as _diagnose
+    from updating.diagnosis import diagnose_modes
+
+    if frf_path is None and modes_path is None:
+        raise PlanError("give measured FRFs (MEASURED.uff) or --modes MODES.uff (a GVT's modes alone)")
+    if opts.dofmap is not None and frf_path is not None:
+        raise PlanError("--map applies to a modes-only diagnosis (--modes without MEASURED.uff); remove --map or the "
+                        "measured FRFs")
+    model = load_model(model_path)
+    params = load_parameters(opts.parameters, model)[0] if opts.parameters else None
+    priors = None
+    if opts.parameters:
+        from updating.parameter_file import read_priors
+
+        priors = read_priors(opts.parameters) or None
+    test_modes = load_modes(modes_path) if modes_path else None
+    H = None
+    if frf_path is None:
+        kw = {k: getattr(opts, k) for k in ("max_findings",) if getattr(opts, k) is not None}
+        if opts.kinds:
+            kw["kinds"] = list(opts.kinds)
+        if opts.dofmap is not None:
+            from updating.diagnosis.modes import map_test_modes
+
+            test_modes = map_test_modes(test_modes, model, opts.dofmap)
+        diag = diagnose_modes(model, test_modes, parameters=params, progress=progress, **kw)
+    else:
+        from modalab.core import uff
+
+        H = _band(uff.read_frf(frf_path), opts.band_hz) if opts.band_hz else uff.read_frf(frf_path)
+        kw = {k: getattr(opts, k) for k in ("max_lines", "max_findings", "max_nfev", "holdout")
+              if getattr(opts, k) is not None}
+        if opts.kinds:
+            kw["kinds"] = list(opts.kinds)
+        if priors:
+            kw["priors"] = priors
+        diag = _diagnose(model, H, parameters=params, test_modes=test_modes, criterion=opts.criterion,
+                         progress=progress, **kw)
+    files = []
+    doc = diag.to_dict()
+    for jp in dict.fromkeys(p for p in (json_path, Path(out_dir) / "diagnosis.json" if out_dir is not None else None)
+                            if p is not None):
+        files.append(write_json(jp, doc))
+    if out_dir is not None:
+        files += _diagnosis_files(diag, model, H, Path(out_dir), opts, updated_model)
+    return StageResult(diag, tuple(files), {"statement": diag.statement, "findings": len(diag.findings)})
+
+
+def _diagnosis_files(diag, model, H, d: Path, opts: DiagnoseOptions, updated_model) -> list:
+    from updating.bulk import to_bulk, write_bdf
+    from updating.diagnosis.report import write_figures
+
+    from modalab.app.report import plot_mci_maps
+
+    files = []
+    try:
+        files += [Path(p) for p in write_figures(diag, d / "figures")]
+    except Exception as e:  # noqa: BLE001 - the engine's own figures are extras; the diagnosis stands
+        log.warning("diagnosis figures failed: %s", e)
+    if diag.maps:
+        files.append(plot_mci_maps(diag.maps, d / "mci_maps.png"))
+    files.append(write_text(d / "diagnosed.bdf", write_bdf(to_bulk(diag.model))))
+    if H is not None:
+        files.append(_frf_overlays(H, model, diag, d, opts.overlay_dofs, updated_model))
+    return files
+
+
+def _frf_overlays(H, model, diag, d: Path, want, updated_model) -> Path:
+    """Measured, nominal, diagnosed (and parameter-updated) FRFs at the chosen DOFs, first reference."""
+    from modalab.app.report import plot_frf_overlays
+
+    resp = [r for r in H.responses if want is None or str(r) in {str(w) for w in want}][:4] or H.responses[:4]
+    ref = H.references[0]
+    lines = H.freq_hz[H.freq_hz > 0]
+    f = lines[::max(1, len(lines) // 600)]
+    curves = {"measured": H.select(responses=resp, references=[ref]).band(f[0], f[-1])}
+    models = {"nominal": model, "diagnosed + updated": diag.model}
+    if updated_model is not None and Path(updated_model).is_file():
+        models["updated (parameters)"] = load_model(updated_model)
+    eta = diag.parameters.get("eta_global", {}).get("updated")
+    for name, m in models.items():
+        try:
+            mm = m.copy()
+            if eta is not None and not mm.global_ge:
+                mm.global_ge = float(eta)
+            curves[name] = mm.frf(f, responses=resp, references=[ref])
+        except Exception as e:  # noqa: BLE001 - an overlay curve must not fail the stage
+            log.warning("FRF of the %s model failed: %s", name, e)
+    return plot_frf_overlays(curves, d / "frf_overlay.png", responses=resp, reference=ref)

@@ -1,0 +1,93 @@
+"""The identify stage: poly-reference PolyMAX identification of FRFs."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from modalab.core.errors import ModalabValueError
+from modalab.app.outputs import write_json
+from modalab.app.stages._common import StageResult, _band, _tuple
+
+
+@dataclass(frozen=True)
+class IdentifyOptions:
+    """``modalab identify``: band (Hz; default all lines above 0 Hz), highest model order, pole selection
+    ('auto', a selection file, or frequencies in Hz), references to use, frequency weighting."""
+
+    band_hz: tuple | None = None
+    max_order: int | None = None
+    select: object = "auto"
+    references: tuple | None = None
+    weighting: str | None = None
+    reciprocity: bool | None = None       # None: automatic for a roving-hammer export; False: as given
+    exp_beta: float | None = None         # the exponential window's decay (1/s) when the file does not say
+    force_window: bool = False            # use exp_beta even when the file carries another beta
+
+    def __post_init__(self):
+        object.__setattr__(self, "band_hz", _tuple(self.band_hz))
+        object.__setattr__(self, "references", _tuple(self.references))
+        if isinstance(self.select, list):
+            object.__setattr__(self, "select", tuple(self.select))
+
+
+
+def mode_table(modes) -> list:
+    """One row per mode: ``mode``, ``freq_hz``, ``damping_pct`` and every scalar indicator."""
+    rows = []
+    ind = getattr(modes, "indicators", None) or {}
+    for k in range(modes.n_modes):
+        r = {"mode": k + 1, "freq_hz": float(modes.freq_hz[k]),
+             "damping_pct": 100 * float(modes.damping[k]) if modes.damping is not None else None}
+        for name, v in ind.items():
+            try:
+                r[name] = float(np.asarray(v)[k])
+            except (TypeError, ValueError, IndexError):
+                pass
+        rows.append(r)
+    return rows
+
+
+def identify(frf_path, out_uff, opts: IdentifyOptions = IdentifyOptions(), *, json_path=None, plots_dir=None,
+             report_path=None) -> StageResult:
+    """FRFs in a UFF → modes (UFF 55) by poly-reference PolyMAX (:func:`identification.identify`).
+
+    The FRF file's node coordinates (datasets 2411/15) are written with the modes (dataset 2411), so
+    correlate and update can put the test nodes on the model's grids by geometry.
+
+    json_path : ``modes.json`` (schema ``modalab/app/schemas/modes.schema.json``).
+    plots_dir : stabilisation diagram, synthesis and AutoMAC figures.
+    report_path : ``identification.json`` (settings, stabilisation, timings).
+    """
+    from identification import identify as _identify
+
+    from modalab.core import uff
+
+    H = _band(uff.read_frf(frf_path), opts.band_hz)
+    sel = list(opts.select) if isinstance(opts.select, tuple) else opts.select
+    modes, rep = _identify(H, max_order=opts.max_order, select=sel,
+                           references=list(opts.references) if opts.references else None,
+                           weighting=opts.weighting, plots_dir=plots_dir, reciprocity=opts.reciprocity,
+                           exp_beta=opts.exp_beta, force_window=opts.force_window)
+    if modes.n_modes == 0:
+        raise ModalabValueError(f"{frf_path}: identification found no modes in "
+                                f"{H.freq_hz[0]:g}-{H.freq_hz[-1]:g} Hz; widen the band or raise the model order")
+    geometry = uff.read_geometry(frf_path, required=False)
+    if geometry:
+        # the test geometry travels with the modes, so correlate/update can map test nodes onto model grids
+        modes.coordinates = geometry
+    out = Path(out_uff)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    uff.write_modes(out, modes)                # atomic; never over an input (modalab.core._output)
+    files = [out]
+    table = mode_table(modes)
+    if json_path is not None:
+        files.append(write_json(json_path, {"input": str(frf_path), "table": table, **modes.to_dict(),
+                                            "reciprocity": rep.settings["reciprocity"],
+                                            "window_correction": rep.settings["window_correction"]}))
+    if report_path is not None:
+        files.append(write_json(report_path, rep.to_dict()))
+    files += [Path(p) for p in rep.figures.values()]
+    return StageResult((modes, rep), tuple(files),
+                       {"modes": modes.n_modes, "freq_hz": [round(float(f), 3) for f in modes.freq_hz]})

@@ -1,0 +1,143 @@
+"""The sim stage: a simulated roving-hammer test (and, on request, the FE model of what was simulated)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from modalab.core.errors import PlanError
+from modalab.app.outputs import write_text
+from modalab.app.stages._common import StageResult, _tuple, load_model
+
+
+@dataclass(frozen=True)
+class SimOptions:
+    """``modalab sim``: the structure ('demo' or a bulk-data file), hammer points, fixed accelerometers, hits
+    per point, random seed, peak force (N), double-hit probability, sampling rate (Hz), samples per record."""
+
+    structure: str = "demo"
+    points: tuple | None = None
+    references: tuple | None = None
+    hits: int = 3
+    seed: int = 1
+    force_n: float | None = None
+    double_hit_probability: float = 0.0
+    sample_rate_hz: float | None = None
+    n_samples: int | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "points", _tuple(self.points))
+        object.__setattr__(self, "references", _tuple(self.references))
+
+
+def _sim_structure(structure):
+    """The structure to simulate: the demo grillage, or the FE model of a bulk-data file; and that model."""
+    from hardware_sim import demo as hdemo
+
+    if structure in (None, "demo"):
+        return hdemo.demo_structure(), None
+    path = Path(structure)
+    if path.suffix.lower() in (".bdf", ".dat", ".nas", ".blk"):
+        model = load_model(path)
+        return model.structure(), model
+    raise PlanError(f"structure {structure!r}: expected 'demo' or a Nastran bulk-data file (.bdf/.dat)")
+
+
+def demo_fe_model():
+    """The demo aeroplane cross (:mod:`hardware_sim.demo`) as an FE model for bulk data: the same grillage of
+    aluminium bars as 3-D beams (CBAR/PBAR, out-of-plane bending and torsion; in-plane DOFs held by SPC),
+    the four bungees as springs to ground and the structural damping as PARAM G = 0.01."""
+    from hardware_sim.demo import _demo_geometry
+    from updating.fe import Beam3D, BeamProperty, FEModel, GeneralSection, Material, Spring
+
+    coords, members, springs = _demo_geometry()
+    m = FEModel("modalab demo aeroplane", coupled_mass=True, global_ge=0.01)
+    for n, xyz in sorted(coords.items()):
+        m.add_node(n, tuple(float(v) for v in xyz))
+        m.add_spc(n, "126")
+    sections = {}
+    for eid, (a, b, sec) in enumerate(members, start=1):
+        if id(sec) not in sections:
+            pid = len(sections) + 1
+            m.add_material(Material(pid, E=sec.E, G=sec.G, nu=sec.E / (2 * sec.G) - 1, rho=sec.rho))
+            # v = Z: local y (plane 1) is global Z, so out-of-plane bending uses I1 = Iz; in-plane Iy = Ip - I
+            m.add_property(BeamProperty(pid, pid, GeneralSection(A=sec.A, Iy=sec.Ip - sec.I, Iz=sec.I, J=sec.J),
+                                        name="fuselage" if pid == 1 else "wing"))
+            sections[id(sec)] = pid
+        m.add_element(Beam3D(eid, a, b, sections[id(sec)], orientation=(0.0, 0.0, 1.0)))
+    for k, (n, kz) in enumerate(sorted(springs.items()), start=100):
+        m.add_element(Spring(k, a=(n, 3), b=None, k=float(kz), group="bungee"))
+    return m
+
+
+def _export_model(folder: Path, model) -> list:
+    """``model.bdf`` and ``params.toml`` (E and density multipliers per property, bounded 0.5-2) in ``folder``."""
+    from updating.bulk import to_bulk, write_bdf
+    from updating.diagnosis.workflow import default_parameters
+
+    folder.mkdir(parents=True, exist_ok=True)
+    bdf = write_text(folder / "model.bdf", "$ " + (model.name or "modalab model") + " (modalab sim --export-model)\n"
+                     + write_bdf(to_bulk(model)))
+    lines = ["# Updating parameters of model.bdf: multipliers of the nominal values (1 = nominal)."]
+    for p in default_parameters(model):
+        sel = ", ".join(f'"{s}"' if isinstance(s, str) else str(s) for s in p.properties)
+        lines += ["", "[[parameter]]", f'name = "{p.name}"', f'field = "{p.field}"', f"properties = [{sel}]",
+                  "lower = 0.5", "upper = 2.0"]
+    toml = write_text(folder / "params.toml", "\n".join(lines) + "\n")
+    return [bdf, toml]
+
+
+def sim(out_uff, opts: SimOptions = SimOptions(), *, plot_dir=None, export_model=None,
+        progress: Callable | None = None) -> StageResult:
+    """Simulate a roving-hammer test and write its raw hits (UFF 58 time records, one per channel per hit).
+
+    plot_dir : folder for ``first_hit.png`` (None: no figure).
+    export_model : folder for ``model.bdf`` and ``params.toml`` of the simulated structure (the demo
+        structure's FE model, :func:`demo_fe_model`, or the given bulk data), ready for correlate/update/diagnose.
+    progress : callable ``(points done, points in all, point)``.
+    """
+    from hardware_sim.demo import DEMO_POINTS, DEMO_REFERENCES, demo_channels, demo_setup
+    from hardware_sim.lab import SimulatedLab, simulate_roving_test
+    from hardware_sim.setup import FaultConfig
+
+    from modalab.core import uff
+
+    st, model = _sim_structure(opts.structure)
+    pts = list(opts.points or DEMO_POINTS)
+    refs = list(opts.references or DEMO_REFERENCES)
+    setup_kw = {}
+    if opts.sample_rate_hz:
+        setup_kw["sample_rate_hz"] = float(opts.sample_rate_hz)
+    if opts.n_samples:
+        setup_kw["n_samples"] = int(opts.n_samples)
+    p2 = opts.double_hit_probability
+    faults = FaultConfig(double_hit_probability=p2) if p2 else None
+    lab = SimulatedLab(st, demo_channels(pts[0], refs), demo_setup(**setup_kw), faults=faults,
+                       rng=np.random.default_rng(opts.seed))
+    lab.prepare(pts)                       # exact FRF columns of every point in one batch
+    recs = []
+    for k, pt in enumerate(pts):           # point by point (the same random stream as one call) for progress
+        recs += simulate_roving_test(lab, [pt], hits_per_point=opts.hits, force_n=opts.force_n)
+        if progress:
+            progress(k + 1, len(pts), pt)
+    for i, r in enumerate(recs, start=1):
+        r.hit_id = i
+    out = Path(out_uff)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if getattr(st, "coords", None):
+        uff.write_geometry(out, st.coords)
+        uff.write_records(out, recs, append=True)
+    else:
+        uff.write_records(out, recs)
+    files = [out]
+    if plot_dir is not None:
+        from modalab.core.plots import plot_hit
+
+        plot_hit(recs[0], path=Path(plot_dir) / "first_hit.png", title=f"hit 1 at {recs[0].force_dofs[0]}")
+        files.append(Path(plot_dir) / "first_hit.png")
+    if export_model is not None:
+        files += _export_model(Path(export_model), demo_fe_model() if model is None else model)
+    return StageResult(recs, tuple(files), {"hits": len(recs) // max(len(pts), 1), "points": len(pts),
+                                            "channels": recs[0].n_channels})

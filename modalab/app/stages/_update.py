@@ -1,0 +1,228 @@
+"""The update stage: one FE model updated to test modes or FRFs by any of eight methods."""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from modalab.core.errors import PlanError
+from modalab.app.outputs import write_json, write_text
+from modalab.app.stages._common import StageResult, load_model, load_modes, load_parameters
+from modalab.app.stages._correlate import (CorrelateOptions, DofMapping, _correlation, _correlation_figures, _freq_err, _n_analysis,
+                         resolve_dof_map)
+
+log = logging.getLogger(__name__)
+
+
+MODAL_METHODS = ("eigensensitivity", "eigendynamic")
+FRF_METHODS = ("mci", "rfm")
+DIRECT_METHODS = ("direct-lagrange", "direct-error-matrix", "direct-matrix", "direct-mixing")
+UPDATE_METHODS = MODAL_METHODS + FRF_METHODS + DIRECT_METHODS
+
+
+@dataclass(frozen=True)
+class UpdateOptions:
+    """``modalab update``: method (:data:`UPDATE_METHODS`), parameter file (default E and density per property),
+    iteration limit, and for eigensensitivity the regularisation ('lcurve', 'gcv' or a number), use of mode
+    shapes (never for a frequency-only test set), relative frequency standard deviation (one value or one per
+    test mode; None: the covariance stored with the modes, else 1 %) and shape standard deviation; bands (Hz)
+    for mci/rfm; correlation options (DOF map, frequency window: the pairing of every method)."""
+
+    method: str = "eigensensitivity"
+    parameters: str | None = None
+    max_iter: int = 30
+    regularisation: object = "lcurve"
+    use_shapes: bool = True
+    freq_sigma: object = None
+    shape_sigma: float = 0.05
+    bands: tuple | None = None
+    correlation: CorrelateOptions = CorrelateOptions()
+
+    def __post_init__(self):
+        if self.method not in UPDATE_METHODS:
+            raise PlanError(f"updating method {self.method!r}; expected one of {', '.join(UPDATE_METHODS)}")
+        if self.bands is not None:
+            object.__setattr__(self, "bands", tuple(tuple(float(x) for x in b) for b in self.bands))
+        if isinstance(self.freq_sigma, list):
+            object.__setattr__(self, "freq_sigma", tuple(self.freq_sigma))
+
+
+def _on_model_dofs(modes, dofs, dofmap):
+    """Test modes restricted to DOFs the updater can see (independent DOFs of the constrained model): a test
+    DOF is kept when every model DOF the map puts it on is one of ``dofs``."""
+    from updating.dofmap import as_dofmap
+
+    if not modes.has_shapes:
+        return modes
+    dm = as_dofmap(dofmap)
+    have = {(m.node, m.axis) for m in dofs}
+    keep = [d for d in modes.dofs if all((t.node, t.axis) in have for t, _ in dm.terms(d))]
+    if len(keep) < len(modes.dofs):
+        log.warning("%d test DOF(s) lie on dependent or constrained model DOFs and are left out of the updating "
+                    "(kept in the correlation): %s", len(modes.dofs) - len(keep),
+                    ", ".join(str(d) for d in modes.dofs if d not in keep))
+    return modes.select_dofs(keep)
+
+
+def _freq_sigma(value, test, modes_path):
+    """The relative frequency sigma: None, one positive value, or one per test mode (checked)."""
+    if value is None or test is None:
+        return None
+    fs = np.atleast_1d(np.asarray(value, float))
+    if fs.size not in (1, test.n_modes) or not np.all(np.isfinite(fs)) or np.any(fs <= 0):
+        raise PlanError(f"--freq-sigma: got {fs.size} value(s); expected one positive relative sigma "
+                        f"(e.g. 0.002) or one per test mode ({test.n_modes}) of {modes_path}")
+    return fs if fs.size > 1 else float(fs[0])
+
+
+def update(model_path, out_dir, opts: UpdateOptions = UpdateOptions(), *, modes_path=None,
+           frf_path=None) -> StageResult:
+    """Update the FE model to test modes (eigensensitivity, eigendynamic, direct methods) or FRFs (mci, rfm).
+
+    Writes into ``out_dir``: ``updated.bdf`` (the user's deck with the updated values; direct methods change
+    matrices, not parameters: ``updated_matrices.npz``), ``update.json`` (parameters with initial, updated and
+    std, convergence history, correlation before and after), ``mac_before/after.png``,
+    ``frequencies_after.png`` and ``convergence.png``.
+    """
+    from updating.bulk import read_bdf, to_bulk, write_bdf
+    from updating.fe import ParametricFEModel
+
+    from modalab.app.report import plot_convergence
+
+    out = Path(out_dir)
+    method = opts.method
+    model = load_model(model_path)
+    test = load_modes(modes_path) if modes_path else None
+    if method in MODAL_METHODS + DIRECT_METHODS and test is None:
+        raise PlanError(f"method {method!r} needs test modes: pass --modes MODES.uff")
+    if method in FRF_METHODS and frf_path is None:
+        raise PlanError(f"method {method!r} needs measured FRFs: pass --frf FRF.uff")
+    co = opts.correlation
+    summary: dict = {"model": str(model_path), "method": method}
+    mapping = DofMapping()
+    if test is not None:
+        mapping = resolve_dof_map(model, test, co, modes_path=modes_path)
+        summary["dof_mapping"] = mapping.description
+        if not test.has_shapes:
+            if method != "eigensensitivity":
+                raise PlanError(f"{modes_path} holds frequencies only (no mode shapes); method {method!r} needs "
+                                "shapes: use --method eigensensitivity")
+            summary["note"] = "frequency-only test set: frequencies only, modes paired by frequency order"
+    fsig = _freq_sigma(opts.freq_sigma, test, modes_path)
+    params = lo = hi = None
+    if method not in DIRECT_METHODS:              # a bad parameter file fails before anything is written
+        params, lo, hi = load_parameters(opts.parameters, model)
+    out.mkdir(parents=True, exist_ok=True)
+    files = []
+    before = _correlation(model, test, co, mapping) if test is not None else None
+    if method in DIRECT_METHODS:
+        after = _update_direct(model, test, method, co, mapping, out, summary)
+        files.append(out / "updated_matrices.npz")
+    else:
+        pm = ParametricFEModel(model, params)
+        up = _fit_parameters(pm, opts, lo, hi, test, frf_path, mapping.dofmap, fsig)
+        if opts.method == "eigensensitivity":
+            summary["identifiability"] = _identifiability(up, pm, test, fsig)
+        p = np.asarray(up.p_, float)
+        std = np.full(p.size, np.nan)
+        if getattr(up, "std_", None) is not None and np.size(up.std_) == p.size:
+            std = np.asarray(up.std_, float)
+        elif getattr(up, "covariance_", None) is not None and np.size(up.covariance_):
+            idx = np.atleast_1d(getattr(up, "params_", np.arange(p.size)))
+            std[idx] = np.sqrt(np.clip(np.diag(np.atleast_2d(up.covariance_)), 0, None))
+        names = list(pm.parameter_names)
+        hist = [h for h in (getattr(up, "history_", None) or []) if "p" in h]
+        summary["parameters"] = {n: {"initial": float(pm.p0[k]), "updated": float(p[k]),
+                                     "std": float(std[k]) if np.isfinite(std[k]) else None,
+                                     "mode": params[k].mode} for k, n in enumerate(names)}
+        summary["converged"] = bool(getattr(up, "converged_", True))
+        summary["iterations"] = int(getattr(up, "n_iter_", 0) or 0)
+        summary["history"] = [{k: v for k, v in h.items() if k in ("iteration", "p", "cost", "freq_error_pct")}
+                              for h in hist]
+        rows = np.vstack([np.asarray(pm.p0, float)[None, :]] + [np.asarray(h["p"], float)[None, :] for h in hist])
+        files.append(plot_convergence(rows, names, out / "convergence.png"))
+        updated = pm.model_at(p)
+        files.append(write_text(out / "updated.bdf", write_bdf(to_bulk(updated, template=read_bdf(model_path)))))
+        summary["updated_model"] = str(out / "updated.bdf")
+        after = _correlation(updated, test, co, mapping) if test is not None else None
+    if before is not None:
+        summary["correlation_before"] = before.to_dict()
+        summary["correlation_after"] = after.to_dict()
+        summary["table_before"] = before.table()
+        summary["table_after"] = after.table()
+        files += _correlation_figures(before, out, "before", "model before updating", frequencies=False)
+        files += _correlation_figures(after, out, "after", "updated model")
+    files.insert(0, write_json(out / "update.json", summary))
+    short = {"parameters": {n: round(v["updated"], 4) for n, v in summary.get("parameters", {}).items()},
+             "mean_abs_freq_error_pct": _freq_err(after) if before is not None else None}
+    return StageResult(summary, tuple(files), short)
+
+
+def _identifiability(up, pm, test, fsig) -> dict:
+    """Condition number, identifiability and unregularised standard deviations of an eigensensitivity fit."""
+    names = [pm.parameter_names[i] for i in np.atleast_1d(up.params_)]
+    return {"condition_number": float(up.condition_), "identifiable": bool(up.identifiable_),
+            "std_unregularised": {n: (float(v) if np.isfinite(v) else None)
+                                  for n, v in zip(names, np.atleast_1d(up.std_unregularised_))},
+            "frequency_weights": ("covariance of the test frequencies" if test.freq_cov is not None and fsig is None
+                                  else f"relative sigma {fsig if fsig is not None else 0.01}")}
+
+
+def _fit_parameters(pm, opts: UpdateOptions, lo, hi, test, frf_path, dofmap, fsig):
+    pairing = {"max_freq_error": opts.correlation.freq_window}
+    if opts.method == "eigensensitivity":
+        from updating.eigensensitivity import InverseEigensensitivity
+
+        kw = {} if fsig is None else {"freq_sigma": fsig, "freq_cov": None}
+        est = InverseEigensensitivity(max_iter=opts.max_iter, regularisation=opts.regularisation,
+                                      use_shapes=bool(opts.use_shapes and test.has_shapes),
+                                      shape_sigma=opts.shape_sigma, bounds=(lo, hi), mac_min=opts.correlation.mac_min,
+                                      pairing=pairing, **kw)
+        return est.fit(pm, _on_model_dofs(test, pm.dofs, dofmap), dofmap=dofmap)
+    if opts.method == "eigendynamic":
+        from updating.eigendynamic import EigendynamicConstraint
+
+        return EigendynamicConstraint(pairing=pairing).fit(pm, _on_model_dofs(test, pm.dofs, dofmap), dofmap=dofmap)
+    from modalab.core.frf import FRF
+
+    measured = FRF.from_uff(frf_path)
+    bands = [tuple(b) for b in opts.bands] if opts.bands else None
+    if opts.method == "mci":
+        from updating.mci import MCIUpdater
+
+        return MCIUpdater(bands=bands, max_iter=opts.max_iter).fit(pm, measured)
+    from updating.rfm import ResponseFunctionMethod
+
+    return ResponseFunctionMethod(bands=bands, max_iter=opts.max_iter).fit(pm, measured)
+
+
+def _update_direct(model, test, method, co: CorrelateOptions, mapping: DofMapping, out: Path, summary: dict):
+    from updating import direct as dm
+    from updating.correlation import correlate as _correlate
+
+    from modalab.core.structure import Structure
+
+    st = model.structure()
+    if mapping.dofmap is None and all(any(d.same_axis(m) for m in test.dofs) for d in st.dofs):
+        phi_x = test.select_dofs(st.dofs).real_shapes
+    else:
+        from updating.expansion import kidder
+
+        phi_x = kidder(st, _on_model_dofs(test, st.dofs, mapping.dofmap), dofmap=mapping.dofmap).real_shapes
+    K, M = st.K.toarray(), st.M.toarray()
+    w_x = test.omega
+    w_a, phi_a = st.normal_modes(test.n_modes)
+    fn = {"direct-lagrange": lambda: dm.lagrange_mass_stiffness(K, M, phi_x, w_x),
+          "direct-error-matrix": lambda: dm.error_matrix(K, M, phi_a, w_a, phi_x, w_x),
+          "direct-matrix": lambda: dm.direct_matrix_updating(K, M, phi_x, w_x),
+          "direct-mixing": lambda: dm.matrix_mixing(K, M, phi_a, w_a, phi_x, w_x)}[method]
+    res = fn()
+    np.savez(out / "updated_matrices.npz", K=res.K, M=res.M, dK=res.dK, dM=res.dM,
+             dofs=np.array([str(d) for d in st.dofs]))
+    summary.update({"equations": res.equations, "matrices": str(out / "updated_matrices.npz")})
+    return _correlate(Structure(M=res.M, K=res.K, dofs=st.dofs), _on_model_dofs(test, st.dofs, mapping.dofmap),
+                      dofmap=mapping.dofmap, n_analysis_modes=_n_analysis(co, test), mac_min=co.mac_min,
+                      freq_weight=co.freq_weight, max_freq_error=co.freq_window, dof_mapping=mapping.description,
+                      geometry=mapping.geometry)
