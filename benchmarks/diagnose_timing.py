@@ -1,6 +1,6 @@
 """Timing of a whole missing-physics diagnosis (issue 7): 30 outputs, 3 references, 2000 lines.
 
-Structure: the GARTEUR-like frame (:func:`updating.models.garteur.garteur_model`, 396 DOFs, Beam3D) on its
+Structure: the GARTEUR-like frame (:func:`updating.fe.models.garteur.garteur_model`, 396 DOFs, Beam3D) on its
 suspension; truth = the same frame with 3 % stiffer wing, PARAM G = 0.02 and a concealed grounded spring
 (2×10⁴ N/m on z at a wing node); 30 response DOFs (z and y of 15 nodes spread over the frame), references at
 the wing tips and the fin tip, 2000 lines 1–100 Hz, 1 % complex noise.  Nominal: the frame without the extra
@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from modalab.core.frf import FRF  # noqa: E402
 from updating.diagnosis import diagnose  # noqa: E402
 from updating.fe import Spring  # noqa: E402
-from updating.models.garteur import garteur_model  # noqa: E402
+from updating.fe.models.garteur import garteur_model  # noqa: E402
 
 BUDGET_S = 60.0
 

@@ -42,7 +42,7 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from modalab.core.modes import ModeSet  # noqa: E402
-from updating.bulk import build_model, read_bdf  # noqa: E402
+from updating.fe.bulk import build_model, read_bdf  # noqa: E402
 from updating.diagnosis import diagnose_modes  # noqa: E402
 
 BUDGET_S = 60.0

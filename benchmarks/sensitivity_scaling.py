@@ -20,10 +20,10 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from updating.mci import mci_system
-from updating.parametric import Derivative, MatrixModel
-from updating.rfm import receptance_rows, rfm_system
-from updating.sensitivity import ModalSolution, StackedDerivatives, _normalise, eigenvalue_sensitivities
+from updating.methods.mci import mci_system
+from updating.fe.parametric import Derivative, MatrixModel
+from updating.methods.rfm import receptance_rows, rfm_system
+from updating.fe.sensitivity import ModalSolution, StackedDerivatives, _normalise, eigenvalue_sensitivities
 
 
 def grid_springs(nx, ny):

@@ -3,7 +3,7 @@
 Each case directory holds
 
 ``nominal.bdf``
-    the nominal FE model (Nastran bulk data, written by :func:`updating.bulk.write_bdf`);
+    the nominal FE model (Nastran bulk data, written by :func:`updating.fe.bulk.write_bdf`);
 ``measured.uff``
     FRFs (UFF 58, accelerance, with coherence) of a *truth* structure measured by a full simulated
     roving-hammer test (:mod:`hardware_sim`: hammer pulse, sensor and ADC noise, anti-alias filter,
@@ -41,7 +41,7 @@ from acquisition.spectral import estimate_frf_roving  # noqa: E402
 from acquisition.windows import ExponentialWindow  # noqa: E402
 from hardware_sim import AcquisitionSetup, ChannelSetup, Hammer, SimulatedLab, simulate_roving_test  # noqa: E402
 from modalab.core import uff  # noqa: E402
-from updating.bulk import write_bdf  # noqa: E402
+from updating.fe.bulk import write_bdf  # noqa: E402
 from updating.fe import Beam3D, BeamProperty, FEModel, LumpedMass, Material, RectangularSection, Spring  # noqa: E402
 
 G0 = 9.80665

@@ -33,8 +33,8 @@ import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
 from updating.fe import ParametricFEModel  # noqa: E402
-from updating.mci import MCIUpdater, mci, plot_mci_map, plot_mci_maxima  # noqa: E402
-from updating.models.beams import (THESIS_TABLE3_MM, THESIS_TABLE4_RATIOS, thesis_beam,  # noqa: E402
+from updating.methods.mci import MCIUpdater, mci, plot_mci_map, plot_mci_maxima  # noqa: E402
+from updating.fe.models.beams import (THESIS_TABLE3_MM, THESIS_TABLE4_RATIOS, thesis_beam,  # noqa: E402
                                    thesis_beam_parameters)
 
 OMEGA = np.arange(1, 121) + 0.25        # rad/s

@@ -4,7 +4,7 @@ Usage::
 
     python examples/updating/garteur_eigensensitivity.py OUT_DIR
 
-The case (``updating.models.garteur_cases``): a nominal beam model whose wing-torsion pair lies below
+The case (``updating.fe.models.garteur_cases``): a nominal beam model whose wing-torsion pair lies below
 the wing-bending/tail-plane mode, a pseudo-experimental truth (stiffer wing torsion, thinner fin,
 stiffer fin spring, plus small errors that are not updated) measured at 28 accelerometer DOFs.  The
 nominal is written as a Nastran deck, read back and updated there (wing-tip torsion springs, fin
@@ -27,12 +27,12 @@ import matplotlib  # noqa: E402
 matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 
-from updating.bulk import build_model, read_bdf, to_bulk, write_bdf  # noqa: E402
-from updating.correlation import mac, pair_modes  # noqa: E402
-from updating.correlation_plots import plot_frequencies, plot_mac  # noqa: E402
-from updating.eigensensitivity import InverseEigensensitivity, identifiability, sensitivity_ranking  # noqa: E402
-from updating.mci import plot_convergence  # noqa: E402
-from updating.models.garteur_cases import (TRUE_VALUES, UPDATING_PARAMETERS, modal_test, nominal_model,  # noqa: E402
+from updating.fe.bulk import build_model, read_bdf, to_bulk, write_bdf  # noqa: E402
+from updating.correlation.metrics import mac, pair_modes  # noqa: E402
+from updating.correlation.plots import plot_frequencies, plot_mac  # noqa: E402
+from updating.methods.eigensensitivity import InverseEigensensitivity, identifiability, sensitivity_ranking  # noqa: E402
+from updating.methods.mci import plot_convergence  # noqa: E402
+from updating.fe.models.garteur_cases import (TRUE_VALUES, UPDATING_PARAMETERS, modal_test, nominal_model,  # noqa: E402
                                            truth_model, updating_model)
 
 TABLE11_ERR_PCT = [0.18, 7.3, 0.95, 0.08, 0.05, 1.28, 0.97, 0.44, 0.21, 0.01]

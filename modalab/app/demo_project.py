@@ -3,7 +3,7 @@
 The project files (``modalab/app/demo_data/demo_project/``, copied to ``examples/demo_project/``) hold what a
 test engineer has: the test plan (a roving hammer over the wings, fuselage, drums, fin and tail plane; three
 fixed accelerometers at the wing tips and the fin tip), the *nominal* FE model as bulk data
-(``nominal.bdf``: :func:`updating.models.garteur.garteur_model` with its default mesh on a soft vertical
+(``nominal.bdf``: :func:`updating.fe.models.garteur.garteur_model` with its default mesh on a soft vertical
 suspension) and the updating parameters (``params.toml``).
 
 The structure on the simulated bench is built here, in Python, by :func:`truth_structure` — the project
@@ -29,7 +29,7 @@ log = logging.getLogger(__name__)
 __all__ = ["truth_structure", "truth_model", "nominal_model", "run_demo", "demo_project_dir",
            "write_demo_files", "DEMO_PARAMETERS"]
 
-#: the updating parameters of the demo (names of :func:`updating.models.garteur.garteur_parameters`)
+#: the updating parameters of the demo (names of :func:`updating.fe.models.garteur.garteur_parameters`)
 DEMO_PARAMETERS = ("E_wing", "t_wing", "t_fin", "rho_fuselage")
 _SUSPENSION_N_PER_M = 500.0
 _LOSS_FACTOR = 0.02
@@ -43,7 +43,7 @@ def demo_project_dir() -> Path:
 
 def nominal_model():
     """The nominal FE model as the project's bulk data holds it (also the generator of ``nominal.bdf``)."""
-    from updating.models.garteur import garteur_model
+    from updating.fe.models.garteur import garteur_model
 
     m = garteur_model(8, suspension=True, suspension_stiffness=_SUSPENSION_N_PER_M)
     m.global_ge = _LOSS_FACTOR
@@ -53,7 +53,7 @@ def nominal_model():
 def truth_model():
     """The FE model of the structure on the bench (finer mesh, parameter errors, and one more thing)."""
     from updating.fe import LumpedMass, ParametricFEModel
-    from updating.models.garteur import garteur_model, garteur_parameters
+    from updating.fe.models.garteur import garteur_model, garteur_parameters
 
     base = garteur_model(16, suspension=True, suspension_stiffness=_SUSPENSION_N_PER_M)
     pm = ParametricFEModel(base, garteur_parameters(base, DEMO_PARAMETERS))
@@ -176,7 +176,7 @@ upper = 2.0
 
 def write_demo_files(folder=None) -> Path:
     """(Re)generate the demo project files into ``folder`` (default: the packaged folder)."""
-    from updating.bulk import to_bulk, write_bdf
+    from updating.fe.bulk import to_bulk, write_bdf
 
     d = Path(folder) if folder is not None else demo_project_dir()
     d.mkdir(parents=True, exist_ok=True)

@@ -134,6 +134,6 @@ def load_params(path, model):
 
     if path is None:
         return default_parameters(model)
-    from updating.parameter_file import read_parameter_file
+    from updating.fe.parameter_file import read_parameter_file
 
     return read_parameter_file(path)[0]

@@ -205,7 +205,7 @@ def load_project(path) -> Project:
 
 
 def load_parameters(path) -> tuple[list, list, list]:
-    """A parameter file → (parameters, lower, upper bounds): :func:`updating.parameter_file.read_parameter_file`."""
-    from updating.parameter_file import read_parameter_file
+    """A parameter file → (parameters, lower, upper bounds): :func:`updating.fe.parameter_file.read_parameter_file`."""
+    from updating.fe.parameter_file import read_parameter_file
 
     return read_parameter_file(Path(path))

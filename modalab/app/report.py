@@ -204,8 +204,8 @@ def _geometry_figure(run_dir: Path, report_dir: Path, project=None) -> Path | No
         coords = {}
     if project is not None:
         try:
-            from updating.bulk import read_bdf
-            from updating.bulk.build import build_model
+            from updating.fe.bulk import read_bdf
+            from updating.fe.bulk.build import build_model
 
             m = build_model(read_bdf(project.bulk_path))
             for nid, n in m.nodes.items():

@@ -100,7 +100,7 @@ def control_case(tmp_path_factory, control_sim):
 
 def test_a_written_case_reads_back_through_modalab(control_case, control_sim):
     from modalab.core import uff
-    from updating.bulk import build_model, read_bdf
+    from updating.fe.bulk import build_model, read_bdf
 
     truth = json.loads((control_case / "truth.json").read_text())
     bulk = read_bdf(control_case / "nominal.bdf")

@@ -10,8 +10,8 @@ from modalab.app.cli import main
 
 @pytest.fixture(scope="module")
 def case(tmp_path_factory):
-    from updating.bulk import to_bulk, write_bdf
-    from updating.models.garteur import garteur_model
+    from updating.fe.bulk import to_bulk, write_bdf
+    from updating.fe.models.garteur import garteur_model
 
     d = tmp_path_factory.mktemp("cmap")
     nominal = garteur_model(mesh=4)
@@ -82,7 +82,7 @@ def test_frequency_only_set_end_to_end(case, capsys, tmp_path):
     """A JSON of repeated frequencies (no shapes): correlate pairs by order and says so; update uses the
     covariance of the mean, keeps the exact model at nominal and reports the condition number."""
     d, _ = case
-    from updating.models.garteur import garteur_model
+    from updating.fe.models.garteur import garteur_model
 
     f = garteur_model(mesh=4).modes(16).freq_hz
     f = f[f > 1.0][:6]

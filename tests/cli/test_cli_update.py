@@ -10,9 +10,9 @@ from modalab.app.cli import main
 
 @pytest.fixture(scope="module")
 def case(tmp_path_factory):
-    from updating.bulk import to_bulk, write_bdf
+    from updating.fe.bulk import to_bulk, write_bdf
     from updating.fe import ParametricFEModel
-    from updating.models.garteur import garteur_model, garteur_parameters
+    from updating.fe.models.garteur import garteur_model, garteur_parameters
 
     d = tmp_path_factory.mktemp("upd")
     nominal = garteur_model(mesh=4)

@@ -33,7 +33,7 @@ def test_plan_example_is_valid():
 
 def test_parameter_example_loads(tmp_path):
     from modalab.app.pipeline import load_params
-    from updating.models.garteur import garteur_model
+    from updating.fe.models.garteur import garteur_model
 
     (tmp_path / "p.toml").write_text(_blocks("toml")[1])
     params = load_params(tmp_path / "p.toml", garteur_model(mesh=2))

@@ -5,8 +5,8 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from updating.correlation import automac, comac, ecomac, mac, macx, msf, pair_modes
-from updating.reduction import guyan, serep
+from updating.correlation.metrics import automac, comac, ecomac, mac, macx, msf, pair_modes
+from updating.correlation.reduction import guyan, serep
 
 finite = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
 scales = st.floats(1e-3, 1e3).flatmap(lambda m: st.sampled_from([m, -m]))

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from modalab.core.errors import BulkDataError
-from updating.bulk import build_model, read_bdf, section_properties, to_bulk, write_bdf
+from updating.fe.bulk import build_model, read_bdf, section_properties, to_bulk, write_bdf
 from updating.fe import GeneralSection, ParametricFEModel, RectangularSection, TubeSection
-from updating.models.garteur import garteur_model, garteur_parameters
+from updating.fe.models.garteur import garteur_model, garteur_parameters
 
 DATA = Path(__file__).parent / "data"
-GARTEUR_BDF = Path(__file__).resolve().parents[2] / "updating" / "models" / "garteur.bdf"
+GARTEUR_BDF = Path(__file__).resolve().parents[2] / "updating" / "fe" / "models" / "garteur.bdf"
 
 
 def mac_diag(a, b):

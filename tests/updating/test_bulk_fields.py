@@ -1,11 +1,11 @@
-"""Field-level parsing and formatting of Nastran bulk data (updating.bulk.fields)."""
+"""Field-level parsing and formatting of Nastran bulk data (updating.fe.bulk.fields)."""
 import math
 
 import pytest
 from hypothesis import given, settings, strategies as st
 
 from modalab.core.errors import BulkDataError
-from updating.bulk.fields import (Line, card_lines, fits_exactly, format_real, group_cards, parse_int,
+from updating.fe.bulk.fields import (Line, card_lines, fits_exactly, format_real, group_cards, parse_int,
                                   parse_real)
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from modalab.core.errors import BulkDataError
-from updating.bulk import BulkData, build_model, read_bdf, write_bdf
+from updating.fe.bulk import BulkData, build_model, read_bdf, write_bdf
 from updating.fe import FEModel
 
 DATA = Path(__file__).parent / "data"

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from modalab.core.errors import BulkDataError
-from updating.bulk import read_bdf
-from updating.bulk import cards as C
+from updating.fe.bulk import read_bdf
+from updating.fe.bulk import cards as C
 
 DATA = Path(__file__).parent / "data"
 STYLES = ["frame_small.bdf", "frame_large_femap.bdf", "frame_free.bdf", "frame_pynastran.bdf"]
@@ -134,7 +134,7 @@ class TestUnsupported:
                 "CQUAD8  2       1       1       2       3       1\nPSOLID  1       1\nFORCE   1\n")
         with warnings.catch_warnings():
             warnings.simplefilter("error")          # no raw Python warning any more
-            with caplog.at_level("WARNING", logger="updating.bulk.reader"):
+            with caplog.at_level("WARNING", logger="updating.fe.bulk.reader"):
                 b = read_bdf(deck)
         ours = [r for r in caplog.records if "not modelled" in r.getMessage()]
         assert len(ours) == 1

@@ -5,7 +5,7 @@ import warnings
 import pytest
 
 from modalab.core.errors import BulkDataError
-from updating.bulk import read_bdf
+from updating.fe.bulk import read_bdf
 
 DECK = ("GRID    1               0.      0.      0.\n"
         "GRID    2               1.      0.      0.\n"

@@ -5,14 +5,14 @@ import numpy as np
 import pytest
 
 from modalab.core.errors import BulkDataError
-from updating.bulk import build_model, read_bdf, to_bulk, write_bdf
-from updating.bulk import cards as C
+from updating.fe.bulk import build_model, read_bdf, to_bulk, write_bdf
+from updating.fe.bulk import cards as C
 from updating.fe import Beam2D, BeamProperty, Damper, LumpedMass, Parameter, ParametricFEModel, Spring
-from updating.models.garteur import garteur_model
+from updating.fe.models.garteur import garteur_model
 
 DATA = Path(__file__).parent / "data"
 DECKS = [DATA / n for n in ("frame_small.bdf", "frame_large_femap.bdf", "frame_free.bdf", "frame_pynastran.bdf")]
-DECKS.append(Path(__file__).resolve().parents[2] / "updating" / "models" / "garteur.bdf")
+DECKS.append(Path(__file__).resolve().parents[2] / "updating" / "fe" / "models" / "garteur.bdf")
 FORMATS = ["small", "large", "free"]
 
 

@@ -1,6 +1,6 @@
 """Thesis section 5.2: the 20-DOF free-free tube beam updated by MCI minimisation (Tables 3 and 4).
 
-Set-up (``updating.models.beams.thesis_beam``: nine Euler–Bernoulli elements of 0.3 m, steel-like
+Set-up (``updating.fe.models.beams.thesis_beam``: nine Euler–Bernoulli elements of 0.3 m, steel-like
 nominal E = 210 GPa, ρ = 7850 kg/m³).  Pseudo-experimental receptances of
 ``thesis_beam('experimental', cord_stiffness=k)`` (Table 3 experimental diameters, Table 4 ratios,
 grounded cords of k N/m on w at nodes 1 and 10), excitation at ``5+Z``, all 20 DOFs measured,
@@ -63,8 +63,8 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from updating.fe import ParametricFEModel  # noqa: E402
-from updating.mci import MCIUpdater, mci  # noqa: E402
-from updating.models.beams import (THESIS_TABLE3_MM, THESIS_TABLE4_RATIOS, thesis_beam,  # noqa: E402
+from updating.methods.mci import MCIUpdater, mci  # noqa: E402
+from updating.fe.models.beams import (THESIS_TABLE3_MM, THESIS_TABLE4_RATIOS, thesis_beam,  # noqa: E402
                                    thesis_beam_parameters)
 
 OMEGA = np.arange(1, 121) + 0.25            # rad/s

@@ -1,6 +1,6 @@
 """Thesis section 5.3 (Tables 10 and 11): inverse eigensensitivity updating of a GARTEUR SM-AG19-like model.
 
-Case (``updating.models.garteur_cases``, choices documented there): nominal = ``garteur_model()`` with
+Case (``updating.fe.models.garteur_cases``, choices documented there): nominal = ``garteur_model()`` with
 torsion springs, fin 5 % too thick, wing torsion springs almost absent (25 N·m/rad), fin spring
 1000 N·m/rad; pseudo-experimental truth = wing springs 100 N·m/rad, fin spring 1500 N·m/rad, fin
 thickness × 0.95, plus wing E + 0.3 % and fuselage ρ − 0.3 % that are not updated.  Test data: the
@@ -41,11 +41,11 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from updating.bulk import build_model, read_bdf, to_bulk, write_bdf  # noqa: E402
-from updating.correlation import mac, pair_modes  # noqa: E402
-from updating.eigensensitivity import InverseEigensensitivity, identifiability, sensitivity_ranking  # noqa: E402
-from updating.models.garteur import THESIS_REPLICA_HZ  # noqa: E402
-from updating.models.garteur_cases import (TRUE_VALUES, UPDATING_PARAMETERS, modal_test, nominal_model,  # noqa: E402
+from updating.fe.bulk import build_model, read_bdf, to_bulk, write_bdf  # noqa: E402
+from updating.correlation.metrics import mac, pair_modes  # noqa: E402
+from updating.methods.eigensensitivity import InverseEigensensitivity, identifiability, sensitivity_ranking  # noqa: E402
+from updating.fe.models.garteur import THESIS_REPLICA_HZ  # noqa: E402
+from updating.fe.models.garteur_cases import (TRUE_VALUES, UPDATING_PARAMETERS, modal_test, nominal_model,  # noqa: E402
                                            truth_model, updating_model)
 
 #: Table 11 absolute frequency errors (%) of the thesis' updated model, per mode

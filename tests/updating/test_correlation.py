@@ -9,9 +9,9 @@ from modalab.core.errors import DofError, ModalabValueError, ShapeError
 from modalab.core.frf import FRF
 from modalab.core.modes import ModeSet
 from modalab.core.structure import Structure
-from updating.correlation import (automac, comac, correlate, cross_orthogonality, csac, csf, ecomac, frac,
+from updating.correlation.metrics import (automac, comac, correlate, cross_orthogonality, csac, csf, ecomac, frac,
                                   frequency_table, frf_correlation, mac, macx, mixed_orthogonality, msf)
-from updating.dofmap import DofMap
+from updating.correlation.dofmap import DofMap
 
 
 def chain(n=8, seed=5):
@@ -137,7 +137,7 @@ class TestOrthogonality:
         np.testing.assert_allclose(mixed_orthogonality(x, M, normalize=True), np.eye(3), atol=1e-12)
 
     def test_reduced_mass_on_test_dofs(self):
-        from updating.reduction import serep
+        from updating.correlation.reduction import serep
         K, M, dofs = chain()
         red = serep(K, M, ["2+Z", "5+Z", "8+Z"], dofs=dofs)
         _, phi = sla.eigh(K, M)
@@ -241,7 +241,7 @@ class TestCorrelate:
             correlate(modes.shapes, modes)
 
     def test_plots_written(self, modes, tmp_path):
-        from updating.correlation_plots import plot_frf_overlay, save_correlation_plots
+        from updating.correlation.plots import plot_frf_overlay, save_correlation_plots
         test = modes.select_modes([0, 1, 2]).select_dofs(["2+Z", "5+Z", "8+Z"])
         r = correlate(modes, test)
         paths = save_correlation_plots(r, tmp_path / "plots")

@@ -11,7 +11,7 @@ import pytest
 
 from modalab.core.frf import FRF
 from updating.diagnosis import diagnose, frf_data, frf_error, model_frf
-from updating.models.beams import thesis_beam, thesis_beam_parameters
+from updating.fe.models.beams import thesis_beam, thesis_beam_parameters
 
 _cache: dict = {}
 

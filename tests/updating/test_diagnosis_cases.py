@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from modalab.core import uff
-from updating.bulk import build_model, read_bdf
+from updating.fe.bulk import build_model, read_bdf
 from updating.diagnosis import diagnose
 
 ROOT = Path(__file__).resolve().parents[2] / "examples" / "concealed"

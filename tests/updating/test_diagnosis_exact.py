@@ -10,7 +10,7 @@ import pytest
 
 from modalab.core import uff
 from modalab.app.stages import FRFOptions, SimOptions, frf, sim
-from updating.bulk import build_model, read_bdf
+from updating.fe.bulk import build_model, read_bdf
 from updating.diagnosis import diagnose
 
 NOMINAL = Path(__file__).resolve().parents[2] / "examples" / "concealed" / "bar_control" / "nominal.bdf"

@@ -6,7 +6,7 @@ import pytest
 
 from modalab.core.errors import ModalabValueError
 from updating.diagnosis.workflow import promote_measured
-from updating.models.garteur import garteur_model
+from updating.fe.models.garteur import garteur_model
 
 
 def _rotx(deg):

@@ -15,7 +15,7 @@ import pytest
 from modalab.core.frf import FRF
 from updating.diagnosis import diagnose
 from updating.fe import LumpedMass, Spring
-from updating.models.garteur import garteur_model
+from updating.fe.models.garteur import garteur_model
 
 
 def _case(effect, seed=7, n_lines=600, replace=None):

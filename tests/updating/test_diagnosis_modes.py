@@ -80,7 +80,7 @@ def _gvt_deck(path, n_el=_NEL, extra=()):
     lines += [f"GRID,{i + 1},,{_L * i / n_el:.8f},0.,0." for i in range(n_el + 1)]
     lines += [f"CBEAM,{i + 1},1,{i + 1},{i + 2},0.,1.,0." for i in range(n_el)]
     path.write_text("\n".join(lines + list(extra) + ["ENDDATA", ""]))
-    from updating.bulk import build_model, read_bdf
+    from updating.fe.bulk import build_model, read_bdf
     return build_model(read_bdf(path))
 
 

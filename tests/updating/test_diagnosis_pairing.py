@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from modalab.core.modes import ModeSet
-from updating.correlation import analysis_modes
+from updating.correlation.metrics import analysis_modes
 from updating.diagnosis.workflow import _mode_metrics, _rigid_fraction, pair_test_modes
-from updating.models.garteur import garteur_model
+from updating.fe.models.garteur import garteur_model
 
 
 def _z_modes(structure, n):

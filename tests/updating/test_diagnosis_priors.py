@@ -11,7 +11,7 @@ from updating.diagnosis import build_library, fit_frf, frf_data
 from updating.diagnosis.fit import Prior
 from updating.diagnosis.workflow import Finding, _describe, parameter_priors
 from updating.fe import Parameter, ParametricFEModel
-from updating.models.beams import thesis_beam
+from updating.fe.models.beams import thesis_beam
 
 
 def _params():

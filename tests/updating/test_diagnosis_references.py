@@ -12,7 +12,7 @@ from modalab.core.errors import ModalabValueError
 from modalab.core.frf import FRF
 from updating.diagnosis import Diagnoser, DiagnoserConfig, diagnose, frf_data
 from updating.diagnosis.workflow import _split
-from updating.models.beams import thesis_beam, thesis_beam_parameters
+from updating.fe.models.beams import thesis_beam, thesis_beam_parameters
 
 
 def _five_accelerometers():

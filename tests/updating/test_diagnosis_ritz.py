@@ -10,8 +10,8 @@ from updating.diagnosis.frfscreen import frf_screen
 from updating.diagnosis.library import build_library
 from updating.diagnosis.ritz import RitzBasis
 from updating.fe import Damper, Parameter, ParametricFEModel, Spring
-from updating.models.beams import thesis_beam
-from updating.models.garteur import garteur_model
+from updating.fe.models.beams import thesis_beam
+from updating.fe.models.garteur import garteur_model
 
 
 @pytest.fixture(scope="module")

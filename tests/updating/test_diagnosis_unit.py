@@ -150,7 +150,7 @@ CONTROL = Path(__file__).resolve().parents[2] / "examples" / "concealed" / "bar_
 
 def test_diagnosis_json_schema(tmp_path):
     from modalab.core import uff
-    from updating.bulk import build_model, read_bdf
+    from updating.fe.bulk import build_model, read_bdf
     from updating.diagnosis import diagnose
     model = build_model(read_bdf(CONTROL / "nominal.bdf"))
     diag = diagnose(model, uff.read_frf(CONTROL / "measured.uff"))

@@ -4,8 +4,8 @@ import pytest
 import scipy.linalg as sla
 
 from modalab.core.errors import ModalabValueError, ShapeError
-from updating.cases import six_dof_pair
-from updating.direct import (baruch_orthogonalise, direct_matrix_updating, error_matrix, lagrange_mass,
+from cases import six_dof_pair
+from updating.methods.direct import (baruch_orthogonalise, direct_matrix_updating, error_matrix, lagrange_mass,
                              lagrange_mass_stiffness, lagrange_stiffness, matrix_mixing)
 
 

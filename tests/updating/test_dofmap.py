@@ -4,7 +4,7 @@ import pytest
 
 from modalab.core.errors import DofError, ModalabValueError, ShapeError
 from modalab.core.modes import ModeSet
-from updating.dofmap import DofMap, as_dofmap, observation_matrix
+from updating.correlation.dofmap import DofMap, as_dofmap, observation_matrix
 
 MODEL = [f"{n}+{d}" for n in (12, 13, 14) for d in ("X", "Y", "Z", "RX", "RY", "RZ")]
 

@@ -4,9 +4,9 @@ import pytest
 
 from modalab.core.errors import ModalabValueError
 from modalab.core.modes import ModeSet
-from updating.cases import six_dof_pair
-from updating.eigendynamic import EigendynamicConstraint, eigendynamic_system, kidder_expand
-from updating.sensitivity import solve_modes
+from cases import six_dof_pair
+from updating.methods.eigendynamic import EigendynamicConstraint, eigendynamic_system, kidder_expand
+from updating.fe.sensitivity import solve_modes
 
 
 @pytest.fixture(scope="module")

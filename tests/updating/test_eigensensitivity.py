@@ -4,10 +4,10 @@ import pytest
 
 from modalab.core.errors import ModalabValueError, NotFittedError
 from modalab.core.modes import ModeSet
-from updating.eigensensitivity import (InverseEigensensitivity, choose_alpha, identifiability,
+from updating.methods.eigensensitivity import (InverseEigensensitivity, choose_alpha, identifiability,
                                        sensitivity_ranking, sensitivity_system)
-from updating.parametric import Derivative, MatrixModel
-from updating.sensitivity import solve_modes
+from updating.fe.parametric import Derivative, MatrixModel
+from updating.fe.sensitivity import solve_modes
 
 N = 6
 CONN = [(None, 0), (0, 1), (1, 2), (2, 3), (0, 4), (2, 5)]   # chain 1-2-3-4, light oscillators 5 (on 1), 6 (on 3)
@@ -67,7 +67,7 @@ def test_plain_order_pairing_would_fail():
     """Without MAC re-pairing the swapped modes would be matched by index: the MAC of those pairs is low."""
     sa = solve_modes(model(P_INIT))
     tm = test_modes()
-    from updating.correlation import mac
+    from updating.correlation.metrics import mac
     Mm = mac(sa.phi[[0, 2, 3, 4, 5]], tm.shapes)
     assert Mm[1, 1] < 0.1 and Mm[2, 2] < 0.1
 

@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 
 from modalab.core.modes import ModeSet
-from updating.correlation import correlate
+from updating.correlation.metrics import correlate
 
 
 @pytest.fixture(scope="module")
 def nominal():
     from updating.fe import ParametricFEModel
-    from updating.models.garteur import garteur_model, garteur_parameters
+    from updating.fe.models.garteur import garteur_model, garteur_parameters
 
     m = garteur_model(mesh=4)
     pm = ParametricFEModel(m, garteur_parameters(m))
@@ -43,7 +43,7 @@ def noisy(test, seed, f_noise=1e-4, s_noise=0.01, spurious=True):
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_inverse_eigensensitivity_stays_at_nominal(nominal, seed):
-    from updating.eigensensitivity import InverseEigensensitivity
+    from updating.methods.eigensensitivity import InverseEigensensitivity
 
     _, pm, test = nominal
     t = noisy(test, seed)
@@ -59,7 +59,7 @@ def test_inverse_eigensensitivity_stays_at_nominal(nominal, seed):
 
 def test_mac_only_pairing_would_have_moved_the_exact_model(nominal):
     """The same data paired by MAC alone (the old rule) pair the spurious mode and move the parameters."""
-    from updating.eigensensitivity import InverseEigensensitivity
+    from updating.methods.eigensensitivity import InverseEigensensitivity
 
     _, pm, test = nominal
     t = noisy(test, 0)
@@ -70,7 +70,7 @@ def test_mac_only_pairing_would_have_moved_the_exact_model(nominal):
 
 
 def test_eigendynamic_stays_at_nominal(nominal):
-    from updating.eigendynamic import EigendynamicConstraint
+    from updating.methods.eigendynamic import EigendynamicConstraint
 
     _, pm, test = nominal
     t = noisy(test, 0, f_noise=0.0, s_noise=0.0)
@@ -82,7 +82,7 @@ def test_eigendynamic_stays_at_nominal(nominal):
 def test_frequency_only_set_stays_at_nominal_with_its_covariance(nominal):
     """Frequencies only (no shapes), correlated repeats: parameters at nominal within 4 sigma of the
     propagated covariance, and the covariance of the mean is used (not a fixed 1 %)."""
-    from updating.eigensensitivity import InverseEigensensitivity
+    from updating.methods.eigensensitivity import InverseEigensensitivity
 
     _, pm, test = nominal
     rng = np.random.default_rng(5)

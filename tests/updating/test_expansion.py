@@ -7,8 +7,8 @@ import scipy.sparse as sp
 from modalab.core.errors import DofError, ModalabValueError
 from modalab.core.modes import ModeSet
 from modalab.core.structure import Structure
-from updating.dofmap import DofMap
-from updating.expansion import kidder, modal_expand, serep_expand
+from updating.correlation.dofmap import DofMap
+from updating.correlation.expansion import kidder, modal_expand, serep_expand
 
 
 def chain(n=12, seed=3):
@@ -63,7 +63,7 @@ class TestKidder:
         np.testing.assert_allclose(out.shapes[:, 0], an.shapes[:, 2] * np.exp(0.7j), atol=1e-12)
 
     def test_static_is_inverse_guyan(self, model):
-        from updating.reduction import guyan
+        from updating.correlation.reduction import guyan
         K, M, dofs, an = model
         test = an.select_modes([4]).select_dofs(MEAS)
         out = kidder((K, M, dofs), test, static=True)

@@ -6,7 +6,7 @@ from hypothesis import given, settings, strategies as st
 from modalab.core.dof import Dof
 from updating.fe import (Beam3D, BeamProperty, FEModel, LumpedMass, Material, RectangularSection, Spring,
                          eigen_dense)
-from updating.models.beams import beam_model
+from updating.fe.models.beams import beam_model
 
 
 def rotation(a, b, c):

@@ -6,7 +6,7 @@ from hypothesis import given, settings, strategies as st
 from updating.fe import (Beam2D, Beam3D, BeamProperty, Damper, FEModel, GeneralSection, LumpedMass, Material,
                          RectangularSection, Rod, RodProperty, Spring, Timoshenko3D, TubeSection, eigen_dense)
 from updating.fe.elements.base import AssemblyContext
-from updating.models.beams import beam_model, closed_form_hz, timoshenko_pinned_hz
+from updating.fe.models.beams import beam_model, closed_form_hz, timoshenko_pinned_hz
 
 E, RHO, NU = 70e9, 2700.0, 0.3
 B, H = 0.02, 0.01

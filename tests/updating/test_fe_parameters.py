@@ -6,8 +6,8 @@ from hypothesis import given, settings, strategies as st
 
 from updating.fe import (Beam3D, BeamProperty, Damper, FEModel, GeneralSection, LumpedMass, Material, Parameter,
                          ParametricFEModel, RectangularSection, Spring, Timoshenko3D, TubeSection, eigen_dense)
-from updating.parametric import Derivative, ParametricModel
-from updating.models.beams import thesis_beam, thesis_beam_parameters
+from updating.fe.parametric import Derivative, ParametricModel
+from updating.fe.models.beams import thesis_beam, thesis_beam_parameters
 
 
 def build(element=Beam3D):
@@ -214,7 +214,7 @@ class TestThesisBeamParameters:
         pars = thesis_beam_parameters(ana)
         assert len(pars) == 18 and pars[0].name == "E_e1"
         pm = ParametricFEModel(ana, pars)
-        from updating.models.beams import THESIS_TABLE4_RATIOS
+        from updating.fe.models.beams import THESIS_TABLE4_RATIOS
         p = np.array([r[0] for r in THESIS_TABLE4_RATIOS] + [r[1] for r in THESIS_TABLE4_RATIOS])
         s = pm.structure(p)
         # same as the experimental model built with the analytical diameters

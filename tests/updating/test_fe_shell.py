@@ -5,10 +5,10 @@ import pytest
 import scipy.linalg as sla
 
 from modalab.core.errors import BulkDataError, ModalabValueError
-from updating.bulk import build_model, read_bdf, to_bulk, write_bdf
+from updating.fe.bulk import build_model, read_bdf, to_bulk, write_bdf
 from updating.fe import (BeamProperty, FEModel, GeneralSection, Material, Parameter, ParametricFEModel, Quad4,
                          ShellProperty, Tria3, eigen_sparse)
-from updating.sensitivity import frequency_sensitivities, solve_modes
+from updating.fe.sensitivity import frequency_sensitivities, solve_modes
 
 E, NU, RHO = 210e9, 0.3, 7850.0
 

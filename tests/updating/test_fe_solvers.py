@@ -6,8 +6,8 @@ from modalab.core.errors import ModalabValueError
 from updating.fe import (Damper, LumpedMass, ModalDampingTable, eigen_dense, eigen_sparse, frf_direct, frf_modal,
                          modes_of, rayleigh_coefficients)
 from updating.fe.solvers import cholmod_available, normal_modes
-from updating.models.beams import beam_model
-from updating.models.garteur import garteur_model
+from updating.fe.models.beams import beam_model
+from updating.fe.models.garteur import garteur_model
 
 
 @pytest.fixture(scope="module")
@@ -228,7 +228,7 @@ def _closed_form_hz(length=1.2):
 
 @pytest.mark.parametrize("method", ["dense", "sparse"])
 def test_lumped_mass_free_free_deck_without_spc(tmp_path, method):
-    from updating.bulk import build_model, read_bdf
+    from updating.fe.bulk import build_model, read_bdf
     model = build_model(read_bdf(_free_beam_deck(tmp_path / "gvt.bdf", 60)))
     s = model.system()
     assert not model.coupled_mass and np.any(s.M.diagonal() == 0)

@@ -5,9 +5,9 @@ import logging
 import numpy as np
 
 from modalab.core.modes import ModeSet
-from updating.eigensensitivity import InverseEigensensitivity
-from updating.parametric import Derivative, MatrixModel
-from updating.sensitivity import solve_modes
+from updating.methods.eigensensitivity import InverseEigensensitivity
+from updating.fe.parametric import Derivative, MatrixModel
+from updating.fe.sensitivity import solve_modes
 
 N = 3
 

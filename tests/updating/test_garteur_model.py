@@ -1,9 +1,9 @@
-"""The GARTEUR SM-AG19-like beam model (updating.models.garteur)."""
+"""The GARTEUR SM-AG19-like beam model (updating.fe.models.garteur)."""
 import numpy as np
 import pytest
 
 from updating.fe import ParametricFEModel, Timoshenko3D, eigen_dense
-from updating.models.garteur import (GARTEUR_MEASURED_HZ, GARTEUR_PARAMETER_NAMES, THESIS_REPLICA_HZ,
+from updating.fe.models.garteur import (GARTEUR_MEASURED_HZ, GARTEUR_PARAMETER_NAMES, THESIS_REPLICA_HZ,
                                      garteur_model, garteur_parameters)
 
 

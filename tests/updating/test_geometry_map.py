@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from modalab.core.errors import DofError
-from updating.dofmap import geometry_map
+from updating.correlation.dofmap import geometry_map
 
 # model grids: a 5 x 3 plate of 0.1 m pitch; test nodes numbered 1.. at some of them
 GRID = {100 + 10 * i + j: (0.1 * i, 0.1 * j, 0.0) for i in range(5) for j in range(3)}

@@ -4,8 +4,8 @@ import pytest
 
 from modalab.core.errors import ModalabValueError, NotFittedError
 from modalab.core.frf import FRF
-from updating.cases import six_dof_model, six_dof_pair
-from updating.mci import (MCIUpdater, condensation_operator, dynamic_expansion, lsq_expansion, mci, mci_system,
+from cases import six_dof_model, six_dof_pair
+from updating.methods.mci import (MCIUpdater, condensation_operator, dynamic_expansion, lsq_expansion, mci, mci_system,
                           measured_columns, miscorrelation, plot_convergence, plot_mci_map, plot_mci_maxima)
 
 F = np.arange(0.5, 25.0, 0.5)
@@ -17,7 +17,7 @@ def X():
 
 
 def with_params(model, p):
-    from updating.parametric import MatrixModel
+    from updating.fe.parametric import MatrixModel
     return MatrixModel(dofs=model.dofs, terms=list(zip(model.parameter_names, model.derivatives())), p0=p)
 
 

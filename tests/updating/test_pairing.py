@@ -4,7 +4,7 @@ import pytest
 
 from modalab.core.errors import ModalabValueError, ShapeError
 from modalab.core.modes import ModeSet
-from updating.correlation import correlate, pair_modes
+from updating.correlation.metrics import correlate, pair_modes
 
 # Thesis Table 10 (scaled aircraft): experimental mode -> original FE mode, frequencies in Hz
 TABLE10_TEST_HZ = [5.65, 15.73, 36.79, 37.51, 37.65, 43.73, 50.32, 55.00, 60.66, 68.23]

@@ -10,7 +10,7 @@ import pytest
 
 from modalab.core.errors import ModalabValueError
 from modalab.core.modes import ModeSet
-from updating.correlation import correlate, observability, pair_modes
+from updating.correlation.metrics import correlate, observability, pair_modes
 
 L = 1.0
 X_SENS = np.arange(1, 8) / 8 * L

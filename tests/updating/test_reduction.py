@@ -6,7 +6,7 @@ import scipy.sparse as sp
 
 from modalab.core.errors import ConvergenceError, DofError, ModalabValueError
 from modalab.core.structure import Structure
-from updating.reduction import guyan, irs, master_indices, reduce, serep
+from updating.correlation.reduction import guyan, irs, master_indices, reduce, serep
 
 
 def chain(n=10, seed=0, fixed=True, sparse=False):
@@ -219,8 +219,8 @@ class TestReduceStructure:
             reduce(Structure(M=M, K=K, dofs=dofs), MASTERS, method="craig")
 
     def test_masters_as_test_labels_through_a_map(self):
-        from updating.dofmap import DofMap
-        from updating.correlation import mixed_orthogonality
+        from updating.correlation.dofmap import DofMap
+        from updating.correlation.metrics import mixed_orthogonality
         K, M, dofs = chain()
         st = Structure(M=M, K=K, dofs=dofs)
         dm = DofMap(dofs={"103+Z": "3-Z", "106+Z": "6+Z", "110+Z": "10+Z"})

@@ -4,10 +4,10 @@ import pytest
 import scipy.sparse as sp
 
 from modalab.core.errors import ModalabValueError, NotFittedError
-from updating.cases import six_dof_model
-from updating.mci import dynamic_expansion, measured_columns
-from updating.parametric import Derivative, MatrixModel
-from updating.rfm import ResponseFunctionMethod, receptance_rows, rfm_system
+from cases import six_dof_model
+from updating.methods.mci import dynamic_expansion, measured_columns
+from updating.fe.parametric import Derivative, MatrixModel
+from updating.methods.rfm import ResponseFunctionMethod, receptance_rows, rfm_system
 
 
 @pytest.fixture(scope="module")

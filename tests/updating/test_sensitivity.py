@@ -5,8 +5,8 @@ import pytest
 import scipy.sparse as sp
 from hypothesis import given, settings, strategies as st
 
-from updating.parametric import Derivative, MatrixModel
-from updating.sensitivity import (StackedDerivatives, eigenvalue_sensitivities, eigenvector_sensitivities,
+from updating.fe.parametric import Derivative, MatrixModel
+from updating.fe.sensitivity import (StackedDerivatives, eigenvalue_sensitivities, eigenvector_sensitivities,
                                   frequency_sensitivities, repeated_groups, solve_modes)
 
 
@@ -233,8 +233,8 @@ def test_large_sparse_model_uses_arpack():
 def test_solve_modes_handles_massless_rotations_of_a_lumped_mass_model():
     """Nastran's default (no PARAM COUPMASS) lumps translational mass only: M is singular in rotation."""
     from updating.fe import ParametricFEModel, Parameter
-    from updating.models.beams import thesis_beam
-    from updating.sensitivity import solve_modes
+    from updating.fe.models.beams import thesis_beam
+    from updating.fe.sensitivity import solve_modes
     lumped = thesis_beam(cord_stiffness=100.0)
     lumped.coupled_mass = False
     lumped._changed()

@@ -19,12 +19,12 @@ import pytest
 
 from modalab.core.frf import FRF
 
-from updating.cases import SIX_DOF_TABLE, six_dof_model, six_dof_pair
-from updating.direct import (direct_matrix_updating, error_matrix, lagrange_mass, lagrange_mass_stiffness,
+from cases import SIX_DOF_TABLE, six_dof_model, six_dof_pair
+from updating.methods.direct import (direct_matrix_updating, error_matrix, lagrange_mass, lagrange_mass_stiffness,
                              lagrange_stiffness, matrix_mixing)
-from updating.mci import MCIUpdater
-from updating.rfm import ResponseFunctionMethod
-from updating.sensitivity import solve_modes
+from updating.methods.mci import MCIUpdater
+from updating.methods.rfm import ResponseFunctionMethod
+from updating.fe.sensitivity import solve_modes
 
 
 def noisy(frf, level, seed):

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from modalab.core.frf import FRF
-from updating.cases import six_dof_model
-from updating.eigensensitivity import InverseEigensensitivity
-from updating.mci import MCIUpdater, measured_columns, mci
-from updating.rfm import ResponseFunctionMethod
+from cases import six_dof_model
+from updating.methods.eigensensitivity import InverseEigensensitivity
+from updating.methods.mci import MCIUpdater, measured_columns, mci
+from updating.methods.rfm import ResponseFunctionMethod
 
 BETA = 0.8
 F = np.arange(0.5, 30.0, 0.1)

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from modalab.core.frf import FRF
-from updating.cases import six_dof_model
-from updating.mci import MCIUpdater, measured_columns
-from updating.rfm import ResponseFunctionMethod
+from cases import six_dof_model
+from updating.methods.mci import MCIUpdater, measured_columns
+from updating.methods.rfm import ResponseFunctionMethod
 
 F = np.arange(0.5, 25.0, 0.25)
 BETA = 1.5
@@ -36,7 +36,7 @@ def windowed(model, beta, quantity="accelerance", responses=("1+X", "2+X", "3+X"
 @pytest.fixture(scope="module")
 def X():
     """The thesis' six-DOF case with 2 % structural damping (constant D = 0.02 K at nominal)."""
-    from updating.parametric import MatrixModel
+    from updating.fe.parametric import MatrixModel
 
     m = six_dof_model("experimental")
     K = m.matrices()[0]

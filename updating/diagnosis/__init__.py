@@ -34,13 +34,13 @@ figures and ``augmented.bdf``.
 ``"findings": []`` means nothing is missing beyond parameter error.  Values are in SI units (``unit``);
 ``std`` is the linearised standard deviation of the final joint fit.
 """
-from .fit import FRFData, fit_frf, frf_data, frf_error, model_frf
-from .frfscreen import frf_screen
-from .ritz import RitzBasis
-from .library import Candidate, build_library
-from .screen import ScreenResult, residual_map, screen
-from .workflow import Diagnoser, DiagnoserConfig, Diagnosis, Finding, default_parameters, diagnose, peak_modes
-from .modes import diagnose_modes, fit_modes, modes_data
+from updating.diagnosis.fit import FRFData, fit_frf, frf_data, frf_error, model_frf
+from updating.diagnosis.frfscreen import frf_screen
+from updating.diagnosis.ritz import RitzBasis
+from updating.diagnosis.library import Candidate, build_library
+from updating.diagnosis.screen import ScreenResult, residual_map, screen
+from updating.diagnosis.workflow import Diagnoser, DiagnoserConfig, Diagnosis, Finding, default_parameters, diagnose, peak_modes
+from updating.diagnosis.modes import diagnose_modes, fit_modes, modes_data
 
 __all__ = ["diagnose", "Diagnoser", "DiagnoserConfig", "diagnose_modes", "fit_modes", "modes_data", "peak_modes", "Diagnosis", "Finding", "default_parameters", "build_library", "Candidate", "screen",
            "ScreenResult", "residual_map", "fit_frf", "frf_data", "frf_error", "model_frf", "FRFData", "frf_screen",

@@ -5,7 +5,7 @@ The fit minimises the coherence-weighted relative complex FRF difference
     e_ijf = √c_ijf · (H_model,ij(s_f) − H_meas,ij(s_f)) / (|H_meas,ij(s_f)| + 0.2·rms_f|H_meas,ij|
                                                            + 10⁻⁴·rms_i,f|H_meas,ij|)
 
-over the parameters of a :class:`~updating.parametric.ParametricModel`
+over the parameters of a :class:`~updating.fe.parametric.ParametricModel`
 (``scipy.optimize.least_squares``, bounded, with the analytic Jacobian
 ``∂H/∂p = −H ∂Z/∂p H`` — the response-function sensitivity of thesis eq. (3.69)).
 The same measure, as an RMS, is the ``frf_error`` reported for training and
@@ -23,7 +23,7 @@ from modalab.core.dof import locate
 from modalab.core.errors import ModalabValueError
 from modalab.core.frf import FRF
 
-from .dynamics import solve_columns
+from updating.diagnosis.dynamics import solve_columns
 
 log = logging.getLogger(__name__)
 __all__ = ["FRFData", "frf_data", "model_frf", "frf_error", "fit_frf", "FitResult", "Prior"]
@@ -241,7 +241,7 @@ def _residual(pmodel, p, data: FRFData):
 
 def _jacobian(pmodel, p, data: FRFData, free, ctx):
     """∂(residual)/∂p for the free parameters: ``∂H/∂p = −H ∂Z/∂p H`` (thesis eq. 3.69)."""
-    from .screen import derivatives
+    from updating.diagnosis.screen import derivatives
     Xj, Xm, w = ctx
     ders = derivatives(pmodel, p)
     n, nr, ns = Xj.shape
@@ -283,8 +283,8 @@ def _residual_ritz(pmodel, p, data: FRFData, basis):
 
 
 def _jacobian_ritz(pmodel, p, data: FRFData, free, ctx):
-    from .ritz import RitzBasis
-    from .screen import derivatives
+    from updating.diagnosis.ritz import RitzBasis
+    from updating.diagnosis.screen import derivatives
     rctx, sign, w = ctx
     ders = derivatives(pmodel, p)
     J = []
@@ -303,7 +303,7 @@ def quick_frf_error(structure, data: FRFData) -> float:
     :data:`RITZ_LIMIT` DOFs (for screening many models; exact otherwise)."""
     if structure.n_dof <= RITZ_LIMIT:
         return frf_error(model_frf(structure, data), data)
-    from .ritz import RitzBasis
+    from updating.diagnosis.ritz import RitzBasis
     mi, ms, ri, rs = _indices(structure.dofs, data)
     basis = RitzBasis(structure, np.concatenate([mi, ri]), float(np.max(np.abs(data.s))) / (2 * np.pi))
     H, _ = basis.responses(structure, data.s, mi, ri, want_jac_rows=False)
@@ -340,7 +340,7 @@ def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None
     for rnd in range(max(int(rounds), 1) if reduced else 1):
         basis = None
         if reduced:
-            from .ritz import RitzBasis
+            from updating.diagnosis.ritz import RitzBasis
             st = st0 if rnd == 0 else pmodel.structure(p_cur)
             mi, _, ri, _ = _indices(st.dofs, data)
             basis = RitzBasis(st, np.concatenate([mi, ri]), float(np.max(np.abs(data.s))) / (2 * np.pi))

@@ -43,9 +43,9 @@ import scipy.sparse as sp
 from modalab.core.dof import DIRECTION_NAMES, Dof
 from modalab.core.errors import ModalabValueError
 
-from ..fe import Damper, FEModel, LumpedMass, Parameter, Spring
-from ..fe.assembly import assemble
-from ..fe.constraints import RBE2, SPC
+from updating.fe import Damper, FEModel, LumpedMass, Parameter, Spring
+from updating.fe.assembly import assemble
+from updating.fe.constraints import RBE2, SPC
 
 log = logging.getLogger(__name__)
 __all__ = ["Candidate", "build_library", "UNITS"]

@@ -51,12 +51,12 @@ import scipy.sparse as sp
 from modalab.core.errors import ModalabValueError
 from modalab.core.modes import ModeSet
 
-from ..fe import FEModel, ParametricFEModel
-from ..fe.solvers import (DEFAULT_SHIFT_HZ, _drop_mechanisms, eigen_dense, eigen_sparse, factorize,
+from updating.fe import FEModel, ParametricFEModel
+from updating.fe.solvers import (DEFAULT_SHIFT_HZ, _drop_mechanisms, eigen_dense, eigen_sparse, factorize,
                           massless_mechanisms)
-from .fit import FitResult, FRFData
-from .library import build_library
-from .workflow import (Diagnosis, Finding, _augment, _bounds, _fmt, _upper, default_parameters,
+from updating.diagnosis.fit import FitResult, FRFData
+from updating.diagnosis.library import build_library
+from updating.diagnosis.workflow import (Diagnosis, Finding, _augment, _bounds, _fmt, _upper, default_parameters,
                        promote_measured, statement)
 
 log = logging.getLogger(__name__)
@@ -361,7 +361,7 @@ def screen_modes(structure, candidates, resid: ModalResidual, basis: ModalSubspa
     over the grid.  A candidate is kept only if its best value changes a model mode paired with a test
     mode (``L ᵀφ_j ≠ 0``: otherwise every paired mode is an exact eigenpair of the changed model too, and
     any gain would come from a different pairing of modes the sensors cannot see)."""
-    from .frfscreen import _low_rank, _value_grid
+    from updating.diagnosis.frfscreen import _low_rank, _value_grid
     K, M = sp.csr_matrix(structure.K), sp.csr_matrix(structure.M)
     if basis is None or not basis.matches(structure):
         # the lowest modes alone: each candidate brings the static corrections of its own DOFs
@@ -566,9 +566,9 @@ AMBIGUOUS_RSS = 0.05
 
 def map_test_modes(test_modes: ModeSet, model: FEModel, dofmap) -> ModeSet:
     """The test modes on the model's DOF labels through a DOF map (``--map``: a TOML/CSV file, a dict or a
-    :class:`~updating.dofmap.DofMap`; test node → model grid, with signs).  Each test DOF must read one
+    :class:`~updating.correlation.dofmap.DofMap`; test node → model grid, with signs).  Each test DOF must read one
     model DOF (an oblique sensor is refused with a message by :meth:`DofMap.model_labels`)."""
-    from ..dofmap import as_dofmap
+    from updating.correlation.dofmap import as_dofmap
     if not len(test_modes.dofs):
         return test_modes
     labels, scale = as_dofmap(dofmap).model_labels(list(test_modes.dofs), model.reduction().full_dofs)
@@ -586,7 +586,7 @@ def map_test_modes(test_modes: ModeSet, model: FEModel, dofmap) -> ModeSet:
 
 def _neighbours(model) -> dict:
     """Nodes sharing an element with each node."""
-    from .library import _nodes_of
+    from updating.diagnosis.library import _nodes_of
     nb: dict = {}
     for e in model.elements.values():
         ns = _nodes_of(e)
@@ -846,7 +846,7 @@ def modal_force_map(structure, data: FRFData) -> np.ndarray:
     otherwise the expansion ``Z_ss`` is singular at every frequency."""
     from modalab.core.dof import locate
 
-    from .dynamics import condensed_residual
+    from updating.diagnosis.dynamics import condensed_residual
     mi, ms = locate(structure.dofs, data.responses, "test-mode DOF")
     K, M = sp.csr_matrix(structure.K), sp.csr_matrix(structure.M)
     C = None if structure.C is None else sp.csr_matrix(structure.C)

@@ -164,7 +164,7 @@ class RitzBasis:
 
     @staticmethod
     def jacobian(ctx, derivative, s) -> np.ndarray:
-        """``∂H/∂p`` (n_rows, n_refs, n_s) for one :class:`~updating.parametric.Derivative`."""
+        """``∂H/∂p`` (n_rows, n_refs, n_s) for one :class:`~updating.fe.parametric.Derivative`."""
         Q, Yr, Ym = ctx
         m, nr, ns = Yr.shape
         out = np.zeros((Ym.shape[1], nr, ns), complex)

@@ -25,7 +25,7 @@ import numpy as np
 
 from modalab.core.dof import locate
 
-from .dynamics import condensed_residual
+from updating.diagnosis.dynamics import condensed_residual
 
 log = logging.getLogger(__name__)
 __all__ = ["screen", "ScreenResult", "residual_map", "mci_update", "residual_system"]
@@ -273,7 +273,7 @@ def derivatives(pmodel, p):
     nonlin = np.flatnonzero(~lin)
     if nonlin.size:
         # the derivatives of the non-linear fields (e.g. PARAM G: ∂D/∂g = K(p)) depend on every parameter
-        from ..fe import ParametricFEModel
+        from updating.fe import ParametricFEModel
         sub = ParametricFEModel(pmodel.model_at(p), [pars[i] for i in nonlin])
         for i, d in zip(nonlin, sub.derivatives(sub.p0)):
             if pars[i].mode == "factor":

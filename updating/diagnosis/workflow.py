@@ -42,11 +42,11 @@ from modalab.core.errors import ModalabError, ModalabValueError
 from modalab.core.modes import ModeSet
 from modalab.core.frf import FRF
 
-from ..fe import FEModel, Parameter, ParametricFEModel
-from .fit import RITZ_LIMIT, FRFData, Prior, fit_frf, frf_data, frf_error, model_frf, quick_frf_error
-from .frfscreen import frf_screen
-from .library import Candidate, _nodes_of, build_library, validate_kinds
-from .screen import mci_update, rank_candidates, residual_map, residual_system
+from updating.fe import FEModel, Parameter, ParametricFEModel
+from updating.diagnosis.fit import RITZ_LIMIT, FRFData, Prior, fit_frf, frf_data, frf_error, model_frf, quick_frf_error
+from updating.diagnosis.frfscreen import frf_screen
+from updating.diagnosis.library import Candidate, _nodes_of, build_library, validate_kinds
+from updating.diagnosis.screen import mci_update, rank_candidates, residual_map, residual_system
 
 log = logging.getLogger(__name__)
 __all__ = ["diagnose", "Diagnoser", "DiagnoserConfig", "Diagnosis", "Finding", "default_parameters"]
@@ -117,12 +117,12 @@ class Diagnosis:
         d.mkdir(parents=True, exist_ok=True)
         (d / "diagnosis.json").write_text(json.dumps(self.to_dict(), indent=1))
         if figures:
-            from .report import write_figures
+            from updating.diagnosis.report import write_figures
             write_figures(self, d)
         if bulk and self.model is not None:
             from modalab.core.errors import ModalabError
             try:
-                from ..bulk import write_bdf
+                from updating.fe.bulk import write_bdf
                 write_bdf(self.model, d / "augmented.bdf")
             except ModalabError as e:
                 log.warning("the augmented model was not written as bulk data: %s", e)
@@ -569,13 +569,13 @@ def pair_test_modes(structure, test_modes: ModeSet) -> dict:
     Rigid-body and suspension modes are excluded on purpose: a model mode whose kinetic energy lies for more
     than 90 % in the rigid-body motions and whose frequency is below :data:`SUSPENSION_RATIO` × the first
     elastic model frequency, and a test mode below that frequency.  The rest are paired by MAC (optimal
-    assignment, :func:`updating.correlation.correlate`) with at least :data:`PAIR_MAC_MIN` and a relative
+    assignment, :func:`updating.correlation.metrics.correlate`) with at least :data:`PAIR_MAC_MIN` and a relative
     frequency difference of at most :data:`PAIR_MAX_FREQ_ERROR`; a mode without such a partner is unpaired.
 
     Returns ``pairs`` [(model freq, test index)], ``freq_error_pct``, ``mac``, ``excluded_test_hz``,
     ``excluded_model_hz``, ``unpaired_test_hz``, ``cutoff_hz``.
     """
-    from ..correlation import analysis_modes, correlate
+    from updating.correlation.metrics import analysis_modes, correlate
     n = min(structure.n_dof, 2 * test_modes.n_modes + 12)
     ana = analysis_modes(structure, n)
     top = (1 + PAIR_MAX_FREQ_ERROR) * float(np.max(test_modes.freq_hz, initial=0.0))

@@ -62,20 +62,20 @@ Parameters (:mod:`updating.fe.parameters`)
 ``Parameter(name, field, materials=(), properties=(pid or group name, ...), elements=(), groups=(),
 mode="factor"|"value")`` — factor: p multiplies the nominal (p0 = 1); value: p is the SI value.
 ``ParametricFEModel(model, parameters, p0=None)`` implements
-:class:`updating.parametric.ParametricModel`: ``dofs``, ``parameter_names``, ``p0``,
+:class:`updating.fe.parametric.ParametricModel`: ``dofs``, ``parameter_names``, ``p0``,
 ``structure(p)``, ``derivatives(p)`` (exact, complex-step, on the constrained DOFs),
 plus ``model_at(p)`` and ``system(p)``.
 """
-from .assembly import Matrices, assemble
-from .constraints import RBE2, SPC, Reduction, build_reduction
-from .damping import ModalDampingTable, modal_damping_matrix, rayleigh, rayleigh_coefficients
-from .elements import (Beam2D, Beam3D, Damper, Element, ElementMatrices, LumpedMass, Quad4, Rod, Spring,
+from updating.fe.assembly import Matrices, assemble
+from updating.fe.constraints import RBE2, SPC, Reduction, build_reduction
+from updating.fe.damping import ModalDampingTable, modal_damping_matrix, rayleigh, rayleigh_coefficients
+from updating.fe.elements import (Beam2D, Beam3D, Damper, Element, ElementMatrices, LumpedMass, Quad4, Rod, Spring,
                        Timoshenko3D, Tria3)
-from .model import FEModel, FESystem, Node
-from .parameters import Parameter, ParametricFEModel
-from .properties import (BeamProperty, CircularSection, GeneralSection, Material, RectangularSection,
+from updating.fe.model import FEModel, FESystem, Node
+from updating.fe.parameters import Parameter, ParametricFEModel
+from updating.fe.properties import (BeamProperty, CircularSection, GeneralSection, Material, RectangularSection,
                          RodProperty, ShellProperty, TubeSection)
-from .solvers import eigen_dense, eigen_sparse, frf_direct, frf_modal, modes_of, normal_modes
+from updating.fe.solvers import eigen_dense, eigen_sparse, frf_direct, frf_modal, modes_of, normal_modes
 
 __all__ = [
     "FEModel", "FESystem", "Node", "Matrices", "assemble", "RBE2", "SPC", "Reduction", "build_reduction",

@@ -24,7 +24,7 @@ import scipy.sparse as sp
 
 from modalab.core.errors import ModalabValueError
 
-from .elements.base import AssemblyContext
+from updating.fe.elements.base import AssemblyContext
 
 log = logging.getLogger(__name__)
 

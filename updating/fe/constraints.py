@@ -24,7 +24,7 @@ import scipy.sparse as sp
 from modalab.core.dof import Dof
 from modalab.core.errors import ModalabValueError
 
-from .assembly import Matrices, dof_index
+from updating.fe.assembly import Matrices, dof_index
 
 __all__ = ["RBE2", "SPC", "Reduction", "build_reduction", "parse_components"]
 

@@ -38,7 +38,7 @@ Only the elements a parameter touches are re-assembled.  The derivatives are
 reduced with the same constraint transformation, ``∂K_a/∂p = Tᵀ (∂K/∂p) T``.
 
 :class:`ParametricFEModel` wraps a model and a parameter list and implements
-the :class:`updating.parametric.ParametricModel` protocol on the constrained DOFs.
+the :class:`updating.fe.parametric.ParametricModel` protocol on the constrained DOFs.
 """
 from __future__ import annotations
 
@@ -51,14 +51,14 @@ import scipy.sparse as sp
 
 from modalab.core.errors import ModalabValueError, ShapeError
 from modalab.core.structure import Structure
-from updating.parametric import Derivative
+from updating.fe.parametric import Derivative
 
-from .assembly import assemble
-from .elements.damper import Damper
-from .elements.mass import LumpedMass
-from .elements.spring import Spring
-from .model import FEModel, FESystem
-from .properties import BeamProperty, RodProperty, ShellProperty
+from updating.fe.assembly import assemble
+from updating.fe.elements.damper import Damper
+from updating.fe.elements.mass import LumpedMass
+from updating.fe.elements.spring import Spring
+from updating.fe.model import FEModel, FESystem
+from updating.fe.properties import BeamProperty, RodProperty, ShellProperty
 
 log = logging.getLogger(__name__)
 
@@ -220,7 +220,7 @@ def _set(model, kind, key, field, value, fresh_mid):
 
 
 class ParametricFEModel:
-    """An FE model with named parameters; implements :class:`updating.parametric.ParametricModel`.
+    """An FE model with named parameters; implements :class:`updating.fe.parametric.ParametricModel`.
 
     Parameters
     ----------

@@ -28,7 +28,7 @@ def _tuple(x):
 # ============================================================================ shared inputs
 def load_model(path):
     """An FE model from Nastran bulk data (``.bdf``, ``.dat``, ``.nas``, ``.blk``)."""
-    from updating.bulk import build_model, read_bdf
+    from updating.fe.bulk import build_model, read_bdf
 
     p = Path(path)
     if not p.is_file():

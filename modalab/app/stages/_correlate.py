@@ -4,7 +4,7 @@ Test DOFs are put on model DOFs by a DOF map (``dofmap``), or by geometry when b
 carry node coordinates (the test geometry from dataset 2411 in the modes file or a ``geometry`` file: nearest
 model node after a best-fit rigid transform, distances reported), or by equal node numbers only when asked
 (``same_ids``).  Otherwise the stage refuses: test node numbers are not model grid numbers unless someone
-says so.  Pairs follow the one rule of :func:`updating.correlation.pair_modes` inside the frequency window.
+says so.  Pairs follow the one rule of :func:`updating.correlation.metrics.pair_modes` inside the frequency window.
 """
 from __future__ import annotations
 
@@ -45,7 +45,7 @@ class CorrelateOptions:
 
 @dataclass(frozen=True)
 class DofMapping:
-    """How test DOFs go onto model DOFs: ``dofmap`` (for :func:`updating.dofmap.as_dofmap`), ``description``
+    """How test DOFs go onto model DOFs: ``dofmap`` (for :func:`updating.correlation.dofmap.as_dofmap`), ``description``
     (said in the results) and ``geometry`` (the report of a geometry map, else None)."""
 
     dofmap: object = None
@@ -56,7 +56,7 @@ class DofMapping:
 def resolve_dof_map(model, test, opts: CorrelateOptions = CorrelateOptions(), *,
                     modes_path="the modes file", tol=None) -> DofMapping:
     """The test DOFs on ``model``'s DOFs; see the module docstring."""
-    from updating.dofmap import geometry_map
+    from updating.correlation.dofmap import geometry_map
 
     if not test.has_shapes:
         return DofMapping(None, "none (no test shapes)", None)
@@ -108,7 +108,7 @@ def _n_analysis(opts: CorrelateOptions, test) -> int:
 
 def _correlation(model, test, opts: CorrelateOptions, mapping: DofMapping):
     """Correlation on every test DOF (the model's modes on every DOF, rigid-link dependents filled in)."""
-    from updating.correlation import correlate as _correlate
+    from updating.correlation.metrics import correlate as _correlate
 
     n = _n_analysis(opts, test)
     an = analysis_modes_covering(model, test, n, opts.freq_window) if hasattr(model, "modes") else model
@@ -119,7 +119,7 @@ def _correlation(model, test, opts: CorrelateOptions, mapping: DofMapping):
 
 def _correlation_figures(res, d: Path, tag: str, title: str, frequencies: bool = True) -> list:
     """MAC matrix (test sets with shapes only) and the frequency 45° plot."""
-    from updating.correlation_plots import plot_frequencies, plot_mac
+    from updating.correlation.plots import plot_frequencies, plot_mac
 
     d.mkdir(parents=True, exist_ok=True)
     files = []
@@ -147,7 +147,7 @@ def correlate(model_path, modes_path, opts: CorrelateOptions = CorrelateOptions(
     if json_path is not None:
         files.append(write_json(json_path, res.to_dict()))
     if plots_dir is not None:
-        from updating.correlation_plots import plot_comac
+        from updating.correlation.plots import plot_comac
 
         files += _correlation_figures(res, Path(plots_dir), "before", "nominal model")
         if res.pairs and res.has_shapes:

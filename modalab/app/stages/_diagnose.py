@@ -57,7 +57,7 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
     params = load_parameters(opts.parameters, model)[0] if opts.parameters else None
     priors = None
     if opts.parameters:
-        from updating.parameter_file import read_priors
+        from updating.fe.parameter_file import read_priors
 
         priors = read_priors(opts.parameters) or None
     test_modes = load_modes(modes_path) if modes_path else None
@@ -94,7 +94,7 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
 
 
 def _diagnosis_files(diag, model, H, d: Path, opts: DiagnoseOptions, updated_model) -> list:
-    from updating.bulk import to_bulk, write_bdf
+    from updating.fe.bulk import to_bulk, write_bdf
     from updating.diagnosis.report import write_figures
 
     from modalab.app.report import plot_mci_maps

@@ -74,7 +74,7 @@ def demo_fe_model():
 
 def _export_model(folder: Path, model) -> list:
     """``model.bdf`` and ``params.toml`` (E and density multipliers per property, bounded 0.5-2) in ``folder``."""
-    from updating.bulk import to_bulk, write_bdf
+    from updating.fe.bulk import to_bulk, write_bdf
     from updating.diagnosis.workflow import default_parameters
 
     folder.mkdir(parents=True, exist_ok=True)

@@ -52,7 +52,7 @@ class UpdateOptions:
 def _on_model_dofs(modes, dofs, dofmap):
     """Test modes restricted to DOFs the updater can see (independent DOFs of the constrained model): a test
     DOF is kept when every model DOF the map puts it on is one of ``dofs``."""
-    from updating.dofmap import as_dofmap
+    from updating.correlation.dofmap import as_dofmap
 
     if not modes.has_shapes:
         return modes
@@ -86,7 +86,7 @@ def update(model_path, out_dir, opts: UpdateOptions = UpdateOptions(), *, modes_
     std, convergence history, correlation before and after), ``mac_before/after.png``,
     ``frequencies_after.png`` and ``convergence.png``.
     """
-    from updating.bulk import read_bdf, to_bulk, write_bdf
+    from updating.fe.bulk import read_bdf, to_bulk, write_bdf
     from updating.fe import ParametricFEModel
 
     from modalab.app.report import plot_convergence
@@ -173,7 +173,7 @@ def _identifiability(up, pm, test, fsig) -> dict:
 def _fit_parameters(pm, opts: UpdateOptions, lo, hi, test, frf_path, dofmap, fsig):
     pairing = {"max_freq_error": opts.correlation.freq_window}
     if opts.method == "eigensensitivity":
-        from updating.eigensensitivity import InverseEigensensitivity
+        from updating.methods.eigensensitivity import InverseEigensensitivity
 
         kw = {} if fsig is None else {"freq_sigma": fsig, "freq_cov": None}
         est = InverseEigensensitivity(max_iter=opts.max_iter, regularisation=opts.regularisation,
@@ -182,7 +182,7 @@ def _fit_parameters(pm, opts: UpdateOptions, lo, hi, test, frf_path, dofmap, fsi
                                       pairing=pairing, **kw)
         return est.fit(pm, _on_model_dofs(test, pm.dofs, dofmap), dofmap=dofmap)
     if opts.method == "eigendynamic":
-        from updating.eigendynamic import EigendynamicConstraint
+        from updating.methods.eigendynamic import EigendynamicConstraint
 
         return EigendynamicConstraint(pairing=pairing).fit(pm, _on_model_dofs(test, pm.dofs, dofmap), dofmap=dofmap)
     from modalab.core.frf import FRF
@@ -190,17 +190,17 @@ def _fit_parameters(pm, opts: UpdateOptions, lo, hi, test, frf_path, dofmap, fsi
     measured = FRF.from_uff(frf_path)
     bands = [tuple(b) for b in opts.bands] if opts.bands else None
     if opts.method == "mci":
-        from updating.mci import MCIUpdater
+        from updating.methods.mci import MCIUpdater
 
         return MCIUpdater(bands=bands, max_iter=opts.max_iter).fit(pm, measured)
-    from updating.rfm import ResponseFunctionMethod
+    from updating.methods.rfm import ResponseFunctionMethod
 
     return ResponseFunctionMethod(bands=bands, max_iter=opts.max_iter).fit(pm, measured)
 
 
 def _update_direct(model, test, method, co: CorrelateOptions, mapping: DofMapping, out: Path, summary: dict):
     from updating import direct as dm
-    from updating.correlation import correlate as _correlate
+    from updating.correlation.metrics import correlate as _correlate
 
     from modalab.core.structure import Structure
 
@@ -208,7 +208,7 @@ def _update_direct(model, test, method, co: CorrelateOptions, mapping: DofMappin
     if mapping.dofmap is None and all(any(d.same_axis(m) for m in test.dofs) for d in st.dofs):
         phi_x = test.select_dofs(st.dofs).real_shapes
     else:
-        from updating.expansion import kidder
+        from updating.correlation.expansion import kidder
 
         phi_x = kidder(st, _on_model_dofs(test, st.dofs, mapping.dofmap), dofmap=mapping.dofmap).real_shapes
     K, M = st.K.toarray(), st.M.toarray()

@@ -12,15 +12,15 @@
 :class:`Tria3`      3-node flat shell, DKT bending + CST membrane (CTRIA3/PSHELL)
 =================  ==============================================================
 """
-from .base import AssemblyContext, Element, ElementMatrices
-from .beam2d import Beam2D
-from .beam3d import Beam3D
-from .damper import Damper
-from .mass import LumpedMass
-from .rod import Rod
-from .shell import Quad4, Tria3
-from .spring import Spring
-from .timoshenko3d import Timoshenko3D
+from updating.fe.elements.base import AssemblyContext, Element, ElementMatrices
+from updating.fe.elements.beam2d import Beam2D
+from updating.fe.elements.beam3d import Beam3D
+from updating.fe.elements.damper import Damper
+from updating.fe.elements.mass import LumpedMass
+from updating.fe.elements.rod import Rod
+from updating.fe.elements.shell import Quad4, Tria3
+from updating.fe.elements.spring import Spring
+from updating.fe.elements.timoshenko3d import Timoshenko3D
 
 __all__ = ["Element", "ElementMatrices", "AssemblyContext", "Beam3D", "Timoshenko3D", "Beam2D", "Rod",
            "Spring", "Damper", "LumpedMass", "Quad4", "Tria3"]

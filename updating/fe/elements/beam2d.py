@@ -17,9 +17,9 @@ import numpy as np
 
 from modalab.core.errors import ModalabValueError
 
-from ._frame import _axial, _bending_K, _bending_M
-from .base import Element, ElementMatrices
-from ..properties import BeamProperty
+from updating.fe.elements._frame import _axial, _bending_K, _bending_M
+from updating.fe.elements.base import Element, ElementMatrices
+from updating.fe.properties import BeamProperty
 
 __all__ = ["Beam2D"]
 

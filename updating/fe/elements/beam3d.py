@@ -18,9 +18,9 @@ import numpy as np
 
 from modalab.core.errors import ModalabValueError
 
-from ._frame import frame_local_batch, local_axes, local_axes_batch, to_basic
-from .base import Element, ElementMatrices, six_dofs
-from ..properties import BeamProperty
+from updating.fe.elements._frame import frame_local_batch, local_axes, local_axes_batch, to_basic
+from updating.fe.elements.base import Element, ElementMatrices, six_dofs
+from updating.fe.properties import BeamProperty
 
 __all__ = ["Beam3D"]
 

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .base import Element, ElementMatrices
-from .spring import _pattern, scalar_dofs
+from updating.fe.elements.base import Element, ElementMatrices
+from updating.fe.elements.spring import _pattern, scalar_dofs
 
 __all__ = ["Damper"]
 

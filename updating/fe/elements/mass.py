@@ -22,7 +22,7 @@ import numpy as np
 
 from modalab.core.errors import ModalabValueError
 
-from .base import Element, ElementMatrices
+from updating.fe.elements.base import Element, ElementMatrices
 
 __all__ = ["LumpedMass"]
 

@@ -13,8 +13,8 @@ import numpy as np
 
 from modalab.core.errors import ModalabValueError
 
-from .base import Element, ElementMatrices, six_dofs
-from ..properties import BeamProperty, RodProperty
+from updating.fe.elements.base import Element, ElementMatrices, six_dofs
+from updating.fe.properties import BeamProperty, RodProperty
 
 __all__ = ["Rod"]
 

@@ -66,8 +66,8 @@ import numpy as np
 
 from modalab.core.errors import ModalabValueError
 
-from .base import Element, ElementMatrices, six_dofs
-from ..properties import ShellProperty
+from updating.fe.elements.base import Element, ElementMatrices, six_dofs
+from updating.fe.properties import ShellProperty
 
 __all__ = ["Quad4", "Tria3"]
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .beam3d import Beam3D
+from updating.fe.elements.beam3d import Beam3D
 
 __all__ = ["Timoshenko3D"]
 

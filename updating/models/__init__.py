@@ -1,5 +1,0 @@
-"""Ready-made FE models: simple beams (:mod:`updating.models.beams`) and the GARTEUR
-SM-AG19-like aircraft test bed (:mod:`updating.models.garteur`)."""
-from .beams import beam_model, closed_form_hz, thesis_beam, thesis_beam_parameters, timoshenko_pinned_hz
-
-__all__ = ["beam_model", "closed_form_hz", "timoshenko_pinned_hz", "thesis_beam", "thesis_beam_parameters"]
