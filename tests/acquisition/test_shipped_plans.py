@@ -11,7 +11,7 @@ from acquisition.plan import HAMMER_TIPS, load_plan
 from modalab.app.pipeline import acquire, make_sim_backend
 
 ROOT = Path(__file__).resolve().parents[2]
-SHIPPED = sorted(p for d in ("examples", "modalab/demo_data") for p in (ROOT / d).rglob("*.toml"))
+SHIPPED = sorted(p for d in ("examples", "modalab/app/demo_data") for p in (ROOT / d).rglob("*.toml"))
 PLANS = [p for p in SHIPPED if "[roving]" in p.read_text()]
 
 

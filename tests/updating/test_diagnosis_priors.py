@@ -79,7 +79,7 @@ def test_a_plain_finding_is_not_ambiguous():
 
 
 def test_priors_from_the_parameter_file(tmp_path):
-    from modalab.app._cli_diagnose import _priors
+    from updating.fe.parameter_file import read_priors as _priors
     from modalab.core.errors import PlanError
     f = tmp_path / "p.toml"
     f.write_text('[[parameter]]\nname = "E_a"\nfield = "E"\nproperties = ["a"]\nprior = 0.2\n\n'

@@ -30,7 +30,7 @@ def windowed(model, beta, quantity="accelerance", responses=("1+X", "2+X", "3+X"
         # accelerance of the windowed response: (s)^2 X(s) evaluated at s = beta + i omega
         H[:, :, k] = X[io] * (s ** 2 if quantity == "accelerance" else 1.0)
     return FRF(freq_hz=F, H=H, responses=list(responses), references=list(references), quantity=quantity,
-               metadata={"exp_window_beta": beta} if beta else {})
+               window_beta_per_s=beta)
 
 
 @pytest.fixture(scope="module")
@@ -45,7 +45,7 @@ def X():
 
 def test_window_is_read_and_used(X):
     data = measured_columns(X, windowed(X, BETA))
-    assert data.beta == BETA and np.allclose(data.omega_c, data.omega - 1j * BETA)
+    assert data.beta == BETA and np.allclose(data.w, data.omega - 1j * BETA)
 
 
 @pytest.mark.parametrize("beta", [0.0, BETA])
@@ -57,6 +57,6 @@ def test_exact_model_stays_exact(X, cls, beta):
 
 def test_ignoring_the_window_would_move_the_exact_model(X):
     frf = windowed(X, BETA)
-    frf.metadata = {}
+    frf.window_beta_per_s = 0.0                  # what a tool that drops the window would see
     up = MCIUpdater(max_iter=10).fit(X, frf)
     assert np.max(np.abs(up.p_ / np.where(X.p0 != 0, X.p0, 1) - 1)) > 0.01

@@ -543,20 +543,7 @@ def _freq_rms(structure, test_modes, keep) -> float:
 @dataclass
 class ModesFinding(Finding):
     """A modes-only finding; ``alternatives`` are other candidates that explain the same residual equally
-    well (then the finding is ambiguous: the data cannot tell them apart)."""
-
-    alternatives: list = field(default_factory=list)       # [(Candidate, value, rss)]
-
-    @property
-    def ambiguous(self) -> bool:
-        return bool(self.alternatives)
-
-    def to_dict(self) -> dict:
-        d = super().to_dict()
-        d["ambiguous"] = self.ambiguous
-        d["alternatives"] = [{"physics": c.physics, "description": c.label, "dofs": list(c.dofs),
-                              "value": float(v), "unit": c.unit} for c, v, _ in self.alternatives]
-        return d
+    well, as ``(Candidate, value, rss)`` (then the finding is ambiguous: the data cannot tell them apart)."""
 
 
 #: two candidates whose fitted residuals differ by less than this fraction (or by less than 1 in the
@@ -797,7 +784,7 @@ def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
             ev += ("; AMBIGUOUS: " + ", ".join(f"{a.label} ({_fmt(v, a.unit)})" for a, v, _ in alts)
                    + " explains it as well, and the test modes cannot tell them apart")
         findings.append(ModesFinding(c, float(best_fit.p[n_par + k] * sc), float(best_fit.std[n_par + k] * sc), ev,
-                                     gain, alts))
+                                     gain, alternatives=alts))
     pars = {par.name: {"initial": float(p_nom[k]), "updated": float(best_fit.p[k]),
                        "parameters_only": float(upd.p[k]), "std": float(best_fit.std[k]), "mode": par.mode}
             for k, par in enumerate(params)}

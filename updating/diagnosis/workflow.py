@@ -60,7 +60,7 @@ class Finding:
     evidence: str
     gain_train: float = 0.0
     parts: list = field(default_factory=list)          # [(Candidate, value, std)] refining this finding nearby
-    alternatives: list = field(default_factory=list)   # [(Candidate, value)] explaining the data equally well
+    alternatives: list = field(default_factory=list)   # [(Candidate, value, ...)] explaining the data equally well
 
     @property
     def ambiguous(self) -> bool:
@@ -71,7 +71,7 @@ class Finding:
         c = self.candidate
         s = c.label + "".join(f" with {_fmt(v, o.unit)} at {', '.join(o.dofs) or o.nodes}" for o, v, _ in self.parts)
         if self.alternatives:
-            s += " or " + " or ".join(o.label for o, _ in self.alternatives)
+            s += " or " + " or ".join(o.label for o, *_ in self.alternatives)
         return s
 
     def to_dict(self) -> dict:
@@ -85,7 +85,7 @@ class Finding:
                 "ambiguous": self.ambiguous,
                 "alternatives": [{"physics": o.physics, "nodes": [int(n) for n in o.nodes], "dofs": list(o.dofs),
                                   "elements": [int(e) for e in o.elements], "description": o.label,
-                                  "value": float(v), "unit": o.unit} for o, v in self.alternatives],
+                                  "value": float(v), "unit": o.unit} for o, v, *_ in self.alternatives],
                 "evidence": self.evidence}
 
 
@@ -1162,7 +1162,7 @@ def _describe(f: Finding) -> str:
     s = f"{f.candidate.label} of {_fmt(f.value, f.candidate.unit)}"
     s += "".join(f" (with {_fmt(v, o.unit)} at {', '.join(o.dofs) or o.nodes})" for o, v, _ in f.parts)
     if f.alternatives:
-        s = "either " + s + "".join(f" or {o.label} of {_fmt(v, o.unit)}" for o, v in f.alternatives) + \
+        s = "either " + s + "".join(f" or {o.label} of {_fmt(v, o.unit)}" for o, v, *_ in f.alternatives) + \
             " (the data cannot tell them apart)"
     return s
 
