@@ -70,3 +70,15 @@ def test_update_needs_the_right_data(case, capsys):
     assert main(["update", str(d / "nominal.bdf"), "--modes", str(d / "test_modes.uff"), "--method", "mci",
                  "-o", str(d / "x")]) == 2
     assert "needs measured FRFs" in capsys.readouterr().err
+
+
+def test_update_cli_direct_method_writes_updated_matrices(case, capsys):
+    # the direct methods run through the same stage (they update matrices, not parameters)
+    d, _, _ = case
+    out = d / "direct"
+    assert main(["update", str(d / "nominal.bdf"), "--modes", str(d / "test_modes.uff"), "--method",
+                 "direct-lagrange", "-o", str(out)]) == 0
+    s = json.loads((out / "update.json").read_text())
+    assert s["method"] == "direct-lagrange" and (out / "updated_matrices.npz").exists()
+    m = np.load(out / "updated_matrices.npz")
+    assert m["K"].shape == m["M"].shape and np.abs(m["dK"]).max() > 0

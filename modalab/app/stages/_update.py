@@ -199,7 +199,7 @@ def _fit_parameters(pm, opts: UpdateOptions, lo, hi, test, frf_path, dofmap, fsi
 
 
 def _update_direct(model, test, method, co: CorrelateOptions, mapping: DofMapping, out: Path, summary: dict):
-    from updating import direct as dm
+    from updating.methods import direct as dm
     from updating.correlation.metrics import correlate as _correlate
 
     from modalab.core.structure import Structure
