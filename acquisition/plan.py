@@ -78,6 +78,7 @@ from pathlib import Path
 from modalab.core.daqconfig import AcquisitionConfig, ChannelConfig, sensitivity_to_si
 from modalab.core.dof import Dof
 from modalab.core.errors import DofError, ModalabValueError, PlanError
+from .windows import ExponentialWindow
 
 __all__ = ["TestPlan", "load_plan", "PlanChannel", "exponential_window", "SECTION_KEYS", "CHANNEL_KEYS", "SIM_KEYS"]
 
@@ -128,7 +129,6 @@ def exponential_window(exp_beta: float | None = None, exp_end_level: float | Non
     falls to that level at the record end; ``None`` or 0 for both means no window; both non-zero is an
     error (they would disagree).  The FRF of a windowed record is the structure's at s = iω + β.
     """
-    from .windows import ExponentialWindow
 
     beta = None if exp_beta is None else float(exp_beta)
     end = None if exp_end_level is None else float(exp_end_level)

@@ -57,6 +57,7 @@ from .session_resume import _Recovery, _Stop
 from .session_summary import (STANDARD_RANGES, PointSummary, ScriptedPrompter, SessionObserver, SessionSummary,
                               suggest_range)
 from .store import HitStore
+from .checks import check_hit
 
 log = logging.getLogger(__name__)
 __all__ = ["AcquisitionSession", "SessionObserver", "ScriptedPrompter", "PointSummary", "SessionSummary",
@@ -194,7 +195,6 @@ class AcquisitionSession(_Recovery):
 
     def _check(self, rec: TimeRecord):
         """Quality report and (rejecting reasons, warnings)."""
-        from .checks import check_hit
 
         report = check_hit(rec, self.check_config, ranges=[c.range for c in self.plan.channels],
                            trigger_level=self.plan.acq.trigger_level)

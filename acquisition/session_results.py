@@ -17,18 +17,19 @@ from modalab.core.records import TimeRecord
 
 from .plan import TestPlan
 from .store import HitStore
+from .windows import ForceWindow
+from .spectral import SpectralAverager
+from modalab.core import uff
 
 __all__ = ["frf_from_hits", "mean_coherence", "best_subset", "session_frf", "export_session"]
 
 
 def _windows(plan: TestPlan):
-    from .windows import ForceWindow
 
     return ForceWindow(fraction=plan.force_fraction, taper=plan.force_taper), plan.exp_window()
 
 
 def _averager(plan: TestPlan):
-    from .spectral import SpectralAverager
 
     fw, ew = _windows(plan)
     return SpectralAverager(estimator="H1", force_window=fw, exp_window=ew)
@@ -129,7 +130,6 @@ def export_session(store: HitStore, plan: TestPlan, path) -> Path:
 
     Written to a temporary file and renamed, so a crash during export never leaves a half file in place.
     """
-    from modalab.core import uff
 
     path = Path(path)
     tmp = path.with_name(path.name + ".part")

@@ -29,6 +29,7 @@ relative synthesis error ``‖H_s − H_m‖ / ‖H_m‖``.
 from __future__ import annotations
 
 import numpy as np
+from .stabilisation import mac_vectors
 
 __all__ = ["mpc", "mcf", "mpd", "mov", "frf_correlation", "synthesis_error", "auto_mac"]
 
@@ -102,7 +103,6 @@ def synthesis_error(H_syn, H_meas) -> np.ndarray:
 
 def auto_mac(shapes) -> np.ndarray:
     """MAC of every pair of columns, ``(m, m)``."""
-    from .stabilisation import mac_vectors
 
     phi = np.asarray(shapes)
     return mac_vectors(phi, phi)

@@ -53,6 +53,12 @@ import numpy as np
 
 from modalab.core.errors import ModalabValueError, NotFittedError, ShapeError, fmt_error
 from modalab.core.frf import FRF
+from .stabilisation import mac_vectors
+from .stabilisation import StabilisationCriteria, stabilise
+from .selection import SelectionOptions, select_poles
+from .indicators import mpc
+from .lsfd import lsfd, modes_from_poles, pole_uncertainty, refine_poles
+from .stabilisation import pole_freq_damping
 
 log = logging.getLogger(__name__)
 
@@ -548,7 +554,6 @@ _CHUNK_BYTES = 32 * 2 ** 20   # bound of the (poles, n_in, n_in) work arrays
 def duplicate_shapes(freq_hz, psi, cluster_size, distance: float, mac_min: float) -> np.ndarray:
     """True for automatic picks that repeat a nearby pick's shape: within ``distance`` in relative frequency
     and shape MAC >= ``mac_min`` of a pick with a larger cluster (ties: the lower frequency stays)."""
-    from .stabilisation import mac_vectors
 
     f = np.asarray(freq_hz, float)
     m = f.size
@@ -742,11 +747,6 @@ class PolyMAX:
     # ------------------------------------------------------------------ fit
     def fit(self, frf: FRF) -> "PolyMAX":
         """Estimate poles for every order, stabilise, select, and fit shapes by LSFD."""
-        from .stabilisation import StabilisationCriteria, stabilise
-        from .selection import SelectionOptions, select_poles
-        from .indicators import mpc
-        from .lsfd import lsfd, modes_from_poles, pole_uncertainty, refine_poles
-        from .stabilisation import pole_freq_damping
 
         self._check_params(frf)
         data = self.prepare(frf, self.band_hz)

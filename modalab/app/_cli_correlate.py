@@ -8,19 +8,19 @@ command refuses (:func:`modalab.app.stages.resolve_dof_map`).
 from __future__ import annotations
 
 from pathlib import Path
+from modalab.app.stages import CorrelateOptions
+from modalab.app.cli import _print
+from modalab.app.stages import correlate
 
 
 def correlate_options(a, **kw):
     """The :class:`~modalab.app.stages.CorrelateOptions` of parsed ``correlate``/``update`` arguments."""
-    from modalab.app.stages import CorrelateOptions
 
     return CorrelateOptions(dofmap=a.map, geometry=a.geometry, same_ids=a.same_ids, freq_window=a.freq_window,
                             **kw)
 
 
 def cmd_correlate(a):
-    from modalab.app.cli import _print
-    from modalab.app.stages import correlate
 
     opts = correlate_options(a, mac_min=a.mac_min, **({"n_modes": a.n_modes} if a.n_modes else {}))
     r = correlate(a.model, a.modes, opts, json_path=a.json, plots_dir=a.plots)

@@ -2,20 +2,23 @@
 from __future__ import annotations
 
 from pathlib import Path
+from updating.diagnosis.library import validate_kinds
+from modalab.app.stages import DiagnoseOptions
+from modalab.app.cli import _print
+from modalab.app.stages import diagnose
+from modalab.app.campaign import diagnose_many
+from modalab.core.errors import PlanError
+from updating.diagnosis.library import KINDS
 
 
 def _options(a):
-    from updating.diagnosis.library import validate_kinds
 
-    from modalab.app.stages import DiagnoseOptions
 
     kinds = tuple(sorted(validate_kinds(a.kinds))) if a.kinds else None   # a misspelt kind fails before any file is read
     return DiagnoseOptions(parameters=a.params, criterion=a.criterion, dofmap=getattr(a, "map", None), kinds=kinds)
 
 
 def cmd_diagnose(a):
-    from modalab.app.cli import _print
-    from modalab.app.stages import diagnose
 
     measured = list(a.measured or [])
     if len(measured) > 1:
@@ -35,9 +38,6 @@ def cmd_diagnose(a):
 
 def _campaign(a, measured):
     """Several FRF files (configurations of a GVT): one folder per input under --report, in parallel."""
-    from modalab.app.campaign import diagnose_many
-    from modalab.app.cli import _print
-    from modalab.core.errors import PlanError
 
     if not a.report or a.json or a.modes:
         raise PlanError("with several MEASURED files give --report FOLDER (one sub-folder with diagnosis.json "
@@ -51,7 +51,6 @@ def _campaign(a, measured):
 
 
 def register(sub):
-    from updating.diagnosis.library import KINDS
 
     s = sub.add_parser("diagnose", help="locate and name the physics a model leaves out, model it, prove it")
     s.add_argument("model", help="nominal FE model as Nastran bulk data (.bdf)")

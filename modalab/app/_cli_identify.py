@@ -3,11 +3,14 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from modalab.app.stages import IdentifyOptions
+from modalab.app.cli import _print
+from modalab.app.stages import identify
+from modalab.app.campaign import identify_many
 
 
 def _options(a):
     """The command's options as :class:`modalab.app.stages.IdentifyOptions`."""
-    from modalab.app.stages import IdentifyOptions
 
     sel = a.select
     if sel != "auto" and not Path(sel).exists():
@@ -45,8 +48,6 @@ def _print_settings(report, _print):
 
 
 def cmd_identify(a):
-    from modalab.app.cli import _print
-    from modalab.app.stages import identify
 
     opts = _options(a)
     if len(a.inputs) > 1:
@@ -71,8 +72,6 @@ def cmd_identify(a):
 
 def _campaign(a, opts):
     """Several inputs: one folder per input under OUTPUT, in parallel (local processes or a Dask cluster)."""
-    from modalab.app.campaign import identify_many
-    from modalab.app.cli import _print
 
     if a.json:
         from modalab.core.errors import PlanError

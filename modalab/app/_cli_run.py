@@ -4,6 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from modalab.app.project import STAGES
+from modalab.app.run import run_project
 
 
 class _StageProgress:
@@ -88,7 +89,6 @@ def run_with_progress(run, again: str, *, quiet: bool = False) -> int:
 
 
 def cmd_run(a):
-    from modalab.app.run import run_project
 
     again = f"modalab run {a.project} -o {a.output}" + (f" --backend {a.backend}" if a.backend else "")
     return run_with_progress(lambda progress: run_project(a.project, a.output, backend=a.backend,

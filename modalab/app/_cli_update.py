@@ -5,12 +5,14 @@ Methods: ``eigensensitivity`` (thesis 3.2.2, modes), ``eigendynamic`` (3.2.1, mo
 ``direct-lagrange``, ``direct-error-matrix``, ``direct-matrix``, ``direct-mixing``.
 """
 from __future__ import annotations
+from modalab.app.cli import _print
+from modalab.app._cli_correlate import correlate_options
+from modalab.app.stages import UpdateOptions, update
+from modalab.app.stages import UPDATE_METHODS
+from modalab.app._cli_correlate import add_map_arguments
 
 
 def cmd_update(a):
-    from modalab.app.cli import _print
-    from modalab.app._cli_correlate import correlate_options
-    from modalab.app.stages import UpdateOptions, update
 
     opts = UpdateOptions(method=a.method, parameters=a.params, max_iter=a.max_iter,
                          bands=[tuple(b) for b in a.band] if a.band else None, freq_sigma=a.freq_sigma,
@@ -38,7 +40,6 @@ def cmd_update(a):
 
 
 def register(sub):
-    from modalab.app.stages import UPDATE_METHODS
 
     s = sub.add_parser("update", help="update an FE model to test modes or FRFs")
     s.add_argument("model", help="FE model as Nastran bulk data (.bdf)")
@@ -49,7 +50,6 @@ def register(sub):
                    help="updating method (default eigensensitivity)")
     s.add_argument("--params", help="TOML file of [[parameter]] entries (default: E and rho multipliers per "
                                     "property group)")
-    from modalab.app._cli_correlate import add_map_arguments
 
     add_map_arguments(s)
     s.add_argument("--freq-sigma", type=float, nargs="+",

@@ -28,6 +28,8 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from modalab.core.errors import ModalabError, ModalabValueError
+from modalab.app import stages
+from modalab.app.outputs import write_json
 
 log = logging.getLogger(__name__)
 
@@ -126,7 +128,6 @@ def run_many(func: Callable, inputs: Sequence, *, dask=None, workers: int | None
 def identify_one(frf_path, out_dir, opts=None, plots: bool = True) -> dict:
     """:func:`modalab.app.stages.identify` of one FRF file into ``out_dir`` (modes.uff, modes.json,
     identification.json, figures); returns the campaign index entry."""
-    from modalab.app import stages
 
     out = Path(out_dir)
     r = stages.identify(frf_path, out / "modes.uff", opts or stages.IdentifyOptions(), json_path=out / "modes.json",
@@ -139,7 +140,6 @@ def identify_one(frf_path, out_dir, opts=None, plots: bool = True) -> dict:
 def diagnose_one(model_path, frf_path, out_dir, opts=None) -> dict:
     """:func:`modalab.app.stages.diagnose` of one FRF file against the bulk-data model into ``out_dir``
     (diagnosis.json, figures, diagnosed.bdf); returns the campaign index entry."""
-    from modalab.app import stages
 
     r = stages.diagnose(model_path, frf_path=frf_path, opts=opts or stages.DiagnoseOptions(), out_dir=out_dir)
     dd = r.result.to_dict()
@@ -165,7 +165,6 @@ def _folders(frf_paths, out_dir) -> list:
 
 
 def _index(out_dir, results) -> Path:
-    from modalab.app.outputs import write_json
 
     return write_json(Path(out_dir) / "campaign.json", results)
 
@@ -175,7 +174,6 @@ def identify_many(frf_paths, out_dir, opts=None, *, plots: bool = True, dask=Non
     """``modalab identify`` over many FRF files: ``out_dir/<file stem>/`` each, ``out_dir/campaign.json``.
 
     ``opts``: :class:`modalab.app.stages.IdentifyOptions` (the same for every input)."""
-    from modalab.app import stages
 
     func = functools.partial(_job, func=identify_one, opts=opts or stages.IdentifyOptions(), plots=plots)
     res = run_many(func, _folders(frf_paths, out_dir), dask=dask, workers=workers, progress=progress)
@@ -187,7 +185,6 @@ def diagnose_many(model_path, frf_paths, out_dir, opts=None, *, dask=None, worke
     """``modalab diagnose`` of one model against many FRF files (configurations) in parallel.
 
     ``opts``: :class:`modalab.app.stages.DiagnoseOptions` (the same for every input)."""
-    from modalab.app import stages
 
     func = functools.partial(_job, func=diagnose_one, model_path=str(Path(model_path).resolve()),
                              opts=opts or stages.DiagnoseOptions())

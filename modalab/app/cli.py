@@ -18,6 +18,14 @@ import sys
 from pathlib import Path
 
 from modalab.core.errors import ModalabError
+from modalab.app.stages import SimOptions, sim
+from modalab.app.stages import FRFOptions, frf
+from modalab.core import uff
+from modalab.app.pipeline import acquire
+from modalab.app._cli_run import run_with_progress
+from modalab.app.demo_project import run_demo
+from modalab.core._output import check_outputs
+from modalab.core._output import protect
 
 log = logging.getLogger("modalab")
 DESCRIPTION = """\
@@ -205,7 +213,6 @@ class _ConsoleObserver:
 
 # ----------------------------------------------------------------------------- commands
 def cmd_sim(a):
-    from modalab.app.stages import SimOptions, sim
 
     opts = SimOptions(structure=a.structure, points=a.points, references=a.references, hits=a.hits, seed=a.seed,
                       force_n=a.force, double_hit_probability=a.double_hits, sample_rate_hz=a.sample_rate,
@@ -222,7 +229,6 @@ def cmd_sim(a):
 
 
 def cmd_frf(a):
-    from modalab.app.stages import FRFOptions, frf
 
     plot = None if a.no_plot else (a.plot or str(Path(a.output).with_suffix(".png")))
     opts = FRFOptions(estimator=a.estimator, force_fraction=a.force_window, exp_end_level=a.exp_end,
@@ -329,7 +335,6 @@ def info_table(info: dict) -> list[str]:
 
 
 def cmd_info(a):
-    from modalab.core import uff
 
     info = uff.info(a.file, quantity=getattr(a, "quantity", None))
     if a.json:
@@ -341,7 +346,6 @@ def cmd_info(a):
 
 
 def cmd_acquire(a):
-    from modalab.app.pipeline import acquire
 
     out = Path(a.output)
     live = bool(getattr(a, "live_plot", False)) or os.environ.get("MODALAB_LIVE_PLOT", "") not in ("", "0")
@@ -372,8 +376,6 @@ def cmd_acquire(a):
 
 
 def cmd_demo(a):
-    from modalab.app._cli_run import run_with_progress
-    from modalab.app.demo_project import run_demo
 
     out = Path(a.output)
     again = f"modalab demo -o {out}" + (" --quick" if a.quick else "")
@@ -542,7 +544,6 @@ def _io_plan(a):
 
 def _prepare_outputs(a):
     """Refuse unsafe outputs before any work; returns the outputs this run creates (removed on failure)."""
-    from modalab.core._output import check_outputs
 
     inputs, files, folders = _io_plan(a)
     into = {}
@@ -606,7 +607,6 @@ def main(args=None) -> int:
         parser.print_help()
         return 2
     os.environ.setdefault("MPLBACKEND", "Agg")
-    from modalab.core._output import protect
 
     created = []
     try:

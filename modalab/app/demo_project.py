@@ -23,6 +23,13 @@ from pathlib import Path
 import numpy as np
 
 from modalab.app.outputs import write_bytes, write_text
+from updating.fe.models.garteur import garteur_model
+from updating.fe import LumpedMass, ParametricFEModel
+from updating.fe.models.garteur import garteur_model, garteur_parameters
+from modalab.core.dof import Dof
+from modalab.core.structure import Structure
+from updating.fe.bulk import to_bulk, write_bdf
+from modalab.app.run import run_project
 
 log = logging.getLogger(__name__)
 
@@ -43,7 +50,6 @@ def demo_project_dir() -> Path:
 
 def nominal_model():
     """The nominal FE model as the project's bulk data holds it (also the generator of ``nominal.bdf``)."""
-    from updating.fe.models.garteur import garteur_model
 
     m = garteur_model(8, suspension=True, suspension_stiffness=_SUSPENSION_N_PER_M)
     m.global_ge = _LOSS_FACTOR
@@ -52,8 +58,6 @@ def nominal_model():
 
 def truth_model():
     """The FE model of the structure on the bench (finer mesh, parameter errors, and one more thing)."""
-    from updating.fe import LumpedMass, ParametricFEModel
-    from updating.fe.models.garteur import garteur_model, garteur_parameters
 
     base = garteur_model(16, suspension=True, suspension_stiffness=_SUSPENSION_N_PER_M)
     pm = ParametricFEModel(base, garteur_parameters(base, DEMO_PARAMETERS))
@@ -69,8 +73,6 @@ def truth_structure():
     Nodes of the finer mesh that coincide with nominal nodes take the nominal ids (so the measured DOFs
     carry the labels the analyst's model uses); the others get ids above 10000.
     """
-    from modalab.core.dof import Dof
-    from modalab.core.structure import Structure
 
     truth, nom = truth_model(), nominal_model()
     nid = {tuple(np.round(n.xyz, 9)): n.nid for n in nom.nodes.values()}
@@ -176,7 +178,6 @@ upper = 2.0
 
 def write_demo_files(folder=None) -> Path:
     """(Re)generate the demo project files into ``folder`` (default: the packaged folder)."""
-    from updating.fe.bulk import to_bulk, write_bdf
 
     d = Path(folder) if folder is not None else demo_project_dir()
     d.mkdir(parents=True, exist_ok=True)
@@ -198,7 +199,6 @@ def run_demo(out_dir, quick: bool = False, *, progress=None, **kw):
 
     A rerun into the same folder skips what is up to date.  ``kw`` go to :func:`modalab.app.run.run_project`.
     """
-    from modalab.app.run import run_project
 
     out = Path(out_dir)
     proj = out / "project"

@@ -13,6 +13,15 @@ import numpy as np
 
 from modalab.core.errors import PlanError
 from modalab.app.stages import _sim_structure, load_model, load_modes  # noqa: F401 - re-exported
+from modalab.core import uff
+from hardware_sim.bench import lab_from_sim
+from acquisition.nidaqmx_backend import NidaqmxBackend
+from modalab.core.errors import DaqNotFoundError
+from acquisition.plan import load_plan
+from acquisition.session import AcquisitionSession
+from modalab.app.demo_project import run_demo
+from updating.diagnosis.workflow import default_parameters
+from updating.fe.parameter_file import read_parameter_file
 
 log = logging.getLogger(__name__)
 
@@ -21,7 +30,6 @@ __all__ = ["file_info", "make_sim_backend", "acquire", "demo", "load_model", "lo
 
 # ------------------------------------------------------------------------- files
 def file_info(path) -> dict:
-    from modalab.core import uff
 
     return uff.info(path)
 
@@ -34,7 +42,6 @@ def make_sim_backend(plan, *, seed: int | None = None):
     a bulk-data file, loaded here.  With a ``[hammer] url = "simhammer://NAME"`` the lab's hammer is
     automatic and the simulated serial hammer fires it.
     """
-    from hardware_sim.bench import lab_from_sim
 
     st, _ = _sim_structure(plan.sim.get("structure", "demo"))
     automatic = str(plan.hammer.get("url", "")).startswith("simhammer://")
@@ -50,9 +57,7 @@ def make_sim_backend(plan, *, seed: int | None = None):
 
 def _nidaqmx_backend():
     """The NI backend, after checking that the driver is there (a clear DaqNotFoundError otherwise)."""
-    from acquisition.nidaqmx_backend import NidaqmxBackend
 
-    from modalab.core.errors import DaqNotFoundError
 
     be = NidaqmxBackend()
     try:
@@ -76,8 +81,6 @@ def acquire(plan_path, out_dir, *, backend: str = "sim", auto: bool = False, res
     backend object.  Interactive mode (``auto=False``) needs a ``prompter``.  The UFF is exported when
     every point is finished.  Extra keywords go to :class:`acquisition.session.AcquisitionSession`.
     """
-    from acquisition.plan import load_plan
-    from acquisition.session import AcquisitionSession
 
     plan = load_plan(plan_path)
     if backend == "sim":
@@ -113,7 +116,6 @@ def acquire(plan_path, out_dir, *, backend: str = "sim", auto: bool = False, res
 def demo(out_dir, *, quick: bool = False, progress=None):
     """The README's main job: the whole chain on the embedded demo project (:func:`modalab.app.demo_project.run_demo`);
     returns the :class:`modalab.app.run.RunResult`."""
-    from modalab.app.demo_project import run_demo
 
     return run_demo(out_dir, quick=quick, progress=progress)
 
@@ -130,10 +132,8 @@ def load_params(path, model):
         properties = ["wing"]          # property names or ids (or materials = [...], elements = [...])
         mode = "factor"                # factor (p multiplies the nominal) or value (p is the SI value)
     """
-    from updating.diagnosis.workflow import default_parameters
 
     if path is None:
         return default_parameters(model)
-    from updating.fe.parameter_file import read_parameter_file
 
     return read_parameter_file(path)[0]

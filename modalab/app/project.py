@@ -62,6 +62,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from modalab.core.errors import PlanError
+from updating.fe.parameter_file import read_parameter_file
 
 log = logging.getLogger(__name__)
 
@@ -206,6 +207,5 @@ def load_project(path) -> Project:
 
 def load_parameters(path) -> tuple[list, list, list]:
     """A parameter file → (parameters, lower, upper bounds): :func:`updating.fe.parameter_file.read_parameter_file`."""
-    from updating.fe.parameter_file import read_parameter_file
 
     return read_parameter_file(Path(path))

@@ -25,6 +25,8 @@ import numpy as np
 
 from modalab.core.errors import ModalabValueError
 from modalab.app.outputs import write_json, write_text
+from modalab.core import uff
+from modalab.core.plots import plot_geometry
 
 log = logging.getLogger(__name__)
 
@@ -191,8 +193,6 @@ def _load(path):
 
 def _geometry_figure(run_dir: Path, report_dir: Path, project=None) -> Path | None:
     """The FE model's wire frame (when the project is known) with the measured DOFs of the test."""
-    from modalab.core import uff
-    from modalab.core.plots import plot_geometry
 
     frf_path = run_dir / "frf" / "frf.uff"
     if not frf_path.is_file():

@@ -44,6 +44,8 @@ from modalab.app import stages
 from modalab.core.errors import PlanError
 from modalab.app.outputs import write_json, write_text
 from modalab.app.project import STAGES, Project, load_project
+from acquisition.plan import load_plan
+from hardware_sim.bench import lab_from_sim
 
 log = logging.getLogger(__name__)
 
@@ -190,7 +192,6 @@ class _Context:
 
 
 def _plan_with(project: Project):
-    from acquisition.plan import load_plan
 
     return load_plan(project.plan_path)
 
@@ -203,7 +204,6 @@ def _sim_lab(ctx: _Context, plan):
         from modalab.app.pipeline import make_sim_backend
 
         return make_sim_backend(plan, seed=seed)
-    from hardware_sim.bench import lab_from_sim
 
     return lab_from_sim(plan.sim, load_truth(t["truth"]), channel_names=[c.name for c in plan.channels], seed=seed,
                         source=plan.source)

@@ -37,6 +37,7 @@ from modalab.core.dof import Dof, locate, parse_dofs
 from modalab.core.errors import ConvergenceError, DofError, ModalabValueError, ShapeError
 from modalab.core.modes import ModeSet
 from modalab.core.structure import Structure
+from updating.fe.solvers import eigen_dense, eigen_sparse
 
 __all__ = ["ReducedModel", "guyan", "irs", "serep", "reduce", "master_indices"]
 
@@ -344,7 +345,6 @@ def _reduced_eigvals(Kr, Mr):
 def _lowest_modes(K, M, k: int):
     """The lowest ``k`` modes (ω², Φ) by the FE solvers, which handle DOFs without mass (Nastran's default
     lumped mass) and massless mechanisms exactly (:mod:`updating.fe.solvers`)."""
-    from updating.fe.solvers import eigen_dense, eigen_sparse
     n = K.shape[0]
     if not sp.issparse(K) and not sp.issparse(M) or n <= 1500:
         w, phi = eigen_dense(_dense(K), _dense(M), k)

@@ -24,6 +24,7 @@ import scipy.sparse as sp
 
 from updating.diagnosis.dynamics import solve_columns
 from updating.diagnosis.fit import RITZ_LIMIT, FRFData, _indices, frf_error
+from updating.diagnosis.ritz import RitzBasis
 
 log = logging.getLogger(__name__)
 __all__ = ["frf_screen"]
@@ -86,7 +87,6 @@ class _Receptance:
             self.X = solve_columns(structure.K, structure.M, structure.C, structure.D, data.s,
                                    np.arange(structure.n_dof))                       # (n, n, n_s), symmetric
             return
-        from updating.diagnosis.ritz import RitzBasis
         rb = RitzBasis(structure, np.concatenate([self.mi, self.ri]), float(np.max(np.abs(data.s))) / (2 * np.pi))
         Q, Psi, w2, Cq, Dq = rb.modal(structure)
         m = w2.size

@@ -58,6 +58,12 @@ from updating.diagnosis.fit import FitResult, FRFData
 from updating.diagnosis.library import build_library
 from updating.diagnosis.workflow import (Diagnosis, Finding, _augment, _bounds, _fmt, _upper, default_parameters,
                        promote_measured, statement)
+from updating.diagnosis.frfscreen import _low_rank, _value_grid
+from updating.correlation.dofmap import as_dofmap
+from updating.diagnosis.library import _nodes_of
+from modalab.core.dof import parse_dofs
+from modalab.core.dof import locate
+from updating.diagnosis.dynamics import condensed_residual
 
 log = logging.getLogger(__name__)
 __all__ = ["diagnose_modes", "modes_data", "fit_modes", "mode_errors", "modal_force_map", "ModalResidual",
@@ -361,7 +367,6 @@ def screen_modes(structure, candidates, resid: ModalResidual, basis: ModalSubspa
     over the grid.  A candidate is kept only if its best value changes a model mode paired with a test
     mode (``L ᵀφ_j ≠ 0``: otherwise every paired mode is an exact eigenpair of the changed model too, and
     any gain would come from a different pairing of modes the sensors cannot see)."""
-    from updating.diagnosis.frfscreen import _low_rank, _value_grid
     K, M = sp.csr_matrix(structure.K), sp.csr_matrix(structure.M)
     if basis is None or not basis.matches(structure):
         # the lowest modes alone: each candidate brings the static corrections of its own DOFs
@@ -555,7 +560,6 @@ def map_test_modes(test_modes: ModeSet, model: FEModel, dofmap) -> ModeSet:
     """The test modes on the model's DOF labels through a DOF map (``--map``: a TOML/CSV file, a dict or a
     :class:`~updating.correlation.dofmap.DofMap`; test node → model grid, with signs).  Each test DOF must read one
     model DOF (an oblique sensor is refused with a message by :meth:`DofMap.model_labels`)."""
-    from updating.correlation.dofmap import as_dofmap
     if not len(test_modes.dofs):
         return test_modes
     labels, scale = as_dofmap(dofmap).model_labels(list(test_modes.dofs), model.reduction().full_dofs)
@@ -573,7 +577,6 @@ def map_test_modes(test_modes: ModeSet, model: FEModel, dofmap) -> ModeSet:
 
 def _neighbours(model) -> dict:
     """Nodes sharing an element with each node."""
-    from updating.diagnosis.library import _nodes_of
     nb: dict = {}
     for e in model.elements.values():
         ns = _nodes_of(e)
@@ -597,7 +600,6 @@ def _on_independent_dofs(cands, structure) -> list:
     DOF: a spring or mass there acts through the link on the independent node, where it is a candidate
     of its own)."""
     have = {(d.node, d.axis) for d in structure.dofs}
-    from modalab.core.dof import parse_dofs
     out = []
     for c in cands:
         ds = parse_dofs(list(c.dofs)) if c.dofs else []
@@ -831,9 +833,7 @@ def modal_force_map(structure, data: FRFData) -> np.ndarray:
     modal force residual: thesis eq. 3.89 with f = 0, unmeasured DOFs expanded by the model), (n_m, n_modes).
     A massless mechanism (``K n = M n = 0``) is constrained at one DOF first, exactly as in the eigen-solvers:
     otherwise the expansion ``Z_ss`` is singular at every frequency."""
-    from modalab.core.dof import locate
 
-    from updating.diagnosis.dynamics import condensed_residual
     mi, ms = locate(structure.dofs, data.responses, "test-mode DOF")
     K, M = sp.csr_matrix(structure.K), sp.csr_matrix(structure.M)
     C = None if structure.C is None else sp.csr_matrix(structure.C)

@@ -47,6 +47,8 @@ from updating.diagnosis.fit import RITZ_LIMIT, FRFData, Prior, fit_frf, frf_data
 from updating.diagnosis.frfscreen import frf_screen
 from updating.diagnosis.library import Candidate, _nodes_of, build_library, validate_kinds
 from updating.diagnosis.screen import mci_update, rank_candidates, residual_map, residual_system
+from modalab.core.dof import parse_dofs
+from updating.correlation.metrics import analysis_modes, correlate
 
 log = logging.getLogger(__name__)
 __all__ = ["diagnose", "Diagnoser", "DiagnoserConfig", "Diagnosis", "Finding", "default_parameters"]
@@ -379,7 +381,6 @@ def promote_measured(model: FEModel, dofs) -> FEModel:
     whose dependent node is measured and whose independent node is not is reversed — the same constraint,
     written the other way round, so the measured node keeps its own DOFs.  Returns ``model`` itself when
     nothing needs changing; measured DOFs that stay eliminated are reported by the caller's DOF lookup."""
-    from modalab.core.dof import parse_dofs
     measured = {d.node for d in parse_dofs(list(dofs))}
     out = model
     # measured directions are basic: a measured grid with its own displacement system is written in basic
@@ -443,7 +444,6 @@ def _on_model_dofs(model: FEModel, measured: FRF) -> FRF:
 def _dof_stiffness(structure, c) -> float:
     """The diagonal stiffness at a candidate's DOF (at its first node, or its partner across a rigid link;
     else the median over DOFs of the same kind, translational or rotational)."""
-    from modalab.core.dof import parse_dofs
     d = parse_dofs(c.dofs)[0] if c.dofs else None
     diag = np.abs(structure.K.diagonal())
     if d is not None:
@@ -575,7 +575,6 @@ def pair_test_modes(structure, test_modes: ModeSet) -> dict:
     Returns ``pairs`` [(model freq, test index)], ``freq_error_pct``, ``mac``, ``excluded_test_hz``,
     ``excluded_model_hz``, ``unpaired_test_hz``, ``cutoff_hz``.
     """
-    from updating.correlation.metrics import analysis_modes, correlate
     n = min(structure.n_dof, 2 * test_modes.n_modes + 12)
     ana = analysis_modes(structure, n)
     top = (1 + PAIR_MAX_FREQ_ERROR) * float(np.max(test_modes.freq_hz, initial=0.0))

@@ -27,6 +27,8 @@ from updating.fe.assembly import Matrices, assemble
 from updating.fe.constraints import RBE2, SPC, Reduction, build_reduction, parse_components
 from updating.fe.elements.base import Element
 from updating.fe.properties import Material
+from updating.fe.solvers import modes_of
+from updating.fe.solvers import frf_direct, frf_modal
 
 log = logging.getLogger(__name__)
 
@@ -265,7 +267,6 @@ class FEModel:
         ``full=True`` maps the shapes back to every model DOF (dependent DOFs
         filled in by the rigid links, constrained DOFs zero).
         """
-        from updating.fe.solvers import modes_of
         return modes_of(self.system(), n_modes, full=full, modal_damping=self.modal_damping, **kw)
 
     def frf(self, freq_hz, responses=None, references=None, *, quantity: str = "accelerance",
@@ -275,7 +276,6 @@ class FEModel:
 
         See :func:`updating.fe.solvers.frf_direct` and :func:`~updating.fe.solvers.frf_modal`.
         """
-        from updating.fe.solvers import frf_direct, frf_modal
         system = self.system()
         if method == "direct":
             if self.modal_damping is not None:

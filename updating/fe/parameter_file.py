@@ -21,6 +21,7 @@ import tomllib
 from pathlib import Path
 
 from modalab.core.errors import PlanError
+from updating.fe import Parameter
 
 __all__ = ["PARAMETER_KEYS", "read_parameter_file", "read_priors"]
 
@@ -36,7 +37,6 @@ def _suggest(key: str, valid) -> str:
 
 def read_parameter_file(path) -> tuple[list, list, list]:
     """A parameter file → (parameters, lower bounds, upper bounds); a bound is None where not given."""
-    from updating.fe import Parameter
 
     p = Path(path)
     try:

@@ -43,6 +43,10 @@ from modalab.core.errors import ModalabValueError, NotFittedError, ShapeError
 from modalab.core.modes import ModeSet
 
 from updating.fe.sensitivity import StackedDerivatives
+from updating.methods.eigensensitivity import _param_indices
+from updating.correlation.dofmap import observation_matrix
+from updating.correlation.metrics import mac, observability, pair_modes
+from updating.fe.sensitivity import solve_modes
 
 log = logging.getLogger(__name__)
 
@@ -133,8 +137,6 @@ class EigendynamicConstraint:
         self.tol = tol
 
     def fit(self, model, test_modes: ModeSet, dofmap=None) -> "EigendynamicConstraint":
-        from updating.methods.eigensensitivity import _param_indices
-        from updating.correlation.dofmap import observation_matrix
 
         if not isinstance(test_modes, ModeSet):
             raise ModalabValueError(f"test_modes must be a ModeSet; got {type(test_modes).__name__}")
@@ -145,8 +147,6 @@ class EigendynamicConstraint:
         n = len(model.dofs)
         # only test modes with an analysis partner (the one pairing rule) enter the equations: a spurious or
         # unmatched test mode would be forced onto the model as if it were one of its modes
-        from updating.correlation.metrics import mac, observability, pair_modes
-        from updating.fe.sensitivity import solve_modes
 
         sol = solve_modes(model, np.asarray(model.p0, float), min(n, max(2 * test_modes.n_modes,
                                                                              test_modes.n_modes + 6)))

@@ -70,6 +70,8 @@ from updating.fe.sensitivity import (StackedDerivatives, eigenvalue_sensitivitie
                           solve_modes)
 
 from updating.fe.parametric import parameter_indices
+from updating.correlation.metrics import mac, observability, pair_modes
+from updating.correlation.dofmap import observation_matrix
 
 log = logging.getLogger(__name__)
 
@@ -85,7 +87,6 @@ __all__ = [
 
 def _mac_pair(Pa, Px, mac_min, freq_a_hz=None, freq_x_hz=None, phi_full=None, dofs=None, **kw):
     """Pairs by the one pairing rule of modalab (:func:`updating.correlation.metrics.pair_modes`)."""
-    from updating.correlation.metrics import mac, observability, pair_modes
 
     Mm = mac(Pa, Px)
     obs = observability(Pa, phi_full, dofs) if phi_full is not None else None
@@ -94,7 +95,6 @@ def _mac_pair(Pa, Px, mac_min, freq_a_hz=None, freq_x_hz=None, phi_full=None, do
 
 
 def _observation(test: ModeSet, model, dofmap):
-    from updating.correlation.dofmap import observation_matrix
 
     return observation_matrix(test.dofs, model.dofs, dofmap).tocsr()
 

@@ -8,6 +8,9 @@ from pathlib import Path
 import numpy as np
 
 from modalab.core.errors import PlanError
+from updating.fe.bulk import build_model, read_bdf
+from modalab.core.modes import ModeSet
+from modalab.app.project import load_parameters as _load
 
 log = logging.getLogger(__name__)
 
@@ -28,7 +31,6 @@ def _tuple(x):
 # ============================================================================ shared inputs
 def load_model(path):
     """An FE model from Nastran bulk data (``.bdf``, ``.dat``, ``.nas``, ``.blk``)."""
-    from updating.fe.bulk import build_model, read_bdf
 
     p = Path(path)
     if not p.is_file():
@@ -38,7 +40,6 @@ def load_model(path):
 
 def load_modes(path):
     """Test modes from a UFF (dataset 55) or a ``modes.json`` written by ``modalab identify``."""
-    from modalab.core.modes import ModeSet
 
     p = Path(path)
     if p.suffix.lower() == ".json":
@@ -54,7 +55,6 @@ def load_parameters(path, model) -> tuple[list, np.ndarray, np.ndarray]:
 
         params = default_parameters(model)
         return params, np.full(len(params), -np.inf), np.full(len(params), np.inf)
-    from modalab.app.project import load_parameters as _load
 
     params, lo, hi = _load(path)
     return (params, np.array([-np.inf if v is None else float(v) for v in lo]),

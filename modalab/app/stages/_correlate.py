@@ -16,6 +16,9 @@ import numpy as np
 from modalab.core.errors import PlanError
 from modalab.app.outputs import write_json
 from modalab.app.stages._common import StageResult, load_model, load_modes
+from updating.correlation.dofmap import geometry_map
+from updating.correlation.metrics import correlate as _correlate
+from updating.correlation.plots import plot_frequencies, plot_mac
 
 
 @dataclass(frozen=True)
@@ -56,7 +59,6 @@ class DofMapping:
 def resolve_dof_map(model, test, opts: CorrelateOptions = CorrelateOptions(), *,
                     modes_path="the modes file", tol=None) -> DofMapping:
     """The test DOFs on ``model``'s DOFs; see the module docstring."""
-    from updating.correlation.dofmap import geometry_map
 
     if not test.has_shapes:
         return DofMapping(None, "none (no test shapes)", None)
@@ -108,7 +110,6 @@ def _n_analysis(opts: CorrelateOptions, test) -> int:
 
 def _correlation(model, test, opts: CorrelateOptions, mapping: DofMapping):
     """Correlation on every test DOF (the model's modes on every DOF, rigid-link dependents filled in)."""
-    from updating.correlation.metrics import correlate as _correlate
 
     n = _n_analysis(opts, test)
     an = analysis_modes_covering(model, test, n, opts.freq_window) if hasattr(model, "modes") else model
@@ -119,7 +120,6 @@ def _correlation(model, test, opts: CorrelateOptions, mapping: DofMapping):
 
 def _correlation_figures(res, d: Path, tag: str, title: str, frequencies: bool = True) -> list:
     """MAC matrix (test sets with shapes only) and the frequency 45° plot."""
-    from updating.correlation.plots import plot_frequencies, plot_mac
 
     d.mkdir(parents=True, exist_ok=True)
     files = []

@@ -9,6 +9,12 @@ from typing import Callable
 from modalab.core.errors import PlanError
 from modalab.app.outputs import write_json, write_text
 from modalab.app.stages._common import StageResult, _band, _tuple, load_model, load_modes, load_parameters
+from updating.diagnosis import diagnose as _diagnose
+from updating.diagnosis import diagnose_modes
+from updating.fe.bulk import to_bulk, write_bdf
+from updating.diagnosis.report import write_figures
+from modalab.app.report import plot_mci_maps
+from modalab.app.report import plot_frf_overlays
 
 log = logging.getLogger(__name__)
 
@@ -45,8 +51,6 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
     ``modalab/app/schemas/diagnosis.schema.json``). ``out_dir``: ``diagnosis.json`` there too, the MCI maps, the engine's figures (``figures/``), ``diagnosed.bdf`` (the augmented, updated model) and
     ``frf_overlay.png`` (measured, nominal, diagnosed and, given ``updated_model``, the parameter-updated model).
     """
-    from updating.diagnosis import diagnose as _diagnose
-    from updating.diagnosis import diagnose_modes
 
     if frf_path is None and modes_path is None:
         raise PlanError("give measured FRFs (MEASURED.uff) or --modes MODES.uff (a GVT's modes alone)")
@@ -94,10 +98,7 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
 
 
 def _diagnosis_files(diag, model, H, d: Path, opts: DiagnoseOptions, updated_model) -> list:
-    from updating.fe.bulk import to_bulk, write_bdf
-    from updating.diagnosis.report import write_figures
 
-    from modalab.app.report import plot_mci_maps
 
     files = []
     try:
@@ -114,7 +115,6 @@ def _diagnosis_files(diag, model, H, d: Path, opts: DiagnoseOptions, updated_mod
 
 def _frf_overlays(H, model, diag, d: Path, want, updated_model) -> Path:
     """Measured, nominal, diagnosed (and parameter-updated) FRFs at the chosen DOFs, first reference."""
-    from modalab.app.report import plot_frf_overlays
 
     resp = [r for r in H.responses if want is None or str(r) in {str(w) for w in want}][:4] or H.responses[:4]
     ref = H.references[0]

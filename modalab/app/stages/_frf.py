@@ -9,6 +9,11 @@ import numpy as np
 from modalab.core.errors import ModalabValueError
 from modalab.app.outputs import write_json
 from modalab.app.stages._common import StageResult
+from modalab.core import uff
+from acquisition.reciprocity import reorder_by_reciprocity
+from acquisition.spectral import estimate_frf_roving
+from acquisition.plan import exponential_window
+from acquisition.windows import ForceWindow
 
 
 @dataclass(frozen=True)
@@ -26,7 +31,6 @@ class FRFOptions:
 
 
 def _geometry(path) -> dict:
-    from modalab.core import uff
 
     return dict(uff.read_geometry(path, required=False))     # a file without geometry is fine, a damaged one not
 
@@ -39,7 +43,6 @@ def frf(in_uff, out_uff, opts: FRFOptions = FRFOptions(), *, plot_path=None, det
     plot_path : the FRF figure (``exact``: an exact FRF drawn over it).
     details_dir : also write ``frf.json`` (summary), ``reciprocity.json`` and ``coherence.png`` there.
     """
-    from modalab.core import uff
 
     out = Path(out_uff)
     if measured:
@@ -80,12 +83,7 @@ def frf(in_uff, out_uff, opts: FRFOptions = FRFOptions(), *, plot_path=None, det
 
 
 def _estimate(in_uff, opts: FRFOptions):
-    from acquisition.reciprocity import reorder_by_reciprocity
-    from acquisition.spectral import estimate_frf_roving
-    from acquisition.plan import exponential_window
-    from acquisition.windows import ForceWindow
 
-    from modalab.core import uff
 
     recs = uff.read_records(in_uff)
     if not recs:

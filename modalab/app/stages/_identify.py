@@ -9,6 +9,8 @@ import numpy as np
 from modalab.core.errors import ModalabValueError
 from modalab.app.outputs import write_json
 from modalab.app.stages._common import StageResult, _band, _tuple
+from identification import identify as _identify
+from modalab.core import uff
 
 
 @dataclass(frozen=True)
@@ -60,9 +62,7 @@ def identify(frf_path, out_uff, opts: IdentifyOptions = IdentifyOptions(), *, js
     plots_dir : stabilisation diagram, synthesis and AutoMAC figures.
     report_path : ``identification.json`` (settings, stabilisation, timings).
     """
-    from identification import identify as _identify
 
-    from modalab.core import uff
 
     H = _band(uff.read_frf(frf_path), opts.band_hz)
     sel = list(opts.select) if isinstance(opts.select, tuple) else opts.select

@@ -10,6 +10,15 @@ import numpy as np
 from modalab.core.errors import PlanError
 from modalab.app.outputs import write_text
 from modalab.app.stages._common import StageResult, _tuple, load_model
+from hardware_sim import demo as hdemo
+from hardware_sim.demo import _demo_geometry
+from updating.fe import Beam3D, BeamProperty, FEModel, GeneralSection, Material, Spring
+from updating.fe.bulk import to_bulk, write_bdf
+from updating.diagnosis.workflow import default_parameters
+from hardware_sim.demo import DEMO_POINTS, DEMO_REFERENCES, demo_channels, demo_setup
+from hardware_sim.lab import SimulatedLab, simulate_roving_test
+from hardware_sim.setup import FaultConfig
+from modalab.core import uff
 
 
 @dataclass(frozen=True)
@@ -34,7 +43,6 @@ class SimOptions:
 
 def _sim_structure(structure):
     """The structure to simulate: the demo grillage, or the FE model of a bulk-data file; and that model."""
-    from hardware_sim import demo as hdemo
 
     if structure in (None, "demo"):
         return hdemo.demo_structure(), None
@@ -49,8 +57,6 @@ def demo_fe_model():
     """The demo aeroplane cross (:mod:`hardware_sim.demo`) as an FE model for bulk data: the same grillage of
     aluminium bars as 3-D beams (CBAR/PBAR, out-of-plane bending and torsion; in-plane DOFs held by SPC),
     the four bungees as springs to ground and the structural damping as PARAM G = 0.01."""
-    from hardware_sim.demo import _demo_geometry
-    from updating.fe import Beam3D, BeamProperty, FEModel, GeneralSection, Material, Spring
 
     coords, members, springs = _demo_geometry()
     m = FEModel("modalab demo aeroplane", coupled_mass=True, global_ge=0.01)
@@ -74,8 +80,6 @@ def demo_fe_model():
 
 def _export_model(folder: Path, model) -> list:
     """``model.bdf`` and ``params.toml`` (E and density multipliers per property, bounded 0.5-2) in ``folder``."""
-    from updating.fe.bulk import to_bulk, write_bdf
-    from updating.diagnosis.workflow import default_parameters
 
     folder.mkdir(parents=True, exist_ok=True)
     bdf = write_text(folder / "model.bdf", "$ " + (model.name or "modalab model") + " (modalab sim --export-model)\n"
@@ -98,11 +102,7 @@ def sim(out_uff, opts: SimOptions = SimOptions(), *, plot_dir=None, export_model
         structure's FE model, :func:`demo_fe_model`, or the given bulk data), ready for correlate/update/diagnose.
     progress : callable ``(points done, points in all, point)``.
     """
-    from hardware_sim.demo import DEMO_POINTS, DEMO_REFERENCES, demo_channels, demo_setup
-    from hardware_sim.lab import SimulatedLab, simulate_roving_test
-    from hardware_sim.setup import FaultConfig
 
-    from modalab.core import uff
 
     st, model = _sim_structure(opts.structure)
     pts = list(opts.points or DEMO_POINTS)

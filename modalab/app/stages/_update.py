@@ -12,6 +12,15 @@ from modalab.app.outputs import write_json, write_text
 from modalab.app.stages._common import StageResult, load_model, load_modes, load_parameters
 from modalab.app.stages._correlate import (CorrelateOptions, DofMapping, _correlation, _correlation_figures, _freq_err, _n_analysis,
                          resolve_dof_map)
+from updating.correlation.dofmap import as_dofmap
+from updating.fe.bulk import read_bdf, to_bulk, write_bdf
+from updating.fe import ParametricFEModel
+from modalab.app.report import plot_convergence
+from modalab.core.frf import FRF
+from updating.methods.rfm import ResponseFunctionMethod
+from updating.methods import direct as dm
+from updating.correlation.metrics import correlate as _correlate
+from modalab.core.structure import Structure
 
 log = logging.getLogger(__name__)
 
@@ -52,7 +61,6 @@ class UpdateOptions:
 def _on_model_dofs(modes, dofs, dofmap):
     """Test modes restricted to DOFs the updater can see (independent DOFs of the constrained model): a test
     DOF is kept when every model DOF the map puts it on is one of ``dofs``."""
-    from updating.correlation.dofmap import as_dofmap
 
     if not modes.has_shapes:
         return modes
@@ -86,10 +94,7 @@ def update(model_path, out_dir, opts: UpdateOptions = UpdateOptions(), *, modes_
     std, convergence history, correlation before and after), ``mac_before/after.png``,
     ``frequencies_after.png`` and ``convergence.png``.
     """
-    from updating.fe.bulk import read_bdf, to_bulk, write_bdf
-    from updating.fe import ParametricFEModel
 
-    from modalab.app.report import plot_convergence
 
     out = Path(out_dir)
     method = opts.method
@@ -185,7 +190,6 @@ def _fit_parameters(pm, opts: UpdateOptions, lo, hi, test, frf_path, dofmap, fsi
         from updating.methods.eigendynamic import EigendynamicConstraint
 
         return EigendynamicConstraint(pairing=pairing).fit(pm, _on_model_dofs(test, pm.dofs, dofmap), dofmap=dofmap)
-    from modalab.core.frf import FRF
 
     measured = FRF.from_uff(frf_path)
     bands = [tuple(b) for b in opts.bands] if opts.bands else None
@@ -193,16 +197,12 @@ def _fit_parameters(pm, opts: UpdateOptions, lo, hi, test, frf_path, dofmap, fsi
         from updating.methods.mci import MCIUpdater
 
         return MCIUpdater(bands=bands, max_iter=opts.max_iter).fit(pm, measured)
-    from updating.methods.rfm import ResponseFunctionMethod
 
     return ResponseFunctionMethod(bands=bands, max_iter=opts.max_iter).fit(pm, measured)
 
 
 def _update_direct(model, test, method, co: CorrelateOptions, mapping: DofMapping, out: Path, summary: dict):
-    from updating.methods import direct as dm
-    from updating.correlation.metrics import correlate as _correlate
 
-    from modalab.core.structure import Structure
 
     st = model.structure()
     if mapping.dofmap is None and all(any(d.same_axis(m) for m in test.dofs) for d in st.dofs):

@@ -40,6 +40,8 @@ from modalab.core.errors import BulkDataError
 
 from updating.fe.bulk import cards as C
 from updating.fe.bulk.fields import Line, group_cards
+from updating.fe.bulk.geometry import resolve_coord
+from modalab.core.errors import _where
 
 log = logging.getLogger(__name__)
 
@@ -203,7 +205,6 @@ class BulkData:
     # --------------------------------------------------------- geometry
     def coord_system(self, cid: int):
         """The resolved :class:`CoordSystem` of ``cid`` (0 = basic)."""
-        from updating.fe.bulk.geometry import resolve_coord
         return resolve_coord(self, cid)
 
     def grid_xyz(self, nid: int) -> np.ndarray:
@@ -214,7 +215,6 @@ class BulkData:
     # ------------------------------------------------------ cross-reference
     def check(self) -> None:
         """Cross-reference checks (see the module docstring)."""
-        from updating.fe.bulk.geometry import resolve_coord
 
         def need_grid(card, nid, what="grid"):
             if nid not in self.grids:
@@ -475,7 +475,6 @@ def read_bdf(source, *, xref: bool = True, base_dir=None, whole_model: bool = Fa
 
 def _msg(e: BulkDataError) -> str:
     """The message of ``e`` without its 'file ..., line ...: ' prefix (to rebuild it with more text)."""
-    from modalab.core.errors import _where
 
     prefix = _where(("file", e.path), ("line", e.line), ("card", e.card))
     text = str(e)

@@ -38,6 +38,7 @@ import numpy as np
 from modalab.core.errors import ModalabValueError
 from updating.fe import (Beam2D, Beam3D, BeamProperty, FEModel, Material, Parameter, Spring,
                          Timoshenko3D, TubeSection)
+from updating.fe import RectangularSection
 
 __all__ = ["beam_model", "closed_form_hz", "timoshenko_pinned_hz", "BETA_L", "thesis_beam",
            "thesis_beam_parameters", "THESIS_TABLE3_MM", "THESIS_TABLE4_RATIOS", "mesh_line"]
@@ -125,7 +126,6 @@ def beam_model(n_elements: int, *, length: float = 1.0, E: float = 70e9, rho: fl
     frames also axial and torsion held at node 1 so only bending remains free).
     section : default a 20 × 10 mm rectangle (b along y, h along z).
     """
-    from updating.fe import RectangularSection
     if kind not in ("beam2d", "beam3d", "timoshenko3d"):
         raise ModalabValueError(f"kind {kind!r}; expected 'beam2d', 'beam3d' or 'timoshenko3d'")
     if n_elements < 1:
