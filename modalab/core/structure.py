@@ -28,6 +28,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .dense import use_dense
 from .dof import Dof, locate, parse_dofs
 from .errors import ModalabValueError, ShapeError
 from .frf import FRF
@@ -182,7 +183,7 @@ class Structure:
     def normal_modes(self, n_modes: int | None = None):
         """Undamped natural frequencies ω (rad/s) and mass-normalised shapes Φ (n, m), ascending."""
         n = self.n_dof
-        if n_modes is None or n <= 2000:
+        if n_modes is None or use_dense(n, "eigen"):
             Md, Kd = self.M.toarray(), self.K.toarray()
             try:
                 w2, phi = sla.eigh(Kd, Md)

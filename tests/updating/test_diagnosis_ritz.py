@@ -4,7 +4,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from modalab.core.frf import FRF
-from updating.diagnosis.dynamics import solve_columns
+from updating.correlation.condensation import solve_columns
 from updating.diagnosis.fit import fit_frf, frf_data, frf_error, model_frf
 from updating.diagnosis.frfscreen import frf_screen
 from updating.diagnosis.library import build_library

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from updating.diagnosis import build_library
-from updating.diagnosis.dynamics import condensed_residual
+from updating.correlation.condensation import condensed_residual
 from updating.diagnosis.workflow import _augment
 from updating.fe import Beam2D, BeamProperty, FEModel, Material, ParametricFEModel, TubeSection
 
@@ -184,7 +184,8 @@ def test_finding_schema():
 @given(seed=st.integers(0, 10_000))
 def test_sparse_and_dense_paths_agree(seed):
     """The per-line sparse LU path (large models) equals the batched dense path."""
-    import updating.diagnosis.dynamics as dyn
+    import modalab.core.dense as dense
+    import updating.correlation.condensation as dyn
     rng = np.random.default_rng(seed)
     n = 8
     A = rng.standard_normal((n, n))
@@ -196,16 +197,16 @@ def test_sparse_and_dense_paths_agree(seed):
     F = np.zeros((n, 2))
     F[meas[0], 0] = F[meas[1], 1] = 1.0
     x = rng.standard_normal((4, 2, 3)) + 1j * rng.standard_normal((4, 2, 3))
-    old = dyn.DENSE_LIMIT
+    old = dense.SOLVE_LIMIT
     try:
-        dyn.DENSE_LIMIT = 1000
+        dense.SOLVE_LIMIT = 1000
         a = dyn.condensed_residual(K, M, None, Dm, s, meas, x, F)
         ca = dyn.solve_columns(K, M, None, Dm, s, [0, 3])
-        dyn.DENSE_LIMIT = 1
+        dense.SOLVE_LIMIT = 1
         b = dyn.condensed_residual(K, M, None, Dm, s, meas, x, F)
         cb = dyn.solve_columns(K, M, None, Dm, s, [0, 3])
     finally:
-        dyn.DENSE_LIMIT = old
+        dense.SOLVE_LIMIT = old
     for u, v in zip(a, b):
         np.testing.assert_allclose(u, v, rtol=1e-9, atol=1e-12 * np.abs(u).max())
     np.testing.assert_allclose(ca, cb, rtol=1e-9, atol=1e-14)

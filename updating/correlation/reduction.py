@@ -33,6 +33,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from modalab.core.dense import use_dense
 from modalab.core.dof import Dof, locate, parse_dofs
 from modalab.core.errors import ConvergenceError, DofError, ModalabValueError, ShapeError
 from modalab.core.modes import ModeSet
@@ -346,7 +347,7 @@ def _lowest_modes(K, M, k: int):
     """The lowest ``k`` modes (ω², Φ) by the FE solvers, which handle DOFs without mass (Nastran's default
     lumped mass) and massless mechanisms exactly (:mod:`updating.fe.solvers`)."""
     n = K.shape[0]
-    if not sp.issparse(K) and not sp.issparse(M) or n <= 1500:
+    if not sp.issparse(K) and not sp.issparse(M) or use_dense(n, "eigen"):
         w, phi = eigen_dense(_dense(K), _dense(M), k)
         if w.size < k:
             raise ModalabValueError(f"SEREP needs {k} modes but the model has only {w.size} DOFs with mass; "

@@ -1,4 +1,6 @@
-"""FRF data for diagnosis, the FRF error measure, and the non-linear FRF fit.
+"""The FRF error measure and the non-linear FRF fit of diagnosis.
+
+The data are :class:`~updating.correlation.receptance.FRFData` (:func:`frf_data`, re-exported here).
 
 The fit minimises the coherence-weighted relative complex FRF difference
 
@@ -21,143 +23,14 @@ import scipy.optimize as so
 
 from modalab.core.dof import locate
 from modalab.core.errors import ModalabValueError
-from modalab.core.frf import FRF
 
-from updating.diagnosis.dynamics import solve_columns
+from updating.correlation.condensation import solve_columns
+from updating.correlation.receptance import LOCAL_BAND, FRFData, frf_data, leakage_bias  # noqa: F401 (re-exported)
+from updating.diagnosis.ritz import RitzBasis
+from updating.diagnosis.screen import derivatives
 
 log = logging.getLogger(__name__)
-__all__ = ["FRFData", "frf_data", "model_frf", "frf_error", "fit_frf", "FitResult", "Prior"]
-
-
-@dataclass
-class FRFData:
-    """Receptance data on labelled DOFs at complex frequencies ``s`` (rad/s)."""
-
-    s: np.ndarray                 # (n_s,) complex: iω (+ β for exponentially windowed data)
-    H: np.ndarray                 # (n_m, n_r, n_s) receptance
-    coherence: np.ndarray         # (n_m, n_r, n_s) in [0, 1]
-    responses: list
-    references: list
-    den: np.ndarray = field(default=None)
-    n_averages: int = 1
-    floor: float = 0.01
-    homogeneous: bool = False        # True: H holds mode shapes (one column) at s = iω_j, no force
-    bias: np.ndarray = field(default=None)   # (n_s,) bound of the relative systematic error per line (leakage)
-
-    def __post_init__(self):
-        if self.den is None:
-            # |H| + 0.2 × the pair's RMS over lines + 10⁻⁴ × the reference column's RMS: the last term keeps
-            # structurally zero pairs (a response orthogonal to the force, e.g. out-of-plane to in-plane on
-            # a symmetric structure: numerical noise in model and data alike) from counting as large errors
-            a = np.abs(self.H)
-            rms = _local_rms(a, np.abs(np.asarray(self.s).imag))
-            col = np.sqrt(np.mean(rms ** 2, axis=0, keepdims=True)) if a.size else 0.0
-            self.den = a + 0.2 * rms + 1e-4 * col + 1e-300
-        if self.bias is None:
-            self.bias = np.zeros(np.shape(self.s))
-
-    @property
-    def sigma(self) -> np.ndarray:
-        """Relative standard error of each FRF value, (n_m, n_r, n_s): ``√(floor² + ε² + b²)`` with
-        ε² = (1 − γ²)/(2 n γ²) the variance of the relative random error of an H1 estimate from n averages
-        (Bendat & Piersol), ``b`` the line's bound of the relative leakage error (:func:`frf_data`) and
-        ``floor`` the smallest relative error trusted (systematic errors of the test: 1 %)."""
-        g2 = np.clip(self.coherence, 1e-3, 1.0)
-        eps2 = (1 - g2) / (2 * max(int(self.n_averages), 1) * g2)
-        return np.sqrt(self.floor ** 2 + eps2 + np.asarray(self.bias)[None, None, :] ** 2)
-
-    @property
-    def quality(self) -> np.ndarray:
-        """Line weights in (0, 1]: ``floor / σ`` (:attr:`sigma`).  Poor-coherence lines (near DC,
-        antiresonances) and lines a few resolution steps above DC count little instead of dominating
-        relative residuals."""
-        return self.floor / self.sigma
-
-    @property
-    def freq_hz(self) -> np.ndarray:
-        return self.s.imag / (2 * np.pi)
-
-    def take(self, rows=None, cols=None, lines=None) -> "FRFData":
-        r = slice(None) if rows is None else np.asarray(rows)
-        c = slice(None) if cols is None else np.asarray(cols)
-        f = slice(None) if lines is None else np.asarray(lines)
-        H = self.H[r][:, c][:, :, f]
-        coh = self.coherence[r][:, c][:, :, f]
-        den = self.den[r][:, c][:, :, f]
-        resp = self.responses if rows is None else [self.responses[i] for i in np.atleast_1d(rows)]
-        refs = self.references if cols is None else [self.references[i] for i in np.atleast_1d(cols)]
-        if not resp or not refs or H.shape[2] == 0:
-            raise ModalabValueError(f"an FRF subset with {len(resp)} response(s), {len(refs)} reference(s) and "
-                                    f"{H.shape[2]} line(s) is empty; nothing to compare a model with")
-        return FRFData(self.s[f], H, coh, resp, refs, den, self.n_averages, self.floor, self.homogeneous,
-                       np.asarray(self.bias)[f])
-
-
-#: half-width of the frequency window of the local RMS in the error's denominator (a factor in frequency)
-LOCAL_BAND = 1.5
-
-
-def _local_rms(a: np.ndarray, omega: np.ndarray) -> np.ndarray:
-    """RMS of ``|H|`` over the lines within a factor :data:`LOCAL_BAND` in frequency of each line, per pair
-    (n_m, n_r, n_s): the level an antiresonance is judged against.  Local, because a receptance spans decades
-    (∝ 1/ω²): a global RMS is set by the lowest lines and would make every error above them negligible."""
-    if a.shape[-1] == 0:
-        return a
-    lw = np.log(np.maximum(omega, 1e-12 * max(float(omega.max(initial=0)), 1e-300)))
-    near = np.abs(lw[:, None] - lw[None, :]) <= np.log(LOCAL_BAND)            # (n_s, n_s), diagonal True
-    wts = near / near.sum(axis=0, keepdims=True)
-    return np.sqrt(np.einsum("mrk,kf->mrf", a ** 2, wts))
-
-
-def frf_data(frf: FRF, *, max_lines: int = 200, band_hz=None, min_coherence: float = 0.5) -> FRFData:
-    """Receptance :class:`FRFData` from a measured FRF: in-band lines with enough coherence, thinned to ``max_lines``.
-
-    An exponential window's β (``frf.window_beta_per_s``) is kept in ``s = iω + β`` so the
-    model is compared with what was measured, not with undamped-corrected data.
-    """
-    f = frf if band_hz is None else frf.band(*band_hz)
-    f = f.band(max(f.freq_hz[0], 1e-9), None) if f.freq_hz[0] <= 0 else f
-    beta = float(frf.window_beta_per_s)
-    # exponentially windowed data are the transforms at s = iω + β of the true responses: the quantity
-    # conversion uses s too (dividing windowed accelerance by (iω)² leaves an error 2β/ω)
-    s_all = 1j * 2 * np.pi * f.freq_hz + beta
-    power = {"receptance": 0, "mobility": 1, "accelerance": 2}[f.quantity]
-    rec = f.to("receptance")
-    rec = rec._replace(H=f.H / s_all[None, None, :] ** power) if beta else rec
-    coh = f.coherence if f.coherence is not None else np.ones(f.shape)
-    ok = np.nanmean(coh, axis=(0, 1)) >= min_coherence
-    ok &= np.all(np.isfinite(rec.H), axis=(0, 1))
-    idx = np.flatnonzero(ok)
-    if idx.size < 4:
-        raise ModalabValueError(f"only {idx.size} frequency lines have mean coherence >= {min_coherence}; "
-                                "the measured FRFs are too poor to diagnose (check coherence or lower min_coherence)")
-    if idx.size > max_lines:
-        # half the lines uniform in frequency (resonances), half uniform in log-frequency (low-frequency
-        # behaviour such as suspension and rigid-body motion, which few uniform lines would miss)
-        fr = rec.freq_hz[idx]
-        uni = np.round(np.linspace(0, idx.size - 1, max_lines // 2)).astype(int)
-        logt = np.geomspace(fr[0], fr[-1], max_lines - max_lines // 2)
-        lg = np.clip(np.searchsorted(fr, logt), 0, idx.size - 1)
-        idx = idx[np.unique(np.concatenate([uni, lg]))]
-    s = 1j * 2 * np.pi * rec.freq_hz[idx] + beta
-    return FRFData(s=s, H=rec.H[..., idx], coherence=np.clip(coh[..., idx], 0, 1),
-                   responses=list(rec.responses), references=list(rec.references),
-                   n_averages=int(frf.metadata.get("n_averages") or 1), bias=leakage_bias(frf, rec.freq_hz[idx]))
-
-
-def leakage_bias(frf: FRF, freq_hz) -> np.ndarray:
-    """Bound of the relative systematic error of spectral lines estimated from finite records: ``Δf / f``.
-
-    A response that has not died out at the end of a record of length T = 1/Δf (rigid-body and suspension
-    motion, even under an exponential window) leaves a tail whose truncation adds ``x(T) e^{-iωT} / (iω + β)``
-    to the transform: an error falling as 1/ω, of order 1 at the first line and ``1/k`` at line k.  Data
-    whose metadata name no spectral estimator (synthesised FRFs, analyser exports without it) get none.
-    The resolution Δf is the smallest line spacing of ``frf``."""
-    f = np.asarray(freq_hz, float)
-    if not frf.metadata.get("estimator") or frf.freq_hz.size < 2:
-        return np.zeros(f.shape)
-    df = float(np.min(np.diff(frf.freq_hz)))
-    return df / np.maximum(f, df)
+__all__ = ["FRFData", "frf_data", "leakage_bias", "model_frf", "frf_error", "fit_frf", "FitResult", "Prior"]
 
 
 def _indices(model_dofs, data: FRFData):
@@ -241,7 +114,6 @@ def _residual(pmodel, p, data: FRFData):
 
 def _jacobian(pmodel, p, data: FRFData, free, ctx):
     """∂(residual)/∂p for the free parameters: ``∂H/∂p = −H ∂Z/∂p H`` (thesis eq. 3.69)."""
-    from updating.diagnosis.screen import derivatives
     Xj, Xm, w = ctx
     ders = derivatives(pmodel, p)
     n, nr, ns = Xj.shape
@@ -283,8 +155,6 @@ def _residual_ritz(pmodel, p, data: FRFData, basis):
 
 
 def _jacobian_ritz(pmodel, p, data: FRFData, free, ctx):
-    from updating.diagnosis.ritz import RitzBasis
-    from updating.diagnosis.screen import derivatives
     rctx, sign, w = ctx
     ders = derivatives(pmodel, p)
     J = []
@@ -303,7 +173,6 @@ def quick_frf_error(structure, data: FRFData) -> float:
     :data:`RITZ_LIMIT` DOFs (for screening many models; exact otherwise)."""
     if structure.n_dof <= RITZ_LIMIT:
         return frf_error(model_frf(structure, data), data)
-    from updating.diagnosis.ritz import RitzBasis
     mi, ms, ri, rs = _indices(structure.dofs, data)
     basis = RitzBasis(structure, np.concatenate([mi, ri]), float(np.max(np.abs(data.s))) / (2 * np.pi))
     H, _ = basis.responses(structure, data.s, mi, ri, want_jac_rows=False)
@@ -340,7 +209,6 @@ def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None
     for rnd in range(max(int(rounds), 1) if reduced else 1):
         basis = None
         if reduced:
-            from updating.diagnosis.ritz import RitzBasis
             st = st0 if rnd == 0 else pmodel.structure(p_cur)
             mi, _, ri, _ = _indices(st.dofs, data)
             basis = RitzBasis(st, np.concatenate([mi, ri]), float(np.max(np.abs(data.s))) / (2 * np.pi))

@@ -22,7 +22,7 @@ import logging
 import numpy as np
 import scipy.sparse as sp
 
-from updating.diagnosis.dynamics import solve_columns
+from updating.correlation.condensation import solve_columns
 from updating.diagnosis.fit import RITZ_LIMIT, FRFData, _indices, frf_error
 from updating.diagnosis.ritz import RitzBasis
 

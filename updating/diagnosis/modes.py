@@ -63,7 +63,7 @@ from updating.correlation.dofmap import as_dofmap
 from updating.diagnosis.library import _nodes_of
 from modalab.core.dof import parse_dofs
 from modalab.core.dof import locate
-from updating.diagnosis.dynamics import condensed_residual
+from updating.correlation.condensation import condensed_residual
 
 log = logging.getLogger(__name__)
 __all__ = ["diagnose_modes", "modes_data", "fit_modes", "mode_errors", "modal_force_map", "ModalResidual",

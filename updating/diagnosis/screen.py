@@ -1,7 +1,7 @@
 """Localisation and linear screening of candidate physics on the condensed force residual.
 
 With the measured responses ``x_m`` expanded through the current model (see
-:func:`~updating.diagnosis.dynamics.condensed_residual`), the residual
+:func:`~updating.correlation.condensation.condensed_residual`), the residual
 ``r_m(s) = [Z(s) x(s) − f]_m`` (the negative MCI of thesis eq. 3.89) is, to
 first order, produced by what the model gets wrong:
 
@@ -19,13 +19,15 @@ by the share of the residual it alone would explain.
 from __future__ import annotations
 
 import logging
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from modalab.core.dof import locate
 
-from updating.diagnosis.dynamics import condensed_residual
+from updating.correlation.condensation import condensed_residual
+from updating.fe import ParametricFEModel
 
 log = logging.getLogger(__name__)
 __all__ = ["screen", "ScreenResult", "residual_map", "mci_update", "residual_system"]
@@ -70,13 +72,9 @@ def _stack(r, w):
 
 def residual_map(structure, data, force_sign=True):
     """Per measured DOF and line |r_m| of the structure against the data (the MCI map), (n_m, n_s)."""
-    mi, ms = locate(structure.dofs, data.responses, "measured DOF")
-    ri, rs = locate(structure.dofs, data.references, "reference DOF")
-    ms, rs = np.asarray(ms, float), np.asarray(rs, float)
-    x_meas = data.H * ms[:, None, None] * rs[None, :, None]
-    F = np.zeros((structure.n_dof, len(ri)))
-    F[ri, np.arange(len(ri))] = 1.0
-    _, r, _, sigma = condensed_residual(structure.K, structure.M, structure.C, structure.D, data.s, mi, x_meas, F)
+    cols = data.on_model(structure.dofs)
+    _, r, _, sigma = condensed_residual(structure.K, structure.M, structure.C, structure.D, data.s, cols.measured,
+                                        cols.theta, cols.force)
     return np.sqrt(np.sum(np.abs(r) ** 2 / (sigma[None] + 1e-300) ** 2 * data.quality ** 2, axis=1))
 
 
@@ -89,12 +87,8 @@ def screen(structure, background_derivs, candidates, data, *, max_terms: int = 4
     """
     K, M, C, D = structure.K, structure.M, structure.C, structure.D
     if x_modes is None:
-        mi, ms = locate(structure.dofs, data.responses, "measured DOF")
-        ri, rs = locate(structure.dofs, data.references, "reference DOF")
-        ms, rs = np.asarray(ms, float), np.asarray(rs, float)
-        x_meas = data.H * ms[:, None, None] * rs[None, :, None]
-        F = np.zeros((structure.n_dof, len(ri)))
-        F[ri, np.arange(len(ri))] = 1.0
+        cols = data.on_model(structure.dofs)
+        mi, x_meas, F = cols.measured, cols.theta, cols.force
         s = data.s
         coh = np.sqrt(np.mean(data.quality ** 2, axis=0))         # (n_r, n_s)
         responses = data.responses
@@ -218,27 +212,21 @@ def residual_system(structure, data, weights=None) -> ResidualSystem:
     ``weights`` (n_r, n_s) fixes the line weights (so that residuals of different models compare); by
     default they are √coherence / σ of this model.
     """
-    mi, ms = locate(structure.dofs, data.responses, "measured DOF")
-    ms = np.asarray(ms, float)
-    if getattr(data, "homogeneous", False):
+    cols = data.on_model(structure.dofs)
+    if data.homogeneous:
         # mode shapes: one vector per "line" (mode), no force (the homogeneous residual Z(iω_j) φ_j)
-        x_meas = data.H * ms[:, None, None]
         F = np.zeros((structure.n_dof, data.H.shape[1]))
     else:
-        ri, rs = locate(structure.dofs, data.references, "reference DOF")
-        rs = np.asarray(rs, float)
-        x_meas = data.H * ms[:, None, None] * rs[None, :, None]
-        F = np.zeros((structure.n_dof, len(ri)))
-        F[ri, np.arange(len(ri))] = 1.0
-    x_full, r, T, sigma = condensed_residual(structure.K, structure.M, structure.C, structure.D, data.s, mi,
-                                             x_meas, F)
+        F = cols.force
+    x_full, r, T, sigma = condensed_residual(structure.K, structure.M, structure.C, structure.D, data.s,
+                                             cols.measured, cols.theta, F)
     if weights is None:
         coh = np.sqrt(np.mean(data.quality ** 2, axis=0))
         weights = coh / (sigma + 1e-12 * np.max(sigma))
     return ResidualSystem(_stack(r, weights), x_full, T, weights, data.s, r.shape)
 
 
-_DERIV_CACHE: "weakref.WeakKeyDictionary" = None
+_DERIV_CACHE: weakref.WeakKeyDictionary | None = None
 _LINEAR_FIELDS = ("E", "rho", "k", "c", "mass", "inertia", "nsm")
 
 
@@ -251,7 +239,6 @@ def derivatives(pmodel, p):
     those.  Saves the complex-step re-assembly (one model per parameter) in iterated MCI updates.
     """
     global _DERIV_CACHE
-    import weakref
     if _DERIV_CACHE is None:
         _DERIV_CACHE = weakref.WeakKeyDictionary()
     pars = getattr(pmodel, "parameters", None)
@@ -273,7 +260,6 @@ def derivatives(pmodel, p):
     nonlin = np.flatnonzero(~lin)
     if nonlin.size:
         # the derivatives of the non-linear fields (e.g. PARAM G: ∂D/∂g = K(p)) depend on every parameter
-        from updating.fe import ParametricFEModel
         sub = ParametricFEModel(pmodel.model_at(p), [pars[i] for i in nonlin])
         for i, d in zip(nonlin, sub.derivatives(sub.p0)):
             if pars[i].mode == "factor":

@@ -47,6 +47,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from modalab.core.dense import use_dense
 from modalab.core.errors import ModalabValueError, ShapeError
 
 log = logging.getLogger(__name__)
@@ -60,9 +61,6 @@ __all__ = [
     "eigenvector_sensitivities",
     "repeated_groups",
 ]
-
-_DENSE_LIMIT = 2000
-
 
 # ----------------------------------------------------------------------------- stacked derivatives
 class StackedDerivatives:
@@ -193,7 +191,7 @@ def _normalise(phi, M):
 def solve_modes(model, p=None, n_modes: int | None = None, *, sigma: float | None = None) -> ModalSolution:
     """Eigen-solution of ``model`` at ``p``: the lowest ``n_modes`` (all for small dense models).
 
-    Dense ``eigh`` up to 2000 DOFs, otherwise ARPACK shift-invert around
+    Dense ``eigh`` up to :data:`modalab.core.dense.EIGEN_LIMIT` DOFs, otherwise ARPACK shift-invert around
     ``sigma`` (default a small negative shift, safe for free-free models).
     Modes are mass-normalised and signed so that their largest component is positive.
     """
@@ -203,7 +201,7 @@ def solve_modes(model, p=None, n_modes: int | None = None, *, sigma: float | Non
     n = K.shape[0]
     if n_modes is not None and not (1 <= int(n_modes) <= n):
         raise ModalabValueError(f"n_modes={n_modes}; expected 1..{n} for a model of {n} DOFs")
-    if n <= _DENSE_LIMIT or (n_modes is not None and n_modes >= n - 1):
+    if use_dense(n, "eigen") or (n_modes is not None and n_modes >= n - 1):
         # massless DOFs (lumped mass without rotary inertia: Nastran's default without COUPMASS) and massless
         # mechanisms (the rigid torsion of a free-free lumped-mass beam) are handled by the FE solver
         from updating.fe.solvers import _massless, eigen_dense
@@ -251,7 +249,7 @@ def _prepare(model, p, modes, solution, derivatives):
     if solution is None:
         nm = None if modes is None else int(np.max(modes)) + 1
         nd = len(model.dofs)
-        if nm is not None and nd > _DENSE_LIMIT:
+        if nm is not None and not use_dense(nd, "eigen"):
             solution = solve_modes(model, p, nm)
         else:
             solution = solve_modes(model, p)
@@ -330,7 +328,7 @@ def frequency_sensitivities(model, p=None, modes=None, *, solution=None, derivat
 
 def _factor(A):
     """A solve function for a (sparse) matrix: dense LU for small, SuperLU otherwise."""
-    if A.shape[0] <= _DENSE_LIMIT:
+    if use_dense(A.shape[0], "eigen"):      # one factorisation per mode (modalab.core.dense)
         lu = sla.lu_factor(A.toarray() if sp.issparse(A) else A, check_finite=False)
         return lambda B: sla.lu_solve(lu, B, check_finite=False)
     f = spla.splu(sp.csc_matrix(A))

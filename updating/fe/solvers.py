@@ -47,6 +47,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from modalab.core.dense import EIGEN_LIMIT, use_dense
 from modalab.core.dof import locate, parse_dofs
 from modalab.core.errors import ConvergenceError, ModalabValueError
 from modalab.core.frf import FRF
@@ -342,7 +343,7 @@ def eigen_sparse(K, M, n_modes: int, *, shift: float | None = None, shift_hz: fl
     return np.sqrt(np.clip(w2, 0, None)), _restore(phi, keep, n)
 
 
-def normal_modes(K, M, n_modes: int | None = None, *, method: str = "auto", dense_limit: int = 2000,
+def normal_modes(K, M, n_modes: int | None = None, *, method: str = "auto", dense_limit: int = EIGEN_LIMIT,
                  **kw) -> tuple[np.ndarray, np.ndarray]:
     """ω (rad/s) and mass-normalised Φ: dense for small models or all modes, sparse Lanczos otherwise."""
     n = K.shape[0]
@@ -446,7 +447,7 @@ def frf_modal(system, freq_hz, responses=None, references=None, *, n_modes: int 
     resp, refs, Tr, Tf = _io(system, responses, references)
     sigma = _shift(shift, shift_hz)
     if modes is None:
-        omega, phi = normal_modes(system.K, system.M, n_modes, shift=sigma) if system.n_dof > 2000 \
+        omega, phi = normal_modes(system.K, system.M, n_modes, shift=sigma) if not use_dense(system.n_dof, "eigen") \
             else eigen_dense(system.K, system.M, n_modes, shift=sigma)
     else:
         omega, phi = modes

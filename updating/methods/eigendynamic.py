@@ -39,6 +39,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from modalab.core.dense import use_dense
 from modalab.core.errors import ModalabValueError, NotFittedError, ShapeError
 from modalab.core.modes import ModeSet
 
@@ -75,7 +76,7 @@ def kidder_expand(K, M, omega, phi_measured, measured) -> np.ndarray:
         return out
     for r, w in enumerate(omega):
         A = (K - w ** 2 * M).tocsr()
-        Ass = A[s][:, s].toarray() if n <= 2000 else A[s][:, s]
+        Ass = A[s][:, s].toarray() if use_dense(n, "eigen") else A[s][:, s]
         rhs = -(A[s][:, measured] @ P[:, r])
         if sp.issparse(Ass):
             import scipy.sparse.linalg as spla

@@ -48,13 +48,14 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from modalab.core.dof import locate, parse_dofs
+from modalab.core.dense import use_dense
 from modalab.core.errors import ModalabValueError, NotFittedError, ShapeError
 from modalab.core.frf import FRF
 
-from updating.fe.sensitivity import StackedDerivatives
-
+from updating.correlation.condensation import condensed_residual, dynamic_stiffness, dynamic_stiffness_batch
+from updating.correlation.receptance import MeasuredColumns, measured_columns
 from updating.fe.parametric import parameter_indices
+from updating.fe.sensitivity import StackedDerivatives
 
 log = logging.getLogger(__name__)
 
@@ -75,134 +76,24 @@ __all__ = [
     "plot_convergence",
 ]
 
-_DENSE_LIMIT = 400
 
-
-# ----------------------------------------------------------------------------- measured data
-@dataclass
-class MeasuredColumns:
-    """Receptance columns on model rows: ``theta[k, j, f]`` at model row ``measured[k]``, reference ``references[j]``."""
-
-    omega: np.ndarray          # (F,) rad/s
-    theta: np.ndarray          # (n_meas, n_ref, F) receptance, m/N
-    measured: np.ndarray       # (n_meas,) model row indices
-    references: np.ndarray     # (n_ref,) model row indices of the excitation DOFs
-    n: int                     # model size
-    beta: float = 0.0          # decay rate (1/s) of the exponential window the data were taken with
-
-    @property
-    def freq_hz(self) -> np.ndarray:
-        return self.omega / (2 * np.pi)
-
-    @property
-    def w(self) -> np.ndarray:
-        """Complex angular frequency ``ω − iβ`` at which the model is compared with the data.
-
-        Windowed data are transfer functions at ``s = iω + β`` (:attr:`modalab.core.frf.FRF.s`); with
-        ``w = s/i`` the dynamic stiffness ``K − w²M + iwC + iD = K + s²M + sC + iD`` keeps its form,
-        so every model FRF, expansion and MCI below is evaluated at ``s`` (``w = ω`` without a window).
-        """
-        return self.omega - 1j * self.beta
-
-
-def measured_columns(model, frf: FRF, *, references=None, bands=None) -> MeasuredColumns:
-    """Map an :class:`~modalab.core.frf.FRF` onto the model's DOFs as receptance columns.
-
-    ``references`` picks reference DOFs (default all of the FRF's); ``bands`` a
-    list of (f_lo, f_hi) in Hz keeps only lines inside any band.  Lines at 0 Hz
-    are dropped (the receptance of a measured accelerance is undefined there).
-    """
-    if not isinstance(frf, FRF):
-        raise ModalabValueError(f"expected a modalab.core.frf.FRF; got {type(frf).__name__}. "
-                                "Build one with FRF.from_arrays(freq_hz, H, responses, references)")
-    if references is not None:
-        frf = frf.select(references=parse_dofs(references))
-    f = frf.freq_hz
-    keep = f > 0
-    if bands is not None:
-        bands = np.atleast_2d(np.asarray(bands, float))
-        if bands.shape[1] != 2:
-            raise ShapeError(f"bands must be a list of (f_lo, f_hi) pairs in Hz; got shape {bands.shape}")
-        inb = np.zeros_like(keep)
-        for lo, hi in bands:
-            inb |= (f >= lo) & (f <= hi)
-        keep &= inb
-    if not keep.any():
-        raise ModalabValueError(f"no frequency lines left in bands {None if bands is None else bands.tolist()} "
-                                f"(FRF covers {f.min():.4g}..{f.max():.4g} Hz); widen the bands")
-    omega = 2 * np.pi * f[keep]
-    H = frf.lines(keep).to("receptance").H          # at s = iω + β: a windowed FRF stays consistent
-    io, so = locate(model.dofs, frf.responses, "FRF response DOF")
-    ii, si = locate(model.dofs, frf.references, "FRF reference DOF")
-    theta = H * np.asarray(so, float)[:, None, None] * np.asarray(si, float)[None, :, None]
-    return MeasuredColumns(omega=omega, theta=theta, measured=np.asarray(io), references=np.asarray(ii),
-                           n=len(model.dofs), beta=frf.window_beta_per_s)
-
-
+# ----------------------------------------------------------------------------- model matrices
 def _mats(model, p):
     st = model.structure(p)
     return st.K.tocsr(), st.M.tocsr(), (None if st.C is None else st.C.tocsr()), (None if st.D is None else st.D.tocsr())
 
 
-def _zdense(mats, omega):
-    K, M, C, D = mats
-    Kd, Md = K.toarray(), M.toarray()
-    Z = Kd[None] - omega[:, None, None] ** 2 * Md[None] + 0j
-    if C is not None:
-        Z = Z + 1j * omega[:, None, None] * C.toarray()[None]
-    if D is not None:
-        Z = Z + 1j * D.toarray()[None]
-    return Z
-
-
-def _zsparse(mats, w):
-    K, M, C, D = mats
-    Z = (K - w ** 2 * M).astype(complex)
-    if C is not None:
-        Z = Z + 1j * w * C
-    if D is not None:
-        Z = Z + 1j * D
-    return Z.tocsc()
-
-
 def dynamic_expansion(model, data: MeasuredColumns, p=None) -> np.ndarray:
     """Full receptance columns ``(n, n_ref, F)``: measured rows kept, the rest from ``θ_s = Z_ss⁻¹(e_i,s − Z_sm θ_m)``.
 
-    The frequency-domain form of Kidder's expansion (Eq. 2.47–2.48) with the
-    model at ``p``, evaluated at every line.  The expansion is singular at the
-    resonances of the model constrained at the measured DOFs; lines that hit
-    one exactly give non-finite values and are reported in the log.
+    The frequency-domain form of Kidder's expansion (Eq. 2.47–2.48) with the model at ``p``, evaluated at
+    every line (:func:`updating.correlation.condensation.condensed_residual`, the one implementation
+    diagnosis uses too).  The expansion is singular at the resonances of the model constrained at the
+    measured DOFs; a line that hits one exactly is solved in the least-squares sense and named in the log.
     """
     p = model.p0 if p is None else np.asarray(p, float)
-    n, m = data.n, data.measured
-    s = np.setdiff1d(np.arange(n), m)
-    R, F = data.references.size, data.omega.size
-    full = np.zeros((n, R, F), complex)
-    full[m] = data.theta
-    if s.size == 0:
-        return full
-    E = np.zeros((n, R))
-    E[data.references, np.arange(R)] = 1.0
-    mats = _mats(model, p)
-    if n <= _DENSE_LIMIT:
-        Z = _zdense(mats, data.w)                                   # (F, n, n)
-        Zss = Z[:, s][:, :, s]
-        Zsm = Z[:, s][:, :, m]
-        rhs = E[s][None, :, :] - np.einsum("fsm,mjf->fsj", Zsm, data.theta)
-        try:
-            xs = np.linalg.solve(Zss, rhs)                              # (F, ns, R)
-        except np.linalg.LinAlgError:
-            xs = np.stack([np.linalg.lstsq(Zss[k], rhs[k], rcond=None)[0] for k in range(F)])
-            log.warning("dynamic expansion: Z_ss singular at some lines (a resonance of the model "
-                        "constrained at the measured DOFs); used least squares there")
-        full[s] = np.transpose(xs, (1, 2, 0))
-        return full
-    for k, w in enumerate(data.w):
-        Z = _zsparse(mats, w)
-        Zss = Z[s][:, s]
-        Zsm = Z[s][:, m]
-        rhs = E[s] - Zsm @ data.theta[:, :, k]
-        full[s, :, k] = spla.splu(sp.csc_matrix(Zss)).solve(rhs)
+    K, M, C, D = _mats(model, p)
+    full, *_ = condensed_residual(K, M, C, D, data.s, data.measured, data.theta, data.force)
     return full
 
 
@@ -310,8 +201,8 @@ def _condensation(model, data: MeasuredColumns, p):
     mats = _mats(model, p)
     E = np.zeros((n, R))
     E[data.references, np.arange(R)] = 1.0
-    if n <= _DENSE_LIMIT:
-        Z = _zdense(mats, data.w)
+    if use_dense(n, "solve"):
+        Z = dynamic_stiffness_batch(*mats, data.s)
         Zss, Zsm, Zmm = Z[:, s][:, :, s], Z[:, s][:, :, m], Z[:, m][:, :, m]
         G = np.linalg.solve(Zss, Zsm)
         th = np.transpose(data.theta, (2, 0, 1))                               # (F, nm, R)
@@ -321,8 +212,8 @@ def _condensation(model, data: MeasuredColumns, p):
         y = np.linalg.solve(np.eye(nm)[None] + np.transpose(G, (0, 2, 1)) @ G.conj(), Trhs)
         full[s] = np.transpose(np.linalg.solve(Zss, rhs_s + G.conj() @ y), (1, 2, 0))
         return G, full
-    for k, w in enumerate(data.w):
-        Z = _zsparse(mats, w)
+    for k, sk in enumerate(data.s):
+        Z = dynamic_stiffness(*mats, sk).tocsr()
         Zsm = Z[s][:, m].toarray()
         Zmm = Z[m][:, m].toarray()
         solve = spla.splu(sp.csc_matrix(Z[s][:, s])).solve
@@ -357,19 +248,15 @@ def condensation_operator(model, data: MeasuredColumns, p=None, *, whiten: bool 
     n, m = data.n, data.measured
     s = np.setdiff1d(np.arange(n), m)
     R, F, nm = data.references.size, data.omega.size, m.size
-    mats = _mats(model, p)
     if G is not None:
         G = np.asarray(G)
     elif s.size == 0:
         G = np.zeros((F, 0, nm), complex)
-    elif n <= _DENSE_LIMIT:
-        Z = _zdense(mats, data.w)
-        G = np.linalg.solve(Z[:, s][:, :, s], Z[:, s][:, :, m])           # (F, ns, nm)
     else:
-        G = np.empty((F, s.size, nm), complex)
-        for k, w in enumerate(data.w):
-            Z = _zsparse(mats, w)
-            G[k] = spla.splu(sp.csc_matrix(Z[s][:, s])).solve(Z[s][:, m].toarray())
+        # the dynamic expansion matrices T = [I; −Z_ss⁻¹Z_sm] of the one Kidder-type expansion
+        K, M, C, D = _mats(model, p)
+        _, _, T, _ = condensed_residual(K, M, C, D, data.s, m, data.theta, data.force)
+        G = -np.transpose(T[s], (2, 0, 1))                                   # (F, ns, nm)
     if whiten:
         H = np.eye(nm)[None] + np.einsum("fsa,fsb->fab", G, G.conj())
         ev, U = np.linalg.eigh(H)
@@ -430,7 +317,7 @@ def lsq_expansion(model, data: MeasuredColumns, p=None):
     n, m = data.n, data.measured
     s = np.setdiff1d(np.arange(n), m)
     R, F = data.references.size, data.omega.size
-    Z = _zdense(_mats(model, p), data.w)
+    Z = dynamic_stiffness_batch(*_mats(model, p), data.s)
     E = np.zeros((n, R))
     E[data.references, np.arange(R)] = 1.0
     rhs = E[None] - np.einsum("fnm,mjf->fnj", Z[:, :, m], data.theta)
@@ -454,14 +341,14 @@ class MCIUpdater:
     references : reference DOFs of the FRF to use (default all).
     jacobian : how the unmeasured DOFs enter each least-squares step
 
-        ``'projected'`` (default for models ≤ 400 DOFs): the unmeasured FRFs are
+        ``'projected'`` (default for models up to :data:`modalab.core.dense.PROJECTED_LIMIT` DOFs): the unmeasured FRFs are
         expanded in the least-squares sense over all rows of ``Zθ = e``
         (:func:`lsq_expansion`) and Eq. (3.77) is projected onto the orthogonal
         complement of ``range(Z_{:,s})`` — a variable-projection Gauss–Newton
         step (Golub & Pereyra; Kaufman's Jacobian) on the MCI that the best
         expansion leaves.  Smooth in the parameters; converges in a handful of
         iterations on the six-DOF case.
-        ``'condensed'`` (default above 400 DOFs, sparse): the same residual and
+        ``'condensed'`` (default above that, sparse): the same residual and
         step as ``'projected'``, computed from the Kidder-type condensation
         ``G = Z_ss⁻¹Z_sm`` (one sparse factorisation per line) whitened by
         ``(I + GᴴG)^{-1/2}`` (:func:`condensation_operator`); the plain
@@ -564,15 +451,15 @@ class MCIUpdater:
         if self.weighting == "none":
             return np.ones((R, F))
         m = data.measured
-        if Zm is None and data.n <= _DENSE_LIMIT:
-            Zm = _zdense(_mats(model, p), data.w)[:, :, m]
+        if Zm is None and use_dense(data.n, "projected"):
+            Zm = dynamic_stiffness_batch(*_mats(model, p), data.s)[:, :, m]
         if Zm is not None:
             sig = np.linalg.norm(np.einsum("fnm,mjf->jfnm", Zm, data.theta), axis=(2, 3))
         else:
             mats = _mats(model, p)
             sig = np.empty((R, F))
-            for k, w in enumerate(data.w):
-                Zc = _zsparse(mats, w)[:, m]
+            for k, sk in enumerate(data.s):
+                Zc = dynamic_stiffness(*mats, sk).tocsr()[:, m]
                 for j in range(R):
                     sig[j, k] = spla.norm(Zc @ sp.diags(data.theta[:, j, k]))
         sig = np.where(sig > 0, sig, 1.0)
@@ -581,7 +468,7 @@ class MCIUpdater:
     def fit(self, model, frf: FRF, p_init=None) -> "MCIUpdater":
         mode = self.jacobian
         if mode == "auto":
-            mode = "projected" if len(model.dofs) <= _DENSE_LIMIT else "condensed"
+            mode = "projected" if use_dense(len(model.dofs), "projected") else "condensed"
         if mode not in ("projected", "condensed", "fixed"):
             raise ModalabValueError(f"jacobian={self.jacobian!r}; expected 'auto', 'projected', 'condensed' or 'fixed'")
         if self.weighting not in ("noise", "none"):

@@ -18,10 +18,11 @@ Assembly (the obstacle the thesis met: "a couple of months" for its aircraft)
 is vectorised: ``∂Z/∂p_i H_X`` for all parameters and lines comes from the
 stacked derivative non-zeros (one sparse product), and ``R`` from a dense ×
 sparse product per chunk of lines; no loop runs over elements or parameters.
-The measured rows of ``H_A`` come from batched dense inverses (≤ 400 DOFs), a
+The measured rows of ``H_A`` come from batched dense inverses (up to
+:data:`modalab.core.dense.SOLVE_LIMIT` DOFs), a
 banded LU per line after reverse Cuthill–McKee ordering (narrow-band models)
-or one sparse LU per line, with one right-hand side per measured DOF.  Large
-problems accumulate the normal equations chunk by chunk instead of storing ``R``.
+or one sparse LU per line, with one right-hand side per measured DOF.  Models above
+:data:`modalab.core.dense.PROJECTED_LIMIT` DOFs accumulate the normal equations chunk by chunk instead of storing ``R``.
 
 Weighting: ``'relative'`` (default) divides every equation by ``|H_X|`` at its
 row and line — with proportional FRF noise the residual is then white and the
@@ -37,24 +38,24 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+from modalab.core.dense import use_dense
 from modalab.core.errors import ModalabValueError, NotFittedError, ShapeError
 from modalab.core.frf import FRF
 
-from updating.methods.mci import (MeasuredColumns, _bounds, _mats, _param_indices, _zdense, _zsparse, dynamic_expansion,
-                  measured_columns)
+from updating.correlation.condensation import dynamic_stiffness, dynamic_stiffness_batch
+from updating.correlation.receptance import MeasuredColumns, measured_columns
 from updating.fe.sensitivity import StackedDerivatives
+from updating.methods.mci import _bounds, _mats, _param_indices, dynamic_expansion
 
 log = logging.getLogger(__name__)
 
 __all__ = ["receptance_rows", "rfm_system", "ResponseFunctionMethod"]
 
-_DENSE_LIMIT = 400
-
 
 def receptance_rows(model, p, omega, rows) -> np.ndarray:
     """``H_A(ω)[rows, :]`` for every line: (F, len(rows), n) complex receptance of the model at ``p``.
 
-    ``omega`` in rad/s, or complex ``ω − iβ`` (:attr:`~updating.methods.mci.MeasuredColumns.w`) for data taken with
+    ``omega`` in rad/s, or complex ``ω − iβ`` (:attr:`~updating.correlation.receptance.MeasuredColumns.w`) for data taken with
     an exponential window: the receptance is then evaluated at ``s = iω + β``, as the data were.
     """
     mats = _mats(model, np.asarray(p, float))
@@ -62,8 +63,8 @@ def receptance_rows(model, p, omega, rows) -> np.ndarray:
     rows = np.asarray(rows, int)
     omega = np.asarray(omega)
     omega = omega.astype(complex if np.iscomplexobj(omega) else float)
-    if n <= _DENSE_LIMIT:
-        Z = _zdense(mats, omega)
+    if use_dense(n, "solve"):
+        Z = dynamic_stiffness_batch(*mats, 1j * omega)
         E = np.zeros((n, rows.size))
         E[rows, np.arange(rows.size)] = 1.0
         # Z symmetric: rows of Z⁻¹ are the transposed solutions for unit loads at `rows`
@@ -92,7 +93,7 @@ def receptance_rows(model, p, omega, rows) -> np.ndarray:
             out[k] = sla.solve_banded((bw, bw), ab, Ep, check_finite=False)[inv].T
         return out
     for k, w in enumerate(omega):
-        out[k] = spla.splu(_zsparse(mats, w), permc_spec="MMD_AT_PLUS_A").solve(E.astype(complex)).T
+        out[k] = spla.splu(dynamic_stiffness(*mats, 1j * w), permc_spec="MMD_AT_PLUS_A").solve(E.astype(complex)).T
     return out
 
 
@@ -217,7 +218,7 @@ class ResponseFunctionMethod:
         self.converged_ = False
         change = np.inf
         it = 0
-        big = data.n > _DENSE_LIMIT
+        big = not use_dense(data.n, "projected")      # above: normal equations accumulated chunk by chunk
         for it in range(1, self.max_iter + 1):
             full = dynamic_expansion(model, data, p)
             N, g, cost = self._normal(model, data, full, p, idx, W, big)

@@ -1,4 +1,9 @@
-"""Dynamic stiffness, receptance solves and dynamically condensed residuals.
+"""Dynamic stiffness, receptance solves and the dynamic expansion of measured responses.
+
+The one implementation of the frequency-domain Kidder expansion (thesis eqs. 2.45–2.48 applied at
+every line) and of the condensed residual it leaves — the negative of the MCI of thesis eq. (3.69)
+— used by MCI and the response-function method (:mod:`updating.methods.mci`,
+:mod:`updating.methods.rfm`) and by diagnosis (:mod:`updating.diagnosis.screen`).
 
 All functions take the structural matrices of a model on its (constrained)
 DOFs and complex Laplace variables ``s`` (``s = iω`` for harmonic motion;
@@ -6,19 +11,23 @@ DOFs and complex Laplace variables ``s`` (``s = iω`` for harmonic motion;
 β: the windowed FRF equals the exact FRF with every pole shifted by β).
 
 The dynamic stiffness is ``Z(s) = K + iD + sC + s²M`` (hysteretic D kept as
-``iD``).  Dense batched solves are used for models up to ``DENSE_LIMIT`` DOFs,
-a sparse LU per line above.
+``iD``).  Dense batched solves are used for models up to
+:data:`modalab.core.dense.SOLVE_LIMIT` DOFs, a sparse LU per line above (the rule and its
+reasons: :mod:`modalab.core.dense`).
 """
 from __future__ import annotations
+
+import logging
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-DENSE_LIMIT = 80     # above: one sparse LU per line (single-threaded SuperLU beats batched dense LAPACK
-                     # by 30x at 400 DOFs on a loaded 2-core machine, and by far more on larger models)
+from modalab.core.dense import use_dense
 
-__all__ = ["dynamic_stiffness", "solve_columns", "condensed_residual", "DENSE_LIMIT"]
+log = logging.getLogger(__name__)
+
+__all__ = ["dynamic_stiffness", "dynamic_stiffness_batch", "solve_columns", "condensed_residual"]
 
 
 class _Pattern:
@@ -71,6 +80,31 @@ def dynamic_stiffness(K, M, C, D, s):
     return sp.csc_matrix(Z)
 
 
+def dynamic_stiffness_batch(K, M, C, D, s) -> np.ndarray:
+    """``Z(s_f)`` for every ``s_f`` as one dense array (n_s, n, n) (small models, :data:`~modalab.core.dense.SOLVE_LIMIT`)."""
+    return _Z_batch(_dense(K), _dense(M), _dense(C), _dense(D), np.atleast_1d(np.asarray(s, dtype=complex)))
+
+
+def _solve_lines(Z, rhs, s):
+    """``Z[f]⁻¹ rhs[f]`` for a batch of lines; a line where ``Z`` is exactly singular (a resonance of the
+    model with the measured DOFs held) is solved in the least-squares sense and named in the log."""
+    try:
+        return np.linalg.solve(Z, rhs)
+    except np.linalg.LinAlgError:
+        out = np.empty((Z.shape[0], Z.shape[1], rhs.shape[2]), complex)
+        bad = []
+        for k in range(Z.shape[0]):
+            try:
+                out[k] = np.linalg.solve(Z[k], rhs[k])
+            except np.linalg.LinAlgError:
+                out[k] = np.linalg.lstsq(Z[k], rhs[k], rcond=None)[0]
+                bad.append(k)
+        log.warning("dynamic expansion: Z_ss is singular at %s Hz (a resonance of the model constrained at the "
+                    "measured DOFs); least squares used there",
+                    ", ".join(f"{abs(complex(s[k]).imag) / (2 * np.pi):.6g}" for k in bad))
+        return out
+
+
 def _Z_batch(Kd, Md, Cd, Dd, s):
     Z = Kd[None, :, :].astype(complex) + (s ** 2)[:, None, None] * Md[None]
     if Cd is not None:
@@ -86,7 +120,7 @@ def solve_columns(K, M, C, D, s, cols, chunk: int = 64) -> np.ndarray:
     n = K.shape[0]
     cols = list(cols)
     out = np.empty((n, len(cols), s.size), complex)
-    if n <= DENSE_LIMIT:
+    if use_dense(n, "solve"):
         Kd, Md, Cd, Dd = _dense(K), _dense(M), _dense(C), _dense(D)
         E = np.zeros((n, len(cols)))
         E[cols, np.arange(len(cols))] = 1.0
@@ -135,7 +169,7 @@ def condensed_residual(K, M, C, D, s, meas, x_meas, force, chunk: int = 32):
     T[meas, np.arange(meas.size), :] = 1.0
     sigma = np.zeros((nq, s.size))
     F = np.asarray(force, complex)
-    if n > DENSE_LIMIT:
+    if not use_dense(n, "solve"):
         return _condensed_sparse(K, M, C, D, s, meas, slave, x_meas, F, x_full, r, T, sigma)
     Kd, Md, Cd, Dd = _dense(K), _dense(M), _dense(C), _dense(D)
     for a in range(0, s.size, chunk):
@@ -147,7 +181,7 @@ def condensed_residual(K, M, C, D, s, meas, x_meas, force, chunk: int = 32):
         if slave.size:
             Fs = F[slave][None].repeat(len(sl), 0)
             rhs = np.concatenate([-Zsm, Fs], axis=2)
-            sol = np.linalg.solve(Zss, rhs)
+            sol = _solve_lines(Zss, rhs, sl)
             Tsm = sol[:, :, :meas.size]
             xsF = sol[:, :, meas.size:]
             xs = Tsm @ xm + xsF
