@@ -16,13 +16,13 @@ held-out data.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.optimize as so
 
 from modalab.core.dof import locate
-from modalab.core.errors import ModalabValueError
+from modalab.core.errors import ConvergenceError
 
 from updating.correlation.condensation import solve_columns
 from updating.correlation.receptance import LOCAL_BAND, FRFData, frf_data, leakage_bias  # noqa: F401 (re-exported)
@@ -30,7 +30,8 @@ from updating.diagnosis.ritz import RitzBasis
 from updating.diagnosis.screen import derivatives
 
 log = logging.getLogger(__name__)
-__all__ = ["FRFData", "frf_data", "leakage_bias", "model_frf", "frf_error", "fit_frf", "FitResult", "Prior"]
+__all__ = ["FRFData", "frf_data", "leakage_bias", "model_frf", "frf_error", "fit_frf", "FitResult", "Prior",
+           "parameter_std"]
 
 
 def _indices(model_dofs, data: FRFData):
@@ -228,13 +229,48 @@ def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None
             break
         p_cur = p
     std = np.zeros(npar)
-    J = sol.jac
     dof = max(sol.fun.size - free.sum(), 1)
-    s2 = float(sol.fun @ sol.fun) / dof
-    cov = np.linalg.pinv(J.T @ J) * s2                      # a failure here is a failure, not a zero std
-    std[free] = np.sqrt(np.clip(np.diag(cov), 0, None))
+    std[free] = parameter_std(sol.jac, float(sol.fun @ sol.fun) / dof)
     return FitResult(p, std, err, history, bool(sol.success), str(sol.message) + (
         f" ({total_nfev} evaluations in a Ritz basis)" if reduced else ""))
+
+
+#: a direction of the parameters whose singular value (columns scaled to unit norm) is below this fraction of
+#: the largest is not determined by the data
+RANK_TOL = 1e-8
+
+
+def parameter_std(J: np.ndarray, s2: float) -> np.ndarray:
+    """Standard deviations of least-squares parameters: ``√diag(s² (JᵀJ)⁺)`` for the Jacobian ``J`` at the
+    solution and the residual variance ``s2``.
+
+    A parameter the data do not determine — a zero column of ``J``, or a component along a direction whose
+    singular value (columns scaled to unit norm) is below :data:`RANK_TOL` of the largest — gets ``inf``,
+    not the 0 a pseudo-inverse would give it.  A Jacobian with non-finite entries raises
+    :class:`~modalab.core.errors.ConvergenceError` naming the parameters concerned.
+    """
+    J = np.asarray(J, float)
+    bad = ~np.all(np.isfinite(J), axis=0)
+    if bad.any() or not np.isfinite(s2):
+        raise ConvergenceError(
+            f"the FRF fit's Jacobian has non-finite entries for free parameter(s) {np.flatnonzero(bad).tolist()} "
+            "at the solution (a model resonance exactly on a data line, or parameters at a singular model); "
+            "no standard deviation can be given: move the bounds or the frequency band")
+    cov = np.linalg.pinv(J.T @ J) * s2
+    std = np.sqrt(np.clip(np.diag(cov), 0, None))
+    cn = np.linalg.norm(J, axis=0)
+    undetermined = cn == 0
+    if J.shape[1] and not undetermined.all():
+        Js = J[:, ~undetermined] / cn[~undetermined]
+        wide = Js.shape[0] < Js.shape[1]           # fewer equations than parameters: Vt must span them all
+        _, sv, Vt = np.linalg.svd(Js, full_matrices=wide)
+        sv = np.concatenate([sv, np.zeros(Vt.shape[0] - sv.size)])
+        null = Vt[sv < RANK_TOL * sv[0]]
+        if null.size:
+            weak = np.max(np.abs(null), axis=0) > np.sqrt(RANK_TOL)
+            undetermined[np.flatnonzero(~undetermined)[weak]] = True
+    std[undetermined] = np.inf
+    return std
 
 
 def _least_squares(pmodel, data, p_start, free, lo, hi, max_nfev, x_scale, history, basis, prior=None):

@@ -1,0 +1,135 @@
+"""The one receptance adapter and the one dynamic expansion that MCI, RFM and diagnosis share."""
+import logging
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import modalab.core.dense as dense
+from modalab.core.errors import ConvergenceError, ModalabValueError
+from cases import six_dof_model
+from updating.correlation.condensation import condensed_residual
+from updating.correlation.receptance import frf_data, measured_columns, receptance_data
+from updating.diagnosis.fit import parameter_std
+from updating.diagnosis.screen import residual_system
+from updating.methods.mci import dynamic_expansion, mci
+
+F = np.arange(0.5, 25.0, 0.5)
+BETA = 3.0
+
+
+def _windowed(model, beta):
+    """Accelerance of ``model`` at s = iω + β: what an exponential window of decay β records."""
+    st = model.structure()
+    frf = st.frf(F, references=["1+X"], quantity="receptance")
+    s = 2j * np.pi * F + beta
+    H = frf.H * s[None, None, :] ** 2
+    # the exact receptance at s, from the matrices (not from the FRF code under test)
+    K, M = st.K.toarray(), st.M.toarray()
+    C = None if st.C is None else st.C.toarray()
+    D = None if st.D is None else st.D.toarray()
+    X = np.empty((K.shape[0], F.size), complex)
+    for k, sk in enumerate(s):
+        Z = K + sk ** 2 * M + (0 if C is None else sk * C) + (0 if D is None else 1j * D)
+        X[:, k] = np.linalg.solve(Z, np.eye(K.shape[0])[:, 0])
+    frf = frf._replace(H=(X * s ** 2)[:, None, :], quantity="accelerance", units="m/s^2/N")
+    frf.window_beta_per_s = beta
+    return frf, X, H
+
+
+def test_adapter_reads_windowed_accelerance_at_s():
+    """Receptance = accelerance / s² with s = iω + β, the same for the MCI/RFM and the diagnosis entry points."""
+    X = six_dof_model("experimental")
+    frf, Xs, _ = _windowed(X, BETA)
+    cols = measured_columns(X, frf)
+    np.testing.assert_allclose(cols.theta[:, 0, :], Xs, rtol=1e-10)
+    assert cols.beta == BETA
+    np.testing.assert_allclose(cols.s, 2j * np.pi * F + BETA)
+    diag = frf_data(frf, max_lines=1000, min_coherence=0.0).on_model(X.dofs)
+    np.testing.assert_allclose(diag.theta, cols.theta, rtol=1e-14)
+    np.testing.assert_array_equal(diag.measured, cols.measured)
+
+
+def test_mci_of_measured_rows_is_minus_the_condensed_residual():
+    """MCI (Eq. 3.69 from the full Z θ) on the measured rows = −(condensed residual) diagnosis screens."""
+    X = six_dof_model("experimental")
+    A = six_dof_model("analytical")
+    frf = X.structure().frf(F, references=["2+X"], quantity="receptance").select(responses=["1+X", "2+X", "4+X"])
+    r_mci = mci(A, frf)
+    data = receptance_data(frf)
+    rs = residual_system(A.structure(), data, weights=np.ones((1, F.size)))
+    nm, nq, ns = rs.shape
+    r_diag = (rs.y[: rs.y.size // 2] + 1j * rs.y[rs.y.size // 2:]).reshape(nm, nq, ns)
+    meas = r_mci.measured
+    np.testing.assert_allclose(r_mci.values[meas], -r_diag, rtol=1e-8, atol=1e-12 * np.abs(r_diag).max())
+    assert np.abs(r_diag).max() > 1e-6                    # the models differ: the test compares non-zero values
+
+
+def test_expansion_sparse_path_equals_dense():
+    """The one expansion gives the same MCI columns through the per-line sparse LU as through dense solves."""
+    X = six_dof_model("experimental")
+    A = six_dof_model("analytical")
+    frf = X.structure().frf(F, references=["1+X"]).select(responses=["1+X", "3+X", "6+X"])
+    data = measured_columns(A, frf)
+    old = dense.SOLVE_LIMIT
+    try:
+        dense.SOLVE_LIMIT = 1000
+        a = dynamic_expansion(A, data)
+        dense.SOLVE_LIMIT = 1
+        b = dynamic_expansion(A, data)
+    finally:
+        dense.SOLVE_LIMIT = old
+    np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12 * np.abs(a).max())
+
+
+def test_singular_line_is_solved_by_least_squares_and_named(caplog):
+    """A line exactly at a resonance of the model held at its measured DOFs: min-norm solution, logged."""
+    k, m = 2.0, 1.0                                       # ω0 = 2 rad/s: Z_ss is exactly 0 there
+    K = sp.csr_matrix(np.array([[2 * k, -k, 0], [-k, 2 * k, -k], [0, -k, k]]))
+    M = sp.csr_matrix(np.eye(3) * m)
+    meas = np.array([0, 2])
+    w0 = np.sqrt(2 * k / m)                               # Z_ss = 2k − ω²m = 0 for the middle DOF
+    s = 1j * np.array([0.5 * w0, w0, 1.5 * w0])
+    x = np.ones((2, 1, 3), complex) * 1e-3
+    Fv = np.zeros((3, 1))
+    Fv[0, 0] = 1.0
+    with caplog.at_level(logging.WARNING, logger="updating.correlation.condensation"):
+        x_full, r, T, sigma = condensed_residual(K, M, None, None, s, meas, x, Fv)
+    assert np.all(np.isfinite(x_full)) and np.all(np.isfinite(r))
+    assert x_full[1, 0, 1] == 0                           # least squares of 0·x = b: the minimum-norm answer
+    assert f"{w0 / (2 * np.pi):.6g}" in caplog.text
+
+
+def test_dense_rule_names_its_operations():
+    assert dense.use_dense(80, "solve") and not dense.use_dense(81, "solve")
+    assert dense.use_dense(2000, "eigen") and not dense.use_dense(2001, "eigen")
+    assert dense.use_dense(400, "projected") and not dense.use_dense(401, "projected")
+    with pytest.raises(ModalabValueError, match="expected one of"):
+        dense.use_dense(10, "eigne")
+
+
+def test_parameter_std_full_rank_matches_the_covariance():
+    rng = np.random.default_rng(3)
+    J = rng.standard_normal((50, 3))
+    std = parameter_std(J, 0.25)
+    np.testing.assert_allclose(std, np.sqrt(np.diag(0.25 * np.linalg.inv(J.T @ J))), rtol=1e-10)
+
+
+def test_parameter_std_undetermined_is_infinite_not_zero():
+    """A parameter the data do not see, or two that only act together, have no finite standard deviation."""
+    rng = np.random.default_rng(4)
+    J = rng.standard_normal((40, 4))
+    J[:, 1] = 0.0                                         # parameter 1 does not change the residual
+    J[:, 3] = 2.0 * J[:, 2]                               # parameters 2 and 3 only act together
+    std = parameter_std(J, 1.0)
+    assert np.isinf(std[1]) and np.isinf(std[2]) and np.isinf(std[3])
+    assert np.isfinite(std[0]) and std[0] > 0
+    wide = parameter_std(rng.standard_normal((2, 3)), 1.0)  # fewer equations than parameters
+    assert np.isinf(wide).any()
+
+
+def test_parameter_std_non_finite_jacobian_fails_with_a_message():
+    J = np.ones((10, 2))
+    J[3, 1] = np.nan
+    with pytest.raises(ConvergenceError, match=r"parameter\(s\) \[1\]"):
+        parameter_std(J, 1.0)
