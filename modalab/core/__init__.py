@@ -21,3 +21,4 @@ Layers, bottom up: ``modalab.core`` → ``acquisition`` | ``hardware_sim`` → `
 ``updating`` → ``modalab.app`` (the command line, stages, project runs, campaigns, report, demo).
 The import-linter contracts in ``pyproject.toml`` check it.
 """
+from . import uff  # noqa: F401,E402  (attaches FRF/ModeSet.from_uff and to_uff: the reader depends on the containers)

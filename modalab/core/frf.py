@@ -261,18 +261,9 @@ class FRF:
         return cls(freq_hz=freq_hz, H=Ha, responses=responses, references=references,
                    coherence=coherence, **kw)
 
-    @classmethod
-    def from_uff(cls, path, **kw) -> "FRF":
-        """Read FRFs (dataset 58/58b, func_type 4) and coherence (func_type 6) from a universal file."""
-        from .uff import read_frf
-
-        return read_frf(path, **kw)
-
-    def to_uff(self, path, **kw) -> None:
-        """Write FRFs and coherence as dataset 58 (binary 58b by default)."""
-        from .uff import write_frf
-
-        write_frf(path, self, **kw)
+    # ``FRF.from_uff`` and ``FRF.to_uff`` are defined with the reader in :mod:`modalab.core._uff_frf` and
+    # attached there (the file format depends on the container, not the reverse); importing
+    # :mod:`modalab.core` always attaches them.
 
     def copy(self) -> "FRF":
         return copy.deepcopy(self)

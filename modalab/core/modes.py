@@ -14,7 +14,7 @@ import json
 import numpy as np
 
 from .dof import Dof, locate, parse_dofs
-from .errors import ModalabValueError, ShapeError
+from .errors import ModalabError, ModalabValueError, ShapeError
 
 __all__ = ["ModeSet", "real_mode_approximation"]
 
@@ -252,7 +252,6 @@ class ModeSet:
         """A mode set from JSON: :meth:`to_json` output or the summary ``modalab identify --json`` writes
         (its ``modes`` entry).  A file that is not such JSON raises :class:`~modalab.core.errors.ModalabValueError`
         naming it."""
-        from .errors import ModalabError, ModalabValueError
 
         try:
             with open(path, "rb") as fh:
@@ -271,15 +270,6 @@ class ModeSet:
             raise ModalabValueError(f"'{path}' does not hold a mode set: it {what}. Expected the modes JSON "
                                     "'modalab identify --json' writes") from None
 
-    @classmethod
-    def from_uff(cls, path, **kw) -> "ModeSet":
-        """Read mode shapes from dataset 55."""
-        from .uff import read_modes
-
-        return read_modes(path, **kw)
-
-    def to_uff(self, path, **kw) -> None:
-        """Write mode shapes as dataset 55 (one set per mode)."""
-        from .uff import write_modes
-
-        write_modes(path, self, **kw)
+    # ``ModeSet.from_uff`` and ``ModeSet.to_uff`` are defined with the reader in :mod:`modalab.core._uff_modes`
+    # and attached there (the file format depends on the container, not the reverse); importing
+    # :mod:`modalab.core` always attaches them.

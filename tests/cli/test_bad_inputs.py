@@ -165,7 +165,7 @@ def test_a_failed_write_leaves_the_old_output(good, tmp_path, monkeypatch):
         raise RuntimeError("disk full")
 
     monkeypatch.setattr("modalab.core._uff_core.format_58", boom)
-    monkeypatch.setattr(uff, "format_58", boom)
+    monkeypatch.setattr("modalab.core._uff_frf.format_58", boom)      # the FRF writer's binding
     with pytest.raises(RuntimeError):
         uff.write_frf(out, frf)
     assert out.read_bytes() == b"previous" and [p.name for p in tmp_path.iterdir()] == ["frf.uff"]
