@@ -155,111 +155,33 @@ def read_frf(path, *, quantity: str | None = None, responses=None, references=No
                      path, "FRF/coherence", "f")
         fns = _functions(blocks, cur, (4, 6))
         frfs = [f for f in fns if f.func_type == 4]
-        cohs = [f for f in fns if f.func_type == 6]
         if not frfs:
-            kinds = Counter(FUNC_TYPES.get(f.func_type, str(f.func_type)) for f in
-                            _functions(blocks, cur, range(100), header_only=True))
-            hint = (" (raw hits: make FRFs of them with 'modalab frf', or uff.read_records in Python)"
-                    if "time response" in kinds else "")
-            held = ", ".join(f"{v} {k}" for k, v in kinds.items()) or "no dataset 58"
-            raise UffError(f"no FRFs (dataset 58, function type 4) in the file; it holds {held}{hint}", path=path)
+            _no_frfs(blocks, cur, path)
         first = frfs[0]
-        rows: dict = {}
-        cols: dict = {}
-        for f in frfs:
-            rows.setdefault((f.rsp_node, abs(f.rsp_dir)), Dof(f.rsp_node, f.rsp_dir))
-            cols.setdefault((f.ref_node, abs(f.ref_dir)), Dof(f.ref_node, f.ref_dir))
-        rkeys, ckeys = list(rows), list(cols)
-        ri = {k: i for i, k in enumerate(rkeys)}
-        ci = {k: i for i, k in enumerate(ckeys)}
-        nf = first.n
-        H = np.zeros((len(rkeys), len(ckeys), nf), complex)
-        seen = np.zeros((len(rkeys), len(ckeys)), int)
-        # quantity
-        qty = None
-        if quantity is not None:
-            qty = check_quantity(quantity)
+        mat = _FrfMatrix(frfs)
+        qty = None if quantity is None else check_quantity(quantity)
         for f in frfs:
             cur.block = None
-            if not _same_axis(first, f):
-                raise UffError(f"the FRF {Dof(f.rsp_node, f.rsp_dir)}/{Dof(f.ref_node, f.ref_dir)} (line {f.line}) has "
-                               f"{f.n} lines {f.x[0]:.6g}..{f.x[-1]:.6g} Hz but the first FRF (line {first.line}) has "
-                               f"{first.n} lines {first.x[0]:.6g}..{first.x[-1]:.6g} Hz. Split the file or resample "
-                               "the FRFs to a common frequency axis", path=path, dataset=58, line=f.line)
-            den = f.axes[2].spec
-            if den not in (0, 1, 9, 13) and quantity is None:
-                raise UffError(f"FRF {Dof(f.rsp_node, f.rsp_dir)}/{Dof(f.ref_node, f.ref_dir)} has denominator data "
-                               f"type {den} (record 10), not force (13): it is not a response per unit force. "
-                               "Pass quantity= to read it anyway", path=path, dataset=58, line=f.line + 10)
-            if f.ref_node == 0 and f.ref_dir == 0:
-                raise UffError(f"FRF {Dof(f.rsp_node, f.rsp_dir)} has no reference DOF (reference node 0 or "
-                               "negative): an FRF needs the excitation DOF", path=path, dataset=58, line=f.line + 6)
-            q = _TYPE_QTY.get(f.axes[1].spec) or _quantity_from_labels(f)
-            assumed = _assumed_quantity()
-            if quantity is None and assumed is not None and q is not None and q != assumed:
-                raise UffError(f"the FRFs are {q} (record 9 of the set at line {f.line}) but --quantity says "
-                               f"{assumed}; drop --quantity or convert the FRFs", path=path, dataset=58,
-                               line=f.line + 9)
+            _check_set(f, first, quantity, path)
             if quantity is None:
-                q = q or assumed
-                if q is None:
-                    raise UffError(f"ordinate data type {f.axes[1].spec} (record 9, units "
-                                   f"{f.axes[1].units!r}) is not displacement (8), velocity (11) or acceleration "
-                                   "(12); say what the FRFs are: on the command line --quantity accelerance (or "
-                                   "mobility, receptance), in Python read_frf(..., quantity='accelerance')",
-                                   path=path, dataset=58, line=f.line + 9)
-                if qty is None:
-                    qty = q
-                elif q != qty:
-                    raise UffError(f"the file mixes {qty} and {q} FRFs; read it with quantity= set and convert "
-                                   "with FRF.to()", path=path, dataset=58, line=f.line + 9)
-            i, j = ri[(f.rsp_node, abs(f.rsp_dir))], ci[(f.ref_node, abs(f.ref_dir))]
-            if seen[i, j]:
-                raise UffError(f"FRF {rows[rkeys[i]]}/{cols[ckeys[j]]} appears twice (second at line {f.line}); "
-                               "keep one set per response/reference pair", path=path, dataset=58, line=f.line)
-            seen[i, j] = f.line
-            sign = (1 if f.rsp_dir * rows[rkeys[i]].direction >= 0 else -1) * \
-                   (1 if f.ref_dir * cols[ckeys[j]].direction >= 0 else -1)
-            fac = sign * _frf_scale(f, lf, ff)
-            H[i, j] = f.y if fac == 1 else f.y * fac
+                qty = _set_quantity(f, qty, path)
+            mat.put(f, _frf_scale(f, lf, ff), path)
         if not np.all(np.isfinite(first.x)) or (first.n > 1 and np.any(np.diff(first.x) <= 0)):
             raise UffError(f"the frequency axis ({first.x0!r} + k*{first.dx!r}) does not increase strictly",
                            path=path, dataset=58, line=first.line + 7)
-        missing = [(rows[rkeys[i]], cols[ckeys[j]]) for i, j in zip(*np.nonzero(seen == 0))]
-        coh = None
-        if cohs:
-            coh = np.full(H.shape, np.nan)
-            cseen = np.zeros(seen.shape, bool)
-            for c in cohs:
-                key_r, key_c = (c.rsp_node, abs(c.rsp_dir)), (c.ref_node, abs(c.ref_dir))
-                if key_r not in ri or key_c not in ci:
-                    log.warning("%s: coherence %s/%s at line %d has no FRF; ignored", path,
-                                Dof(c.rsp_node, c.rsp_dir), Dof(c.ref_node, c.ref_dir), c.line)
-                    continue
-                if not _same_axis(first, c):
-                    raise UffError(f"coherence at line {c.line} has a different frequency axis from the FRFs; "
-                                   "resample it to the FRF lines", path=path, dataset=58, line=c.line)
-                i, j = ri[key_r], ci[key_c]
-                coh[i, j] = np.real(c.y)
-                cseen[i, j] = True
-            if not cseen[seen > 0].all():
-                lack = [f"{rows[rkeys[i]]}/{cols[ckeys[j]]}" for i, j in zip(*np.nonzero(~cseen & (seen > 0)))]
-                log.warning("%s: no coherence for %s; those entries are NaN", path, ", ".join(lack[:10]))
+        coh = _coherence([f for f in fns if f.func_type == 6], first, mat, path)
         meta = _json_meta(first.tags)
         meta.setdefault("source", str(path))
         beta = meta.pop("exp_window_beta", None)
-        full_r = [rows[k] for k in rkeys]
-        full_c = [cols[k] for k in ckeys]
+        full_r, full_c, H, seen = mat.responses, mat.references, mat.H, mat.seen
         rot = _node_rotations(blocks, path, cur)
         if rot:
             done = _rotate_frf(H, coh, full_r, full_c, rot, path, seen)
             if done:
                 meta["rotated_to_global"] = done
-            missing = [(full_r[i], full_c[j]) for i, j in zip(*np.nonzero(seen == 0))]
         if responses is not None or references is not None:
-            sub = _submatrix(full_r, full_c, responses, references, H, seen, coh)
-            full_r, full_c, H, seen, coh = sub
-            missing = [(full_r[i], full_c[j]) for i, j in zip(*np.nonzero(seen == 0))]
+            full_r, full_c, H, seen, coh = _submatrix(full_r, full_c, responses, references, H, seen, coh)
+        missing = [(full_r[i], full_c[j]) for i, j in zip(*np.nonzero(seen == 0))]
         if missing:
             txt = ", ".join(f"{a}/{b}" for a, b in missing[:12]) + (" ..." if len(missing) > 12 else "")
             raise UffError(f"the response x reference matrix ({len(full_r)} x {len(full_c)}) is incomplete: "
@@ -269,6 +191,122 @@ def read_frf(path, *, quantity: str | None = None, responses=None, references=No
         return FRF(freq_hz=first.x.copy(), H=H, responses=full_r, references=full_c, coherence=coh,
                    quantity=qty, units=QUANTITY_UNITS[qty], metadata=meta,
                    window_beta_per_s=0.0 if beta is None else beta)
+
+
+def _no_frfs(blocks, cur, path):
+    """Raise the error for a file without FRFs, saying what it holds instead."""
+    kinds = Counter(FUNC_TYPES.get(f.func_type, str(f.func_type)) for f in
+                    _functions(blocks, cur, range(100), header_only=True))
+    hint = (" (raw hits: make FRFs of them with 'modalab frf', or uff.read_records in Python)"
+            if "time response" in kinds else "")
+    held = ", ".join(f"{v} {k}" for k, v in kinds.items()) or "no dataset 58"
+    raise UffError(f"no FRFs (dataset 58, function type 4) in the file; it holds {held}{hint}", path=path)
+
+
+class _FrfMatrix:
+    """The response x reference matrix the FRF sets fill, labelled in order of first appearance."""
+
+    def __init__(self, frfs):
+        self.rows: dict = {}
+        self.cols: dict = {}
+        for f in frfs:
+            self.rows.setdefault((f.rsp_node, abs(f.rsp_dir)), Dof(f.rsp_node, f.rsp_dir))
+            self.cols.setdefault((f.ref_node, abs(f.ref_dir)), Dof(f.ref_node, f.ref_dir))
+        self.ri = {k: i for i, k in enumerate(self.rows)}
+        self.ci = {k: i for i, k in enumerate(self.cols)}
+        self.H = np.zeros((len(self.rows), len(self.cols), frfs[0].n), complex)
+        self.seen = np.zeros((len(self.rows), len(self.cols)), int)       # line of the set, 0 = missing
+
+    @property
+    def responses(self) -> list:
+        return list(self.rows.values())
+
+    @property
+    def references(self) -> list:
+        return list(self.cols.values())
+
+    def index(self, f):
+        """(i, j) of a set, or None when its DOFs are not in the matrix."""
+        kr, kc = (f.rsp_node, abs(f.rsp_dir)), (f.ref_node, abs(f.ref_dir))
+        if kr not in self.ri or kc not in self.ci:
+            return None
+        return self.ri[kr], self.ci[kc]
+
+    def put(self, f, scale: float, path):
+        i, j = self.index(f)
+        r, c = self.responses[i], self.references[j]
+        if self.seen[i, j]:
+            raise UffError(f"FRF {r}/{c} appears twice (second at line {f.line}); "
+                           "keep one set per response/reference pair", path=path, dataset=58, line=f.line)
+        self.seen[i, j] = f.line
+        sign = (1 if f.rsp_dir * r.direction >= 0 else -1) * (1 if f.ref_dir * c.direction >= 0 else -1)
+        fac = sign * scale
+        self.H[i, j] = f.y if fac == 1 else f.y * fac
+
+
+def _check_set(f, first, quantity, path):
+    """One FRF set fits the first one's axis, is per unit force (unless ``quantity`` says otherwise) and
+    names its reference."""
+    if not _same_axis(first, f):
+        raise UffError(f"the FRF {Dof(f.rsp_node, f.rsp_dir)}/{Dof(f.ref_node, f.ref_dir)} (line {f.line}) has "
+                       f"{f.n} lines {f.x[0]:.6g}..{f.x[-1]:.6g} Hz but the first FRF (line {first.line}) has "
+                       f"{first.n} lines {first.x[0]:.6g}..{first.x[-1]:.6g} Hz. Split the file or resample "
+                       "the FRFs to a common frequency axis", path=path, dataset=58, line=f.line)
+    den = f.axes[2].spec
+    if den not in (0, 1, 9, 13) and quantity is None:
+        raise UffError(f"FRF {Dof(f.rsp_node, f.rsp_dir)}/{Dof(f.ref_node, f.ref_dir)} has denominator data "
+                       f"type {den} (record 10), not force (13): it is not a response per unit force. "
+                       "Pass quantity= to read it anyway", path=path, dataset=58, line=f.line + 10)
+    if f.ref_node == 0 and f.ref_dir == 0:
+        raise UffError(f"FRF {Dof(f.rsp_node, f.rsp_dir)} has no reference DOF (reference node 0 or "
+                       "negative): an FRF needs the excitation DOF", path=path, dataset=58, line=f.line + 6)
+
+
+def _set_quantity(f, qty, path) -> str:
+    """The quantity of the file so far (``qty``, None before the first set) checked against set ``f``'s:
+    from its ordinate type or units label, else the one :func:`assume_quantity` gives."""
+    q = _TYPE_QTY.get(f.axes[1].spec) or _quantity_from_labels(f)
+    assumed = _assumed_quantity()
+    if assumed is not None and q is not None and q != assumed:
+        raise UffError(f"the FRFs are {q} (record 9 of the set at line {f.line}) but --quantity says "
+                       f"{assumed}; drop --quantity or convert the FRFs", path=path, dataset=58,
+                       line=f.line + 9)
+    q = q or assumed
+    if q is None:
+        raise UffError(f"ordinate data type {f.axes[1].spec} (record 9, units "
+                       f"{f.axes[1].units!r}) is not displacement (8), velocity (11) or acceleration "
+                       "(12); say what the FRFs are: on the command line --quantity accelerance (or "
+                       "mobility, receptance), in Python read_frf(..., quantity='accelerance')",
+                       path=path, dataset=58, line=f.line + 9)
+    if qty is not None and q != qty:
+        raise UffError(f"the file mixes {qty} and {q} FRFs; read it with quantity= set and convert "
+                       "with FRF.to()", path=path, dataset=58, line=f.line + 9)
+    return q
+
+
+def _coherence(cohs, first, mat: _FrfMatrix, path):
+    """The coherence sets on the FRF matrix (NaN where a set is missing, with a warning), or None."""
+    if not cohs:
+        return None
+    coh = np.full(mat.H.shape, np.nan)
+    cseen = np.zeros(mat.seen.shape, bool)
+    for c in cohs:
+        ij = mat.index(c)
+        if ij is None:
+            log.warning("%s: coherence %s/%s at line %d has no FRF; ignored", path,
+                        Dof(c.rsp_node, c.rsp_dir), Dof(c.ref_node, c.ref_dir), c.line)
+            continue
+        if not _same_axis(first, c):
+            raise UffError(f"coherence at line {c.line} has a different frequency axis from the FRFs; "
+                           "resample it to the FRF lines", path=path, dataset=58, line=c.line)
+        coh[ij] = np.real(c.y)
+        cseen[ij] = True
+    has = mat.seen > 0
+    if not cseen[has].all():
+        resp, refs = mat.responses, mat.references
+        lack = [f"{resp[i]}/{refs[j]}" for i, j in zip(*np.nonzero(~cseen & has))]
+        log.warning("%s: no coherence for %s; those entries are NaN", path, ", ".join(lack[:10]))
+    return coh
 
 
 def _rotate_frf(H, coh, rows, cols, rot, path, seen=None) -> list[int]:

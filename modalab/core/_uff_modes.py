@@ -139,21 +139,9 @@ def read_modes(path, *, dofs=None) -> ModeSet:
     ``read_modes(p, dofs=m.dofs)`` reproduces a written ModeSet ``m``.
     """
     with _guard(path) as cur:
-        sets, all55 = [], []
         blocks = _blocks(path, cur)
         coords = _global_nodes(blocks, path, cur) or {}
-        for b in blocks:
-            if b.number == 55:
-                cur.block = b
-                s = _parse_55(b)
-                all55.append((s["tags"], b.line, s["analysis"] in (2, 3, 7)))
-                if s["analysis"] in (2, 3, 7):
-                    s["line"] = b.line
-                    sets.append(s)
-        cur.block = None
-        check_groups(all55, path, "mode", "m")
-        if not sets:
-            raise UffError("no mode shapes (dataset 55, analysis type 2, 3 or 7) in the file", path=path)
+        sets = _mode_sets(blocks, cur, path)
         ndv = max(s["ndv"] for s in sets)
         node_order: dict[int, int] = {}
         for s in sets:
@@ -163,63 +151,18 @@ def read_modes(path, *, dofs=None) -> ModeSet:
         table = np.zeros((len(node_order), ndv, len(sets)), complex if cplx else float)
         freq, damp, mm = np.zeros(len(sets)), np.zeros(len(sets)), np.zeros(len(sets))
         scaling = None
-        rot = _node_rotations(blocks, path, cur)
         for m, s in enumerate(sets):
             idx = [node_order[int(nd)] for nd in s["nodes"]]
             if len(set(idx)) != len(idx):
                 raise UffError(f"mode at line {s['line']} lists a node twice", path=path, dataset=55, line=s["line"])
             table[idx, :s["ndv"], m] = s["values"]
-            r = s["reals"]
-            if s["analysis"] == 2:
-                if len(r) < 3:
-                    raise UffError("normal-mode record 8 needs frequency, modal mass and damping", path=path,
-                                   dataset=55, line=s["line"] + 8)
-                f, mm[m], z = r[0], r[1], r[2]
-            else:
-                if len(r) < 2:
-                    raise UffError("complex-mode record 8 needs the eigenvalue", path=path, dataset=55,
-                                   line=s["line"] + 8)
-                lam = complex(r[0], r[1])
-                w = abs(lam)
-                f, z = w / (2 * np.pi), (-lam.real / w if w > 0 else 0.0)
-            t = s["tags"]
-            try:
-                if "f" in t and "z" in t:
-                    ef, ez = float(t["f"]), float(t["z"])
-                    if abs(ef - f) <= 1e-5 * max(abs(ef), 1e-300) + 1e-12 and abs(ez - z) <= 1e-5 + 1e-5 * abs(ez):
-                        f, z = ef, ez
-                    else:
-                        log.warning("%s: mode at line %d: ID line f=%s z=%s disagrees with record 8; using record 8",
-                                    path, s["line"], t["f"], t["z"])
-            except ValueError:
-                pass
-            freq[m], damp[m] = f, z
-            if "scaling" in t and t["scaling"] in ("unit_modal_mass", "unit_max", "arbitrary"):
-                scaling = t["scaling"]
+            freq[m], damp[m], mm[m] = _frequency_damping(s, path)
+            if s["tags"].get("scaling") in ("unit_modal_mass", "unit_max", "arbitrary"):
+                scaling = s["tags"]["scaling"]
         if not np.all(np.isfinite(freq)) or not np.all(np.isfinite(damp)):
             raise UffError("mode frequencies or damping are not finite", path=path, dataset=55)
-        rotated = [nd for nd in node_order if nd in rot]
-        if rotated:
-            if ndv < 3:
-                raise UffError(f"nodes {rotated[:10]} use rotated displacement frames (dataset 2420) but the modes "
-                               f"hold {ndv} value(s) per node; the three components needed to rotate them into the "
-                               "global frame are missing. Export the shapes in the global frame", path=path, dataset=55)
-            for nd in rotated:
-                i, R = node_order[nd], rot[nd]
-                for c0 in range(0, 6 if ndv >= 6 else 3, 3):
-                    table[i, c0:c0 + 3] = R.T @ table[i, c0:c0 + 3]
-            log.info("%s: shapes of %d node(s) rotated from their local displacement frames (dataset 2420) into "
-                     "the global frame", path, len(rotated))
-        indicators = {}
-        if scaling is None:
-            if np.all(mm == 1.0):
-                scaling = "unit_modal_mass"
-            else:
-                scaling = "arbitrary"
-                if np.any(mm != 0):
-                    indicators["modal_mass"] = mm
-        elif scaling != "unit_modal_mass" and np.any(mm != 0):
-            indicators["modal_mass"] = mm
+        rotated = _rotate_to_global(table, node_order, _node_rotations(blocks, path, cur), ndv, path)
+        scaling, indicators = _scaling(scaling, mm)
         scalar = ndv == 1 and all(s["data_ch"] == 1 for s in sets)
         labels, rows = [], []
         for node, i in node_order.items():
@@ -239,6 +182,90 @@ def read_modes(path, *, dofs=None) -> ModeSet:
         if dofs is not None:
             ms = ms.select_dofs(dofs)
         return ms
+
+
+def _mode_sets(blocks, cur, path) -> list[dict]:
+    """The parsed datasets 55 of analysis type 2, 3 or 7 (each write checked complete)."""
+    sets, all55 = [], []
+    for b in blocks:
+        if b.number == 55:
+            cur.block = b
+            s = _parse_55(b)
+            all55.append((s["tags"], b.line, s["analysis"] in (2, 3, 7)))
+            if s["analysis"] in (2, 3, 7):
+                s["line"] = b.line
+                sets.append(s)
+    cur.block = None
+    check_groups(all55, path, "mode", "m")
+    if not sets:
+        raise UffError("no mode shapes (dataset 55, analysis type 2, 3 or 7) in the file", path=path)
+    return sets
+
+
+def _frequency_damping(s: dict, path) -> tuple[float, float, float]:
+    """Frequency (Hz), damping ratio and modal mass of a mode from record 8; the exact values of the ID line
+    (modalab's ``f=``/``z=`` tokens) when they agree with it."""
+    r = s["reals"]
+    mm = 0.0
+    if s["analysis"] == 2:
+        if len(r) < 3:
+            raise UffError("normal-mode record 8 needs frequency, modal mass and damping", path=path,
+                           dataset=55, line=s["line"] + 8)
+        f, mm, z = r[0], r[1], r[2]
+    else:
+        if len(r) < 2:
+            raise UffError("complex-mode record 8 needs the eigenvalue", path=path, dataset=55,
+                           line=s["line"] + 8)
+        lam = complex(r[0], r[1])
+        w = abs(lam)
+        f, z = w / (2 * np.pi), (-lam.real / w if w > 0 else 0.0)
+    t = s["tags"]
+    if "f" in t and "z" in t:
+        try:
+            ef, ez = float(t["f"]), float(t["z"])
+        except ValueError:
+            log.warning("%s: mode at line %d: ID line f=%s z=%s are not numbers; using record 8",
+                        path, s["line"], t["f"], t["z"])
+            return f, z, mm
+        if abs(ef - f) <= 1e-5 * max(abs(ef), 1e-300) + 1e-12 and abs(ez - z) <= 1e-5 + 1e-5 * abs(ez):
+            f, z = ef, ez
+        else:
+            log.warning("%s: mode at line %d: ID line f=%s z=%s disagrees with record 8; using record 8",
+                        path, s["line"], t["f"], t["z"])
+    return f, z, mm
+
+
+def _rotate_to_global(table, node_order: dict, rot: dict, ndv: int, path) -> list:
+    """Rotate, in place, the shapes of nodes with local displacement frames (dataset 2420); their node ids."""
+    rotated = [nd for nd in node_order if nd in rot]
+    if not rotated:
+        return rotated
+    if ndv < 3:
+        raise UffError(f"nodes {rotated[:10]} use rotated displacement frames (dataset 2420) but the modes "
+                       f"hold {ndv} value(s) per node; the three components needed to rotate them into the "
+                       "global frame are missing. Export the shapes in the global frame", path=path, dataset=55)
+    for nd in rotated:
+        i, R = node_order[nd], rot[nd]
+        for c0 in range(0, 6 if ndv >= 6 else 3, 3):
+            table[i, c0:c0 + 3] = R.T @ table[i, c0:c0 + 3]
+    log.info("%s: shapes of %d node(s) rotated from their local displacement frames (dataset 2420) into "
+             "the global frame", path, len(rotated))
+    return rotated
+
+
+def _scaling(scaling, mm) -> tuple[str, dict]:
+    """The shapes' scaling (stated, or unit modal mass when every modal mass is 1) and the modal masses to keep."""
+    indicators = {}
+    if scaling is None:
+        if np.all(mm == 1.0):
+            scaling = "unit_modal_mass"
+        else:
+            scaling = "arbitrary"
+            if np.any(mm != 0):
+                indicators["modal_mass"] = mm
+    elif scaling != "unit_modal_mass" and np.any(mm != 0):
+        indicators["modal_mass"] = mm
+    return scaling, indicators
 
 
 def _modes_from_uff(cls, path, **kw) -> ModeSet:

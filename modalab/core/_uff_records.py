@@ -100,87 +100,106 @@ def read_records(path) -> list[TimeRecord]:
         hits: dict[int, list[Fn58]] = {}
         for f in fns:
             hits.setdefault(f.load_case, []).append(f)
-        out = []
-        for hit, chans in hits.items():
-            def order(f):
-                try:
-                    return int(f.tags.get("ch", 10 ** 9)), f.line
-                except ValueError:
-                    return 10 ** 9, f.line
-            chans.sort(key=order)
-            c0 = chans[0]
-            for f in chans:
-                if not f.even:
-                    raise UffError(f"time record of hit {hit} is unevenly sampled; records must be evenly sampled",
-                                   path=path, dataset=58, line=f.line + 7)
-                if f.n != c0.n or f.dx != c0.dx or f.x0 != c0.x0:
-                    raise UffError(f"the channels of hit {hit} differ in length or sampling (line {c0.line}: "
-                                   f"{c0.n} samples, dt={c0.dx!r}; line {f.line}: {f.n} samples, dt={f.dx!r}); "
-                                   "a hit's records must share their time axis", path=path, dataset=58, line=f.line)
-                if f.is_complex:
-                    raise UffError("time record holds complex data; expected real samples", path=path,
-                                   dataset=58, line=f.line + 7)
-            if "nch" in c0.tags:
-                try:
-                    nch = int(c0.tags["nch"])
-                except ValueError:
-                    raise UffError(f"channel count {c0.tags['nch']!r} is not an integer", path=path, dataset=58,
-                                   line=c0.line + 2) from None
-                if nch != len(chans):
-                    raise UffError(f"hit {hit} has {len(chans)} channel records but was written with {nch}; "
-                                   "the file is incomplete or mislabelled", path=path, dataset=58, line=c0.line)
-            t4 = c0.tags
-            if c0.dx <= 0:
-                raise UffError(f"time increment {c0.dx!r} must be positive", path=path, dataset=58,
-                               line=c0.line + 7)
-            try:
-                fs = float(t4["fs"]) if "fs" in t4 else 1.0 / c0.dx
-                trig = int(t4["trig"]) if "trig" in t4 else None
-            except ValueError:
-                raise UffError("sample rate / trigger tokens in ID line 4 are not numbers", path=path,
-                               dataset=58, line=c0.line + 4) from None
-            if not np.isfinite(fs) or fs <= 0 or abs(fs * c0.dx - 1) > 1e-5:
-                raise UffError(f"sample rate {fs!r} Hz disagrees with the time increment {c0.dx!r} s", path=path,
-                               dataset=58, line=c0.line + 7)
-            meta = _json_meta(c0.tags)
-            if trig is None:
-                r = -c0.x0 * fs
-                trig = int(round(r)) if r > 0 else 0
-                if abs(r - round(r)) > 1e-3 and r > 0:
-                    log.warning("%s: hit %d starts at %g s, not a whole number of samples before the trigger",
-                                path, hit, c0.x0)
-                if r < 0:
-                    meta.setdefault("t0", c0.x0)
-            elif abs(-trig / fs - c0.x0) > 1e-5 * max(abs(c0.x0), 1.0 / fs):
-                raise UffError(f"trigger index {trig} disagrees with the start time {c0.x0!r} s of record 7",
-                               path=path, dataset=58, line=c0.line + 4)
-            data = np.empty((len(chans), c0.n))
-            dofs, roles, units, sens, ovl = [], [], [], [], []
-            for k, f in enumerate(chans):
-                role = f.tags.get("role")
-                if role not in ("force", "response"):
-                    role = "force" if f.axes[1].spec in (13, 9) else "response"
-                label, spec = f.axes[1].units, f.axes[1].spec
-                conv = _label_si(label)
-                if conv is not None:                       # a recognised units label wins
-                    fac, unit = conv
-                elif label.strip().upper() in ("", "NONE"):  # SI or dataset 164 units by data type
-                    unit = _SPEC_SI.get(spec, "N" if role == "force" else "m/s^2")
-                    fac = 1.0 / ff if unit == "N" else (1.0 / lf if abs(f.rsp_dir) <= 3 else 1.0)
-                else:
-                    fac, unit = 1.0, label
-                    log.warning("%s: unit %r of the record at line %d is not one modalab converts; "
-                                "values kept as stored", path, label, f.line)
-                data[k] = f.y * fac
-                dofs.append(Dof(f.rsp_node, f.rsp_dir))
-                roles.append(role)
-                units.append(unit)
-                try:
-                    sens.append(float(f.tags.get("sens", 1.0)))
-                    ovl.append(bool(int(f.tags.get("ovl", 0))))
-                except ValueError:
-                    raise UffError("sensitivity / overload tokens in ID line 2 are not numbers", path=path,
-                                   dataset=58, line=f.line + 2) from None
-            out.append(TimeRecord(sample_rate_hz=fs, data=data, dofs=dofs, roles=roles, units=units,
-                                  sensitivity=sens, trigger_index=trig, overload=ovl, hit_id=hit, metadata=meta))
-        return out
+        return [_hit(hit, sorted(chans, key=_channel_order), lf, ff, path) for hit, chans in hits.items()]
+
+
+def _channel_order(f):
+    try:
+        return int(f.tags.get("ch", 10 ** 9)), f.line
+    except ValueError:
+        return 10 ** 9, f.line
+
+
+def _hit(hit: int, chans: list, lf: float, ff: float, path) -> TimeRecord:
+    """One hit from its channel records (in channel order), checked to share one time axis."""
+    c0 = chans[0]
+    _check_channels(hit, chans, path)
+    fs, trig, meta = _timing(hit, c0, path)
+    data = np.empty((len(chans), c0.n))
+    dofs, roles, units, sens, ovl = [], [], [], [], []
+    for k, f in enumerate(chans):
+        role = f.tags.get("role")
+        if role not in ("force", "response"):
+            role = "force" if f.axes[1].spec in (13, 9) else "response"
+        fac, unit = _channel_units(f, role, lf, ff, path)
+        data[k] = f.y * fac
+        dofs.append(Dof(f.rsp_node, f.rsp_dir))
+        roles.append(role)
+        units.append(unit)
+        try:
+            sens.append(float(f.tags.get("sens", 1.0)))
+            ovl.append(bool(int(f.tags.get("ovl", 0))))
+        except ValueError:
+            raise UffError("sensitivity / overload tokens in ID line 2 are not numbers", path=path,
+                           dataset=58, line=f.line + 2) from None
+    return TimeRecord(sample_rate_hz=fs, data=data, dofs=dofs, roles=roles, units=units,
+                      sensitivity=sens, trigger_index=trig, overload=ovl, hit_id=hit, metadata=meta)
+
+
+def _check_channels(hit: int, chans: list, path) -> None:
+    c0 = chans[0]
+    for f in chans:
+        if not f.even:
+            raise UffError(f"time record of hit {hit} is unevenly sampled; records must be evenly sampled",
+                           path=path, dataset=58, line=f.line + 7)
+        if f.n != c0.n or f.dx != c0.dx or f.x0 != c0.x0:
+            raise UffError(f"the channels of hit {hit} differ in length or sampling (line {c0.line}: "
+                           f"{c0.n} samples, dt={c0.dx!r}; line {f.line}: {f.n} samples, dt={f.dx!r}); "
+                           "a hit's records must share their time axis", path=path, dataset=58, line=f.line)
+        if f.is_complex:
+            raise UffError("time record holds complex data; expected real samples", path=path,
+                           dataset=58, line=f.line + 7)
+    if "nch" in c0.tags:
+        try:
+            nch = int(c0.tags["nch"])
+        except ValueError:
+            raise UffError(f"channel count {c0.tags['nch']!r} is not an integer", path=path, dataset=58,
+                           line=c0.line + 2) from None
+        if nch != len(chans):
+            raise UffError(f"hit {hit} has {len(chans)} channel records but was written with {nch}; "
+                           "the file is incomplete or mislabelled", path=path, dataset=58, line=c0.line)
+
+
+def _timing(hit: int, c0, path) -> tuple[float, int, dict]:
+    """Sample rate, trigger index and metadata of a hit from its first record, checked against record 7."""
+    t4 = c0.tags
+    if c0.dx <= 0:
+        raise UffError(f"time increment {c0.dx!r} must be positive", path=path, dataset=58,
+                       line=c0.line + 7)
+    try:
+        fs = float(t4["fs"]) if "fs" in t4 else 1.0 / c0.dx
+        trig = int(t4["trig"]) if "trig" in t4 else None
+    except ValueError:
+        raise UffError("sample rate / trigger tokens in ID line 4 are not numbers", path=path,
+                       dataset=58, line=c0.line + 4) from None
+    if not np.isfinite(fs) or fs <= 0 or abs(fs * c0.dx - 1) > 1e-5:
+        raise UffError(f"sample rate {fs!r} Hz disagrees with the time increment {c0.dx!r} s", path=path,
+                       dataset=58, line=c0.line + 7)
+    meta = _json_meta(c0.tags)
+    if trig is None:
+        r = -c0.x0 * fs
+        trig = int(round(r)) if r > 0 else 0
+        if abs(r - round(r)) > 1e-3 and r > 0:
+            log.warning("%s: hit %d starts at %g s, not a whole number of samples before the trigger",
+                        path, hit, c0.x0)
+        if r < 0:
+            meta.setdefault("t0", c0.x0)
+    elif abs(-trig / fs - c0.x0) > 1e-5 * max(abs(c0.x0), 1.0 / fs):
+        raise UffError(f"trigger index {trig} disagrees with the start time {c0.x0!r} s of record 7",
+                       path=path, dataset=58, line=c0.line + 4)
+    return fs, trig, meta
+
+
+def _channel_units(f, role: str, lf: float, ff: float, path) -> tuple[float, str]:
+    """Factor to SI and unit of a channel: a recognised units label wins; else SI or dataset 164 units by data
+    type; an unknown label keeps the values as stored (logged)."""
+    label, spec = f.axes[1].units, f.axes[1].spec
+    conv = _label_si(label)
+    if conv is not None:
+        return conv
+    if label.strip().upper() in ("", "NONE"):
+        unit = _SPEC_SI.get(spec, "N" if role == "force" else "m/s^2")
+        return (1.0 / ff if unit == "N" else (1.0 / lf if abs(f.rsp_dir) <= 3 else 1.0)), unit
+    log.warning("%s: unit %r of the record at line %d is not one modalab converts; "
+                "values kept as stored", path, label, f.line)
+    return 1.0, label

@@ -195,61 +195,11 @@ def info(path, *, quantity: str | None = None) -> dict:
     if others:
         out["other_functions"] = others
     if any(f.func_type == 4 for f in heads):
-        if quantity is not None:
-            with assume_quantity(quantity):
-                frf = read_frf(path)
-        else:
-            frf = read_frf(path)
-        even = frf.n_freq > 1 and _even_axis(frf.freq_hz)[0]
-        out["frf"] = {"responses": [str(d) for d in frf.responses], "references": [str(d) for d in frf.references],
-                      "quantity": frf.quantity, "units": frf.units, "lines": int(frf.n_freq),
-                      "freq_range_hz": [float(frf.freq_hz[0]), float(frf.freq_hz[-1])],
-                      "df_hz": float(frf.freq_hz[1] - frf.freq_hz[0]) if even else None,
-                      "coherence": frf.coherence is not None,
-                      "metadata": {k: v for k, v in frf.metadata.items() if k != "source"}}
+        out["frf"] = _frf_info(path, quantity)
     if any(f.func_type == 1 for f in heads):
-        recs = read_records(path)
-        hammer: dict = {}
-        resp: dict = {}
-        units: dict = {}
-        for r in recs:
-            for d, role, u in zip(r.dofs, r.roles, r.units):
-                (hammer if role == "force" else resp).setdefault(str(d), 0)
-                units.setdefault(role, set()).add(str(u))
-            for d in r.force_dofs[:1]:
-                hammer[str(d)] = hammer.get(str(d), 0) + 1
-        t0 = min(-r.trigger_index / r.sample_rate_hz for r in recs)
-        t1 = max((r.n_samples - 1 - r.trigger_index) / r.sample_rate_hz for r in recs)
-        out["hits"] = {"hits": len(recs), "hammer_points": list(hammer), "hits_per_point": hammer,
-                       "responses": list(resp), "channels_per_hit": sorted({r.n_channels for r in recs}),
-                       "sample_rate_hz": sorted({float(r.sample_rate_hz) for r in recs}),
-                       "samples": sorted({int(r.n_samples) for r in recs}), "time_range_s": [t0, t1],
-                       "units": {k: sorted(v) for k, v in units.items()}}
+        out["hits"] = _hits_info(read_records(path))
     if modes55:
-        ms = read_modes(path)
-        sets = [s for s in modes55 if s["analysis"] in (2, 3, 7)]
-        rows = []
-        for k, s in enumerate(sets):
-            f, z = float(ms.freq_hz[k]), float(ms.damping[k])
-            row = {"mode": k + 1, "freq_hz": f, "damping": z, "complex": s["analysis"] != 2}
-            if s["analysis"] != 2:
-                lam = complex(s["reals"][0], s["reals"][1])
-                fd = abs(lam.imag) / (2 * np.pi)
-                row.update(freq_undamped_hz=f, freq_damped_hz=fd)
-                stated = _stated_hz(s["ids"])
-                if stated is not None:
-                    stated, half = stated
-                    dd, du = abs(stated - fd), abs(stated - f)
-                    tol = 1.01 * half + 1e-5 * abs(stated)   # the header's digits (and our E13.5 reading)
-                    row["header_hz"] = stated
-                    row["header_states"] = ("neither" if min(dd, du) > tol else
-                                            "either (they agree to the header's digits)" if abs(f - fd) <= tol
-                                            else "damped" if dd < du else "undamped")
-            rows.append(row)
-        out["modes"] = {"n_modes": ms.n_modes, "dofs": len(ms.dofs), "scaling": ms.scaling, "table": rows,
-                        "frequency": ("complex modes: freq_hz is the undamped natural frequency |lambda|/2pi; "
-                                      "freq_damped_hz = Im(lambda)/2pi") if any(r["complex"] for r in rows)
-                        else "normal modes: freq_hz as stored in record 8"}
+        out["modes"] = _modes_info(read_modes(path), [s for s in modes55 if s["analysis"] in (2, 3, 7)])
     if counts.get("2411") or counts.get("15"):
         geo = read_geometry(path)
         out["nodes"] = len(geo)
@@ -260,3 +210,63 @@ def info(path, *, quantity: str | None = None) -> dict:
     if counts.get("164"):
         out["units"] = read_units(path)
     return out
+
+
+def _frf_info(path, quantity) -> dict:
+    if quantity is not None:
+        with assume_quantity(quantity):
+            frf = read_frf(path)
+    else:
+        frf = read_frf(path)
+    even = frf.n_freq > 1 and _even_axis(frf.freq_hz)[0]
+    return {"responses": [str(d) for d in frf.responses], "references": [str(d) for d in frf.references],
+            "quantity": frf.quantity, "units": frf.units, "lines": int(frf.n_freq),
+            "freq_range_hz": [float(frf.freq_hz[0]), float(frf.freq_hz[-1])],
+            "df_hz": float(frf.freq_hz[1] - frf.freq_hz[0]) if even else None,
+            "coherence": frf.coherence is not None,
+            "metadata": {k: v for k, v in frf.metadata.items() if k != "source"}}
+
+
+def _hits_info(recs) -> dict:
+    hammer: dict = {}
+    resp: dict = {}
+    units: dict = {}
+    for r in recs:
+        for d, role, u in zip(r.dofs, r.roles, r.units):
+            (hammer if role == "force" else resp).setdefault(str(d), 0)
+            units.setdefault(role, set()).add(str(u))
+        for d in r.force_dofs[:1]:
+            hammer[str(d)] = hammer.get(str(d), 0) + 1
+    t0 = min(-r.trigger_index / r.sample_rate_hz for r in recs)
+    t1 = max((r.n_samples - 1 - r.trigger_index) / r.sample_rate_hz for r in recs)
+    return {"hits": len(recs), "hammer_points": list(hammer), "hits_per_point": hammer,
+            "responses": list(resp), "channels_per_hit": sorted({r.n_channels for r in recs}),
+            "sample_rate_hz": sorted({float(r.sample_rate_hz) for r in recs}),
+            "samples": sorted({int(r.n_samples) for r in recs}), "time_range_s": [t0, t1],
+            "units": {k: sorted(v) for k, v in units.items()}}
+
+
+def _modes_info(ms, sets) -> dict:
+    """The mode table; for complex modes both frequencies and which one the exporter's header states."""
+    rows = []
+    for k, s in enumerate(sets):
+        f, z = float(ms.freq_hz[k]), float(ms.damping[k])
+        row = {"mode": k + 1, "freq_hz": f, "damping": z, "complex": s["analysis"] != 2}
+        if s["analysis"] != 2:
+            lam = complex(s["reals"][0], s["reals"][1])
+            fd = abs(lam.imag) / (2 * np.pi)
+            row.update(freq_undamped_hz=f, freq_damped_hz=fd)
+            stated = _stated_hz(s["ids"])
+            if stated is not None:
+                stated, half = stated
+                dd, du = abs(stated - fd), abs(stated - f)
+                tol = 1.01 * half + 1e-5 * abs(stated)   # the header's digits (and our E13.5 reading)
+                row["header_hz"] = stated
+                row["header_states"] = ("neither" if min(dd, du) > tol else
+                                        "either (they agree to the header's digits)" if abs(f - fd) <= tol
+                                        else "damped" if dd < du else "undamped")
+        rows.append(row)
+    return {"n_modes": ms.n_modes, "dofs": len(ms.dofs), "scaling": ms.scaling, "table": rows,
+            "frequency": ("complex modes: freq_hz is the undamped natural frequency |lambda|/2pi; "
+                          "freq_damped_hz = Im(lambda)/2pi") if any(r["complex"] for r in rows)
+            else "normal modes: freq_hz as stored in record 8"}

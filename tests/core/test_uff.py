@@ -566,3 +566,19 @@ class TestGeometryModesUnits:
         u = uff.read_units(p)
         assert (u["code"], u["length"], u["force"], u["temperature_offset"]) == (1, 1.0, 1.0, 273.15)
         assert pyuff.UFF(str(p)).read_sets()["units_code"] == 1
+
+
+def test_mode_id_line_tokens_that_are_not_numbers_fall_back_to_record_8_with_a_warning(tmp_path, caplog):
+    import logging
+    import re
+
+    ms = ModeSet(freq_hz=[12.5, 30.0], damping=[0.01, 0.02], shapes=np.array([[1.0, 0.5], [0.3, -1.0]]),
+                 dofs=["1+Z", "2+Z"])
+    p = tmp_path / "m.uff"
+    uff.write_modes(p, ms)
+    text = p.read_text()
+    p.write_text(re.sub(r"modalab f=\S+ z=", "modalab f=abc z=", text, count=1))
+    with caplog.at_level(logging.WARNING, logger="modalab.core.uff"):
+        back = uff.read_modes(p)
+    np.testing.assert_allclose(back.freq_hz, [12.5, 30.0], rtol=1e-12)      # record 8 is exact (25-char fields)
+    assert "are not numbers; using record 8" in caplog.text
