@@ -133,3 +133,30 @@ def test_parameter_std_non_finite_jacobian_fails_with_a_message():
     J[3, 1] = np.nan
     with pytest.raises(ConvergenceError, match=r"parameter\(s\) \[1\]"):
         parameter_std(J, 1.0)
+
+
+def test_screen_selects_the_missing_ground_spring_at_an_unmeasured_dof():
+    """The condensed-residual screen names a spring to ground the model left out, seen through the expansion."""
+    from modalab.core.frf import FRF
+    from updating.diagnosis.library import Candidate
+    from updating.diagnosis.screen import screen
+
+    X = six_dof_model("experimental")
+    st = X.structure()
+    K, M = st.K.toarray(), st.M.toarray()
+    k_extra = 0.01 * np.abs(np.diag(K)).mean()          # small: the screen is first order in the error
+    Kt = K.copy()
+    Kt[3, 3] += k_extra                                   # the test article: a spring to ground at 4+X
+    H = np.stack([np.linalg.solve(Kt - (2 * np.pi * f) ** 2 * M, np.eye(6)[:, 0]) for f in F], axis=-1)
+    meas = [0, 1, 2, 4, 5]                               # 4+X is not measured
+    frf = FRF.from_arrays(F, H[meas], [st.dofs[i] for i in meas], ["1+X"], quantity="receptance")
+    cands = []
+    for i, d in enumerate(st.dofs):
+        E = sp.csr_matrix(([1.0], ([i], [i])), shape=(6, 6))
+        cands.append(Candidate("ground_spring", str(d), (d.node,), (str(d),), (), "k", "N/m", "K", True, G=E))
+        cands.append(Candidate("added_mass", str(d), (d.node,), (str(d),), (), "m", "kg", "M", True, G=E))
+    res = screen(st, [], cands, receptance_data(frf))
+    best, theta, gain = res.selected[0]
+    assert (best.physics, best.label) == ("ground_spring", "4+X")
+    assert theta == pytest.approx(k_extra, rel=0.2)
+    assert res.rss_final < 0.2 * res.rss_background

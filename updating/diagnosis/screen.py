@@ -86,22 +86,7 @@ def screen(structure, background_derivs, candidates, data, *, max_terms: int = 4
     ``(s, shapes, dof_labels)`` of identified modes (homogeneous residual, no force).
     """
     K, M, C, D = structure.K, structure.M, structure.C, structure.D
-    if x_modes is None:
-        cols = data.on_model(structure.dofs)
-        mi, x_meas, F = cols.measured, cols.theta, cols.force
-        s = data.s
-        coh = np.sqrt(np.mean(data.quality ** 2, axis=0))         # (n_r, n_s)
-        responses = data.responses
-    else:
-        s, shapes, labels = x_modes
-        mi, ms = locate(structure.dofs, labels, "measured DOF")
-        ms = np.asarray(ms, float)
-        x_meas = (shapes * ms[:, None])[:, None, :]                # (n_m, 1, n_modes) one vector per mode
-        x_meas = np.moveaxis(x_meas, 2, 2)
-        # each mode is its own "line": q = 1, lines = modes
-        F = np.zeros((structure.n_dof, 1))
-        coh = np.ones((1, s.size))
-        responses = labels
+    s, mi, x_meas, F, coh, responses = _measured(structure, data, x_modes)
     x_full, r, T, sigma = condensed_residual(K, M, C, D, s, mi, x_meas, F)
     w = coh / (sigma + 1e-12 * np.max(sigma))
     y = _stack(r, w)
@@ -147,11 +132,45 @@ def screen(structure, background_derivs, candidates, data, *, max_terms: int = 4
     gain1 = np.where(theta1 > 0, proj ** 2 / np.maximum(nrm2, 1e-300), 0.0) / max(rss_bg, 1e-300)
     order = np.argsort(-gain1)
     ranking = [(keep[i], float(theta1[i]), float(gain1[i])) for i in order if gain1[i] > 0]
-    # orthogonal matching pursuit with positivity
+    selected_idx, cur, rss = _matching_pursuit(Gm, Q, res, max_terms, min_gain)
+    # joint estimates of the selected values (background free, candidates >= 0 by selection)
+    selected = []
+    if selected_idx:
+        A = np.column_stack([B, Gm[:, selected_idx]]) if B.shape[1] else Gm[:, selected_idx]
+        sol, *_ = np.linalg.lstsq(A, y, rcond=None)
+        th = sol[B.shape[1]:]
+        for k, t in zip(selected_idx, th):
+            selected.append((keep[k], float(max(t, 0.0)), float(gain1[k])))
+    energy_after = dof_energy(cur)
+    node_scores: dict[int, float] = {}
+    for d, e in zip(responses, energy_before):
+        node_scores[d.node] = node_scores.get(d.node, 0.0) + float(e) ** 2
+    log.info("screening: background RSS %.4g, with %d candidate(s) %.4g", rss_bg, len(selected), rss)
+    return ScreenResult(selected, ranking, rss_bg, rss, energy_before, energy_after, list(responses), node_scores)
+
+
+def _measured(structure, data, x_modes):
+    """What :func:`screen` expands: ``(s, measured rows, x_meas, forces, line weights, response labels)`` of
+    FRF ``data`` or, with ``x_modes = (s, shapes, labels)``, of identified modes (one "line" per mode, no force)."""
+    if x_modes is None:
+        cols = data.on_model(structure.dofs)
+        coh = np.sqrt(np.mean(data.quality ** 2, axis=0))         # (n_r, n_s)
+        return data.s, cols.measured, cols.theta, cols.force, coh, data.responses
+    s, shapes, labels = x_modes
+    mi, ms = locate(structure.dofs, labels, "measured DOF")
+    x_meas = (shapes * np.asarray(ms, float)[:, None])[:, None, :]          # (n_m, 1, n_modes)
+    return s, mi, x_meas, np.zeros((structure.n_dof, 1)), np.ones((1, s.size)), labels
+
+
+def _matching_pursuit(Gm, Q, res, max_terms: int, min_gain: float):
+    """Orthogonal matching pursuit with positivity: candidate columns ``Gm`` enter one at a time (the one that
+    removes most of the residual ``res`` left after the background basis ``Q`` and the terms already in) while
+    each removes at least ``min_gain`` of what remains.  Returns the chosen columns, the final residual and
+    its sum of squares."""
     selected_idx: list[int] = []
     Qs = Q.copy()
     cur = res.copy()
-    rss = rss_bg
+    rss = float(res @ res)
     for _ in range(max_terms):
         Gq = Gm - Qs @ (Qs.T @ Gm)
         n2 = np.einsum("ij,ij->j", Gq, Gq)
@@ -167,20 +186,7 @@ def screen(structure, background_derivs, candidates, data, *, max_terms: int = 4
         cur = cur - q * (q @ cur)
         rss = float(cur @ cur)
         selected_idx.append(k)
-    # joint estimates of the selected values (background free, candidates >= 0 by selection)
-    selected = []
-    if selected_idx:
-        A = np.column_stack([B, Gm[:, selected_idx]]) if B.shape[1] else Gm[:, selected_idx]
-        sol, *_ = np.linalg.lstsq(A, y, rcond=None)
-        th = sol[B.shape[1]:]
-        for k, t in zip(selected_idx, th):
-            selected.append((keep[k], float(max(t, 0.0)), float(gain1[k])))
-    energy_after = dof_energy(cur)
-    node_scores: dict[int, float] = {}
-    for d, e in zip(responses, energy_before):
-        node_scores[d.node] = node_scores.get(d.node, 0.0) + float(e) ** 2
-    log.info("screening: background RSS %.4g, with %d candidate(s) %.4g", rss_bg, len(selected), rss)
-    return ScreenResult(selected, ranking, rss_bg, rss, energy_before, energy_after, list(responses), node_scores)
+    return selected_idx, cur, rss
 
 
 @dataclass
