@@ -56,6 +56,7 @@ from updating.correlation.condensation import condensed_residual, dynamic_stiffn
 from updating.correlation.receptance import MeasuredColumns, measured_columns
 from updating.fe.parametric import parameter_indices
 from updating.fe.sensitivity import StackedDerivatives
+from updating.methods.mci_plots import plot_convergence, plot_mci_map, plot_mci_maxima
 
 log = logging.getLogger(__name__)
 
@@ -576,73 +577,3 @@ def _bounds(bounds, p0):
     if np.any(lo > hi):
         raise ModalabValueError("bounds: some lower bounds exceed the upper ones; pass (lower, upper) arrays")
     return lo, hi
-
-
-# ----------------------------------------------------------------------------- figures
-def _figure(figsize):
-    from matplotlib.figure import Figure
-
-    return Figure(figsize=figsize, constrained_layout=True)
-
-
-def plot_mci_map(result: MCIResult, path, *, reference: int = 0, title: str = "MCI map"):
-    """|MCI| as an image, DOF (rows) × frequency (columns), log colour scale; saved to ``path``."""
-    from matplotlib.colors import LogNorm
-
-    fig = _figure((8, 4))
-    ax = fig.add_subplot(1, 1, 1)
-    v = np.abs(result.values[:, reference, :])
-    pos = v[v > 0]
-    norm = LogNorm(vmin=max(pos.min(), pos.max() * 1e-8), vmax=pos.max()) if pos.size else None
-    f = result.freq_hz
-    im = ax.imshow(np.where(v > 0, v, np.nan), aspect="auto", origin="lower", norm=norm,
-                   extent=(f[0], f[-1], -0.5, len(result.dofs) - 0.5), interpolation="nearest")
-    ax.set_yticks(range(len(result.dofs)))
-    ax.set_yticklabels([str(d) for d in result.dofs])
-    ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel("DOF")
-    ax.set_title(f"{title} (reference {result.references[reference]})")
-    fig.colorbar(im, ax=ax, label="|MCI|")
-    fig.savefig(path)
-    return fig
-
-
-def plot_mci_maxima(results, path, *, labels=None, title: str = "absolute maxima of MCI per DOF"):
-    """Bar chart of the per-DOF maxima of one or several :class:`MCIResult` (e.g. initial and final)."""
-    if isinstance(results, MCIResult):
-        results = [results]
-    labels = labels or [f"set {k + 1}" for k in range(len(results))]
-    fig = _figure((7, 3.5))
-    ax = fig.add_subplot(1, 1, 1)
-    nd = len(results[0].dofs)
-    wdt = 0.8 / len(results)
-    for k, (r, lab) in enumerate(zip(results, labels)):
-        ax.bar(np.arange(nd) + k * wdt - 0.4 + wdt / 2, r.max_per_dof(), width=wdt, label=lab)
-    ax.set_xticks(range(nd))
-    ax.set_xticklabels([str(d) for d in results[0].dofs], rotation=90 if nd > 20 else 0)
-    ax.set_yscale("log")
-    ax.set_ylabel("max |MCI|")
-    ax.set_title(title)
-    ax.legend()
-    fig.savefig(path)
-    return fig
-
-
-def plot_convergence(history: np.ndarray, path, *, names=None, reference=None, params=None):
-    """Parameter values per iteration divided by ``reference`` (default the first row)."""
-    H = np.asarray(history, float)
-    cols = np.arange(H.shape[1]) if params is None else np.asarray(params)
-    ref = H[0] if reference is None else np.asarray(reference, float)
-    ref = np.where(ref == 0, 1.0, ref)
-    fig = _figure((7, 4))
-    ax = fig.add_subplot(1, 1, 1)
-    for c in cols:
-        ax.plot(np.arange(1, H.shape[0] + 1), H[:, c] / ref[c], marker=".",
-                label=None if names is None else names[c])
-    ax.set_xlabel("iteration")
-    ax.set_ylabel("parameter / reference")
-    ax.set_title("convergence of updating parameters")
-    if names is not None and len(cols) <= 30:
-        ax.legend(ncol=2, fontsize="small")
-    fig.savefig(path)
-    return fig
