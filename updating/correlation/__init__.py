@@ -11,6 +11,10 @@ Compare FRFs
     :func:`frac`, :func:`csac`, :func:`csf`, :func:`frf_correlation`.
 Map test DOFs onto the model
     :class:`DofMap`, :func:`as_dofmap`, :func:`observation_matrix`.
+Measured FRFs on the model, and their dynamic expansion
+    :mod:`updating.correlation.receptance` (:class:`FRFData`, :func:`frf_data`, :func:`measured_columns`);
+    :mod:`updating.correlation.condensation` (:func:`condensed_residual`, :func:`solve_columns`) — the one
+    adapter and the one Kidder-type expansion that MCI, RFM and diagnosis share.
 Reduce and expand (section 2.1)
     :func:`guyan`, :func:`irs`, :func:`serep`, :func:`reduce`; :func:`kidder`, :func:`serep_expand`,
     :func:`modal_expand`.

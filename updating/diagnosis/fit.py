@@ -27,7 +27,7 @@ from modalab.core.errors import ConvergenceError
 from updating.correlation.condensation import solve_columns
 from updating.correlation.receptance import LOCAL_BAND, FRFData, frf_data, leakage_bias  # noqa: F401 (re-exported)
 from updating.diagnosis.ritz import RitzBasis
-from updating.diagnosis.screen import derivatives
+from updating.methods.mci_condensed import derivatives
 
 log = logging.getLogger(__name__)
 __all__ = ["FRFData", "frf_data", "leakage_bias", "model_frf", "frf_error", "fit_frf", "FitResult", "Prior",

@@ -19,7 +19,6 @@ by the share of the residual it alone would explain.
 from __future__ import annotations
 
 import logging
-import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -27,10 +26,11 @@ import numpy as np
 from modalab.core.dof import locate
 
 from updating.correlation.condensation import condensed_residual
-from updating.fe import ParametricFEModel
+from updating.methods.mci_condensed import (_column, _factor, _stack, derivatives, mci_update,  # noqa: F401
+                                            residual_system)
 
 log = logging.getLogger(__name__)
-__all__ = ["screen", "ScreenResult", "residual_map", "mci_update", "residual_system"]
+__all__ = ["screen", "ScreenResult", "residual_map", "rank_candidates", "mci_update", "residual_system"]
 
 
 @dataclass
@@ -43,31 +43,6 @@ class ScreenResult:
     dof_energy_after: np.ndarray       # with the selected candidates
     responses: list
     node_scores: dict = field(default_factory=dict)
-
-
-def _factor(matrix: str, s: np.ndarray) -> np.ndarray:
-    return {"K": np.ones_like(s), "M": s ** 2, "C": s, "D": 1j * np.ones_like(s)}[matrix]
-
-
-def _column(T, x_full, A, factor, w):
-    """−Tᵀ (A·factor) x, weighted, stacked real/imag, for a sparse A."""
-    A = A.tocsr()
-    rows = np.unique(A.nonzero()[0])
-    if rows.size == 0:
-        return None
-    n, nq, ns = x_full.shape
-    v = (A[rows] @ x_full.reshape(n, -1)).reshape(rows.size, nq, ns) * factor[None, None, :]
-    if rows.size <= 4:
-        c = -np.einsum("smf,sqf->mqf", T[rows], v)
-    else:   # one BLAS product per line
-        c = -np.matmul(T[rows].transpose(2, 1, 0), v.transpose(2, 0, 1)).transpose(1, 2, 0)
-    c = c * w[None]
-    return np.concatenate([c.real.ravel(), c.imag.ravel()])
-
-
-def _stack(r, w):
-    y = r * w[None]
-    return np.concatenate([y.real.ravel(), y.imag.ravel()])
 
 
 def residual_map(structure, data, force_sign=True):
@@ -187,133 +162,6 @@ def _matching_pursuit(Gm, Q, res, max_terms: int, min_gain: float):
         rss = float(cur @ cur)
         selected_idx.append(k)
     return selected_idx, cur, rss
-
-
-@dataclass
-class ResidualSystem:
-    """The weighted, stacked condensed residual ``y`` of a model against data, and what builds its columns."""
-
-    y: np.ndarray
-    x_full: np.ndarray
-    T: np.ndarray
-    w: np.ndarray
-    s: np.ndarray
-    shape: tuple
-
-    def column(self, A, matrix: str):
-        return _column(self.T, self.x_full, A, _factor(matrix, self.s), self.w)
-
-    def derivative_columns(self, derivs) -> np.ndarray:
-        cols = []
-        for d in derivs:
-            parts = [c for c in (self.column(A, k) if A is not None else None
-                                 for A, k in ((d.dK, "K"), (d.dM, "M"), (d.dC, "C"), (d.dD, "D"))) if c is not None]
-            cols.append(np.sum(parts, axis=0) if parts else np.zeros_like(self.y))
-        return np.array(cols).T if cols else np.zeros((self.y.size, 0))
-
-
-def residual_system(structure, data, weights=None) -> ResidualSystem:
-    """Condensed residual of ``structure`` against FRF ``data`` (see :func:`condensed_residual`), weighted.
-
-    ``weights`` (n_r, n_s) fixes the line weights (so that residuals of different models compare); by
-    default they are √coherence / σ of this model.
-    """
-    cols = data.on_model(structure.dofs)
-    if data.homogeneous:
-        # mode shapes: one vector per "line" (mode), no force (the homogeneous residual Z(iω_j) φ_j)
-        F = np.zeros((structure.n_dof, data.H.shape[1]))
-    else:
-        F = cols.force
-    x_full, r, T, sigma = condensed_residual(structure.K, structure.M, structure.C, structure.D, data.s,
-                                             cols.measured, cols.theta, F)
-    if weights is None:
-        coh = np.sqrt(np.mean(data.quality ** 2, axis=0))
-        weights = coh / (sigma + 1e-12 * np.max(sigma))
-    return ResidualSystem(_stack(r, weights), x_full, T, weights, data.s, r.shape)
-
-
-_DERIV_CACHE: weakref.WeakKeyDictionary | None = None
-_LINEAR_FIELDS = ("E", "rho", "k", "c", "mass", "inertia", "nsm")
-
-
-def derivatives(pmodel, p):
-    """``pmodel.derivatives(p)``, cached per model for parameters that enter the matrices linearly.
-
-    For fields that scale an element or material matrix (E, ρ, k, c, mass, inertia, nsm) the derivative
-    does not depend on p itself, only on the values of the model-wide damping fields (PARAM G, Rayleigh)
-    that multiply K or M and of non-linear parameters (section dimensions, ν, GE); the cache is keyed by
-    those.  Saves the complex-step re-assembly (one model per parameter) in iterated MCI updates.
-    """
-    global _DERIV_CACHE
-    if _DERIV_CACHE is None:
-        _DERIV_CACHE = weakref.WeakKeyDictionary()
-    pars = getattr(pmodel, "parameters", None)
-    if pars is None:
-        return pmodel.derivatives(p)
-    p = np.asarray(p, float)
-    lin = np.array([par.field in _LINEAR_FIELDS for par in pars])
-    key = tuple(np.round(p[~lin], 12))
-    try:
-        store = _DERIV_CACHE.setdefault(pmodel, {})
-    except TypeError:  # pragma: no cover - not weak-referenceable
-        return pmodel.derivatives(p)
-    if key not in store:
-        if len(store) > 8:
-            store.clear()
-        store[key] = pmodel.derivatives(p)
-        return list(store[key])
-    out = list(store[key])
-    nonlin = np.flatnonzero(~lin)
-    if nonlin.size:
-        # the derivatives of the non-linear fields (e.g. PARAM G: ∂D/∂g = K(p)) depend on every parameter
-        sub = ParametricFEModel(pmodel.model_at(p), [pars[i] for i in nonlin])
-        for i, d in zip(nonlin, sub.derivatives(sub.p0)):
-            if pars[i].mode == "factor":
-                f = 1.0 / p[i] if p[i] != 0 else 0.0
-                d = type(d)(*(None if A is None else A * f for A in (d.dK, d.dM, d.dC, d.dD)))
-            out[i] = d
-    return out
-
-
-def _solve_ls(B, y, reg):
-    """Least squares with normalised columns and a Tikhonov term by the normal equations (small n_col)."""
-    nrm = np.maximum(np.linalg.norm(B, axis=0), 1e-300)
-    Bn = B / nrm
-    N = Bn.T @ Bn + reg * np.eye(B.shape[1])
-    dz = np.linalg.solve(N, Bn.T @ y)
-    return dz / nrm
-
-
-def mci_update(pmodel, p, data, lower, upper, *, iters: int = 6, weights=None, tol: float = 1e-3,
-               reg: float = 1e-6, free=None):
-    """Parameter estimation by minimising the MCI (thesis section 3.2.4): iterate expansion and solution.
-
-    Each iteration expands the measured responses with the current model, solves the weighted linear
-    least-squares problem ``r ≈ −Σ Δp_q Tᵀ ∂Z/∂p_q x`` (exact in Δp for parameters that enter the matrices
-    linearly), clips the step to the bounds and repeats until the step is below ``tol`` (relative).
-    A small Tikhonov term ``reg`` keeps unidentifiable parameters in place (the trivial-solution guard of
-    thesis 6.1.2).  Returns the parameters, the final weighted residual norm² and the line weights.
-    """
-    p = np.asarray(p, float).copy()
-    lo, hi = np.asarray(lower, float), np.asarray(upper, float)
-    free = np.ones(p.size, bool) if free is None else np.asarray(free, bool)
-    rss = np.inf
-    for _ in range(iters):
-        rsys = residual_system(pmodel.structure(p), data, weights)
-        if weights is None:
-            weights = rsys.w
-        ders = derivatives(pmodel, p)
-        B = rsys.derivative_columns([d for d, f in zip(ders, free) if f])
-        rss = float(rsys.y @ rsys.y)
-        dp = np.zeros(p.size)
-        dp[free] = _solve_ls(B, rsys.y, reg)
-        p_new = np.clip(p + dp, lo, hi)
-        step = np.max(np.abs(p_new - p) / np.maximum(np.abs(p), 1e-12))
-        p = p_new
-        if step < tol:
-            break
-    rsys = residual_system(pmodel.structure(p), data, weights)
-    return p, float(rsys.y @ rsys.y), weights
 
 
 def rank_candidates(pmodel, p, candidates, data, weights=None, free=None):
