@@ -20,6 +20,11 @@ by operation because the work does:
     A per-mode factorisation is done a handful of times, not at hundreds of lines, so it shares
     this limit rather than ``SOLVE_LIMIT``.
 
+``MODES_LIMIT`` (600) — the lowest modes of a model only (a Ritz basis, the modes pairing looks at),
+    computed again for every candidate model diagnosis tries. Shift-invert Lanczos finds a few dozen
+    modes at a fraction of a dense eigensolution's cost from a few hundred DOFs on, and the solve
+    repeats hundreds of times, so the switch comes earlier than ``EIGEN_LIMIT``.
+
 ``PROJECTED_LIMIT`` (400) — algorithms that are dense by nature, not by storage: the
     variable-projection Jacobian of the MCI updater (a dense QR of ``Z_{:,s}`` at every line,
     :class:`updating.methods.mci.MCIUpdater`, ``jacobian='projected'``, and its noise weights from
@@ -29,22 +34,27 @@ by operation because the work does:
     dense arrays (``F·n²`` complex values) stop fitting comfortably in memory.
 
 :func:`use_dense` is the test every module applies.
+
+Not dense-versus-sparse choices, and so not here: where diagnosis replaces the exact model by a reduced
+one (:data:`updating.diagnosis.fit.RITZ_LIMIT`, :data:`updating.diagnosis.modes.SUBSPACE_ABOVE`) — those
+change the answer (within a checked tolerance), not only the time.
 """
 from __future__ import annotations
 
 from .errors import ModalabValueError
 
-__all__ = ["SOLVE_LIMIT", "EIGEN_LIMIT", "PROJECTED_LIMIT", "use_dense"]
+__all__ = ["SOLVE_LIMIT", "EIGEN_LIMIT", "MODES_LIMIT", "PROJECTED_LIMIT", "use_dense"]
 
 SOLVE_LIMIT = 80
 EIGEN_LIMIT = 2000
+MODES_LIMIT = 600
 PROJECTED_LIMIT = 400
 
-_LIMITS = {"solve": "SOLVE_LIMIT", "eigen": "EIGEN_LIMIT", "projected": "PROJECTED_LIMIT"}
+_LIMITS = {"solve": "SOLVE_LIMIT", "eigen": "EIGEN_LIMIT", "modes": "MODES_LIMIT", "projected": "PROJECTED_LIMIT"}
 
 
 def use_dense(n: int, operation: str) -> bool:
-    """True when an ``operation`` ('solve', 'eigen' or 'projected') on ``n`` DOFs uses dense matrices.
+    """True when an ``operation`` ('solve', 'eigen', 'modes' or 'projected') on ``n`` DOFs uses dense matrices.
 
     The limits are read at call time, so a test may lower one (e.g. to 1) to exercise the sparse path.
     """

@@ -138,12 +138,12 @@ def test_added_mass_candidates_are_bounded_by_a_plausible_size():
 
 
 def test_ritz_basis_of_a_larger_model_uses_lanczos_and_stays_accurate():
-    from updating.diagnosis import ritz
+    import modalab.core.dense as dense
     m = garteur_model(16, suspension=True)
     m.global_ge = 0.02
     m._changed()
     st_ = m.structure()
-    assert st_.n_dof > ritz.SPARSE_MODES_ABOVE
+    assert st_.n_dof > dense.MODES_LIMIT
     rows = _rows(st_, 20, seed=4)
     refs = rows[:2]
     s = 2j * np.pi * np.linspace(1.0, 100.0, 60)

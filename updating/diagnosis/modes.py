@@ -48,6 +48,7 @@ import scipy.linalg as sla
 import scipy.optimize as so
 import scipy.sparse as sp
 
+from modalab.core.dense import use_dense
 from modalab.core.errors import ModalabValueError
 from modalab.core.modes import ModeSet
 
@@ -95,9 +96,10 @@ PAIR_FACTOR = 1.5
 
 def _exact_modes(K, M, k):
     """The lowest ``k`` modes (ω, mass-normalised Φ) with massless DOFs and massless mechanisms handled
-    (:mod:`updating.fe.solvers`); dense for small models, shift-invert Lanczos above ``SUBSPACE_ABOVE``."""
+    (:mod:`updating.fe.solvers`); dense for small models, shift-invert Lanczos above
+    :data:`modalab.core.dense.MODES_LIMIT`."""
     n = K.shape[0]
-    if n <= SUBSPACE_ABOVE:
+    if use_dense(n, "modes"):
         return eigen_dense(K, M, min(k, n))
     return eigen_sparse(K, M, min(k, n - 2))
 
@@ -149,7 +151,7 @@ class ModalSubspace:
         nk = keep.size
         k = min(max(n_min, 24), nk - 2)
         while True:
-            w, phi = eigen_sparse(Kk, Mk, k) if nk > SUBSPACE_ABOVE else eigen_dense(Kk, Mk, k)
+            w, phi = eigen_dense(Kk, Mk, k) if use_dense(nk, "modes") else eigen_sparse(Kk, Mk, k)
             if w[-1] >= 2 * np.pi * mode_factor * f_top_hz or k >= nk - 2 or k >= 400:
                 break
             k = min(2 * k, nk - 2, 400)

@@ -30,6 +30,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from modalab.core.dense import use_dense
 from modalab.core.errors import ModalabValueError
 
 log = logging.getLogger(__name__)
@@ -40,16 +41,12 @@ def _project(V, A):
     return None if A is None else V.T @ (A @ V)
 
 
-#: above this many DOFs the modes come from shift-invert Lanczos instead of a dense eigensolution
-SPARSE_MODES_ABOVE = 600
-
-
 def _lowest_modes(K, M, structure, omega_cut, min_modes, max_modes):
     """Normal modes up to ``omega_cut`` (at least ``min_modes``, at most ``max_modes``): dense for small
     models, shift-invert Lanczos (``eigsh``, a small negative shift so that rigid-body modes are found)
     with a growing count for large ones."""
     n = K.shape[0]
-    if n <= SPARSE_MODES_ABOVE:
+    if use_dense(n, "modes"):
         return structure.normal_modes(min(n, max(max_modes, min_modes)))
     scale = max(float(abs(K.diagonal()).max()) / max(float(abs(M.diagonal()).max()), 1e-300), 1.0)
     sigma = -1e-6 * scale
@@ -76,7 +73,7 @@ class RitzBasis:
 
     def __init__(self, structure, cols, f_max_hz: float, *, mode_factor: float = 3.0, min_modes: int = 12,
                  max_modes: int = 200):
-        # (modes: dense up to SPARSE_MODES_ABOVE DOFs, shift-invert Lanczos above)
+        # (modes: dense up to modalab.core.dense.MODES_LIMIT DOFs, shift-invert Lanczos above)
         K, M = sp.csc_matrix(structure.K), sp.csc_matrix(structure.M)
         n = K.shape[0]
         cols = np.unique(np.asarray(cols, int))
