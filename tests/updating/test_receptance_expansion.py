@@ -160,3 +160,24 @@ def test_screen_selects_the_missing_ground_spring_at_an_unmeasured_dof():
     assert (best.physics, best.label) == ("ground_spring", "4+X")
     assert theta == pytest.approx(k_extra, rel=0.2)
     assert res.rss_final < 0.2 * res.rss_background
+
+
+def test_rfm_receptance_rows_banded_equals_the_shared_solver():
+    """RFM's H_A rows: the shared dense solver and the banded LU (models above the solve limit) agree."""
+    from updating.methods.rfm import receptance_rows
+
+    A = six_dof_model("analytical", damping=True, damping_values=np.full(10, 0.5))
+    w = 2 * np.pi * F - 1j * BETA                          # a windowed line set: s = iω + β
+    rows = [0, 2, 5]
+    old = dense.SOLVE_LIMIT
+    try:
+        dense.SOLVE_LIMIT = 1000
+        a = receptance_rows(A, A.p0, w, rows)
+        dense.SOLVE_LIMIT = 1
+        b = receptance_rows(A, A.p0, w, rows)
+    finally:
+        dense.SOLVE_LIMIT = old
+    np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12 * np.abs(a).max())
+    st = A.structure()
+    Z = st.K.toarray() + (1j * w[3]) ** 2 * st.M.toarray() + 1j * w[3] * st.C.toarray()
+    np.testing.assert_allclose(a[3], np.linalg.inv(Z)[rows], rtol=1e-9)

@@ -18,10 +18,11 @@ Assembly (the obstacle the thesis met: "a couple of months" for its aircraft)
 is vectorised: ``∂Z/∂p_i H_X`` for all parameters and lines comes from the
 stacked derivative non-zeros (one sparse product), and ``R`` from a dense ×
 sparse product per chunk of lines; no loop runs over elements or parameters.
-The measured rows of ``H_A`` come from batched dense inverses (up to
-:data:`modalab.core.dense.SOLVE_LIMIT` DOFs), a
-banded LU per line after reverse Cuthill–McKee ordering (narrow-band models)
-or one sparse LU per line, with one right-hand side per measured DOF.  Models above
+The measured rows of ``H_A`` come from the shared receptance solver
+(:func:`updating.correlation.condensation.solve_columns`: batched dense solves up to
+:data:`modalab.core.dense.SOLVE_LIMIT` DOFs, one sparse LU per line above) or, for narrow-band models
+above that size, a banded LU per line after reverse Cuthill–McKee ordering, with one right-hand side per
+measured DOF.  Models above
 :data:`modalab.core.dense.PROJECTED_LIMIT` DOFs accumulate the normal equations chunk by chunk instead of storing ``R``.
 
 Weighting: ``'relative'`` (default) divides every equation by ``|H_X|`` at its
@@ -35,14 +36,13 @@ import logging
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from modalab.core.dense import use_dense
 from modalab.core.errors import ModalabValueError, NotFittedError, ShapeError
 from modalab.core.frf import FRF
 
-from updating.correlation.condensation import dynamic_stiffness, dynamic_stiffness_batch
+from updating.correlation.condensation import solve_columns
 from updating.correlation.receptance import MeasuredColumns, measured_columns
 from updating.fe.sensitivity import StackedDerivatives
 from updating.methods.mci import _bounds, _mats, _param_indices, dynamic_expansion
@@ -63,37 +63,39 @@ def receptance_rows(model, p, omega, rows) -> np.ndarray:
     rows = np.asarray(rows, int)
     omega = np.asarray(omega)
     omega = omega.astype(complex if np.iscomplexobj(omega) else float)
-    if use_dense(n, "solve"):
-        Z = dynamic_stiffness_batch(*mats, 1j * omega)
-        E = np.zeros((n, rows.size))
-        E[rows, np.arange(rows.size)] = 1.0
-        # Z symmetric: rows of Z⁻¹ are the transposed solutions for unit loads at `rows`
-        X = np.linalg.solve(Z, np.broadcast_to(E, (omega.size, n, rows.size)))
-        return np.transpose(X, (0, 2, 1))
-    out = np.empty((omega.size, rows.size, n), complex)
-    E = np.zeros((n, rows.size))
-    E[rows, np.arange(rows.size)] = 1.0
+    if not use_dense(n, "solve"):
+        banded = _banded_rows(mats, omega, rows)
+        if banded is not None:
+            return banded
+    # Z symmetric: rows of Z⁻¹ are the transposed solutions for unit loads at `rows` (the shared solver)
+    return np.transpose(solve_columns(*mats, 1j * omega, rows), (2, 1, 0))
+
+
+def _banded_rows(mats, omega, rows):
+    """:func:`receptance_rows` by a banded LU per line after reverse Cuthill–McKee ordering (``O(n·bw²)``,
+    many right-hand sides cheap), or None when the ordered band is not narrow (``bw > max(50, n/20)``)."""
     K, M, C, D = mats
+    n = K.shape[0]
     pat = abs(K) + abs(M) + (abs(C) if C is not None else 0) + (abs(D) if D is not None else 0)
     perm = reverse_cuthill_mckee(sp.csr_matrix(pat), symmetric_mode=True)
     P_ = sp.csr_matrix(pat)[perm][:, perm].tocoo()
     bw = int(np.abs(P_.row - P_.col).max()) if P_.nnz else 0
-    if bw <= max(50, n // 20):
-        # banded LU after reverse Cuthill–McKee: O(n·bw²) per line, many right-hand sides cheap
-        inv = np.empty(n, int)
-        inv[perm] = np.arange(n)
-        parts = [(sp.coo_matrix(A), c) for A, c in ((K, "k"), (M, "m"), (C, "c"), (D, "d")) if A is not None]
-        Ep = E[perm]
-        for k, w in enumerate(omega):
-            ab = np.zeros((2 * bw + 1, n), complex)
-            for A, c in parts:
-                coef = {"k": 1.0, "m": -w ** 2, "c": 1j * w, "d": 1j}[c]
-                i, j = inv[A.row], inv[A.col]
-                np.add.at(ab, (bw + i - j, j), coef * A.data)
-            out[k] = sla.solve_banded((bw, bw), ab, Ep, check_finite=False)[inv].T
-        return out
+    if bw > max(50, n // 20):
+        return None
+    E = np.zeros((n, rows.size))
+    E[rows, np.arange(rows.size)] = 1.0
+    out = np.empty((omega.size, rows.size, n), complex)
+    inv = np.empty(n, int)
+    inv[perm] = np.arange(n)
+    parts = [(sp.coo_matrix(A), c) for A, c in ((K, "k"), (M, "m"), (C, "c"), (D, "d")) if A is not None]
+    Ep = E[perm]
     for k, w in enumerate(omega):
-        out[k] = spla.splu(dynamic_stiffness(*mats, 1j * w), permc_spec="MMD_AT_PLUS_A").solve(E.astype(complex)).T
+        ab = np.zeros((2 * bw + 1, n), complex)
+        for A, c in parts:
+            coef = {"k": 1.0, "m": -w ** 2, "c": 1j * w, "d": 1j}[c]
+            i, j = inv[A.row], inv[A.col]
+            np.add.at(ab, (bw + i - j, j), coef * A.data)
+        out[k] = sla.solve_banded((bw, bw), ab, Ep, check_finite=False)[inv].T
     return out
 
 
