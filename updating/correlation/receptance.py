@@ -122,16 +122,10 @@ def _local_rms(a: np.ndarray, omega: np.ndarray) -> np.ndarray:
 
 
 def _receptance(f: FRF) -> FRF:
-    """``f`` as receptance at ``s = iω + β``: exponentially windowed data are the transforms at ``s`` of the
-    true responses, so the quantity conversion uses ``s`` too (dividing windowed accelerance by (iω)² would
-    leave an error 2β/ω)."""
-    beta = float(f.window_beta_per_s)
-    rec = f.to("receptance")
-    if not beta:
-        return rec
-    s = 1j * 2 * np.pi * f.freq_hz + beta
-    power = {"receptance": 0, "mobility": 1, "accelerance": 2}[f.quantity]
-    return rec._replace(H=f.H / s[None, None, :] ** power)
+    """``f`` as receptance at ``s = iω + β`` (:meth:`FRF.to`): exponentially windowed data are the transforms at
+    ``s`` of the true responses, so the quantity conversion uses ``s`` too (dividing windowed accelerance by
+    (iω)² would leave an error 2β/ω)."""
+    return f.to("receptance")
 
 
 def receptance_data(frf: FRF, *, references=None, bands=None) -> FRFData:
