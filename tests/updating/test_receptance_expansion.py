@@ -6,11 +6,10 @@ import pytest
 import scipy.sparse as sp
 
 import modalab.core.dense as dense
-from modalab.core.errors import ConvergenceError, ModalabValueError
+from modalab.core.errors import ModalabValueError
 from cases import six_dof_model
 from updating.correlation.condensation import condensed_residual
 from updating.correlation.receptance import frf_data, measured_columns, receptance_data
-from updating.diagnosis.fit import parameter_std
 from updating.diagnosis.screen import residual_system
 from updating.methods.mci import dynamic_expansion, mci
 
@@ -106,33 +105,6 @@ def test_dense_rule_names_its_operations():
     assert dense.use_dense(400, "projected") and not dense.use_dense(401, "projected")
     with pytest.raises(ModalabValueError, match="expected one of"):
         dense.use_dense(10, "eigne")
-
-
-def test_parameter_std_full_rank_matches_the_covariance():
-    rng = np.random.default_rng(3)
-    J = rng.standard_normal((50, 3))
-    std = parameter_std(J, 0.25)
-    np.testing.assert_allclose(std, np.sqrt(np.diag(0.25 * np.linalg.inv(J.T @ J))), rtol=1e-10)
-
-
-def test_parameter_std_undetermined_is_infinite_not_zero():
-    """A parameter the data do not see, or two that only act together, have no finite standard deviation."""
-    rng = np.random.default_rng(4)
-    J = rng.standard_normal((40, 4))
-    J[:, 1] = 0.0                                         # parameter 1 does not change the residual
-    J[:, 3] = 2.0 * J[:, 2]                               # parameters 2 and 3 only act together
-    std = parameter_std(J, 1.0)
-    assert np.isinf(std[1]) and np.isinf(std[2]) and np.isinf(std[3])
-    assert np.isfinite(std[0]) and std[0] > 0
-    wide = parameter_std(rng.standard_normal((2, 3)), 1.0)  # fewer equations than parameters
-    assert np.isinf(wide).any()
-
-
-def test_parameter_std_non_finite_jacobian_fails_with_a_message():
-    J = np.ones((10, 2))
-    J[3, 1] = np.nan
-    with pytest.raises(ConvergenceError, match=r"parameter\(s\) \[1\]"):
-        parameter_std(J, 1.0)
 
 
 def test_screen_selects_the_missing_ground_spring_at_an_unmeasured_dof():

@@ -80,9 +80,11 @@ class Finding:
         c = self.candidate
         return {"physics": c.physics, "nodes": [int(n) for n in c.nodes], "dofs": list(c.dofs),
                 "elements": [int(e) for e in c.elements], "description": self.label,
-                "values": [{"name": c.value_name, "value": float(self.value), "unit": c.unit, "std": float(self.std)}],
+                "values": [{"name": c.value_name, "value": float(self.value), "unit": c.unit,
+                            "std": float(self.std) if np.isfinite(self.std) else None}],    # inf: not determined
                 "parts": [{"physics": o.physics, "nodes": [int(n) for n in o.nodes], "dofs": list(o.dofs),
-                           "description": o.label, "value": float(v), "unit": o.unit, "std": float(sd)}
+                           "description": o.label, "value": float(v), "unit": o.unit,
+                           "std": float(sd) if np.isfinite(sd) else None}
                           for o, v, sd in self.parts],
                 "ambiguous": self.ambiguous,
                 "alternatives": [{"physics": o.physics, "nodes": [int(n) for n in o.nodes], "dofs": list(o.dofs),
@@ -1094,7 +1096,8 @@ class Diagnoser:
         z_fin, z_upd = self.prior.z(fit.p), self.prior.z(upd.p)
         for k, par in enumerate(self.params):
             pars[par.name] = {"initial": float(self.p_nomd[k]), "updated": float(fit.p[k]),
-                              "parameters_only": float(upd.p[k]), "std": float(fit.std[k]), "mode": par.mode,
+                              "parameters_only": float(upd.p[k]),
+                              "std": float(fit.std[k]) if np.isfinite(fit.std[k]) else None, "mode": par.mode,
                               "prior_std": float(self.psig[k]) if np.isfinite(self.psig[k]) else None,
                               "prior_z": float(z_fin[k]), "at_prior": bool(abs(z_fin[k]) > AT_PRIOR_Z)}
             if abs(z_fin[k]) > AT_PRIOR_Z or abs(z_upd[k]) > AT_PRIOR_Z:

@@ -1,0 +1,47 @@
+"""Standard deviations of diagnosis fits: an undetermined parameter is not reported as exactly known."""
+import json
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from modalab.core.errors import ConvergenceError
+from updating.diagnosis.fit import parameter_std
+from updating.diagnosis.library import Candidate
+from updating.diagnosis.workflow import Finding
+
+
+def test_parameter_std_full_rank_matches_the_covariance():
+    rng = np.random.default_rng(3)
+    J = rng.standard_normal((50, 3))
+    std = parameter_std(J, 0.25)
+    np.testing.assert_allclose(std, np.sqrt(np.diag(0.25 * np.linalg.inv(J.T @ J))), rtol=1e-10)
+
+
+def test_parameter_std_undetermined_is_infinite_not_zero():
+    """A parameter the data do not see, or two that only act together, have no finite standard deviation."""
+    rng = np.random.default_rng(4)
+    J = rng.standard_normal((40, 4))
+    J[:, 1] = 0.0                                         # parameter 1 does not change the residual
+    J[:, 3] = 2.0 * J[:, 2]                               # parameters 2 and 3 only act together
+    std = parameter_std(J, 1.0)
+    assert np.isinf(std[1]) and np.isinf(std[2]) and np.isinf(std[3])
+    assert np.isfinite(std[0]) and std[0] > 0
+    wide = parameter_std(rng.standard_normal((2, 3)), 1.0)  # fewer equations than parameters
+    assert np.isinf(wide).any()
+
+
+def test_parameter_std_non_finite_jacobian_fails_with_a_message():
+    J = np.ones((10, 2))
+    J[3, 1] = np.nan
+    with pytest.raises(ConvergenceError, match=r"parameter\(s\) \[1\]"):
+        parameter_std(J, 1.0)
+
+
+def test_an_undetermined_value_is_written_as_null_not_infinity():
+    c = Candidate("added_mass", "node 3", (3,), ("3+X", "3+Y", "3+Z"), (), "m", "kg", "M", True,
+                  G=sp.identity(3, format="csr"))
+    d = Finding(c, 0.2, float("inf"), "evidence", parts=[(c, 0.1, float("inf"))]).to_dict()
+    assert d["values"][0]["std"] is None and d["parts"][0]["std"] is None
+    json.dumps(d, allow_nan=False)                        # strict JSON: no Infinity
+    assert Finding(c, 0.2, 0.01, "evidence").to_dict()["values"][0]["std"] == 0.01
