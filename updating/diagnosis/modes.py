@@ -55,7 +55,7 @@ from modalab.core.modes import ModeSet
 from updating.fe import FEModel, ParametricFEModel
 from updating.fe.solvers import (DEFAULT_SHIFT_HZ, _drop_mechanisms, eigen_dense, eigen_sparse, factorize,
                           massless_mechanisms)
-from updating.diagnosis.fit import FitResult, FRFData
+from updating.diagnosis.fit import FitResult, FRFData, parameter_std
 from updating.diagnosis.library import build_library
 from updating.diagnosis.workflow import (Diagnosis, Finding, _augment, _bounds, _fmt, _upper, default_parameters,
                        promote_measured, statement)
@@ -502,7 +502,7 @@ def fit_modal_residual(pmodel, resid: ModalResidual, p_start, *, lower, upper, r
     std = np.zeros(p.size)
     J = sol.jac[:e.size]
     s2 = rss / max(e.size - int(free.sum()), 1)
-    std[free] = np.sqrt(np.clip(np.diag(np.linalg.pinv(J.T @ J)) * s2, 0, None)) * scale
+    std[free] = parameter_std(J, s2) * scale              # inf where the modes do not determine a parameter
     return p, std, rss
 
 
@@ -790,7 +790,8 @@ def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
         findings.append(ModesFinding(c, float(best_fit.p[n_par + k] * sc), float(best_fit.std[n_par + k] * sc), ev,
                                      gain, alternatives=alts))
     pars = {par.name: {"initial": float(p_nom[k]), "updated": float(best_fit.p[k]),
-                       "parameters_only": float(upd.p[k]), "std": float(best_fit.std[k]), "mode": par.mode}
+                       "parameters_only": float(upd.p[k]),
+                       "std": float(best_fit.std[k]) if np.isfinite(best_fit.std[k]) else None, "mode": par.mode}
             for k, par in enumerate(params)}
     if held.size:
         held_desc = f"test modes {', '.join(str(i + 1) for i in keep_eval)}"
