@@ -47,6 +47,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from modalab.core.eigen import drop_mechanisms, eigsh, massless_dofs, restore
 from modalab.core.errors import ModalabValueError, ShapeError
 
 log = logging.getLogger(__name__)
@@ -223,9 +224,16 @@ def solve_modes(model, p=None, n_modes: int | None = None, *, sigma: float | Non
         lam = w ** 2
     else:
         k = 10 if n_modes is None else int(n_modes)
-        lam, phi = spla.eigsh(K.tocsc(), k=k, M=M.tocsc(), sigma=sigma, which="LM")
+        # modes nearest a positive shift (K - σM indefinite): plain shift-invert Lanczos from the fixed start
+        # vector, on the DOFs left when each massless mechanism is constrained (K - σM is singular otherwise)
+        keep, Kk, Mk = drop_mechanisms(K, M)
+        n_finite = Kk.shape[0] - massless_dofs(Mk).size
+        if k > n_finite:
+            raise ModalabValueError(f"n_modes={k} but the model has only {n_finite} finite modes; "
+                                    f"ask for at most {n_finite} modes")
+        lam, phi = eigsh(sp.csc_matrix(Kk), k, M=sp.csc_matrix(Mk), sigma=sigma, which="LM")
         o = np.argsort(lam)
-        lam, phi = lam[o], phi[:, o]
+        lam, phi = lam[o], restore(phi[:, o], keep, n)
     phi = _normalise(phi, M)
     return ModalSolution(lam=np.asarray(lam, float), phi=phi, p=p, K=K, M=M)
 

@@ -1,0 +1,144 @@
+"""Massless DOFs and massless mechanisms on a real-looking deck (issue 16 item 7), and deterministic modes.
+
+The deck is a GVT engineer's: CBEAM/PBEAML along x, no SPC (free-free), Nastran's default lumped mass (no
+PARAM,COUPMASS), so the rotations carry no mass and the rigid torsion is a massless mechanism.  The reference is
+an independent discretisation: a coupled-mass deck four times finer.  Every eigen path is checked on it: the
+core :class:`Structure` (dense, and Lanczos above 2000 DOFs), the FE solvers, the diagnosis Ritz basis, the
+sensitivity solver and the FRFs (modal and direct).
+"""
+import numpy as np
+import pytest
+
+from modalab.core.eigen import dense_modes, lanczos_modes, massless_dofs, massless_mechanisms
+from updating.fe.bulk import build_model, read_bdf
+
+_L = 1.2
+
+
+def _deck(path, n_el, *, coupmass=False):
+    lines = ["SOL 103", "CEND", "BEGIN BULK"] + (["PARAM,COUPMASS,1"] if coupmass else [])
+    lines += ["MAT1,1,7.e10,,.33,2700.", "PBEAML,1,1,,BAR", "+,.008,.05"]
+    lines += [f"GRID,{i + 1},,{_L * i / n_el:.8f},0.,0." for i in range(n_el + 1)]
+    lines += [f"CBEAM,{i + 1},1,{i + 1},{i + 2},0.,1.,0." for i in range(n_el)]
+    path.write_text("\r\n".join(lines + ["ENDDATA", ""]))
+    return build_model(read_bdf(path))
+
+
+@pytest.fixture(scope="module")
+def lumped(tmp_path_factory):
+    return _deck(tmp_path_factory.mktemp("deck") / "gvt.bdf", 30)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """Elastic frequencies (Hz) of a coupled-mass deck four times finer (an independent discretisation)."""
+    st = _deck(tmp_path_factory.mktemp("fine") / "fine.bdf", 120, coupmass=True).structure()
+    return _bending_hz(st, *st.normal_modes(30))
+
+
+def _bending_hz(st, w, phi):
+    """Elastic bending frequencies (Hz): most kinetic energy in the y, z translations (no torsion, no axial)."""
+    yz = np.array([d.axis in (2, 3) for d in st.dofs])
+    lateral = np.einsum("ij,ij->j", phi[yz], (st.M @ phi)[yz])
+    f = w / (2 * np.pi)
+    return f[(lateral > 0.5) & (f > 1.0)]
+
+
+def test_core_structure_lumped_free_free_deck(lumped, reference):
+    st = lumped.structure()
+    assert massless_dofs(st.M).size == 3 * 31 and not lumped.spcs and not lumped.coupled_mass
+    fix, N = massless_mechanisms(st.K, st.M)
+    assert fix.size == 1                                       # the rigid torsion: neither mass nor stiffness
+    w, phi = st.normal_modes(None)
+    # infinite-frequency (massless) directions never come back: one finite mode per DOF with mass
+    assert w.size == st.n_dof - massless_dofs(st.M).size and np.all(np.isfinite(w))
+    f = w / (2 * np.pi)
+    # six rigid-body motions: five modes with mass near 0 Hz and the massless torsion, constrained (MECHFIX)
+    assert np.all(f[:5] < 1e-2) and f[5] > 10.0
+    # elastic frequencies agree with the finer coupled-mass deck (lumped mass, 30 vs 120 elements)
+    np.testing.assert_allclose(_bending_hz(st, w, phi)[:8], reference[:8], rtol=1.5e-2)
+    # mass-normalised shapes that satisfy the full (uncondensed) eigenproblem, massless DOFs included
+    np.testing.assert_allclose(phi.T @ (st.M @ phi), np.eye(w.size), atol=1e-8)
+    r = st.K @ phi[:, :20] - (st.M @ phi[:, :20]) * w[:20] ** 2
+    assert np.abs(r).max() < 1e-7 * np.abs(st.K @ phi[:, :20]).max()
+    # the exact FRF: modal synthesis (all modes) and direct solve agree (the direct solve was singular)
+    fr = [5.0, 60.0, 300.0]
+    hm = st.frf(fr, ["10+Z", "20+Y"], ["10+Z"], method="modal").H
+    hd = st.frf(fr, ["10+Z", "20+Y"], ["10+Z"], method="direct").H
+    np.testing.assert_allclose(hm, hd, rtol=1e-6, atol=1e-12 * np.abs(hd).max())
+
+
+def test_core_lanczos_and_dense_agree_above_the_dense_limit(tmp_path):
+    st = _deck(tmp_path / "gvt367.bdf", 366).structure()        # 367 grids, 2202 DOFs: Lanczos path
+    w, phi = st.normal_modes(14)
+    wd, _ = dense_modes(st.K, st.M, 14)
+    assert np.all(w[:5] / (2 * np.pi) < 1e-2)
+    np.testing.assert_allclose(w[5:], wd[5:], rtol=1e-8)
+    np.testing.assert_allclose(phi.T @ (st.M @ phi), np.eye(14), atol=1e-8)
+    # the same model solved twice: bit-identical (a fixed ARPACK start vector)
+    w2, phi2 = st.normal_modes(14)
+    assert np.array_equal(w, w2) and np.array_equal(phi, phi2)
+
+
+def test_lanczos_refuses_more_modes_than_finite_ones(lumped):
+    st = lumped.structure()
+    n_finite = st.n_dof - massless_dofs(st.M).size
+    with pytest.raises(Exception, match="finite modes"):
+        lanczos_modes(st.K, st.M, n_finite + 3)
+
+
+@pytest.mark.parametrize("n_above", [10_000, 50])
+def test_ritz_basis_on_the_lumped_deck(lumped, monkeypatch, n_above):
+    import updating.diagnosis.ritz as R
+    monkeypatch.setattr(R, "SPARSE_MODES_ABOVE", n_above)       # dense and Lanczos modes
+    st = lumped.structure()
+    w, _ = st.normal_modes(20)
+    cols = [st.dofs.index(d) for d in st.dofs if d.node in (1, 16, 31) and d.axis in (2, 3)]
+    rb = R.RitzBasis(st, cols, 400.0)                           # the static correction was singular here
+    _, _, w2, _, _ = rb.modal(st)
+    np.testing.assert_allclose(np.sqrt(w2[5:12]), w[5:12], rtol=1e-8)
+    assert np.all(np.sqrt(w2[:5]) / (2 * np.pi) < 1e-2)
+
+
+def test_solve_modes_about_a_positive_shift_on_the_lumped_deck(lumped):
+    from updating.fe import Parameter, ParametricFEModel
+    from updating.fe.sensitivity import solve_modes
+    import updating.fe.sensitivity as S
+    pm = ParametricFEModel(lumped, [Parameter("E", "E", properties=tuple(lumped.properties))])
+    w, _ = lumped.structure().normal_modes(12)
+    old = S._DENSE_LIMIT
+    S._DENSE_LIMIT = 10                                          # force the Lanczos paths on this small deck
+    try:
+        sol = solve_modes(pm, n_modes=4, sigma=(2 * np.pi * 170.0) ** 2)
+        again = solve_modes(pm, n_modes=4, sigma=(2 * np.pi * 170.0) ** 2)
+        neg = solve_modes(pm, n_modes=10)
+    finally:
+        S._DENSE_LIMIT = old
+    np.testing.assert_allclose(np.sort(sol.omega), w[5:9], rtol=1e-8)        # the four nearest 170 Hz
+    assert np.array_equal(sol.lam, again.lam) and np.array_equal(sol.phi, again.phi)
+    np.testing.assert_allclose(neg.omega[5:], w[5:10], rtol=1e-8)
+
+
+def test_fe_frfs_on_the_lumped_deck(lumped):
+    from updating.fe.solvers import frf_direct, frf_modal
+    sy = lumped.system()
+    fr = [7.0, 45.0, 210.0]
+    hd = frf_direct(sy, fr, ["31+Z", "8+Z"], ["31+Z"]).H
+    hm = frf_modal(sy, fr, ["31+Z", "8+Z"], ["31+Z"], residual=False).H      # all finite modes: exact
+    np.testing.assert_allclose(hm, hd, rtol=1e-8)
+    # truncated, with the residual flexibility at the shift (the factorisation of K - σM was singular here)
+    ht = frf_modal(sy, fr, ["31+Z", "8+Z"], ["31+Z"], n_modes=14).H
+    hn = frf_modal(sy, fr, ["31+Z", "8+Z"], ["31+Z"], n_modes=14, residual=False).H
+    err, err_no = (np.abs(h - hd).max() / np.abs(hd).max() for h in (ht, hn))
+    assert err < 3e-3 and err < err_no / 3
+
+
+def test_fe_solvers_are_deterministic():
+    """The same model solved twice by every iterative eigen path gives bit-identical eigenvalues (ARPACK
+    starts from a fixed vector; without one it draws a new random start each call)."""
+    from updating.fe.models import beam_model
+    from updating.fe.solvers import eigen_sparse
+    s = beam_model(120, kind="beam3d", coupled_mass=False).system()
+    runs = [eigen_sparse(s.K, s.M, 12) for _ in range(3)]
+    for w, phi in runs[1:]:
+        assert np.array_equal(w, runs[0][0]) and np.array_equal(phi, runs[0][1])
