@@ -198,8 +198,9 @@ def _load(path):
         return None
     try:
         return json.loads(p.read_text())
-    except json.JSONDecodeError:
-        return None
+    except json.JSONDecodeError as e:         # a damaged output is not "the stage has not run"
+        raise ModalabValueError(f"'{p}' line {e.lineno}: not valid JSON ({e.msg}); it is a stage output that was "
+                                f"changed or cut: rerun that stage (modalab run ... --from {p.parent.name})") from None
 
 
 def _geometry_figure(run_dir: Path, report_dir: Path, project=None) -> Path | None:

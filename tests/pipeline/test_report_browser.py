@@ -146,3 +146,14 @@ def test_report_with_null_fit_values_and_std(tmp_path):
     assert "m = 0.05 ± — kg" in text
     assert "largest frequency error [%]" in text and "lowest MAC" in text and ">0.97<" in text
     assert ">None<" not in text and ">—<" in text
+
+
+def test_a_damaged_stage_output_is_an_error_not_a_missing_stage(tmp_path):
+    from modalab.core.errors import ModalabValueError
+
+    d = tmp_path / "run"
+    (d / "diagnose").mkdir(parents=True)
+    (d / "diagnose" / "diagnosis.json").write_text('{"statement": "cut in the mid')
+    with pytest.raises(ModalabValueError, match=r"diagnosis.json' line 1: not valid JSON.*--from diagnose"):
+        build_report(d, d / "report", title="damaged")
+    assert not (d / "report" / "report.html").exists()
