@@ -223,7 +223,7 @@ def dense_modes(K, M, n_modes: int | None = None, sigma: float | None = None) ->
         raise ModalabValueError(f"K - shift*M is not positive definite ({e}): some DOFs have neither mass nor "
                                 "stiffness, or the stiffness matrix is indefinite. Constrain unconnected DOFs "
                                 "(SPC) or give massless DOFs stiffness") from None
-    if mu.min() <= 0:
+    if mu.min() <= 1e-13 * mu.max():         # μ = 0 to rounding: an infinite frequency, never a mode
         raise ModalabValueError("the mass matrix is singular beyond its massless rows (a combination of DOFs "
                                 "without mass that is not a whole zero row); give those DOFs mass (rotary "
                                 "inertia, PARAM,COUPMASS) or constrain them")
