@@ -15,11 +15,12 @@ from updating.fe.bulk import build_model, read_bdf
 _L = 1.2
 
 
-def _deck(path, n_el, *, coupmass=False):
+def _deck(path, n_el, *, coupmass=False, split=0):
+    """The deck; elements 1..``split`` carry a second (identical) property, PID 2."""
     lines = ["SOL 103", "CEND", "BEGIN BULK"] + (["PARAM,COUPMASS,1"] if coupmass else [])
-    lines += ["MAT1,1,7.e10,,.33,2700.", "PBEAML,1,1,,BAR", "+,.008,.05"]
+    lines += ["MAT1,1,7.e10,,.33,2700.", "PBEAML,1,1,,BAR", "+,.008,.05", "PBEAML,2,1,,BAR", "+,.008,.05"]
     lines += [f"GRID,{i + 1},,{_L * i / n_el:.8f},0.,0." for i in range(n_el + 1)]
-    lines += [f"CBEAM,{i + 1},1,{i + 1},{i + 2},0.,1.,0." for i in range(n_el)]
+    lines += [f"CBEAM,{i + 1},{2 if i < split else 1},{i + 1},{i + 2},0.,1.,0." for i in range(n_el)]
     path.write_text("\r\n".join(lines + ["ENDDATA", ""]))
     return build_model(read_bdf(path))
 
@@ -117,6 +118,27 @@ def test_solve_modes_about_a_positive_shift_on_the_lumped_deck(lumped):
     np.testing.assert_allclose(np.sort(sol.omega), w[5:9], rtol=1e-8)        # the four nearest 170 Hz
     assert np.array_equal(sol.lam, again.lam) and np.array_equal(sol.phi, again.phi)
     np.testing.assert_allclose(neg.omega[5:], w[5:10], rtol=1e-8)
+
+
+@pytest.mark.parametrize("method", ["nelson", "modal"])
+def test_eigenvector_sensitivities_on_the_lumped_deck(tmp_path, method):
+    """Nelson's method and the modal method on a free-free lumped-mass deck (K - λM was singular through the
+    massless mechanism: the derivatives came out NaN) against central differences of the eigen-solution."""
+    from updating.fe import Parameter, ParametricFEModel
+    from updating.fe.sensitivity import eigenvector_sensitivities, solve_modes
+    m = _deck(tmp_path / "two.bdf", 20, split=7)
+    pm = ParametricFEModel(m, [Parameter("E_root", "E", properties=(2,)), Parameter("E_tip", "E", properties=(1,))])
+    sol = solve_modes(pm)
+    d = eigenvector_sensitivities(pm, modes=[5, 6], solution=sol, method=method)
+    assert np.all(np.isfinite(d))
+    h = 1e-6
+    for i in range(2):
+        e = h * np.eye(2)[i]
+        up, dn = solve_modes(pm, pm.p0 + e), solve_modes(pm, pm.p0 - e)
+        for a, r in enumerate((5, 6)):
+            x1, x0 = (s.phi[:, r] * np.sign(s.phi[:, r] @ (sol.M @ sol.phi[:, r])) for s in (up, dn))
+            fd = (x1 - x0) / (2 * h)
+            assert np.abs(d[:, a, i] - fd).max() < 1e-5 * np.abs(fd).max()
 
 
 def test_fe_frfs_on_the_lumped_deck(lumped):
