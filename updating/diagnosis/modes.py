@@ -183,6 +183,14 @@ class ModalSubspace:
         out[self.keep] = V
         return out
 
+    def rows_of(self, idx, V=None) -> np.ndarray:
+        """Rows ``idx`` (full-DOF indices) of :meth:`full` without forming it (zero at a mechanism's DOF)."""
+        V = self.V if V is None else V
+        p = self.pos[np.asarray(idx, int)]
+        out = np.zeros((p.size, V.shape[1]))
+        out[p >= 0] = V[p[p >= 0]]
+        return out
+
     def matches(self, structure) -> bool:
         return list(structure.dofs) == self.dofs
 
@@ -275,7 +283,7 @@ class ModalResidual:
             Kr, Mr = basis.project(sp.csr_matrix(K), sp.csr_matrix(M))
             w2, Psi = sla.eigh(Kr, Mr)
             k = self.n_pairable(np.sqrt(np.clip(w2, 0, None)) / (2 * np.pi))
-            Vm = (basis.full()[mi] * ms[:, None]) @ Psi[:, :k]
+            Vm = (basis.rows_of(mi) * ms[:, None]) @ Psi[:, :k]
             return np.sqrt(np.clip(w2[:k], 0, None)) / (2 * np.pi), Vm
         Ks, Ms = sp.csr_matrix(K), sp.csr_matrix(M)
         k = self.n_model_modes
@@ -376,7 +384,7 @@ def screen_modes(structure, candidates, resid: ModalResidual, basis: ModalSubspa
     w20, Psi0 = sla.eigh(Kr0, Mr0)
     k0 = resid.n_pairable(np.sqrt(np.clip(w20, 0, None)) / (2 * np.pi))
     fm0 = np.sqrt(np.clip(w20[:k0], 0, None)) / (2 * np.pi)
-    Vm0 = (basis.full()[mi] * ms[:, None]) @ Psi0[:, :k0]
+    Vm0 = (basis.rows_of(mi) * ms[:, None]) @ Psi0[:, :k0]
     e0 = resid.residual(fm0, Vm0)
     r0 = float(e0 @ e0)
     a0, _ = resid.pairs(fm0, Vm0)
@@ -401,7 +409,7 @@ def screen_modes(structure, candidates, resid: ModalResidual, basis: ModalSubspa
         W, Kr, b = basis.extended(rows, L)
         if not np.any(b):
             continue
-        Wm = basis.full(W)[mi] * ms[:, None]
+        Wm = basis.rows_of(mi, W) * ms[:, None]
 
         def evaluate(thetas):
             G = b @ b.T
