@@ -164,3 +164,30 @@ def test_fe_solvers_are_deterministic():
     runs = [eigen_sparse(s.K, s.M, 12) for _ in range(3)]
     for w, phi in runs[1:]:
         assert np.array_equal(w, runs[0][0]) and np.array_equal(phi, runs[0][1])
+
+
+def test_two_pass_subspace_extension_equals_the_explicit_one(lumped, monkeypatch):
+    """The modes-only screening extends its subspace per candidate from a deflated static correction (two
+    passes over the basis): the same Ritz frequencies, for springs of any size, and the same measured rows as
+    the explicit Gram-Schmidt extension, without falling back to it."""
+    from updating.diagnosis.modes import ModalSubspace, _extended_rows
+    st = lumped.structure()
+    idx = {(d.node, d.axis): i for i, d in enumerate(st.dofs)}
+    mi = np.array([idx[(n, 3)] for n in range(1, 32, 3)])
+    basis = ModalSubspace(st, [], 400.0, 20)
+    explicit = basis.extended
+    fallbacks = []
+    monkeypatch.setattr(basis, "extended", lambda *a: (fallbacks.append(a), explicit(*a))[1])
+    for node, axes in ((17, (1, 2, 3)), (9, (3,)), (30, (5,)), (7, (3,)), (31, (3,)), (1, (1, 2, 3))):
+        rows = np.array([idx[(node, a)] for a in axes])
+        L = np.eye(rows.size)
+        W, Kr, b = explicit(rows, L)
+        Wm, Kr2, b2 = _extended_rows(basis, rows, L, mi)
+        assert Kr2.shape == Kr.shape
+        for theta in (0.0, 1e3, 1e6, 1e9):                  # a spring θ b bᵀ on the extended basis
+            w_a = np.linalg.eigvalsh(Kr + theta * b @ b.T)
+            w_b = np.linalg.eigvalsh(Kr2 + theta * b2 @ b2.T)
+            np.testing.assert_allclose(w_b, w_a, rtol=1e-7, atol=1e-8 * w_a.max())
+        Wa = basis.rows_of(mi, W)       # the new directions may be rotated among themselves: compare W Wᵀ
+        np.testing.assert_allclose(Wm @ Wm.T, Wa @ Wa.T, atol=1e-7 * np.abs(Wa @ Wa.T).max())
+    assert not fallbacks
