@@ -40,3 +40,22 @@ def test_a_stage_writing_over_an_input_is_stopped(tmp_path, monkeypatch):
     with pytest.raises(OutputError, match="is an input of this command"):
         R.run_project(proj, tmp_path / "out", until_stage="acquire")
     assert bulk.read_text() == text
+
+
+@pytest.mark.parametrize("own_band", [True, False])
+def test_the_diagnose_stage_gets_the_band(tmp_path, monkeypatch, own_band):
+    """[diagnose] band_hz reaches the diagnose stage; without it, the identification band does."""
+    from modalab.app.project import load_project
+
+    proj = load_project(_project(tmp_path / "p"))
+    proj.options["identify"]["band_hz"] = [3.0, 70.0]
+    proj.options["diagnose"]["band_hz"] = [2.0, 80.0] if own_band else None
+    seen = {}
+
+    def fake_diagnose(model_path, *, opts, **kw):
+        seen["band"] = opts.band_hz
+        return type("R", (), {"files": (), "summary": {}})()
+
+    monkeypatch.setattr(R.stages, "diagnose", fake_diagnose)
+    R.stage_diagnose(R._Context(proj, tmp_path / "out", "sim", None))
+    assert seen["band"] == ((2.0, 80.0) if own_band else (3.0, 70.0))
