@@ -191,3 +191,28 @@ def test_two_pass_subspace_extension_equals_the_explicit_one(lumped, monkeypatch
         Wa = basis.rows_of(mi, W)       # the new directions may be rotated among themselves: compare W Wᵀ
         np.testing.assert_allclose(Wm @ Wm.T, Wa @ Wa.T, atol=1e-7 * np.abs(Wa @ Wa.T).max())
     assert not fallbacks
+
+
+def test_correlate_cli_on_a_lumped_free_free_deck(tmp_path, capsys):
+    """``modalab correlate`` on a GVT deck with lumped mass and no SPC, above the dense limit (367 grids, 2202
+    DOFs: Lanczos), against modes of an independent consistent-mass beam at 26 grids: the rigid-body modes
+    are kept out and the vertical bending modes pair in order."""
+    from modalab.app.cli import main
+    from modalab.core.modes import ModeSet
+    m = _deck(tmp_path / "gvt.bdf", 366)
+    ref = _deck(tmp_path / "fine.bdf", 732, coupmass=True).structure()        # independent: twice finer, coupled
+    w, phi = ref.normal_modes(24)
+    z = np.array([d.axis == 3 for d in ref.dofs])
+    vert = np.einsum("ij,ij->j", phi[z], (ref.M @ phi)[z]) > 0.5
+    sel = np.flatnonzero(vert & (w / (2 * np.pi) > 1.0))[:5]
+    grids = np.linspace(0, 366, 26).round().astype(int)
+    rows = [ref.dofs.index(next(d for d in ref.dofs if d.node == 2 * g + 1 and d.axis == 3)) for g in grids]
+    test = ModeSet(freq_hz=w[sel] / (2 * np.pi), shapes=phi[rows][:, sel], dofs=[f"{g + 1}+Z" for g in grids])
+    test.to_json(tmp_path / "modes.json")
+    assert main(["correlate", str(tmp_path / "gvt.bdf"), str(tmp_path / "modes.json"), "--same-ids",
+                 "--json", str(tmp_path / "c.json")]) == 0
+    import json
+    c = json.loads((tmp_path / "c.json").read_text())
+    assert [p["test_mode"] for p in c["pairs"]] == [1, 2, 3, 4, 5]
+    assert min(p["mac"] for p in c["pairs"]) > 0.99 and max(abs(p["freq_error_pct"]) for p in c["pairs"]) < 1.0
+    assert "5 rigid-body analysis mode(s) excluded" in capsys.readouterr().out
