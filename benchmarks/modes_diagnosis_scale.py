@@ -36,7 +36,8 @@ Measured 2026-11-25 (massless branch), shared 2-core machine, load average 9-15,
   to the budget; the same finding as before the two-pass extension (point mass at grid 331, 0.148 kg).
 * 1500 grids, 9000 DOFs, lumped, before the two-pass extension: 171 s CPU (1092 s wall at load 13), 15000
   candidates, library G storage 540 MB; finding a point mass at grid 1351 of 0.149 kg, reported ambiguous
-  with grids 1349 and 1348 (0.12 mm apart at this mesh: the data cannot tell them apart).
+  with grids 1349 and 1348 (2 mm apart at this mesh: the data cannot tell them apart); after it: 107 s
+  CPU (659 s wall at load 9), the same finding.
 * 16667 grids, 100002 DOFs (``--dofs 100000``, parts only): deck 2.4 s CPU, massless mechanisms (one, the
   rigid torsion) 1.1 s, the lowest 30 modes 2.2 s CPU (bit-identical when solved again; rigid-body modes at
   0.007-0.046 Hz, the rounding of K − σM for elements 0.18 mm long, first elastic mode 4.65 Hz), screening
