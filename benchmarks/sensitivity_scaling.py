@@ -20,6 +20,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from modalab.core.eigen import start_vector
 from updating.methods.mci import mci_system
 from updating.fe.parametric import Derivative, MatrixModel
 from updating.methods.rfm import receptance_rows, rfm_system
@@ -79,7 +80,7 @@ def assemble(model):
 
 def eigen(K, M, k):
     sigma = -1e-6 * abs(K.diagonal()).max() / abs(M.diagonal()).max()
-    lam, phi = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM")
+    lam, phi = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM", v0=start_vector(K.shape[0]))
     o = np.argsort(lam)
     return lam[o], _normalise(phi[:, o], M)
 

@@ -27,7 +27,8 @@ def cmd_diagnose(a):
                  json_path=a.json, out_dir=a.report, progress=lambda m: _print(m))
     dd = r.result.to_dict()
     for f in dd["findings"]:
-        vals = ", ".join(f"{v['name']} = {v['value']:.4g} {v['unit']} (± {v['std']:.2g})" for v in f["values"])
+        vals = ", ".join(f"{v['name']} = {v['value']:.4g} {v['unit']} (± "
+                         + ("—" if v["std"] is None else f"{v['std']:.2g}") + ")" for v in f["values"])
         _print(f"FINDING {f['physics']} at {', '.join(f['dofs']) or f['nodes']}: {vals}")
     for name, blk in dd["fit"].items():
         _print(f"{name:>16}: " + ", ".join(f"{k} = {v:.4g}" for k, v in blk.items() if isinstance(v, (int, float))))

@@ -173,12 +173,23 @@ def _table(rows: list, cols: list, fmt=None) -> str:
         cells = []
         for c in cols:
             v = r.get(c, "")
-            if isinstance(v, float):
+            if v is None:                   # a value the stage could not give (JSON null): say so, never 0
+                v = "—"
+            elif isinstance(v, float):
                 v = fmt.get(c, "{:.4g}").format(v)
             cells.append(f'<td class="{"l" if isinstance(v, str) and not v[:1].isdigit() else ""}">'
                          f"{html.escape(str(v))}</td>")
         body.append("<tr>" + "".join(cells) + "</tr>")
     return f"<table><tr>{h}</tr>{''.join(body)}</table>"
+
+
+_FIT_LABELS = {"frf_error_train": "FRF error on the training DOFs", "frf_error_held_out": "on held-out DOFs",
+               "freq_error_max_pct": "largest frequency error [%]", "mac_min": "lowest MAC"}
+
+
+def _num(v, fmt: str) -> str:
+    """A number formatted, or "—" for a value the stage could not give (None)."""
+    return "—" if v is None else format(float(v), fmt)
 
 
 def _load(path):
@@ -187,8 +198,9 @@ def _load(path):
         return None
     try:
         return json.loads(p.read_text())
-    except json.JSONDecodeError:
-        return None
+    except json.JSONDecodeError as e:         # a damaged output is not "the stage has not run"
+        raise ModalabValueError(f"'{p}' line {e.lineno}: not valid JSON ({e.msg}); it is a stage output that was "
+                                f"changed or cut: rerun that stage (modalab run ... --from {p.parent.name})") from None
 
 
 def _geometry_figure(run_dir: Path, report_dir: Path, project=None) -> Path | None:
@@ -251,14 +263,20 @@ def build_report(run_dir, report_dir=None, *, project=None, title: str | None = 
     if diag:
         parts.append(f'<p class="statement">{html.escape(diag.get("statement", ""))}</p>')
         for f in diag.get("findings", []):
-            vals = "; ".join(f"{v['name']} = {v['value']:.4g} ± {v['std']:.2g} {v['unit']}" for v in f.get("values", []))
+            vals = "; ".join(f"{v['name']} = {_num(v['value'], '.4g')} ± {_num(v.get('std'), '.2g')} {v['unit']}"
+                             for v in f.get("values", []))
             parts.append(f"<p><b>{html.escape(f.get('description', f.get('physics', '')))}</b> — {html.escape(vals)}"
                          f"<br><i>Evidence:</i> {html.escape(f.get('evidence', ''))}</p>")
         fit = diag.get("fit", {})
         if fit:
-            frows = [{"model": k, **{kk: float(vv) for kk, vv in v.items()}} for k, v in fit.items()]
-            parts += ["<p>FRF error of each model (training DOFs and held-out DOFs):</p>",
-                      _table(frows, ["model", "frf_error_train", "frf_error_held_out"])]
+            # values may be null (no held-out DOFs; a modes-only diagnosis has no FRF error): shown as "—"
+            frows = [{"model": k, **{kk: None if vv is None else float(vv) for kk, vv in v.items()}}
+                     for k, v in fit.items()]
+            keys = [c for c in ("frf_error_train", "frf_error_held_out", "freq_error_max_pct", "mac_min")
+                    if any(r.get(c) is not None for r in frows)]
+            if keys:
+                parts += ["<p>Error of each model (" + ", ".join(_FIT_LABELS[c] for c in keys) + "):</p>",
+                          _table(frows, ["model"] + keys)]
         rk = diag.get("ranking", [])
         if rk:
             parts += ["<p>Candidate physics ranked by the share of the residual each explains alone:</p>",

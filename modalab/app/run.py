@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from modalab.app import stages
+from modalab.core._output import protect
 from modalab.core.errors import PlanError
 from modalab.app.outputs import write_json, write_text
 from modalab.app.project import STAGES, Project, load_project
@@ -420,60 +421,83 @@ def run_project(project, out_dir, *, backend: str | None = None, from_stage: str
             if any(u in forced for u in DEPENDS[s]):
                 forced.add(s)
     result = RunResult(out_dir=out)
+    ins = _project_inputs(proj)
     for s in STAGES:
-        if s not in wanted:
-            result.status[s] = "not in project"
-            continue
-        if STAGES.index(s) > stop:
-            result.status[s] = "not requested"
-            continue
-        ups = {u: {k: h for k, h in man.entry(u)["outputs"].items()
-                   if s == "report" or Path(k).name in PRODUCTS.get(u, ())}
-               for u in DEPENDS[s] if u in wanted and man.entry(u)}
-        missing = [u for u in DEPENDS[s] if u in wanted and not man.entry(u)]
-        if missing:
-            raise PlanError(f"stage {s} needs {', '.join(missing)} first; run without --from/--until to complete "
-                            "them")
-        opts = _options(proj, s)
-        inputs = _inputs(proj, s, be)
-        key = stage_key(opts, inputs, ups)
-        if not force and s not in forced and man.valid(s, key):
-            result.status[s] = "skipped"
-            result.summaries[s] = man.entry(s).get("summary", {})
+        for p in ins:
+            if _inside(p, out / s) or _inside(p, out / "manifest.json"):
+                raise PlanError(f"input '{p}' lies in '{out / s}', which the run replaces; an output never "
+                                "overwrites an input. Move the input out of the output folder or choose another -o")
+    with protect(ins):           # no writer may replace a project input, whatever stage calls it
+        for s in STAGES:
+            if s not in wanted:
+                result.status[s] = "not in project"
+                continue
+            if STAGES.index(s) > stop:
+                result.status[s] = "not requested"
+                continue
+            ups = {u: {k: h for k, h in man.entry(u)["outputs"].items()
+                       if s == "report" or Path(k).name in PRODUCTS.get(u, ())}
+                   for u in DEPENDS[s] if u in wanted and man.entry(u)}
+            missing = [u for u in DEPENDS[s] if u in wanted and not man.entry(u)]
+            if missing:
+                raise PlanError(f"stage {s} needs {', '.join(missing)} first; run without --from/--until to complete "
+                                "them")
+            opts = _options(proj, s)
+            inputs = _inputs(proj, s, be)
+            key = stage_key(opts, inputs, ups)
+            if not force and s not in forced and man.valid(s, key):
+                result.status[s] = "skipped"
+                result.summaries[s] = man.entry(s).get("summary", {})
+                if progress:
+                    progress(s, "skip", "up to date")
+                continue
             if progress:
-                progress(s, "skip", "up to date")
-            continue
-        if progress:
-            progress(s, "start", "")
-        t0 = time.perf_counter()
-        man.forget(s)
-        pending = out / s / ".pending_key"
-        if s == "acquire":
-            resume = (pending.is_file() and pending.read_text().strip() == key
-                      and (out / s / "session" / "session.json").is_file())
-            if not resume and (out / s).exists():
-                shutil.rmtree(out / s)
-            ctx.dir(s)
-            write_text(pending, key)
-            outputs, summary = stage_acquire(ctx, resume)
-        else:
-            if (out / s).exists():
-                shutil.rmtree(out / s)
-            outputs, summary = _RUN[s](ctx)
-        elapsed = time.perf_counter() - t0
-        rel = {}
-        for p in outputs:
-            p = Path(p)
-            if p.is_file():
-                rel[str(p.resolve().relative_to(out))] = content_hash(p)
-        man.record(s, {"key": key, "options": opts, "inputs": inputs, "depends": list(ups), "outputs": rel,
-                       "summary": summary, "elapsed_s": round(elapsed, 3),
-                       "completed_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")})
-        if pending.is_file():
-            pending.unlink()
-        result.status[s] = "ran"
-        result.summaries[s] = summary
-        result.elapsed_s[s] = elapsed
-        if progress:
-            progress(s, "done", f"{elapsed:.1f} s")
+                progress(s, "start", "")
+            t0 = time.perf_counter()
+            man.forget(s)
+            pending = out / s / ".pending_key"
+            if s == "acquire":
+                resume = (pending.is_file() and pending.read_text().strip() == key
+                          and (out / s / "session" / "session.json").is_file())
+                if not resume and (out / s).exists():
+                    shutil.rmtree(out / s)
+                ctx.dir(s)
+                write_text(pending, key)
+                outputs, summary = stage_acquire(ctx, resume)
+            else:
+                if (out / s).exists():
+                    shutil.rmtree(out / s)
+                outputs, summary = _RUN[s](ctx)
+            elapsed = time.perf_counter() - t0
+            rel = {}
+            for p in outputs:
+                p = Path(p)
+                if p.is_file():
+                    rel[str(p.resolve().relative_to(out))] = content_hash(p)
+            man.record(s, {"key": key, "options": opts, "inputs": inputs, "depends": list(ups), "outputs": rel,
+                           "summary": summary, "elapsed_s": round(elapsed, 3),
+                           "completed_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")})
+            if pending.is_file():
+                pending.unlink()
+            result.status[s] = "ran"
+            result.summaries[s] = summary
+            result.elapsed_s[s] = elapsed
+            if progress:
+                progress(s, "done", f"{elapsed:.1f} s")
     return result
+
+
+def _project_inputs(proj: Project) -> list:
+    """The files a project reads: the project file, the plan or FRF file, the bulk data, the DOF map, the test
+    geometry and the parameter files."""
+    o = proj.options
+    paths = [proj.path, proj.plan_path, proj.frf_path, proj.bulk_path]
+    paths += [proj.resolve(o["correlate"][k]) for k in ("map", "geometry") if o["correlate"].get(k)]
+    paths += [proj.resolve(o[sec]["parameters"]) for sec in ("update", "diagnose") if o[sec].get("parameters")]
+    return [Path(p).resolve() for p in paths if p is not None]
+
+
+def _inside(p: Path, folder: Path) -> bool:
+    """True when ``p`` is ``folder`` or lies inside it."""
+    folder = folder.resolve()
+    return p == folder or folder in p.parents

@@ -30,6 +30,7 @@ import scipy.sparse.linalg as spla
 
 from .dense import use_dense
 from .dof import Dof, locate, parse_dofs
+from .eigen import dense_modes, drop_mechanisms, lanczos_modes, massless_dofs, restore
 from .errors import ModalabValueError, ShapeError
 from .frf import FRF
 from .units import QUANTITY_UNITS, check_quantity
@@ -48,28 +49,6 @@ def _as_sparse(A, name, n=None):
     if n is not None and S.shape[0] != n:
         raise ShapeError(f"{name} is {S.shape[0]}x{S.shape[0]} but the model has {n} DOFs")
     return S
-
-
-def _shifted_eigh(K, M):
-    """Eigenpairs of (K, M) when M is only semi-definite (massless DOFs, lumped-mass rotations).
-
-    Solves ``M φ = μ (K − σM) φ`` with a negative shift σ, so that ``λ = σ + 1/μ``; massless
-    directions give μ = 0 (λ = ∞) and are dropped.  Shapes are mass-normalised.
-    """
-    scale = max(np.abs(np.diag(K)).max() / max(np.abs(np.diag(M)).max(), 1e-300), 1.0)
-    sigma = -1e-3 * scale
-    try:
-        mu, phi = sla.eigh(M, K - sigma * M)
-    except np.linalg.LinAlgError as e:
-        raise ModalabValueError(f"the model has DOFs with neither mass nor stiffness ({e}); constrain or remove "
-                                "them (for example the in-plane DOFs of a planar model)") from None
-    keep = mu > 1e-12 * max(mu.max(), 1e-300)
-    lam = sigma + 1.0 / mu[keep]
-    phi = phi[:, keep]
-    mm = np.einsum("ij,ij->j", phi, M @ phi)
-    phi = phi / np.sqrt(mm)[None, :]
-    o = np.argsort(lam)
-    return lam[o], phi[:, o]
 
 
 @dataclass
@@ -181,23 +160,32 @@ class Structure:
 
     # ----------------------------------------------------------------- modes
     def normal_modes(self, n_modes: int | None = None):
-        """Undamped natural frequencies ω (rad/s) and mass-normalised shapes Φ (n, m), ascending."""
+        """Undamped natural frequencies ω (rad/s) and mass-normalised shapes Φ (n, m), ascending.
+
+        All finite modes with ``n_modes=None``.  A positive definite M is solved directly (``eigh(K, M)``);
+        a singular one — DOFs without mass, as Nastran's default lumped mass gives the rotations of a beam
+        deck — by the shift-inverted form of :mod:`modalab.core.eigen`, which drops the infinite-frequency
+        (massless) directions exactly and constrains massless mechanisms.  Above 2000 DOFs with ``n_modes``
+        given: shift-invert Lanczos from a fixed start vector (deterministic).
+        """
         n = self.n_dof
-        if n_modes is None or use_dense(n, "eigen"):
+        if n_modes is not None and int(n_modes) < 1:
+            raise ModalabValueError(f"n_modes = {n_modes}; expected at least 1")
+        if n_modes is None or use_dense(n, "eigen") or int(n_modes) >= n - 1:
+            if massless_dofs(self.M).size:
+                return dense_modes(self.K, self.M, n_modes)
             Md, Kd = self.M.toarray(), self.K.toarray()
             try:
                 w2, phi = sla.eigh(Kd, Md)
             except np.linalg.LinAlgError:
-                w2, phi = _shifted_eigh(Kd, Md)
+                # M is singular without a whole zero row: the shift-inverted solver handles it or says why not
+                return dense_modes(self.K, self.M, n_modes)
             if n_modes is not None:
                 w2, phi = w2[:n_modes], phi[:, :n_modes]
-        else:
-            sigma = -1.0 * max(abs(self.K.diagonal()).max() / max(abs(self.M.diagonal()).max(), 1e-300), 1.0) * 1e-6
-            w2, phi = spla.eigsh(self.K.tocsc(), k=n_modes, M=self.M.tocsc(), sigma=sigma, which="LM")
-            o = np.argsort(w2)
-            w2, phi = w2[o], phi[:, o]
-        w2 = np.where(w2 < 0, 0.0, w2)
-        return np.sqrt(w2), phi
+            w2 = np.where(w2 < 0, 0.0, w2)
+            return np.sqrt(w2), phi
+        w, phi, _ = lanczos_modes(self.K, self.M, int(n_modes))
+        return w, phi
 
     def modal_model(self, n_modes: int | None = None, rigid_tol: float = 1e-6) -> ModalModel:
         """Pole–residue model; exact with ``n_modes=None`` (all modes)."""
@@ -261,11 +249,23 @@ class Structure:
         F = np.zeros((n, len(ii)), complex)
         F[ii, np.arange(len(ii))] = si
         Kc = self.K.astype(complex) + (1j * self.D if self.D is not None else 0)
+        Mc, Cc = self.M, self.C
+        # a massless mechanism (no mass, no stiffness) is constrained as for the modes (MECHFIX): the
+        # response there is zero, as in the modal FRF
+        keep, _, _ = drop_mechanisms(self.K, self.M)
+        if keep is not None:
+            Kc, Mc = Kc[keep][:, keep], Mc[keep][:, keep]
+            Cc = None if Cc is None else Cc[keep][:, keep]
+            F = F[keep]
         H = np.empty((len(io), len(ii), freq.size), complex)
         for k, f in enumerate(freq):
             w = 2 * np.pi * f
-            Z = Kc - w ** 2 * self.M + (1j * w * self.C if self.C is not None else 0)
-            X = spla.splu(sp.csc_matrix(Z)).solve(F)
+            Z = Kc - w ** 2 * Mc + (1j * w * Cc if Cc is not None else 0)
+            try:
+                X = restore(spla.splu(sp.csc_matrix(Z)).solve(F), keep, n)
+            except RuntimeError:
+                raise ModalabValueError(f"the dynamic stiffness is singular at {f} Hz (an undamped resonance or a "
+                                        "rigid-body mode at 0 Hz); avoid that line or add damping") from None
             H[:, :, k] = X[io] * np.asarray(so)[:, None] * (1j * w) ** _ORDER[q]
         return FRF(freq_hz=freq, H=H, responses=resp, references=refs, quantity=q,
                    units=QUANTITY_UNITS[q], metadata={"estimator": "exact"})

@@ -97,3 +97,49 @@ def test_random_spd_models_modal_matches_direct(n, eta, seed):
     f = np.linspace(0.01, 1.0, 23)
     np.testing.assert_allclose(s.frf(f, quantity="receptance").H, s.frf(f, quantity="receptance", method="direct").H,
                                rtol=1e-7, atol=1e-10)
+
+
+def _chain(n, free=True):
+    """Springs in a chain (grounded at the first DOF unless ``free``)."""
+    K = np.zeros((n, n))
+    for i in range(n - 1):
+        K[i:i + 2, i:i + 2] += 1e4 * np.array([[1, -1], [-1, 1]])
+    if not free:
+        K[0, 0] += 1e4
+    return K
+
+
+def test_massless_dof_is_condensed_exactly():
+    # 3 masses and a massless DOF between the second and the third: the finite modes equal those of the
+    # statically condensed model (two springs in series), infinite-frequency modes are never returned
+    K = _chain(4, free=False)
+    M = np.diag([1.0, 2.0, 0.0, 1.5])
+    w, phi = Structure(M=M, K=K, dofs=["1+X", "2+X", "3+X", "4+X"]).normal_modes()
+    Kc = K[np.ix_([0, 1, 3], [0, 1, 3])] - np.outer(K[[0, 1, 3], 2], K[2, [0, 1, 3]]) / K[2, 2]
+    import scipy.linalg as sla
+    w2 = sla.eigh(Kc, np.diag([1.0, 2.0, 1.5]), eigvals_only=True)
+    assert w.size == 3
+    np.testing.assert_allclose(w, np.sqrt(w2), rtol=1e-10)
+    # the massless DOF follows statically: K_oa phi_a + K_oo phi_o = 0
+    np.testing.assert_allclose(K[2] @ phi, 0, atol=1e-9 * np.abs(K).max())
+
+
+def test_free_free_with_massless_mechanism():
+    # two masses linked through a massless DOF by springs, and a massless DOF hanging on nothing but its own
+    # massless neighbour: a free-free chain whose last two DOFs form a stiffness- and mass-free mechanism
+    K = np.zeros((4, 4))
+    K[:3, :3] = _chain(3)
+    M = np.diag([1.0, 0.0, 2.0, 0.0])
+    s = Structure(M=M, K=K, dofs=["1+X", "2+X", "3+X", "4+X"])
+    w, phi = s.normal_modes()
+    assert w.size == 2 and w[0] < 1e-6 * w[1]                  # the rigid-body mode and one elastic mode
+    np.testing.assert_allclose(w[1] ** 2, 0.5e4 * (1 / 1.0 + 1 / 2.0), rtol=1e-10)   # springs in series
+    h = s.frf([3.0, 20.0], ["1+X", "3+X"], ["1+X"], method="direct").H
+    np.testing.assert_allclose(s.frf([3.0, 20.0], ["1+X", "3+X"], ["1+X"]).H, h, rtol=1e-8)
+
+
+def test_singular_mass_without_a_zero_row_is_refused_with_a_message():
+    M = np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 0.0, 1.0]])        # a massless combination
+    s = Structure(M=M, K=_chain(3, free=False), dofs=["1+X", "2+X", "3+X"])
+    with pytest.raises(ModalabValueError, match="give those DOFs mass"):
+        s.normal_modes()

@@ -125,3 +125,35 @@ def test_report_renders_in_headless_chromium(run_dir, tmp_path):
     cmd2 = cmd[:-2] + [f"--screenshot={shot}", "--window-size=1200,3000", page.as_uri()]
     subprocess.run(cmd2, capture_output=True, text=True, timeout=120)
     assert shot.is_file() and shot.stat().st_size > 10_000
+
+
+def test_report_with_null_fit_values_and_std(tmp_path):
+    """A diagnosis without held-out DOFs (null FRF error) or a modes-only one (frequency error and MAC, no FRF
+    error), and a finding whose uncertainty could not be computed (std null): the report shows "—", never
+    a crash and never a number it was not given."""
+    d = tmp_path / "run"
+    (d / "diagnose").mkdir(parents=True)
+    (d / "diagnose" / "diagnosis.json").write_text(json.dumps({
+        "statement": "The model misses a mass at node 3.",
+        "findings": [{"physics": "added_mass", "description": "point mass at node 3", "evidence": "modes",
+                      "values": [{"name": "m", "value": 0.05, "std": None, "unit": "kg"}]}],
+        "fit": {"nominal": {"frf_error_train": 0.4, "frf_error_held_out": None},
+                "with_physics": {"frf_error_train": None, "frf_error_held_out": None, "freq_error_max_pct": 0.31,
+                                 "mac_min": 0.97}},
+        "ranking": [], "parameters": {"E": {"initial": 1.0, "updated": 1.01, "std": None}}}))
+    html, _ = build_report(d, d / "report", title="nulls")
+    text = html.read_text(encoding="utf-8")
+    assert "m = 0.05 ± — kg" in text
+    assert "largest frequency error [%]" in text and "lowest MAC" in text and ">0.97<" in text
+    assert ">None<" not in text and ">—<" in text
+
+
+def test_a_damaged_stage_output_is_an_error_not_a_missing_stage(tmp_path):
+    from modalab.core.errors import ModalabValueError
+
+    d = tmp_path / "run"
+    (d / "diagnose").mkdir(parents=True)
+    (d / "diagnose" / "diagnosis.json").write_text('{"statement": "cut in the mid')
+    with pytest.raises(ModalabValueError, match=r"diagnosis.json' line 1: not valid JSON.*--from diagnose"):
+        build_report(d, d / "report", title="damaged")
+    assert not (d / "report" / "report.html").exists()

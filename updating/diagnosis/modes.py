@@ -179,10 +179,26 @@ class ModalSubspace:
     def size(self) -> int:
         return self.V.shape[1]
 
+    @property
+    def deflation(self):
+        """``(MV, VᵀMV)`` on the kept DOFs, computed once (for :func:`_extended_rows`)."""
+        if getattr(self, "_deflation", None) is None:
+            MV = np.asarray(self.Mk @ self.V)
+            self._deflation = (MV, 0.5 * (self.V.T @ MV + MV.T @ self.V))
+        return self._deflation
+
     def full(self, V=None) -> np.ndarray:
         V = self.V if V is None else V
         out = np.zeros((self.n, V.shape[1]))
         out[self.keep] = V
+        return out
+
+    def rows_of(self, idx, V=None) -> np.ndarray:
+        """Rows ``idx`` (full-DOF indices) of :meth:`full` without forming it (zero at a mechanism's DOF)."""
+        V = self.V if V is None else V
+        p = self.pos[np.asarray(idx, int)]
+        out = np.zeros((p.size, V.shape[1]))
+        out[p >= 0] = V[p[p >= 0]]
         return out
 
     def matches(self, structure) -> bool:
@@ -219,6 +235,60 @@ class ModalSubspace:
         Kr[m:, :m] = Kr[:m, m:].T
         Kr[m:, m:] = S.T @ KS
         return W, 0.5 * (Kr + Kr.T), W[p].T @ Lk
+
+
+def _extended_rows(basis, rows, L, idx):
+    """:meth:`ModalSubspace.extended` with two passes over the basis instead of some ten: ``(W[idx], Kr, b)``,
+    ``W[idx]`` the rows ``idx`` (full-DOF indices) of the extended basis; the same Ritz problem up to a
+    rotation of the new directions among themselves.
+
+    The static correction is solved for a load with the basis' share removed, ``S₀ = K_σ⁻¹ (E − MV a)``,
+    ``a = VᵀE = V[rows]ᵀL`` (``K_σ = K − σM``): for a free-free structure ``K_σ⁻¹E`` is dominated by the
+    rigid-body and low modes (the new direction holds ~1e-13 of its mass), which the explicit Gram-Schmidt of
+    :meth:`ModalSubspace.extended` removes in repeated passes; the deflated load never creates them, so one
+    projection ``c = (MV)ᵀS₀`` makes ``S₁ = S₀ − Vc`` M-orthogonal to the basis.  The stiffness blocks follow
+    from ``K = K_σ + σM`` without a product with K: ``VᵀKS₀ = VᵀF + σc``, ``S₀ᵀKS₀ = S₀ᵀF + σS₀ᵀMS₀``
+    (``F`` the deflated load), then ``VᵀKS₁ = VᵀKS₀ − ω²c`` and ``S₁ᵀKS₁ = S₀ᵀKS₀ − cᵀVᵀKS₀ − (VᵀKS₀)ᵀc +
+    cᵀω²c``.  Only the rows ``idx`` and ``rows`` of ``S₁`` are formed.  A new direction whose mass is not
+    clear of the projection (below 1e-6 of ``S₀ᵀMS₀``) falls back to the explicit extension.
+    """
+    p = basis.pos[rows]
+    on = p >= 0
+    Lk, p = L[on], p[on]
+    V, w2, sg = basis.V, basis.w2, basis.sigma
+    m = V.shape[1]
+    if p.size == 0:
+        return basis.rows_of(idx), np.diag(w2), np.zeros((m, L.shape[1]))
+    MV, VMV = basis.deflation
+    a = V[p].T @ Lk
+    F = -(MV @ a)
+    np.add.at(F, p, Lk)
+    S0 = np.asarray(basis.factor.solve(F))
+    c = MV.T @ S0
+    g0 = S0.T @ (basis.Mk @ S0)
+    g0 = 0.5 * (g0 + g0.T)
+    G = g0 - c.T @ c
+    mu, U = np.linalg.eigh(0.5 * (G + G.T))
+    if mu.min() < 1e-6 * max(float(np.linalg.eigvalsh(g0).max()), 1e-300):
+        W, Kr, b = basis.extended(rows, L)
+        return basis.rows_of(idx, W), Kr, b
+    T = U / np.sqrt(mu)
+    VKS0 = (a - VMV @ a) + sg * c
+    k0 = S0[p].T @ Lk - c.T @ a + sg * g0
+    SKS1 = 0.5 * (k0 + k0.T) - c.T @ VKS0 - VKS0.T @ c + c.T @ (w2[:, None] * c)
+    r = T.shape[1]
+    Kr = np.zeros((m + r, m + r))
+    Kr[:m, :m] = np.diag(w2)
+    Kr[:m, m:] = (VKS0 - w2[:, None] * c) @ T
+    Kr[m:, :m] = Kr[:m, m:].T
+    Kr[m:, m:] = T.T @ SKS1 @ T
+    q = basis.pos[np.asarray(idx, int)]
+    Wi = np.zeros((q.size, m + r))
+    hit = q >= 0
+    Wi[hit, :m] = V[q[hit]]
+    Wi[hit, m:] = (S0[q[hit]] - V[q[hit]] @ c) @ T
+    Wp = np.hstack([V[p], (S0[p] - V[p] @ c) @ T])
+    return Wi, 0.5 * (Kr + Kr.T), Wp.T @ Lk
 
 
 class ModalResidual:
@@ -277,7 +347,7 @@ class ModalResidual:
             Kr, Mr = basis.project(sp.csr_matrix(K), sp.csr_matrix(M))
             w2, Psi = sla.eigh(Kr, Mr)
             k = self.n_pairable(np.sqrt(np.clip(w2, 0, None)) / (2 * np.pi))
-            Vm = (basis.full()[mi] * ms[:, None]) @ Psi[:, :k]
+            Vm = (basis.rows_of(mi) * ms[:, None]) @ Psi[:, :k]
             return np.sqrt(np.clip(w2[:k], 0, None)) / (2 * np.pi), Vm
         Ks, Ms = sp.csr_matrix(K), sp.csr_matrix(M)
         k = self.n_model_modes
@@ -378,7 +448,7 @@ def screen_modes(structure, candidates, resid: ModalResidual, basis: ModalSubspa
     w20, Psi0 = sla.eigh(Kr0, Mr0)
     k0 = resid.n_pairable(np.sqrt(np.clip(w20, 0, None)) / (2 * np.pi))
     fm0 = np.sqrt(np.clip(w20[:k0], 0, None)) / (2 * np.pi)
-    Vm0 = (basis.full()[mi] * ms[:, None]) @ Psi0[:, :k0]
+    Vm0 = (basis.rows_of(mi) * ms[:, None]) @ Psi0[:, :k0]
     e0 = resid.residual(fm0, Vm0)
     r0 = float(e0 @ e0)
     a0, _ = resid.pairs(fm0, Vm0)
@@ -400,10 +470,10 @@ def screen_modes(structure, candidates, resid: ModalResidual, basis: ModalSubspa
         if _candidate_effect(resid, fm0[a0], None, bp.T, grid[-1], c.matrix) < MIN_OBSERVED_EFFECT:
             n_blind += 1        # even its largest value leaves every paired mode an exact eigenpair: no evidence
             continue
-        W, Kr, b = basis.extended(rows, L)
+        Wm, Kr, b = _extended_rows(basis, rows, L, mi)
         if not np.any(b):
             continue
-        Wm = basis.full(W)[mi] * ms[:, None]
+        Wm = Wm * ms[:, None]
 
         def evaluate(thetas):
             G = b @ b.T

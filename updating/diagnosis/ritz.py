@@ -30,6 +30,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from modalab.core.eigen import drop_mechanisms, lanczos_modes, massless_dofs, massless_mechanisms, restore
 from modalab.core.dense import use_dense
 from modalab.core.errors import ModalabValueError
 
@@ -43,21 +44,19 @@ def _project(V, A):
 
 def _lowest_modes(K, M, structure, omega_cut, min_modes, max_modes):
     """Normal modes up to ``omega_cut`` (at least ``min_modes``, at most ``max_modes``): dense for small
-    models, shift-invert Lanczos (``eigsh``, a small negative shift so that rigid-body modes are found)
-    with a growing count for large ones."""
+    models, shift-invert Lanczos (:func:`modalab.core.eigen.lanczos_modes`: a negative shift so that
+    rigid-body modes are found, massless DOFs and mechanisms handled, a fixed start vector) with a growing
+    count for large ones."""
     n = K.shape[0]
     if use_dense(n, "modes"):
         return structure.normal_modes(min(n, max(max_modes, min_modes)))
-    scale = max(float(abs(K.diagonal()).max()) / max(float(abs(M.diagonal()).max()), 1e-300), 1.0)
-    sigma = -1e-6 * scale
-    k = min(max(min_modes, 24), n - 2)
+    n_finite = n - massless_dofs(M).size - massless_mechanisms(K, M)[0].size
+    k = min(max(min_modes, 24), n_finite, n - 2)
     while True:
-        w2, phi = spla.eigsh(K, k=k, M=M, sigma=sigma, which="LM")
-        o = np.argsort(w2)
-        w2, phi = np.clip(w2[o], 0, None), phi[:, o]
-        if np.sqrt(w2[-1]) > omega_cut or k >= min(max_modes, n - 2):
-            return np.sqrt(w2), phi
-        k = min(2 * k, max_modes, n - 2)
+        w, phi, _ = lanczos_modes(K, M, k)
+        if w[-1] > omega_cut or k >= min(max_modes, n_finite, n - 2):
+            return w, phi
+        k = min(2 * k, max_modes, n_finite, n - 2)
 
 
 class RitzBasis:
@@ -86,9 +85,16 @@ class RitzBasis:
         # static correction (residual flexibility) at the DOFs of interest, with a small positive shift so
         # that free or suspended structures (singular K) are handled: K_σ = K + σ M, σ = (0.1 · 2π f_max)²
         sigma = (0.2 * np.pi * f_max_hz) ** 2
+        # a massless mechanism (no mass, no stiffness: K + σM singular) is constrained as in the modes
+        keep, Kk, Mk = drop_mechanisms(K, M)
         E = np.zeros((n, cols.size))
         E[cols, np.arange(cols.size)] = 1.0
-        R = spla.splu((K + sigma * M).tocsc()).solve(E)
+        Ek = E if keep is None else E[keep]
+        try:
+            R = restore(spla.splu(sp.csc_matrix(Kk + sigma * Mk)).solve(Ek), keep, n)
+        except RuntimeError as e:
+            raise ModalabValueError(f"K + σM is singular ({e}) beyond the massless mechanisms: some motion has "
+                                    "neither mass nor stiffness; constrain it (SPC) or give it inertia") from None
         for _ in range(2):                                            # M-orthogonal to the kept modes
             R = R - phi @ (phi.T @ (M @ R))
         mn = np.sqrt(np.abs(np.einsum("ij,ij->j", R, M @ R)))

@@ -47,6 +47,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from modalab.core.eigen import drop_mechanisms, eigsh, massless_dofs, massless_mechanisms, restore
 from modalab.core.dense import use_dense
 from modalab.core.errors import ModalabValueError, ShapeError
 
@@ -221,9 +222,16 @@ def solve_modes(model, p=None, n_modes: int | None = None, *, sigma: float | Non
         lam = w ** 2
     else:
         k = 10 if n_modes is None else int(n_modes)
-        lam, phi = spla.eigsh(K.tocsc(), k=k, M=M.tocsc(), sigma=sigma, which="LM")
+        # modes nearest a positive shift (K - σM indefinite): plain shift-invert Lanczos from the fixed start
+        # vector, on the DOFs left when each massless mechanism is constrained (K - σM is singular otherwise)
+        keep, Kk, Mk = drop_mechanisms(K, M)
+        n_finite = Kk.shape[0] - massless_dofs(Mk).size
+        if k > n_finite:
+            raise ModalabValueError(f"n_modes={k} but the model has only {n_finite} finite modes; "
+                                    f"ask for at most {n_finite} modes")
+        lam, phi = eigsh(sp.csc_matrix(Kk), k, M=sp.csc_matrix(Mk), sigma=sigma, which="LM")
         o = np.argsort(lam)
-        lam, phi = lam[o], phi[:, o]
+        lam, phi = lam[o], restore(phi[:, o], keep, n)
     phi = _normalise(phi, M)
     return ModalSolution(lam=np.asarray(lam, float), phi=phi, p=p, K=K, M=M)
 
@@ -359,6 +367,11 @@ def eigenvector_sensitivities(model, p=None, modes=None, *, method: str = "nelso
     # eigen-derivatives needed in the right-hand sides
     dlam = eigenvalue_sensitivities(model, modes=np.arange(lam.size), solution=sol, derivatives=sd,
                                     repeated_tol=repeated_tol)
+    # a massless mechanism (no mass, no stiffness: K - λM singular for every λ) stays constrained at the DOFs
+    # where the modes were solved with it constrained (zero there, modalab.core.eigen); the derivatives are
+    # solved on the other DOFs
+    mech, _ = massless_mechanisms(K, M)
+    free = np.setdiff1d(np.arange(n), mech)
     if method == "nelson":
         for a, r in enumerate(modes):
             g = group_of[int(r)]
@@ -367,14 +380,14 @@ def eigenvector_sensitivities(model, p=None, modes=None, *, method: str = "nelso
             A = (K - lam[r] * M).tocsr()
             if len(g) == 1:
                 k = int(np.argmax(np.abs(x)))
-                keep = np.r_[0:k, k + 1:n]
+                keep = free[free != k]
                 solve = _factor(A[keep][:, keep])
                 border = None
             else:
                 log.warning("mode %d belongs to a repeated group %s: returning the eigenvector derivative "
                             "component outside the degenerate subspace only", r, g)
-                B = sp.csr_matrix(M @ phi[:, g])
-                Ab = sp.bmat([[A, B], [B.T, None]], format="csc")
+                B = sp.csr_matrix((M @ phi[:, g])[free])
+                Ab = sp.bmat([[A[free][:, free], B], [B.T, None]], format="csc")
                 solve = _factor(Ab)
                 border = len(g)
             for s0 in range(0, sd.P, chunk):
@@ -387,8 +400,9 @@ def eigenvector_sensitivities(model, p=None, modes=None, *, method: str = "nelso
                     V[keep] = solve(F[keep])
                     c = -(Mx @ V) - halfm
                 else:
-                    Fb = np.vstack([F, np.zeros((border, ps.size))])
-                    V = solve(Fb)[:n]
+                    Fb = np.vstack([F[free], np.zeros((border, ps.size))])
+                    V = np.zeros((n, ps.size))
+                    V[free] = solve(Fb)[:free.size]
                     c = -(Mx @ V) - halfm
                 out[:, a, ps] = V[rows] + np.outer(x[rows], c)
         return out
@@ -403,7 +417,12 @@ def eigenvector_sensitivities(model, p=None, modes=None, *, method: str = "nelso
         if shift is None:
             elastic = lam[lam > 1e-8 * max(abs(lam).max(), 1e-300)]
             shift = 0.0 if elastic.size == lam.size else -1e-2 * (elastic[0] if elastic.size else 1.0)
-        solve = _factor((K - shift * M).tocsc())
+        solve_free = _factor((K - shift * M).tocsr()[free][:, free].tocsc())
+
+        def solve(B):
+            X = np.zeros((n,) + B.shape[1:])
+            X[free] = solve_free(B[free])
+            return X
     for a, r in enumerate(modes):
         g = set(group_of[int(r)])
         if len(g) > 1:

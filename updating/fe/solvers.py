@@ -25,6 +25,8 @@ Normal modes solve ``K φ = ω² M φ`` (thesis eq. 2.1 and following):
   ``MMD_AT_PLUS_A`` ordering (4–5× faster than scipy's default COLAMD on a
   100k-DOF frame model, see ``benchmarks/fe_eigen_100k.py``) or, when
   scikit-sparse is importable, CHOLMOD.
+* The massless handling and the fixed ARPACK start vector (deterministic modes) live in
+  :mod:`modalab.core.eigen`, shared with :class:`~modalab.core.structure.Structure`.
 * :func:`normal_modes` picks one; :func:`modes_of` returns a
   :class:`~modalab.core.modes.ModeSet` mapped back to all DOFs.
 
@@ -43,13 +45,14 @@ import logging
 import time
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from modalab.core.dense import EIGEN_LIMIT, use_dense
 from modalab.core.dof import locate, parse_dofs
-from modalab.core.errors import ConvergenceError, ModalabValueError
+from modalab.core.eigen import (DEFAULT_SHIFT_HZ, check_definite, dense_modes, drop_mechanisms, lanczos_modes,
+                                 massless_dofs, massless_mechanisms, normalise, restore)
+from modalab.core.errors import ModalabValueError
 from modalab.core.frf import FRF
 from modalab.core.modes import ModeSet
 from modalab.core.units import QUANTITY_UNITS, check_quantity
@@ -59,8 +62,6 @@ log = logging.getLogger(__name__)
 __all__ = ["DEFAULT_SHIFT_HZ", "RIGID_HZ", "massless_mechanisms", "eigen_dense", "eigen_sparse", "normal_modes", "modes_of", "factorize",
            "shift_invert_operator", "frf_direct", "frf_modal", "cholmod_available"]
 
-#: default negative shift: σ = −(2π · DEFAULT_SHIFT_HZ)²
-DEFAULT_SHIFT_HZ = 1.0
 #: modes below this frequency are rigid-body modes (no modal damping, 1/s² term)
 RIGID_HZ = 1e-3
 _ORDER = {"receptance": 0, "mobility": 1, "accelerance": 2}
@@ -86,125 +87,12 @@ def _shift(shift, shift_hz):
     return s
 
 
-def _normalise(phi, M):
-    mm = np.einsum("ij,ij->j", phi, M @ phi)
-    if np.any(mm <= 0):
-        raise ModalabValueError("a mode has zero or negative modal mass; the mass matrix is not positive "
-                                "semi-definite or a mode lives only on massless DOFs")
-    phi = phi / np.sqrt(mm)[None, :]
-    k = np.argmax(np.abs(phi), axis=0)
-    sg = np.sign(phi[k, np.arange(phi.shape[1])])
-    sg[sg == 0] = 1
-    return phi * sg[None, :]
-
-
-#: a DOF whose mass row is below this fraction of the largest diagonal mass has no mass
-MASSLESS_TOL = 1e-13
-#: an eigenvalue of K_oo below this fraction of its largest diagonal entry is a mechanism
-MECHANISM_TOL = 1e-10
-#: massless components up to this size get a dense null space; larger ones shift-invert Lanczos
-_DENSE_NULL = 300
-
-
-def _massless(M) -> np.ndarray:
-    """Indices of the DOFs whose whole mass row is (numerically) zero."""
-    Ms = sp.csr_matrix(M)
-    scale = np.abs(Ms.diagonal()).max(initial=0.0)
-    if scale <= 0:
-        raise ModalabValueError("the mass matrix is zero; give the elements density or add lumped masses")
-    rowmax = np.zeros(Ms.shape[0])
-    A = abs(Ms).tocsr()
-    nz = np.diff(A.indptr) > 0
-    rowmax[nz] = np.maximum.reduceat(A.data, A.indptr[:-1][nz])
-    return np.flatnonzero(rowmax <= MASSLESS_TOL * scale)
-
-
-def _null_space_psd(A) -> np.ndarray:
-    """Orthonormal basis of the (numerical) null space of a symmetric positive semi-definite matrix."""
-    n = A.shape[0]
-    d = float(np.abs(A.diagonal()).max(initial=0.0))
-    if d <= 0:
-        return np.eye(n)
-    if n <= _DENSE_NULL:
-        w, U = np.linalg.eigh(A.toarray() if sp.issparse(A) else np.asarray(A))
-        return U[:, w <= MECHANISM_TOL * d]
-    delta = 1e-6 * d
-    k = min(8, n - 2)
-    while True:
-        w, U = spla.eigsh(sp.csc_matrix(A), k=k, sigma=-delta, which="LM")
-        null = w <= MECHANISM_TOL * d
-        if not null.all() or k >= n - 2:
-            return U[:, null]
-        k = min(2 * k, n - 2)
-
-
-def massless_mechanisms(K, M) -> tuple[np.ndarray, np.ndarray]:
-    """Mechanisms of the DOFs without mass, and the DOFs that constrain them (Nastran's MECHFIX).
-
-    Returns ``(dofs, N)``: the indices of one DOF per mechanism to constrain, and the mechanisms as columns
-    of ``N`` (on all DOFs).  A mechanism is a null vector of ``K_oo``, the stiffness between the massless
-    DOFs o (with the DOFs with mass held); for a positive semi-definite K it satisfies ``K n = 0`` and, being
-    massless, ``M n = 0``.  Each connected group of massless DOFs (graph of ``K_oo``) is treated on its own:
-    dense eigenvalues up to 300 DOFs, shift-invert Lanczos above.
-    """
-    n = K.shape[0]
-    o = _massless(M)
-    empty = (np.zeros(0, int), np.zeros((n, 0)))
-    if o.size == 0:
-        return empty
-    Koo = sp.csr_matrix(K)[o][:, o]
-    from scipy.sparse.csgraph import connected_components
-    nc, lab = connected_components(abs(Koo) > 0, directed=False)
-    fix, cols = [], []
-    for c in range(nc):
-        idx = np.flatnonzero(lab == c)
-        Nc = _null_space_psd(Koo[idx][:, idx])
-        if Nc.shape[1] == 0:
-            continue
-        _, _, piv = sla.qr(Nc.T, mode="economic", pivoting=True)
-        fix.extend(o[idx[piv[:Nc.shape[1]]]])
-        for j in range(Nc.shape[1]):
-            v = np.zeros(n)
-            v[o[idx]] = Nc[:, j]
-            cols.append(v)
-    if not fix:
-        return empty
-    log.info("massless mechanisms: %d (constrained at DOF index %s, as Nastran's MECHFIX)", len(fix),
-             ", ".join(map(str, fix[:10])) + (" ..." if len(fix) > 10 else ""))
-    return np.asarray(fix, int), np.column_stack(cols)
-
-
-def _drop_mechanisms(K, M):
-    """``(keep, K_kk, M_kk)`` without one DOF per massless mechanism (``keep`` None when there is none)."""
-    fix, _ = massless_mechanisms(K, M)
-    if fix.size == 0:
-        return None, K, M
-    keep = np.setdiff1d(np.arange(K.shape[0]), fix)
-    if sp.issparse(K):
-        Kc, Mc = sp.csr_matrix(K), sp.csr_matrix(M)
-        return keep, Kc[keep][:, keep], Mc[keep][:, keep]
-    return keep, np.asarray(K)[np.ix_(keep, keep)], np.asarray(M)[np.ix_(keep, keep)]
-
-
-def _restore(phi, keep, n):
-    if keep is None:
-        return phi
-    out = np.zeros((n, phi.shape[1]), phi.dtype)
-    out[keep] = phi
-    return out
-
-
-def _check_definite(lam, sigma, K, M):
-    """Refuse eigenvalues below zero beyond rounding: the stiffness matrix is indefinite (never clip them).
-    Rounding is relative to the shift, the largest eigenvalue found and the stiffness-to-mass scale of the
-    diagonals (a very stiff connector next to a small inertia makes rigid-body eigenvalues noisy)."""
-    kd = np.abs(K.diagonal()).max(initial=0.0)
-    md = max(np.abs(M.diagonal()).max(initial=0.0), 1e-300)
-    tol = max(1e-6 * abs(sigma), 1e-10 * float(np.abs(lam).max(initial=0.0)), 1e-12 * kd / md)
-    if lam.size and lam.min() < -tol:
-        raise ModalabValueError(f"an eigenvalue is negative (ω² = {lam.min():.4g} rad²/s²): the stiffness matrix is "
-                                "not positive semi-definite (a negative spring, a buckled or pre-stressed member, or "
-                                "a wrong material constant); check the model")
+# massless DOFs, massless mechanisms and the fixed ARPACK start vector: one implementation in the core
+_normalise = normalise
+_massless = massless_dofs
+_drop_mechanisms = drop_mechanisms
+_restore = restore
+_check_definite = check_definite
 
 
 # --------------------------------------------------------------------- dense
@@ -212,43 +100,14 @@ def eigen_dense(K, M, n_modes: int | None = None, *, shift: float | None = None,
                 shift_hz: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Lowest ``n_modes`` (all by default) natural frequencies ω (rad/s) and mass-normalised shapes.
 
-    Solved in shift-inverted form, ``M φ = μ (K − σM) φ`` with λ = σ + 1/μ and the
-    negative shift σ of :func:`eigen_sparse`: ``K − σM`` is positive definite for
-    free-free models, the error of each λ is relative to |λ − σ| rather than to
-    the largest eigenvalue (so rigid-body modes come out ≈ 0 to rounding), and
-    DOFs without mass (lumped-mass rotations) simply give μ = 0 — they are
-    dropped, which equals their exact static condensation.
+    Solved in shift-inverted form, ``M φ = μ (K − σM) φ`` with λ = σ + 1/μ and a
+    negative shift σ (by default 1e-6 of the stiffness-to-mass scale, see
+    :func:`modalab.core.eigen.dense_modes`): ``K − σM`` is positive definite for
+    free-free models, rigid-body modes come out ≈ 0 to rounding, and DOFs
+    without mass (lumped-mass rotations) simply give μ = 0 — they are dropped,
+    which equals their exact static condensation.
     """
-    Kd = K.toarray() if sp.issparse(K) else np.asarray(K, float)
-    Md = M.toarray() if sp.issparse(M) else np.asarray(M, float)
-    n_all = Kd.shape[0]
-    keep, Kd, Md = _drop_mechanisms(Kd, Md)
-    n = Kd.shape[0]
-    scale = np.abs(np.diag(Md)).max(initial=0.0)
-    if scale <= 0:
-        raise ModalabValueError("the mass matrix is zero; give the elements density or add lumped masses")
-    n_finite = n - int(np.all(np.abs(Md) <= 1e-13 * scale, axis=1).sum())
-    k = n_finite if n_modes is None else min(int(n_modes), n_finite)
-    if k < 1:
-        raise ModalabValueError(f"n_modes = {n_modes}; expected at least 1")
-    sigma = _shift(shift, shift_hz)
-    A = Kd - sigma * Md
-    A = (A + A.T) / 2
-    try:
-        mu, phi = sla.eigh((Md + Md.T) / 2, A, subset_by_index=(n - k, n - 1))
-    except np.linalg.LinAlgError as e:
-        raise ModalabValueError(f"K - shift*M is not positive definite ({e}): some DOFs have neither mass nor "
-                                "stiffness, or the stiffness matrix is indefinite. Constrain unconnected DOFs "
-                                "(SPC) or give massless DOFs stiffness") from None
-    if mu.min() <= 0:
-        raise ModalabValueError("the mass matrix is singular beyond its massless rows; check for DOFs with "
-                                "no mass of their own that the condensation cannot remove")
-    lam = sigma + 1.0 / mu
-    o = np.argsort(lam)
-    lam, phi = lam[o], phi[:, o]
-    _check_definite(lam, sigma, Kd, Md)
-    phi = _normalise(phi, Md)
-    return np.sqrt(np.clip(lam, 0, None)), _restore(phi, keep, n_all)
+    return dense_modes(K, M, n_modes, None if shift is None and shift_hz is None else _shift(shift, shift_hz))
 
 
 # -------------------------------------------------------------------- sparse
@@ -321,26 +180,14 @@ def eigen_sparse(K, M, n_modes: int, *, shift: float | None = None, shift_hz: fl
         raise ModalabValueError(f"n_modes = {n_modes}; expected 1..{n - 1} for a sparse solve of {n} DOFs "
                                 "(use eigen_dense for all modes)")
     sigma = _shift(shift, shift_hz)
-    keep, K, M = _drop_mechanisms(sp.csr_matrix(K), sp.csr_matrix(M))
-    K = sp.csc_matrix(K)
-    M = sp.csc_matrix(M)
-    op = shift_invert_operator(K, M, sigma, solver, permc_spec)
-    try:
-        w2, phi = spla.eigsh(K, k=n_modes, M=M, sigma=sigma, which="LM", OPinv=op, tol=tol,
-                             ncv=ncv or min(K.shape[0], max(2 * n_modes + 1, 20)))
-    except spla.ArpackNoConvergence as e:
-        raise ConvergenceError(f"Lanczos did not converge for {n_modes} modes ({e}); increase ncv or move the "
-                               "shift closer to the wanted frequencies") from None
-    o = np.argsort(w2)
-    w2, phi = w2[o], phi[:, o]
-    _check_definite(w2, sigma, K, M)
-    phi = _normalise(phi, M)
+    w, phi, op = lanczos_modes(K, M, n_modes, sigma, tol=tol, ncv=ncv,
+                               make_opinv=lambda Kk, Mk, s: shift_invert_operator(Kk, Mk, s, solver, permc_spec))
     if info is not None:
         info.update(factor_time=op.factor.factor_time, n_solves=op.factor.n_solves,
                     solve_time=op.factor.solve_time, total_time=time.perf_counter() - t0, shift=sigma)
     log.debug("eigen_sparse: %d modes of %d DOFs, factor %.3fs, %d solves", n_modes, n,
               op.factor.factor_time, op.factor.n_solves)
-    return np.sqrt(np.clip(w2, 0, None)), _restore(phi, keep, n)
+    return w, phi
 
 
 def normal_modes(K, M, n_modes: int | None = None, *, method: str = "auto", dense_limit: int = EIGEN_LIMIT,
@@ -416,6 +263,12 @@ def frf_direct(system, freq_hz, responses=None, references=None, quantity: str =
         K = K + 1j * system.D
     M = sp.csc_matrix(system.M)
     C = None if system.C is None else sp.csc_matrix(system.C)
+    # a massless mechanism is constrained as for the modes (MECHFIX): zero response there, as frf_modal
+    keep, _, _ = _drop_mechanisms(system.K, system.M)
+    if keep is not None:
+        K, M = sp.csc_matrix(K[keep][:, keep]), sp.csc_matrix(M[keep][:, keep])
+        C = None if C is None else sp.csc_matrix(C[keep][:, keep])
+        F, Tr = F[keep], sp.csr_matrix(Tr[:, keep])
     H = np.empty((len(resp), len(refs), freq.size), complex)
     for k, f in enumerate(freq):
         w = 2 * np.pi * f
@@ -447,8 +300,8 @@ def frf_modal(system, freq_hz, responses=None, references=None, *, n_modes: int 
     resp, refs, Tr, Tf = _io(system, responses, references)
     sigma = _shift(shift, shift_hz)
     if modes is None:
-        omega, phi = normal_modes(system.K, system.M, n_modes, shift=sigma) if not use_dense(system.n_dof, "eigen") \
-            else eigen_dense(system.K, system.M, n_modes, shift=sigma)
+        omega, phi = normal_modes(system.K, system.M, n_modes, shift=sigma) \
+            if not use_dense(system.n_dof, "eigen") else eigen_dense(system.K, system.M, n_modes)
     else:
         omega, phi = modes
     el = omega > 2 * np.pi * RIGID_HZ
@@ -465,8 +318,10 @@ def frf_modal(system, freq_hz, responses=None, references=None, *, n_modes: int 
     with np.errstate(divide="ignore", invalid="ignore"):
         H = np.einsum("or,ir,rf->oif", Pr, Pf, 1.0 / den, optimize=True)
     if residual:
-        f = factorize(sp.csc_matrix(system.K - sigma * system.M), "auto")
-        X = f.solve(np.asarray(Tf.T.toarray(), float))
+        keep, Kk, Mk = _drop_mechanisms(sp.csr_matrix(system.K), sp.csr_matrix(system.M))
+        Fk = np.asarray(Tf.T.toarray(), float)
+        f = factorize(sp.csc_matrix(Kk - sigma * Mk), "auto")
+        X = _restore(f.solve(Fk if keep is None else Fk[keep]), keep, Fk.shape[0])
         R = np.asarray(Tr @ X) - (Pr / (omega ** 2 - sigma)[None, :]) @ Pf.T
         H = H + R[:, :, None]
     H = H * ((1j * w) ** _ORDER[q])[None, None, :]
