@@ -49,7 +49,8 @@ from modalab.core.structure import Structure
 from updating.correlation.dofmap import as_dofmap
 
 __all__ = ["mac", "automac", "macx", "msf", "comac", "ecomac", "cross_orthogonality", "mixed_orthogonality",
-           "frequency_table", "Pairing", "pair_modes", "span_mac", "shape_noise", "CLOSE_MODES", "MERGE_GAIN", "observability", "MAC_MIN", "FREQ_WINDOW",
+           "frequency_table", "Pairing", "pair_modes", "span_mac", "shape_noise", "CLOSE_MODES", "MERGE_GAIN",
+           "observability", "MAC_MIN", "FREQ_WINDOW",
            "FREQ_WEIGHT", "MIN_OBSERVABILITY", "frac", "csac", "csf", "FrfCorrelation",
            "frf_correlation", "CorrelationResult", "correlate", "analysis_modes"]
 
@@ -290,7 +291,7 @@ MIN_OBSERVABILITY = 1e-6
 #: analysis modes closer than this (relative frequency) to a test mode's partner can merge with it in a test
 CLOSE_MODES = 0.03
 #: a test shape explained better by this much MAC by its partner and the partner's close neighbours together
-#: than by its partner alone is a merge of those modes (or a rotation of a close group): not paired
+#: than by its partner alone is a merge of those modes (when the test has fewer modes there): not paired
 MERGE_GAIN = 0.1
 
 
