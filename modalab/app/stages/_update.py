@@ -85,8 +85,13 @@ def _freq_sigma(value, test, modes_path):
     if test is None:
         return None
     if value is None:
-        std = (test.indicators or {}).get("freq_std_hz") if test.freq_cov is None else None
-        if std is None or not test.n_modes:
+        if test.freq_cov is not None or not test.n_modes:
+            return None
+        std = (test.indicators or {}).get("freq_std_hz")
+        if std is None:
+            log.warning("%s holds no frequency standard deviations (a UFF 55 cannot): every test frequency is "
+                        "weighted with a relative sigma of 1 %%; the modes.json of modalab identify carries them, "
+                        "or give --freq-sigma", modes_path)
             return None
         rel = np.asarray(std, float).ravel() / np.asarray(test.freq_hz, float)
         if rel.size != test.n_modes:
