@@ -37,7 +37,8 @@ class UpdateOptions:
     iteration limit, and for eigensensitivity the regularisation ('lcurve', 'gcv' or a number), use of mode
     shapes (never for a frequency-only test set), relative frequency standard deviation (one value or one per
     test mode; None: the covariance stored with the modes, else their identified freq_std_hz, else 1 %) and
-    shape standard deviation (a floor, raised per mode to the noise its complexity shows); bands (Hz) for mci/rfm; correlation options (DOF map, frequency window: the pairing of every method)."""
+    shape standard deviation (a floor, raised per mode to the noise its complexity shows); bands (Hz) for
+    mci/rfm; correlation options (DOF map, frequency window: the pairing of every method)."""
 
     method: str = "eigensensitivity"
     parameters: str | None = None
@@ -234,7 +235,8 @@ def _fit_parameters(pm, opts: UpdateOptions, lo, hi, test, frf_path, dofmap, fsi
         kw = {} if fsig is None else {"freq_sigma": fsig, "freq_cov": None}
         est = InverseEigensensitivity(max_iter=opts.max_iter, regularisation=opts.regularisation,
                                       use_shapes=bool(opts.use_shapes and test.has_shapes),
-                                      shape_sigma=_shape_sigma(opts.shape_sigma, test), bounds=(lo, hi), mac_min=opts.correlation.mac_min,
+                                      shape_sigma=_shape_sigma(opts.shape_sigma, test), bounds=(lo, hi),
+                                      mac_min=opts.correlation.mac_min,
                                       pairing=pairing, **kw)
         return est.fit(pm, _on_model_dofs(test, pm.dofs, dofmap), dofmap=dofmap)
     if opts.method == "eigendynamic":
