@@ -54,7 +54,8 @@ def register(sub):
     add_map_arguments(s)
     s.add_argument("--freq-sigma", type=float, nargs="+",
                    help="relative standard deviation of each test frequency (one value, or one per mode); default: "
-                        "the covariance stored with the modes, else 1 %%")
+                        "the covariance stored with the modes, else the standard deviations modalab identify "
+                        "stored in modes.json (freq_std_hz), else 1 %%")
     s.add_argument("--band", nargs=2, type=float, action="append", metavar=("LO", "HI"),
                    help="updating band in Hz for mci/rfm (repeatable)")
     s.add_argument("--max-iter", type=int, default=30, help="iteration limit (default 30)")

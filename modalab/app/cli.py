@@ -597,6 +597,10 @@ def _decode_failure(a, exc) -> str:
     return f"an input could not be decoded ({exc}); check the file arguments"
 
 
+#: exit status when the reader of stdout goes away (a process killed by SIGPIPE: 128 + 13)
+EXIT_BROKEN_PIPE = 141
+
+
 def main(args=None) -> int:
     parser = build_parser()
     a = parser.parse_args(args)
@@ -616,13 +620,15 @@ def main(args=None) -> int:
         with blas_threads(), protect(inputs), assume_quantity(getattr(a, "quantity", None)):
             return int(a.func(a) or 0)
     except BrokenPipeError:
-        # the reader of our output went away (``modalab info x.uff | head -3``): stop quietly
+        # the reader of our output went away (``modalab info x.uff | head -3``): stop quietly, as a Unix tool
+        # killed by SIGPIPE does (exit status 128 + 13), with nothing half-written left behind
+        _remove_created(a, created)
         try:
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, sys.stdout.fileno())
         except (OSError, ValueError):
             pass
-        return 2
+        return EXIT_BROKEN_PIPE
     except KeyboardInterrupt:
         _remove_created(a, created)
         print(f"modalab {a.command}: interrupted", file=sys.stderr)

@@ -175,3 +175,25 @@ def test_stage_progress_is_a_bar_on_a_terminal_and_lines_otherwise():
     text = tty.getvalue()
     assert "stages" in text and "━" in text and "2/7" in text      # the live bar over the stages
     assert "identify  done in 3.1 s" in text
+
+
+def test_info_into_a_pipe_already_closed_exits_quietly_like_a_unix_tool(hits):
+    """``modalab info x.uff | head -3`` when head has gone: no message, no traceback, exit 141 (128 + SIGPIPE),
+    as ``cat``/``grep`` killed by SIGPIPE report to the shell (was: exit 2)."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    env = dict(os.environ, PYTHONPATH=str(root) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    r, w = os.pipe()
+    os.close(r)                                        # the reader is gone before the first line is written
+    try:
+        p = subprocess.run([sys.executable, "-c", "import sys; from modalab.app.cli import main; "
+                            "sys.exit(main(sys.argv[1:]))", "info", str(hits)], stdout=w,
+                           stderr=subprocess.PIPE, env=env, timeout=120)
+    finally:
+        os.close(w)
+    assert p.stderr.decode() == ""
+    assert p.returncode == 141

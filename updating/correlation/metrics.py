@@ -49,7 +49,8 @@ from modalab.core.structure import Structure
 from updating.correlation.dofmap import as_dofmap
 
 __all__ = ["mac", "automac", "macx", "msf", "comac", "ecomac", "cross_orthogonality", "mixed_orthogonality",
-           "frequency_table", "Pairing", "pair_modes", "observability", "MAC_MIN", "FREQ_WINDOW",
+           "frequency_table", "Pairing", "pair_modes", "span_mac", "shape_noise", "CLOSE_MODES", "MERGE_GAIN",
+           "observability", "MAC_MIN", "FREQ_WINDOW",
            "FREQ_WEIGHT", "MIN_OBSERVABILITY", "frac", "csac", "csf", "FrfCorrelation",
            "frf_correlation", "CorrelationResult", "correlate", "analysis_modes"]
 
@@ -287,6 +288,11 @@ MAC_MIN = 0.5
 FREQ_WINDOW = 0.35
 FREQ_WEIGHT = 1.0
 MIN_OBSERVABILITY = 1e-6
+#: analysis modes closer than this (relative frequency) to a test mode's partner can merge with it in a test
+CLOSE_MODES = 0.03
+#: a test shape explained better by this much MAC by its partner and the partner's close neighbours together
+#: than by its partner alone is a merge of those modes (when the test has fewer modes there): not paired
+MERGE_GAIN = 0.1
 
 
 @dataclass
@@ -397,7 +403,8 @@ def _order_pairs(rel, allowed):
 def pair_modes(mac_matrix=None, freq_a_hz=None, freq_x_hz=None, *, mac_min: float = MAC_MIN,
                freq_weight: float | None = None, max_freq_error: float | None = FREQ_WINDOW,
                observability=None, min_observability: float = MIN_OBSERVABILITY, rigid_hz: float | None = None,
-               rigid: str = "exclude") -> Pairing:
+               rigid: str = "exclude", mode_shapes=None, close_modes: float = CLOSE_MODES,
+               merge_gain: float = MERGE_GAIN) -> Pairing:
     """Pair analysis modes (rows) with test modes (columns): the one pairing rule of modalab.
 
     ``correlate``, every updating method and the diagnosis fit use this function, so
@@ -424,6 +431,17 @@ def pair_modes(mac_matrix=None, freq_a_hz=None, freq_x_hz=None, *, mac_min: floa
     ``rigid='pair'`` rigid-body modes are paired by MAC alone with test modes below half the
     lowest elastic analysis frequency and reported in ``rigid_pairs`` — never as an
     objective pair.  Every exclusion and every unpaired test mode carries its reason.
+
+    **Merged and ambiguous test modes** (``mode_shapes=(analysis at the test DOFs, test shapes)``, the arrays the
+    MAC matrix was computed from): a test mode whose shape is explained by its partner ``i`` together with the
+    unpaired elastic analysis modes within ``close_modes`` of ``f_i`` (at most three, the nearest) better, by
+    ``merge_gain`` or more in MAC, than by ``i`` alone, where the test has fewer modes within ``close_modes`` of
+    its frequency than that group, is two or more close modes identified as one (a merge, whose frequency and
+    damping belong to none of them): it is left unpaired, with that reason, and the assignment is redone
+    without it.  A close group with as many test modes as analysis modes is a rotation of the group between
+    the models (the shapes mix differently): those modes stay paired by the assignment.  A test mode
+    paired with MAC 0.53 at 37.5 Hz whose shape the FE modes at 37.30, 37.42 and 37.63 Hz explain with
+    MAC 1.00 together is such a merge (issue 14).
     """
     if rigid not in ("exclude", "pair"):
         raise ModalabValueError(f"rigid={rigid!r}; expected 'exclude' or 'pair'")
@@ -493,26 +511,23 @@ def pair_modes(mac_matrix=None, freq_a_hz=None, freq_x_hz=None, *, mac_min: floa
         allowed &= rel <= window
     allowed &= elastic[:, None]
 
-    pairs: list = []
-    if na and nx:
-        if shapes:
-            cost = (1.0 - Mc) + freq_weight * np.minimum(rel, 1e6)
-            u = (1.0 - mac_min) + (freq_weight * window if window is not None else
-                                   freq_weight * float(np.minimum(rel, 1e6)[allowed].max(initial=0.0)))
-            big = 1e6 * (1.0 + u + float(np.abs(cost[allowed]).max(initial=0.0)))
-            n = na + nx
-            C = np.full((n, n), big)
-            C[:na, :nx] = np.where(allowed, cost, big)
-            C[:na, nx:][np.diag_indices(na)] = 0.5 * u
-            C[na:, :nx][np.diag_indices(nx)] = 0.5 * u
-            C[na:, nx:] = 0.0
-            r, c = linear_sum_assignment(C)
-            pairs = [(int(i), int(j)) for i, j in zip(r, c) if i < na and j < nx and allowed[i, j]]
-        else:
-            oa = np.argsort(fa, kind="stable")
-            ox = np.argsort(fx, kind="stable")
-            sub = _order_pairs(rel[np.ix_(oa, ox)], allowed[np.ix_(oa, ox)])
-            pairs = [(int(oa[i]), int(ox[j])) for i, j in sub]
+    merged: dict[int, str] = {}
+    Sa = Sx = None
+    if mode_shapes is not None and shapes and has_f:
+        Sa, Sx = (np.asarray(v) for v in mode_shapes)
+        if Sa.ndim != 2 or Sx.ndim != 2 or Sa.shape[1] != na or Sx.shape[1] != nx or Sa.shape[0] != Sx.shape[0]:
+            raise ShapeError(f"mode_shapes are {Sa.shape} and {Sx.shape}; expected (n_dof, {na}) and (n_dof, {nx}) "
+                             "on the same DOFs as the MAC matrix")
+    while True:
+        pairs = _assign(Mc, rel, fa, fx, allowed, shapes, freq_weight, mac_min, window) if na and nx else []
+        if Sa is None:
+            break
+        new = _merged_tests(pairs, Mc, Sa, Sx, fa, fx, elastic, close_modes, merge_gain)
+        if not new:
+            break
+        merged.update(new)
+        for j in new:
+            allowed[:, j] = False
     pairs.sort(key=lambda p: p[1])
 
     rigid_pairs: list = []
@@ -534,8 +549,8 @@ def pair_modes(mac_matrix=None, freq_a_hz=None, freq_x_hz=None, *, mac_min: floa
     for j in range(nx):
         if j in used_x:
             continue
-        reasons[j] = _unpaired_reason(j, Mc, rel, fa, fx, elastic, excluded, partner_of_a, mac_min, window,
-                                      shapes)
+        reasons[j] = merged[j] if j in merged else _unpaired_reason(j, Mc, rel, fa, fx, elastic, excluded,
+                                                                       partner_of_a, mac_min, window, shapes)
     ooo = [p for p in pairs if any((q[1] - p[1]) * (q[0] - p[0]) < 0 for q in pairs)]
     if shapes:
         how = "Hungarian assignment on (1 - MAC)"
@@ -558,6 +573,83 @@ def pair_modes(mac_matrix=None, freq_a_hz=None, freq_x_hz=None, *, mac_min: floa
         log.info("test modes without an analysis partner: %s",
                  "; ".join(f"{j + 1}: {reasons[j]}" for j in res.unpaired_test))
     return res
+
+
+def _assign(Mc, rel, fa, fx, allowed, shapes, freq_weight, mac_min, window) -> list:
+    """The pairs of :func:`pair_modes` for the candidates ``allowed``: Hungarian with the option of no partner
+    (shapes), or the order-preserving matching (frequencies only)."""
+    na, nx = Mc.shape
+    if shapes:
+        cost = (1.0 - Mc) + freq_weight * np.minimum(rel, 1e6)
+        u = (1.0 - mac_min) + (freq_weight * window if window is not None else
+                               freq_weight * float(np.minimum(rel, 1e6)[allowed].max(initial=0.0)))
+        big = 1e6 * (1.0 + u + float(np.abs(cost[allowed]).max(initial=0.0)))
+        n = na + nx
+        C = np.full((n, n), big)
+        C[:na, :nx] = np.where(allowed, cost, big)
+        C[:na, nx:][np.diag_indices(na)] = 0.5 * u
+        C[na:, :nx][np.diag_indices(nx)] = 0.5 * u
+        C[na:, nx:] = 0.0
+        r, c = linear_sum_assignment(C)
+        return [(int(i), int(j)) for i, j in zip(r, c) if i < na and j < nx and allowed[i, j]]
+    oa = np.argsort(fa, kind="stable")
+    ox = np.argsort(fx, kind="stable")
+    sub = _order_pairs(rel[np.ix_(oa, ox)], allowed[np.ix_(oa, ox)])
+    return [(int(oa[i]), int(ox[j])) for i, j in sub]
+
+
+def shape_noise(shapes) -> np.ndarray:
+    """Relative noise level of each identified shape, read from its complexity: ``√2 ‖Im ψ'‖ / ‖Re ψ'‖``.
+
+    ``ψ'`` is the shape rotated so that its imaginary part is least-squares minimal (the rotation of
+    :func:`~modalab.core.modes.real_mode_approximation`).  A normal mode of a lightly, proportionally damped
+    structure is real up to a common phase, so what remains out of phase is noise (or a neighbour's leakage,
+    or non-proportional damping: all of which a real FE mode cannot reproduce); noise is equally likely in
+    phase and out of phase, hence the √2.  A real shape gives 0.  Per mode, relative to the RMS amplitude
+    of a component, like ``shape_sigma`` of the eigensensitivity updater: a weakly excited mode
+    identified with MPC 0.64 gives about 0.45, a clean one (MPC 0.999) about 0.02.
+    """
+    phi = np.atleast_2d(np.asarray(shapes))
+    if not np.iscomplexobj(phi):
+        return np.zeros(phi.shape[1])
+    theta = 0.5 * np.angle(np.sum(phi * phi, axis=0))
+    rot = phi * np.exp(-1j * theta)[None, :]
+    re = np.linalg.norm(rot.real, axis=0)
+    return np.sqrt(2.0) * np.linalg.norm(rot.imag, axis=0) / np.maximum(re, _TINY)
+
+
+def span_mac(x, basis) -> float:
+    """MAC of the shape ``x`` with the subspace spanned by the columns of ``basis`` (least squares):
+    ``‖B c‖² / ‖x‖²`` with ``c`` minimising ``‖x − B c‖``; equals :func:`mac` for one column."""
+    x = np.asarray(x).ravel()
+    B = np.asarray(basis).reshape(x.size, -1)
+    nx2 = float(np.vdot(x, x).real)
+    if nx2 <= _TINY or not B.size:
+        return 0.0
+    c, *_ = np.linalg.lstsq(B.astype(complex), x.astype(complex), rcond=None)
+    return float(min(1.0, np.linalg.norm(B @ c) ** 2 / nx2))
+
+
+def _merged_tests(pairs, Mc, Sa, Sx, fa, fx, elastic, close_modes, merge_gain) -> dict:
+    """``{test index: reason}`` for paired test modes whose shape is a merge of their partner and its close,
+    unpaired analysis neighbours (:func:`pair_modes`, 'Merged and ambiguous test modes')."""
+    paired_a = {a for a, _ in pairs}
+    out = {}
+    for i, j in pairs:
+        near = [k for k in np.flatnonzero(elastic) if k != i and k not in paired_a
+                and abs(fa[k] - fa[i]) <= close_modes * abs(fa[i])]
+        if not near:
+            continue
+        near = sorted(near, key=lambda k: (abs(fa[k] - fa[i]), k))[:3]
+        group = sorted([i] + [int(k) for k in near])
+        if np.sum(np.abs(fx - fx[j]) <= close_modes * abs(fx[j])) >= len(group):
+            continue            # as many test modes as FE modes there: a close group rotated, not a merge
+        m_span = span_mac(Sx[:, j], Sa[:, group])
+        if m_span - Mc[i, j] >= merge_gain:
+            fe = ", ".join(f"{k + 1} ({fa[k]:.4g} Hz)" for k in group)
+            out[j] = (f"merged or ambiguous: its shape is a mix of the close FE modes {fe} (MAC {Mc[i, j]:.3f} "
+                      f"with FE {i + 1} alone, {m_span:.3f} with them together): not paired")
+    return out
 
 
 def _unpaired_reason(j, Mc, rel, fa, fx, elastic, excluded, partner_of_a, mac_min, window, shapes) -> str:
@@ -903,7 +995,7 @@ def correlate(analysis, test: ModeSet, *, dofmap=None, mac_min: float = MAC_MIN,
     obs = observability(A, analysis.shapes, analysis.dofs)
     pairing = pair_modes(M, ana.freq_hz, test.freq_hz, mac_min=mac_min, freq_weight=freq_weight,
                          max_freq_error=max_freq_error, observability=obs, min_observability=min_observability,
-                         rigid_hz=rigid_hz, rigid=rigid)
+                         rigid_hz=rigid_hz, rigid=rigid, mode_shapes=(A, X))
     ia, jx = pairing.analysis_index, pairing.test_index
     rows = frequency_table(ana.freq_hz, test.freq_hz, pairing.pairs)
     ferr = np.array([r["freq_error_pct"] for r in rows], float)

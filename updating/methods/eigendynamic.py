@@ -153,7 +153,8 @@ class EigendynamicConstraint:
                                                                              test_modes.n_modes + 6)))
         Pa = np.asarray(C @ sol.phi)
         pr = pair_modes(mac(Pa, test_modes.real_shapes), sol.freq_hz, test_modes.freq_hz, mac_min=self.mac_min,
-                        observability=observability(Pa, sol.phi, model.dofs), **(self.pairing or {}))
+                        observability=observability(Pa, sol.phi, model.dofs),
+                        mode_shapes=(Pa, test_modes.real_shapes), **(self.pairing or {}))
         self.pairing_ = pr
         if not pr.pairs:
             raise ModalabValueError(f"no test mode pairs with an analysis mode ({pr.method}); check the DOF map")

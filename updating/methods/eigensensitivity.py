@@ -90,7 +90,7 @@ def _mac_pair(Pa, Px, mac_min, freq_a_hz=None, freq_x_hz=None, phi_full=None, do
 
     Mm = mac(Pa, Px)
     obs = observability(Pa, phi_full, dofs) if phi_full is not None else None
-    pr = pair_modes(Mm, freq_a_hz, freq_x_hz, mac_min=mac_min, observability=obs, **kw)
+    pr = pair_modes(Mm, freq_a_hz, freq_x_hz, mac_min=mac_min, observability=obs, mode_shapes=(Pa, Px), **kw)
     return [(int(a), int(x)) for a, x in pr.pairs], Mm, pr
 
 

@@ -19,7 +19,7 @@ from modalab.app.report import plot_convergence
 from modalab.core.frf import FRF
 from updating.methods.rfm import ResponseFunctionMethod
 from updating.methods import direct as dm
-from updating.correlation.metrics import correlate as _correlate
+from updating.correlation.metrics import correlate as _correlate, shape_noise
 from modalab.core.structure import Structure
 
 log = logging.getLogger(__name__)
@@ -36,8 +36,9 @@ class UpdateOptions:
     """``modalab update``: method (:data:`UPDATE_METHODS`), parameter file (default E and density per property),
     iteration limit, and for eigensensitivity the regularisation ('lcurve', 'gcv' or a number), use of mode
     shapes (never for a frequency-only test set), relative frequency standard deviation (one value or one per
-    test mode; None: the covariance stored with the modes, else 1 %) and shape standard deviation; bands (Hz)
-    for mci/rfm; correlation options (DOF map, frequency window: the pairing of every method)."""
+    test mode; None: the covariance stored with the modes, else their identified freq_std_hz, else 1 %) and
+    shape standard deviation (a floor, raised per mode to the noise its complexity shows); bands (Hz) for
+    mci/rfm; correlation options (DOF map, frequency window: the pairing of every method)."""
 
     method: str = "eigensensitivity"
     parameters: str | None = None
@@ -75,9 +76,34 @@ def _on_model_dofs(modes, dofs, dofmap):
 
 
 def _freq_sigma(value, test, modes_path):
-    """The relative frequency sigma: None, one positive value, or one per test mode (checked)."""
-    if value is None or test is None:
+    """The relative frequency sigma: None, one positive value, or one per test mode (checked).
+
+    Not given: the covariance stored with the modes (None here: the updater reads it), else the standard
+    deviations ``modalab identify`` stored with each mode (indicator ``freq_std_hz``: FRF noise and spread over
+    the model orders, coverage tested), relative to the frequency; a mode without one keeps 1 %.  With 1 % for
+    frequencies identified to 0.01 %, the shape residuals' small biases outweighed the frequencies and moved an
+    exact model's parameters by 1.4 % (issue 14)."""
+    if test is None:
         return None
+    if value is None:
+        if test.freq_cov is not None or not test.n_modes:
+            return None
+        std = (test.indicators or {}).get("freq_std_hz")
+        if std is None:
+            log.warning("%s holds no frequency standard deviations (a UFF 55 cannot): every test frequency is "
+                        "weighted with a relative sigma of 1 %%; the modes.json of modalab identify carries them, "
+                        "or give --freq-sigma", modes_path)
+            return None
+        rel = np.asarray(std, float).ravel() / np.asarray(test.freq_hz, float)
+        if rel.size != test.n_modes:
+            return None
+        ok = np.isfinite(rel) & (rel > 0)
+        if not ok.any():
+            return None
+        if not ok.all():
+            log.info("test mode(s) %s carry no frequency standard deviation: relative sigma 1 %%",
+                     ", ".join(str(j + 1) for j in np.flatnonzero(~ok)))
+        return np.where(ok, rel, 0.01)
     fs = np.atleast_1d(np.asarray(value, float))
     if fs.size not in (1, test.n_modes) or not np.all(np.isfinite(fs)) or np.any(fs <= 0):
         raise PlanError(f"--freq-sigma: got {fs.size} value(s); expected one positive relative sigma "
@@ -171,8 +197,34 @@ def _identifiability(up, pm, test, fsig) -> dict:
     return {"condition_number": float(up.condition_), "identifiable": bool(up.identifiable_),
             "std_unregularised": {n: (float(v) if np.isfinite(v) else None)
                                   for n, v in zip(names, np.atleast_1d(up.std_unregularised_))},
-            "frequency_weights": ("covariance of the test frequencies" if test.freq_cov is not None and fsig is None
-                                  else f"relative sigma {fsig if fsig is not None else 0.01}")}
+            "frequency_weights": _weights_text(test, fsig)}
+
+
+def _weights_text(test, fsig) -> str:
+    if fsig is None:
+        return "covariance of the test frequencies" if test.freq_cov is not None else "relative sigma 0.01"
+    if np.ndim(fsig) and np.size(fsig) > 1:
+        return (f"relative sigma per test mode {np.min(fsig):.3g}..{np.max(fsig):.3g} (standard deviations "
+                "stored with the modes, or given)")
+    return f"relative sigma {float(fsig):g}"
+
+
+def _shape_sigma(shape_sigma, test):
+    """Per test mode, the relative standard deviation of a shape component in the eigensensitivity objective:
+    the given ``shape_sigma`` (a floor), raised to the noise the identified shape carries by its complexity
+    (:func:`updating.correlation.metrics.shape_noise`).  A weakly excited mode whose shape came out with MPC 0.64
+    has a component noise near 45 %: weighted as if it were 5 %, its shape pulled an exact model's parameters
+    by several % (issue 14); its frequency keeps its full weight."""
+    if not test.has_shapes:
+        return shape_sigma
+    noise = shape_noise(test.shapes)
+    sig = np.maximum(float(shape_sigma), noise)
+    raised = np.flatnonzero(sig > float(shape_sigma))
+    if raised.size:
+        log.info("shape weights: test mode(s) %s carry more shape noise than %g (complexity): sigma %s",
+                 ", ".join(str(j + 1) for j in raised), shape_sigma,
+                 ", ".join(f"{sig[j]:.2g}" for j in raised))
+    return sig
 
 
 def _fit_parameters(pm, opts: UpdateOptions, lo, hi, test, frf_path, dofmap, fsig):
@@ -183,7 +235,8 @@ def _fit_parameters(pm, opts: UpdateOptions, lo, hi, test, frf_path, dofmap, fsi
         kw = {} if fsig is None else {"freq_sigma": fsig, "freq_cov": None}
         est = InverseEigensensitivity(max_iter=opts.max_iter, regularisation=opts.regularisation,
                                       use_shapes=bool(opts.use_shapes and test.has_shapes),
-                                      shape_sigma=opts.shape_sigma, bounds=(lo, hi), mac_min=opts.correlation.mac_min,
+                                      shape_sigma=_shape_sigma(opts.shape_sigma, test), bounds=(lo, hi),
+                                      mac_min=opts.correlation.mac_min,
                                       pairing=pairing, **kw)
         return est.fit(pm, _on_model_dofs(test, pm.dofs, dofmap), dofmap=dofmap)
     if opts.method == "eigendynamic":

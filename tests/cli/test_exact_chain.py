@@ -1,0 +1,58 @@
+"""An exact model stays exact through the documented CLI chain (issue 14 #1-#2).
+
+Hits simulated from ``examples/demo_project/nominal.bdf`` itself (13 roving-hammer points, 3 accelerometers,
+the issue's command), then ``frf`` with and without the exponential window, ``identify --band 5 700`` and
+``update`` with the demo's parameter file, every step through ``main([...])`` as a user types it.  The data hold
+what broke the chain: three FE modes within 0.9 % at 37.3-37.6 Hz that identification returns as one mode
+(its shape a mix of them: MAC 0.53 with the nearest FE mode alone), three at 313-314.5 Hz merged into one
+mode, and a weakly excited mode at 375 Hz whose shape comes out with MPC 0.64.  Before the fix the update
+moved E_wing by +3.6 % and rho_fuselage by +5 %.  The simulated lab's signal chain (hammer, noise,
+averaging, H1) and the identification are not the FE code under test; the pairing and the updating are.
+"""
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from modalab.app.cli import main
+
+ROOT = Path(__file__).resolve().parents[2]
+DEMO = ROOT / "examples" / "demo_project"
+POINTS = "200+Z 204+Z 208+Z 213+Z 217+Z 218+Z 100+Z 115+Z 308+Z 408+Z 508+Y 600+Z 608+Z".split()
+REFS = "218+Z 200+Z 508+Y".split()
+
+
+@pytest.fixture(scope="module")
+def hits(tmp_path_factory):
+    d = tmp_path_factory.mktemp("exact_chain")
+    assert main(["sim", "--structure", str(DEMO / "nominal.bdf"), "--points", *POINTS, "--references", *REFS,
+                 "-o", str(d / "hits.uff"), "--no-plot"]) == 0
+    return d / "hits.uff"
+
+
+@pytest.mark.parametrize("window", [["--exp-end", "0.01"], []], ids=["exp-window", "no-window"])
+def test_the_documented_chain_leaves_the_nominal_parameters_at_nominal(hits, tmp_path, window):
+    assert main(["frf", str(hits), *window, "-o", str(tmp_path / "frf.uff"), "--no-plot"]) == 0
+    assert main(["identify", str(tmp_path / "frf.uff"), "--band", "5", "700", "-o", str(tmp_path / "modes.uff"),
+                 "--json", str(tmp_path / "modes.json")]) == 0
+    assert main(["update", str(DEMO / "nominal.bdf"), "--modes", str(tmp_path / "modes.json"),
+                 "--params", str(DEMO / "params.toml"), "-o", str(tmp_path / "updated")]) == 0
+    up = json.loads((tmp_path / "updated" / "update.json").read_text())
+    p = {k: v["updated"] for k, v in up["parameters"].items()}
+    assert set(p) == {"E_wing", "t_wing", "t_fin", "rho_fuselage"}
+    assert all(abs(v - 1.0) < 0.005 for v in p.values()), p
+    # the merged 37.5 Hz test mode is reported unpaired, with its reason, and is out of the objective
+    before = up["correlation_before"]
+    modes = json.loads((tmp_path / "modes.json").read_text())
+    f = np.asarray(modes["freq_hz"])
+    k = int(np.argmin(np.abs(f - 37.5))) + 1
+    assert abs(f[k - 1] - 37.5) < 0.2
+    # honest damping: the deck's structural damping (PARAM G 0.02) gives every mode zeta = 1 %; a merged pick
+    # refined into a compromise over three modes read 4.4 % at 311.5 Hz before
+    assert np.all(np.abs(np.asarray(modes["damping"]) - 0.01) < 0.003), modes["damping"]
+    assert k in before["pairing"]["unpaired_test_modes"]
+    assert before["pairing"]["unpaired_reason"][str(k)].startswith("merged or ambiguous")
+    # every pair the objective kept is a true one: frequency within 0.5 %
+    rows = before["pairs"]
+    assert len(rows) >= 15 and all(abs(r["freq_error_pct"]) < 0.5 for r in rows), rows
