@@ -65,6 +65,7 @@ from updating.diagnosis.library import _nodes_of
 from modalab.core.dof import parse_dofs
 from modalab.core.dof import locate
 from updating.correlation.condensation import condensed_residual
+from updating.correlation.metrics import mac as mac_matrix, pair_modes, shape_noise
 
 log = logging.getLogger(__name__)
 __all__ = ["diagnose_modes", "modes_data", "fit_modes", "mode_errors", "modal_force_map", "ModalResidual",
@@ -313,7 +314,9 @@ class ModalResidual:
         self.phi = phi / np.maximum(np.linalg.norm(phi, axis=0), 1e-300)
         self.f = np.asarray(test_modes.freq_hz, float)[idx]
         self.dofs = list(test_modes.dofs)
-        self.sigma_f, self.sigma_phi = float(sigma_f), float(sigma_phi)
+        sf, sphi = np.asarray(sigma_f, float), np.asarray(sigma_phi, float)     # one value, or one per test mode
+        self.sigma_f = float(sf) if sf.ndim == 0 else sf[idx]
+        self.sigma_phi = float(sphi) if sphi.ndim == 0 else sphi[idx]
         self._loc = None
 
     @property
@@ -380,14 +383,15 @@ class ModalResidual:
         seen = nrm > UNOBSERVABLE * max(nrm.max(initial=0.0), 1e-300)
         U = Vm / np.maximum(nrm, 1e-300)
         mac = (U.T @ self.phi) ** 2                                           # (model, test)
-        mac[~seen] = -1.0
+        # the cost of modalab's one pairing rule (updating.correlation.metrics.pair_modes): (1 − MAC) plus the
+        # relative frequency distance, one-to-one by the Hungarian algorithm (deterministic); a mode the
+        # sensors cannot see is never paired.  Greedy MAC alone paired an exact model's 37.5 Hz test mode
+        # with a model mode far away and moved its parameters by 3-4 %.
+        cost = (1.0 - mac) + np.abs(fm[:, None] - self.f[None, :]) / self.f[None, :]
+        cost[~seen] = 1e6
+        r, c = so.linear_sum_assignment(cost)
         a = np.empty(nt, int)
-        best = mac.max(axis=0)
-        for j in np.argsort(-best, kind="stable"):                           # clearest test modes first
-            k = int(np.argmax(mac[:, j]))                                     # (the first of equal ones)
-            a[j] = k
-            mac[k, :] = -2.0                                                  # a model mode is used once
-            mac[k, j] = (U[:, k] @ self.phi[:, j]) ** 2
+        a[c] = r
         return a, np.clip(np.einsum("ij,ij->j", U[:, a], self.phi) ** 2, 0.0, 1.0)
 
     def residual(self, fm, Vm) -> np.ndarray:
@@ -403,6 +407,51 @@ class ModalResidual:
 
     def __call__(self, structure, K=None, M=None, basis: ModalSubspace | None = None) -> np.ndarray:
         return self.residual(*self.model_modes(structure, K, M, basis))
+
+
+#: relative frequency precision without identified standard deviations (a UFF 55 carries none)
+SIGMA_F_DEFAULT = 0.005
+#: the smallest relative frequency precision used: an FE model's frequencies are not better than about 0.1 %
+#: (mesh, mass lumping), so an identified standard deviation of 1e-5 must not make such a difference significant
+SIGMA_F_FLOOR = 1e-3
+
+
+def _sigma_f(test_modes: ModeSet, sigma_f):
+    """The relative frequency precision per test mode (see :func:`diagnose_modes`)."""
+    if sigma_f is not None:
+        return sigma_f
+    std = (test_modes.indicators or {}).get("freq_std_hz")
+    if std is None:
+        return SIGMA_F_DEFAULT
+    rel = np.asarray(std, float).ravel() / np.asarray(test_modes.freq_hz, float)
+    if rel.size != test_modes.n_modes or not np.all(np.isfinite(rel) & (rel > 0)):
+        log.info("modes: the test modes' freq_std_hz are incomplete; relative frequency sigma %g", SIGMA_F_DEFAULT)
+        return SIGMA_F_DEFAULT
+    return np.maximum(rel, SIGMA_F_FLOOR)
+
+
+def paired_test_modes(structure, test_modes: ModeSet):
+    """The test modes that pair with a mode of ``structure`` by modalab's one pairing rule
+    (:func:`updating.correlation.metrics.pair_modes`: MAC and frequency, modes the sensors cannot see and
+    rigid-body modes excluded, a test mode that is a merge of close model modes left out; no frequency window,
+    since the physics sought may move a mode far), as ``(indices, {left-out index: reason})``.  The modes-only objective is defined on these modes
+    only: a test mode without a counterpart in the nominal model would otherwise pull the parameters
+    towards a wrong partner."""
+    r = ModalResidual(test_modes)
+    fm, Vm = r.model_modes(structure)
+    if not r.has_shapes:
+        pr = pair_modes(None, fm, r.f)
+    else:
+        nrm = np.linalg.norm(Vm, axis=0)
+        seen = nrm > UNOBSERVABLE * max(nrm.max(initial=0.0), 1e-300)
+        # no frequency window: missing physics may move a mode far (a spring to ground gives a free bar a
+        # mode of its own); what must stay out are modes the sensors cannot see and merges of close modes
+        pr = pair_modes(mac_matrix(Vm, r.phi), fm, r.f, observability=seen.astype(float), max_freq_error=None,
+                        mode_shapes=(Vm, r.phi))
+    usable = np.array(sorted(int(x) for _, x in pr.pairs), int)
+    left = {int(j): pr.unpaired_reason.get(int(j), "no mode of the nominal model pairs with it")
+            for j in range(test_modes.n_modes) if int(j) not in set(usable.tolist())}
+    return usable, left
 
 
 def mode_errors(structure, test_modes: ModeSet, keep=None):
@@ -682,7 +731,7 @@ def _on_independent_dofs(cands, structure) -> list:
 
 def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
                    kinds=("ground_spring", "added_mass"), max_findings: int = 3, penalty: float = 3.0,
-                   n_try: int = 4, min_gain: float = 0.3, min_term_gain: float = 0.15, sigma_f: float = 0.005,
+                   n_try: int = 4, min_gain: float = 0.3, min_term_gain: float = 0.15, sigma_f=None,
                    sigma_phi: float = 0.02, progress=None) -> Diagnosis:
     """Diagnose stiffness and mass physics from identified modes only (module docstring).
 
@@ -691,6 +740,12 @@ def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
     DOFs).  Returns a :class:`Diagnosis` whose fit blocks hold ``freq_error_max_pct``,
     ``freq_error_rms_pct`` and ``mac_min`` (with shapes) on the held-out modes (``frf_error_held_out`` is
     None: there are no FRFs).  A numerical failure of an eigen-solution is an error, never a residual.
+
+    ``sigma_f`` (relative frequency precision; one value or one per test mode): by default the standard
+    deviations the identification stored with the modes (``freq_std_hz``), not below
+    :data:`SIGMA_F_FLOOR`, else :data:`SIGMA_F_DEFAULT`.  Shapes are weighted by ``sigma_phi`` raised to the
+    noise each identified shape shows by its complexity.  Test modes that do not pair with the nominal model
+    (:func:`paired_test_modes`) are left out, each with its reason.
     """
     t0 = time.perf_counter()
     say = progress or (lambda msg: log.info(msg))
@@ -715,9 +770,25 @@ def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
     pm = ParametricFEModel(model, params)
     p_nom = np.array(pm.p0, float)
     lo, hi = _bounds(params, p_nom)
-    n = test_modes.n_modes
-    held = np.arange(2, n, 3) if n >= 5 else np.array([], int)
-    train = np.setdiff1d(np.arange(n), held)
+    usable, left_out = paired_test_modes(pm.structure(p_nom), test_modes)
+    for j, why in left_out.items():
+        say(f"modes: test mode {j + 1} ({test_modes.freq_hz[j]:.4g} Hz) left out: {why}")
+    if usable.size < 2:
+        raise ModalabValueError(f"only {usable.size} of {test_modes.n_modes} test modes pair with a mode of the "
+                                "nominal model (frequency window, MAC, merged modes); a modes-only diagnosis needs "
+                                "at least 2: check the DOF map and the model")
+    held = usable[2::3] if usable.size >= 5 else np.array([], int)
+    train = np.setdiff1d(usable, held)
+    sigma_f = _sigma_f(test_modes, sigma_f)
+    if has_shapes and np.iscomplexobj(test_modes.shapes):
+        # a shape identified with noise (complexity: a weakly excited mode, MPC 0.64) is weighted by that noise,
+        # as in the update stage; a clean one by sigma_phi
+        noise = shape_noise(np.asarray(test_modes.shapes).reshape(len(test_modes.dofs), test_modes.n_modes))
+        raised = np.flatnonzero(noise > sigma_phi)
+        if raised.size:
+            log.info("modes: test mode(s) %s carry more shape noise than %g: sigma %s",
+                     ", ".join(str(j + 1) for j in raised), sigma_phi, np.round(noise[raised], 3))
+        sigma_phi = np.maximum(float(sigma_phi), noise)
     resid = ModalResidual(test_modes, train, sigma_f=sigma_f, sigma_phi=sigma_phi)
     n_eq = resid.n_eq
     dens_free = np.array([par.field not in ("rho", "nsm") for par in params])
