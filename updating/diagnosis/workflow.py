@@ -46,6 +46,7 @@ from updating.fe import FEModel, Parameter, ParametricFEModel
 from updating.diagnosis.fit import RITZ_LIMIT, FRFData, Prior, fit_frf, frf_data, frf_error, model_frf, quick_frf_error
 from updating.diagnosis.frfscreen import frf_screen
 from updating.diagnosis.library import Candidate, _nodes_of, build_library, validate_kinds
+from updating.diagnosis.release import release_screen
 from updating.diagnosis.screen import mci_update, rank_candidates, residual_map, residual_system
 from modalab.core.dof import parse_dofs
 from updating.correlation.metrics import analysis_modes, correlate
@@ -822,11 +823,18 @@ class Diagnoser:
         # exact single-candidate FRF screening (non-linear in the value; strong effects that the linear MCI
         # screening mis-ranks), around the nominal parameters first (parameter updating may have bent them
         # to hide the effect), then around the current model
+        # joint and support releases are screened exactly too, at every place (updating.diagnosis.release)
+        releases = [c for c in lib if c.release is not None and c.key not in have]
         screens = []
         for p_scr in ([self.p_nomd, self.upd.p] if it == 0 else [p_cur]):
             try:
-                screens.append(frf_screen(pm_cur.structure(p_scr), lib, self.train,
-                                          loss_factor=float(pm_cur.model_at(p_scr).global_ge or 0.0)))
+                st_scr, m_scr = pm_cur.structure(p_scr), pm_cur.model_at(p_scr)
+                g_scr = float(m_scr.global_ge or 0.0)
+                scr = frf_screen(st_scr, lib, self.train, loss_factor=g_scr)
+                if releases:
+                    scr = sorted(scr + release_screen(st_scr, m_scr, releases, self.train, loss_factor=g_scr),
+                                 key=lambda t: -t[2])
+                screens.append(scr)
             except (np.linalg.LinAlgError, ModalabValueError) as e:
                 log.warning("FRF screening around parameters %s failed and is left out: %s", np.round(p_scr, 4), e)
         if self.use_mci:
@@ -847,23 +855,27 @@ class Diagnoser:
         if self.ranking is None:
             self.ranking, self.hot_nodes = rk, hot
         options = [(c, th) for c, th, g in rk[:cfg.n_try if self.use_mci else 0] if c.key not in have and g > 0.02]
-        # FRF-screen picks: the best two overall and the best of each kind of matrix
+        # FRF-screen picks: the best two overall, the best of each kind of matrix and the best release of each
+        # kind (joint, support): a release changes the DOF set, which no other candidate can imitate exactly
         listed = {c.key for c, _ in options}
         for scr in screens:
             by_kind: dict = {}
             for c, v, g in scr:
                 by_kind.setdefault(c.matrix, []).append((c, v, g))
+                if c.release is not None:
+                    by_kind.setdefault(c.physics, []).append((c, v, g))
             for c, v, g in scr[:2 if self.use_mci else 3] + [lst[0] for lst in by_kind.values()]:
                 if c.key not in listed and c.key not in have and g > 0.05:
                     options.append((c, v))
                     listed.add(c.key)
         near = set(hot) | {n for c, _, _ in rk[:1] for n in c.nodes}
-        # joints near the located nodes (within one element) and every support release (they are few)
+        # joints without an exact release form (rigid links softened) near the located nodes (within one element)
         near |= {b for e in pm_cur.model_at(p_cur).elements.values()
                  if near & set(_nodes_of(e)) for b in _nodes_of(e)}
-        options += [(c, None) for c in lib if not c.shared and c.physics == "joint_flexibility"
+        options += [(c, None) for c in lib if not c.shared and c.release is None and c.physics == "joint_flexibility"
                     and near & set(c.nodes) and c.key not in have][:cfg.n_try]
-        options += [(c, None) for c in lib if c.physics == "boundary_flexibility" and c.key not in have]
+        options += [(c, None) for c in lib if c.release is None and c.physics == "boundary_flexibility"
+                    and c.key not in have]
         return options
 
     def _start_value(self, c, pm_aug, p_par, prev) -> float:
@@ -914,6 +926,12 @@ class Diagnoser:
                     pa, ra, _ = mci_update(pm_aug, start, self.train, clo, chi, weights=self.W,
                                            iters=3 if self.large else 6,
                                            free=np.concatenate([self.free_mci, np.ones(len(cpar), bool)]))
+                    if c.release is not None and th is not None:
+                        # a release's residual is far from linear in its stiffness (the expansion of the DOFs it
+                        # frees depends on it): the iteration may leave the exactly screened value for a worse one
+                        y0 = residual_system(pm_aug.structure(start), self.train, self.W).y
+                        if float(y0 @ y0) < ra:
+                            pa, ra = start, float(y0 @ y0)
                 else:
                     fr = self._fit(pm_aug, self.train, start, lower=clo, upper=chi, max_nfev=max(8, cfg.max_nfev // 2))
                     pa, ra = fr.p, fr.error ** 2
