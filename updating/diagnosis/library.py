@@ -12,11 +12,13 @@ added_mass             point mass at a node (CONM2), or rotary         m, J     
 local_damping          hysteretic damping on an element group          ge (η)      D
                        (property clone with GE), or a dashpot to
                        ground on one DOF (CDAMP)                       c           C
-joint_flexibility      a node split in two (new GRID), the halves      k           K
-                       joined rigidly except one component, which
-                       gets a spring (RBE2 + CELAS)
-boundary_flexibility   one constrained component released (SPC         k           K
-                       edited) into a spring to ground
+joint_flexibility      a member end at a joint node (every node where  k           K
+                       two or more members meet) on a node of its own
+                       (new GRID), joined rigidly except one rotation,
+                       which gets a spring (RBE2 + CELAS)
+boundary_flexibility   constrained components released (SPC edited)    k           K
+                       into springs to ground: one, or a clamp's
+                       translations or rotations together
 =====================  ==============================================  ==========  =========
 
 The frequency signature of each follows from the dynamic stiffness it adds:
@@ -24,7 +26,9 @@ real and constant (stiffness), real ∝ −ω² (mass), imaginary ∝ ω (viscou
 imaginary and constant (hysteretic).  Candidates of the first three kinds act
 on the existing DOFs (``shared=True``): their unit matrix ``G`` on the model's
 constrained DOFs enters the linear screening.  Joint and boundary candidates
-change the DOF set and are judged by the non-linear fit only.
+change the DOF set; they carry their ``release`` and are screened exactly, at
+every place, as rank-1..3 updates of the nominal receptance
+(:mod:`~updating.diagnosis.release`).
 
 Every candidate knows how to add itself to an :class:`~updating.fe.FEModel`
 together with an updating :class:`~updating.fe.Parameter` for its value, so

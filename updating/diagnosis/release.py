@@ -132,12 +132,11 @@ def release_vectors(model, candidate, *, _cache=None) -> ReleaseVectors | None:
     return ReleaseVectors(rows, *W, *C)
 
 
-def _columns(structure, s, cols, keep_rows) -> np.ndarray:
-    """Receptance ``H[keep_rows, cols]`` (n_keep, n_cols, n_s) of ``structure`` at ``s`` (exact)."""
+def _solves(structure, s, cols):
+    """Per line ``f`` (a generator): ``(f, X)`` with ``X = Z(s_f)⁻¹ E_cols`` (n, n_cols), exact."""
     n = structure.n_dof
     K, M, C, D = structure.K, structure.M, structure.C, structure.D
-    out = np.empty((len(keep_rows), len(cols), s.size), complex)
-    E = np.zeros((n, len(cols)))
+    E = np.zeros((n, len(cols)), complex, order="F")
     E[cols, np.arange(len(cols))] = 1.0
     if n < _DENSE_BELOW:
         dense = [None if A is None else (A.toarray() if sp.issparse(A) else np.asarray(A)) for A in (K, M, C, D)]
@@ -149,36 +148,67 @@ def _columns(structure, s, cols, keep_rows) -> np.ndarray:
             if dense[3] is not None:
                 Z = Z + 1j * dense[3][None]
             X = np.linalg.solve(Z, np.broadcast_to(E, (ss.size,) + E.shape))
-            out[:, :, a:a + 16] = X[:, keep_rows].transpose(1, 2, 0)
-        return out
+            for k in range(ss.size):
+                yield a + k, X[k]
+        return
     from scipy.sparse.linalg import splu
-    Ec = np.asfortranarray(E, dtype=complex)
     for f, sf in enumerate(s):
         # a symmetric pattern: minimum degree on Aᵀ + A keeps the factors of a beam frame banded
         lu = splu(sp.csc_matrix(dynamic_stiffness(K, M, C, D, sf)), permc_spec="MMD_AT_PLUS_A")
-        out[:, :, f] = lu.solve(Ec)[keep_rows]
-    return out
+        yield f, lu.solve(E)
 
 
 class _Blocks:
-    """Receptance blocks of one structure between measured rows, references and release supports."""
+    """Receptance blocks of one structure for release candidates with support rows ``supports``: the measured
+    × reference block, the support rows × (measured, reference) columns, and each candidate's own support ×
+    support block.  ``Z`` is complex symmetric, so ``H[m, S] = H[S, m]ᵀ``; memory and work are linear in the
+    number of candidates (one factorisation per line, the columns at the measured, reference and support
+    DOFs, and only the blocks each candidate needs are kept)."""
 
     def __init__(self, structure, data: FRFData, supports):
         mi, ms, ri, rs = _indices(structure.dofs, data)
         self.sign = ms[:, None, None] * rs[None, :, None]
-        sup = np.unique(np.concatenate([np.asarray(r, int) for r in supports])) if supports else np.zeros(0, int)
-        keep = np.unique(np.concatenate([mi, sup]))
-        cols = np.unique(np.concatenate([ri, sup]))
-        X = _columns(structure, np.asarray(data.s, complex), cols, keep)
-        self.X, self.kpos, self.cpos = X, {int(k): i for i, k in enumerate(keep)}, {int(c): i for i, c in
-                                                                                   enumerate(cols)}
         self.mi, self.ri = mi, ri
-
-    def get(self, rows, cols):
-        return self.X[[self.kpos[int(r)] for r in rows]][:, [self.cpos[int(c)] for c in cols]]
+        supports = [np.asarray(r, int) for r in supports]
+        U = np.unique(np.concatenate(supports)) if supports else np.zeros(0, int)
+        io = np.unique(np.concatenate([mi, ri]))
+        cols = np.unique(np.concatenate([io, U]))
+        cpos = {int(c): i for i, c in enumerate(cols)}
+        io_c = np.array([cpos[int(c)] for c in io], int)
+        n_s = np.asarray(data.s).size
+        # flat gather indices of every candidate's support × support block in the (n, n_cols) solution
+        self._blk, flat, start = [], [], 0
+        for r in supports:
+            idx = (r[:, None] * cols.size + np.array([cpos[int(c)] for c in r])[None, :]).ravel()
+            flat.append(idx)
+            self._blk.append((start, r.size))
+            start += idx.size
+        flat = np.concatenate(flat) if flat else np.zeros(0, int)
+        self.n_cols = int(cols.size)
+        self.H_io = np.empty((io.size, io.size, n_s), complex)             # (measured ∪ references)²
+        self.H_uio = np.empty((U.size, io.size, n_s), complex)             # support rows × (measured ∪ refs)
+        self.H_blk = np.empty((flat.size, n_s), complex)
+        for f, X in _solves(structure, np.asarray(data.s, complex), cols):
+            self.H_io[:, :, f] = X[io][:, io_c]
+            self.H_uio[:, :, f] = X[U][:, io_c]
+            self.H_blk[:, f] = X.ravel()[flat]
+        self._iopos = {int(c): i for i, c in enumerate(io)}
+        self._upos = {int(u): i for i, u in enumerate(U)}
+        self._m = [self._iopos[int(i)] for i in mi]
+        self._r = [self._iopos[int(i)] for i in ri]
 
     def H0(self):
-        return self.get(self.mi, self.ri)
+        return self.H_io[self._m][:, self._r]
+
+    def candidate(self, k: int, rows):
+        """``H[m, S]`` (n_m, n_sup, n_s), ``H[S, r]`` (n_sup, n_r, n_s), ``H[S, S]`` (n_sup, n_sup, n_s) of the
+        ``k``-th support set ``rows``."""
+        Hs_io = self.H_uio[[self._upos[int(r)] for r in rows]]
+        Hms = Hs_io[:, self._m].transpose(1, 0, 2)
+        Hsr = Hs_io[:, self._r]
+        a, m = self._blk[k]
+        Hss = self.H_blk[a:a + m * m].reshape(m, m, -1)
+        return Hms, Hsr, Hss
 
 
 def released_receptance(structure, model, candidate, k: float, data: FRFData, loss_factor: float = 0.0):
@@ -189,19 +219,17 @@ def released_receptance(structure, model, candidate, k: float, data: FRFData, lo
         raise ModalabValueError(f"{candidate.label!r} is not a release candidate")
     B = _Blocks(structure, data, [rv.rows])
     Wf, Cf = rv.at(data.s)
-    Hm, Hr, Hs = _support_blocks(B, rv, Wf)
+    Hm, Hr, Hs = _support_blocks(B.candidate(0, rv.rows), Wf)
     A = Cf + k * (1 + 1j * loss_factor) * np.eye(rv.rank)[None] - Hs
     X = np.linalg.solve(A, Hr.transpose(2, 0, 1))                    # (n_s, r, n_r)
     dH = np.einsum("mkf,fkr->mrf", Hm, X)
     return (B.H0() + dH) * B.sign
 
 
-def _support_blocks(B: _Blocks, rv: ReleaseVectors, Wf):
-    """``H[m, :] W`` (n_m, r, n_s), ``Wᵀ H[:, r]`` (r, n_r, n_s) and ``Wᵀ H W`` (n_s, r, r)."""
-    rows = rv.rows
-    Hms = B.get(B.mi, rows)                                           # (n_m, n_sup, n_s)
-    Hsr = B.get(rows, B.ri)                                           # (n_sup, n_r, n_s)
-    Hss = B.get(rows, rows)                                           # (n_sup, n_sup, n_s)
+def _support_blocks(blocks, Wf):
+    """``H[m, :] W`` (n_m, r, n_s), ``Wᵀ H[:, r]`` (r, n_r, n_s) and ``Wᵀ H W`` (n_s, r, r) from a candidate's
+    blocks ``(H[m, S], H[S, r], H[S, S])``."""
+    Hms, Hsr, Hss = blocks
     Hm = np.einsum("mjf,fjk->mkf", Hms, Wf)
     Hr = np.einsum("fjk,jrf->krf", Wf, Hsr)
     Hs = np.einsum("fjk,jlf,flq->fkq", Wf, Hss, Wf)
@@ -242,9 +270,9 @@ def release_screen(structure, model, candidates, data: FRFData, *, loss_factor: 
     e0 = frf_error(H0 * B.sign, data)
     g = 1 + 1j * loss_factor
     out = []
-    for c, rv in work:
+    for i, (c, rv) in enumerate(work):
         Wf, Cf = rv.at(data.s)
-        Hm, Hr, Hs = _support_blocks(B, rv, Wf)
+        Hm, Hr, Hs = _support_blocks(B.candidate(i, rv.rows), Wf)
         A0 = Cf - Hs                                                  # (n_s, r, r): the denominator without k
         r = rv.rank
         if r == 1:

@@ -12,10 +12,10 @@
    :data:`~updating.diagnosis.fit.RITZ_LIMIT` DOFs, or the training FRF error above (``criterion``);
 3. **screen** — one term at a time: every candidate of the library (:mod:`~updating.diagnosis.library`) is
    screened linearly on the MCI residual and exactly on the FRFs by a low-rank update
-   (:func:`~updating.diagnosis.frfscreen.frf_screen`); the best few, joints near the located nodes and every
-   support release (single components and a clamp's translations/rotations together) are fitted with the
-   parameters.  The best term is kept only if (a) it passes an information criterion (``penalty`` × ln N),
-   (b) its χ² gain is significant against the noise on the training **and** on the held-out FRFs (scaled
+   (:func:`~updating.diagnosis.frfscreen.frf_screen`), joint and support releases exactly at every place
+   (:func:`~updating.diagnosis.release.release_screen`); the best few and the best release of each kind are
+   fitted with the parameters.  The best term is kept only if (a) it passes an information criterion
+   (``penalty`` × ln N), (b) its χ² gain is significant against the noise on the training **and** on the held-out FRFs (scaled
    by the reduced χ² left when model-form error dominates: an F-test), the held-out error falling by
    ``min_holdout_gain``, and (c) it changes an in-band natural frequency by :data:`MIN_FREQ_EFFECT` or the
    modal damping by :data:`MIN_DAMPING_EFFECT` of the background (smaller effects are the size of model-form
@@ -912,23 +912,25 @@ class Diagnoser:
         prev = list(self.p_cur[n:])
         p_aug, rss_aug = None, np.inf
         try:
-            if th is None and self.use_mci:
-                th = self._start_value(c, pm_aug, None, prev)
+            values = [th]
+            if self.use_mci and (th is None or c.release is not None):
+                # a release's value from the exact FRF screening, and the MCI's own best decade: the MCI of a
+                # release is far from linear in its stiffness (the expansion of the DOFs it frees depends on it)
+                values = [v for v in (th, self._start_value(c, pm_aug, None, prev)) if v is not None]
             if self.use_mci:
                 starts = (self.p_cur[:n], self.p_nom[:n]) if it == 0 and not self.large else (self.p_cur[:n],)
             else:
                 starts = (self.p_cur[:n], self.p_nomd) if it == 0 else (self.p_cur[:n],)
-            for p_par in starts:
-                v = th if th is not None else self._start_value(c, pm_aug, p_par, prev)
+            for p_par, v0 in ((a, b) for a in starts for b in values):
+                v = v0 if v0 is not None else self._start_value(c, pm_aug, p_par, prev)
                 v = min(v, getattr(c, "upper", np.inf))
                 start = np.concatenate([p_par, prev, [v / scales[-1]]])
                 if self.use_mci:
                     pa, ra, _ = mci_update(pm_aug, start, self.train, clo, chi, weights=self.W,
                                            iters=3 if self.large else 6,
                                            free=np.concatenate([self.free_mci, np.ones(len(cpar), bool)]))
-                    if c.release is not None and th is not None:
-                        # a release's residual is far from linear in its stiffness (the expansion of the DOFs it
-                        # frees depends on it): the iteration may leave the exactly screened value for a worse one
+                    if c.release is not None:
+                        # the iteration may leave the start for a worse value (see above): the start is a solution
                         y0 = residual_system(pm_aug.structure(start), self.train, self.W).y
                         if float(y0 @ y0) < ra:
                             pa, ra = start, float(y0 @ y0)
