@@ -12,11 +12,13 @@ added_mass             point mass at a node (CONM2), or rotary         m, J     
 local_damping          hysteretic damping on an element group          ge (η)      D
                        (property clone with GE), or a dashpot to
                        ground on one DOF (CDAMP)                       c           C
-joint_flexibility      a node split in two (new GRID), the halves      k           K
-                       joined rigidly except one component, which
-                       gets a spring (RBE2 + CELAS)
-boundary_flexibility   one constrained component released (SPC         k           K
-                       edited) into a spring to ground
+joint_flexibility      a member end at a joint node (every node where  k           K
+                       two or more members meet) on a node of its own
+                       (new GRID), joined rigidly except one rotation,
+                       which gets a spring (RBE2 + CELAS)
+boundary_flexibility   constrained components released (SPC edited)    k           K
+                       into springs to ground: one, or a clamp's
+                       translations or rotations together
 =====================  ==============================================  ==========  =========
 
 The frequency signature of each follows from the dynamic stiffness it adds:
@@ -24,7 +26,9 @@ real and constant (stiffness), real ∝ −ω² (mass), imaginary ∝ ω (viscou
 imaginary and constant (hysteretic).  Candidates of the first three kinds act
 on the existing DOFs (``shared=True``): their unit matrix ``G`` on the model's
 constrained DOFs enters the linear screening.  Joint and boundary candidates
-change the DOF set and are judged by the non-linear fit only.
+change the DOF set; they carry their ``release`` and are screened exactly, at
+every place, as rank-1..3 updates of the nominal receptance
+(:mod:`~updating.diagnosis.release`).
 
 Every candidate knows how to add itself to an :class:`~updating.fe.FEModel`
 together with an updating :class:`~updating.fe.Parameter` for its value, so
@@ -80,6 +84,10 @@ class Candidate:
     initial: float = 0.0
     key: str = ""
     upper: float = np.inf            # largest plausible value (in ``unit``); the fits are bounded by it
+    #: a release (joint or support flexibility) in the exact low-rank form of :mod:`~updating.diagnosis.release`:
+    #: ``(kind, node, components, elements)``: 'joint' (the ``elements`` at ``node`` get the released
+    #: ``components`` of their own) or 'support' (the constrained ``components`` of ``node`` freed)
+    release: tuple | None = None
 
     def __post_init__(self):
         if not self.key:
@@ -121,6 +129,46 @@ def _fix_foreign(m: FEModel, node: int, comps) -> None:
         m.add_spc(node, "".join(map(str, foreign)))
 
 
+def _member_ends(model: FEModel) -> list[tuple[int, tuple]]:
+    """``[(node, side)]``: the member ends of the model's two-node beams at every node where two or more
+    members meet.  The elements at a node are grouped into members: two elements of the same property whose
+    directions from the node are opposite (collinear) continue one member through it; every other element
+    ends a member there.  A node with a single member (an interior node of a straight run) is no joint.
+    With two members one side is listed (releasing either is the same split); with more, each member's."""
+    by_node: dict[int, list] = {}
+    for e in model.elements.values():
+        if hasattr(e, "n1") and hasattr(e, "n2") and getattr(e, "pid", None) is not None and e.n1 != e.n2:
+            by_node.setdefault(e.n1, []).append(e)
+            by_node.setdefault(e.n2, []).append(e)
+    out = []
+    for n, els in sorted(by_node.items()):
+        if len(els) < 2:
+            continue
+        x0 = np.asarray(model.nodes[n].xyz, float)
+        dirs = []
+        for e in els:
+            d = np.asarray(model.nodes[e.n2 if e.n1 == n else e.n1].xyz, float) - x0
+            dirs.append(d / max(np.linalg.norm(d), 1e-300))
+        groups, used = [], set()
+        for a in range(len(els)):
+            if a in used:
+                continue
+            used.add(a)
+            g = [a]
+            for b in range(a + 1, len(els)):
+                if b not in used and els[b].pid == els[a].pid and float(dirs[a] @ dirs[b]) < -1 + 1e-6:
+                    g.append(b)
+                    used.add(b)
+                    break
+            groups.append(tuple(sorted(els[i].eid for i in g)))
+        if len(groups) < 2:
+            continue
+        groups.sort(key=lambda g: (len(g), g))
+        for g in (groups[:1] if len(groups) == 2 else groups):
+            out.append((n, g))
+    return out
+
+
 #: an omitted mass (sensors, cables, fixtures) is at most this fraction of the structure's own mass
 PLAUSIBLE_MASS_FRACTION = 0.5
 
@@ -130,19 +178,19 @@ def _plausible_inertia(model: FEModel) -> tuple[float, float]:
     mass (its largest rigid translational mass over x, y, z, on the free DOFs) and of that mass times the
     square of the model's largest dimension.  A very heavy mass pins its node like a support would, so
     without the bound it competes with springs to ground on physically absurd terms."""
-    try:
-        st = model.structure()
-        M = st.M
-        mass = 0.0
-        for ax in (1, 2, 3):
-            u = np.array([1.0 if d.axis == ax else 0.0 for d in st.dofs])
-            mass = max(mass, float(u @ (M @ u)))
-        xyz = np.array([nd.xyz for nd in model.nodes.values()], float)
-        size = float(np.max(np.ptp(xyz, axis=0))) if len(xyz) > 1 else 1.0
-    except Exception as e:  # noqa: BLE001 - a bound is a refinement; without it the fit is unbounded
-        log.debug("no plausibility bound for masses: %s", e)
-        return np.inf, np.inf
+    st = model.structure()
+    M = st.M
+    masses = [float(u @ (M @ u)) for u in (np.array([1.0 if d.axis == ax else 0.0 for d in st.dofs])
+                                           for ax in (1, 2, 3))]
+    mass = max(masses) if all(np.isfinite(masses)) else np.nan
+    xyz = np.array([nd.xyz for nd in model.nodes.values()], float)
+    size = float(np.max(np.ptp(xyz, axis=0))) if len(xyz) > 1 else 1.0
+    if not np.isfinite(mass):
+        raise ModalabValueError(f"model {model.name!r}: its translational mass is {mass!r}; check the densities, "
+                                "CONM2 masses and non-structural masses of the deck")
     if not mass > 0:
+        # no translational mass on the free DOFs (e.g. only rotations free): nothing to scale a bound by
+        log.info("model %r has no translational mass on its free DOFs: added masses are not bounded", model.name)
         return np.inf, np.inf
     return PLAUSIBLE_MASS_FRACTION * mass, PLAUSIBLE_MASS_FRACTION * mass * max(size, 1e-3) ** 2
 
@@ -326,7 +374,8 @@ def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, g
                     m._changed()
                     return m, Parameter(f"kbc_{spc.node}_{c}", "k", elements=(eid,), mode="value"), 1.0
                 cands.append(Candidate("boundary_flexibility", f"support flexibility at {lbl}", (spc.node,), (lbl,),
-                                       (), "k", _unit("boundary_flexibility", c), "K", False, release, None))
+                                       (), "k", _unit("boundary_flexibility", c), "K", False, release, None,
+                                       release=("support", spc.node, (c,), ())))
             # a clamp elastic in several components: its translations (one stiffness) and its rotations (one
             # rotational stiffness) released together, a rank-2..3 change each
             for group in ([c for c in active if c <= 3], [c for c in active if c >= 4]):
@@ -348,7 +397,8 @@ def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, g
                 what = "translations" if group[0] <= 3 else "rotations"
                 cands.append(Candidate("boundary_flexibility", f"support flexibility at node {spc.node} ({what} "
                                        f"{', '.join(DIRECTION_NAMES[c] for c in group)})", (spc.node,), lbls, (),
-                                       "k", _unit("boundary_flexibility", group[0]), "K", False, release_group, None))
+                                       "k", _unit("boundary_flexibility", group[0]), "K", False, release_group, None,
+                                       release=("support", spc.node, tuple(group), ())))
 
     # ---------------------------------------------------------------- joint flexibility
     if "joint_flexibility" in kinds:
@@ -377,54 +427,44 @@ def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, g
                     cands.append(Candidate("joint_flexibility", f"flexible joint ({DIRECTION_NAMES[c]}) at the link "
                                            f"{link.independent}-{dep}", (link.independent, dep), (lbl,), (link.eid,),
                                            "k", _unit("joint_flexibility", c), "K", False, soften, None))
-        # beam junctions: split a node between elements of different properties
-        by_node: dict[int, list] = {}
-        for e in model.elements.values():
-            if hasattr(e, "n1") and hasattr(e, "pid"):
-                by_node.setdefault(e.n1, []).append(e)
-                by_node.setdefault(e.n2, []).append(e)
-        for n, els in sorted(by_node.items()):
-            if len(els) < 2:
-                continue
-            pids = sorted({e.pid for e in els})
-            if jnodes is None and len(pids) < 2:
-                continue
+        # member ends at beam junctions: every node where two or more members meet; one member end (a side)
+        # gets the released rotation of its own (a node split: new GRID, rigid link on the other components,
+        # a spring on the released one); screened exactly by :mod:`~updating.diagnosis.release`
+        for n, side in _member_ends(model):
             if jnodes is not None and n not in jnodes:
                 continue
-            side_sets = [tuple(e.eid for e in els if e.pid == p) for p in pids] if len(pids) >= 2 else \
-                [tuple(e.eid for e in els[len(els) // 2:])]
-            for side in side_sets[-1:] if len(pids) >= 2 else side_sets:
-                for c in present.get(n, []):
-                    if (n, c) in fixed:
-                        continue
-                    lbl = f"{n}+{DIRECTION_NAMES[c]}"
+            for c in present.get(n, []):
+                if c < 4 or (n, c) in fixed:
+                    continue
+                lbl = f"{n}+{DIRECTION_NAMES[c]}"
 
-                    def split(m, eid, n=n, side=side, c=c):
-                        m = m.copy()
-                        nn = _next_node(m)
-                        m.add_node(nn, m.nodes[n].xyz, m.nodes[n].cd)
-                        for i in side:
-                            e = m.elements[i]
-                            kw = {}
-                            if e.n1 == n:
-                                kw["n1"] = nn
-                            if e.n2 == n:
-                                kw["n2"] = nn
-                            m.elements[i] = dataclasses.replace(e, **kw)
-                        comps = [x for x in present[n] if x != c]
-                        rid = eid + 1
-                        while rid in m.elements or rid in m.rbe2s:
-                            rid += 1
-                        if comps:
-                            m.add_rbe2(rid, n, (nn,), "".join(map(str, comps)))
-                        _fix_foreign(m, n, present[n])
-                        _fix_foreign(m, nn, present[n])
-                        m.add_element(Spring(eid, a=(n, c), b=(nn, c), k=0.0, group=f"diag_j_{eid}"))
-                        m._changed()
-                        return m, Parameter(f"kj_{n}_{c}", "k", elements=(eid,), mode="value"), 1.0
-                    cands.append(Candidate("joint_flexibility", f"flexible joint ({DIRECTION_NAMES[c]}) at node {n} "
-                                           f"between element(s) {', '.join(map(str, side))} and the rest", (n,), (lbl,),
-                                           side, "k", _unit("joint_flexibility", c), "K", False, split, None))
+                def split(m, eid, n=n, side=side, c=c):
+                    m = m.copy()
+                    nn = _next_node(m)
+                    m.add_node(nn, m.nodes[n].xyz, m.nodes[n].cd)
+                    for i in side:
+                        e = m.elements[i]
+                        kw = {}
+                        if e.n1 == n:
+                            kw["n1"] = nn
+                        if e.n2 == n:
+                            kw["n2"] = nn
+                        m.elements[i] = dataclasses.replace(e, **kw)
+                    comps = [x for x in present[n] if x != c]
+                    rid = eid + 1
+                    while rid in m.elements or rid in m.rbe2s:
+                        rid += 1
+                    if comps:
+                        m.add_rbe2(rid, n, (nn,), "".join(map(str, comps)))
+                    _fix_foreign(m, n, present[n])
+                    _fix_foreign(m, nn, present[n])
+                    m.add_element(Spring(eid, a=(n, c), b=(nn, c), k=0.0, group=f"diag_j_{eid}"))
+                    m._changed()
+                    return m, Parameter(f"kj_{n}_{c}", "k", elements=(eid,), mode="value"), 1.0
+                cands.append(Candidate("joint_flexibility", f"flexible joint ({DIRECTION_NAMES[c]}) at node {n} "
+                                       f"between element(s) {', '.join(map(str, side))} and the rest", (n,), (lbl,),
+                                       side, "k", _unit("joint_flexibility", c), "K", False, split, None,
+                                       release=("joint", n, (c,), side)))
     log.info("candidate library: %d candidates (%s)", len(cands),
              ", ".join(f"{k}={sum(c.physics == k for c in cands)}" for k in sorted(kinds)))
     return cands

@@ -12,10 +12,10 @@
    :data:`~updating.diagnosis.fit.RITZ_LIMIT` DOFs, or the training FRF error above (``criterion``);
 3. **screen** — one term at a time: every candidate of the library (:mod:`~updating.diagnosis.library`) is
    screened linearly on the MCI residual and exactly on the FRFs by a low-rank update
-   (:func:`~updating.diagnosis.frfscreen.frf_screen`); the best few, joints near the located nodes and every
-   support release (single components and a clamp's translations/rotations together) are fitted with the
-   parameters.  The best term is kept only if (a) it passes an information criterion (``penalty`` × ln N),
-   (b) its χ² gain is significant against the noise on the training **and** on the held-out FRFs (scaled
+   (:func:`~updating.diagnosis.frfscreen.frf_screen`), joint and support releases exactly at every place
+   (:func:`~updating.diagnosis.release.release_screen`); the best few and the best release of each kind are
+   fitted with the parameters.  The best term is kept only if (a) it passes an information criterion
+   (``penalty`` × ln N), (b) its χ² gain is significant against the noise on the training **and** on the held-out FRFs (scaled
    by the reduced χ² left when model-form error dominates: an F-test), the held-out error falling by
    ``min_holdout_gain``, and (c) it changes an in-band natural frequency by :data:`MIN_FREQ_EFFECT` or the
    modal damping by :data:`MIN_DAMPING_EFFECT` of the background (smaller effects are the size of model-form
@@ -46,6 +46,7 @@ from updating.fe import FEModel, Parameter, ParametricFEModel
 from updating.diagnosis.fit import RITZ_LIMIT, FRFData, Prior, fit_frf, frf_data, frf_error, model_frf, quick_frf_error
 from updating.diagnosis.frfscreen import frf_screen
 from updating.diagnosis.library import Candidate, _nodes_of, build_library, validate_kinds
+from updating.diagnosis.release import release_screen
 from updating.diagnosis.screen import mci_update, rank_candidates, residual_map, residual_system
 from modalab.core.dof import parse_dofs
 from updating.correlation.metrics import analysis_modes, correlate
@@ -824,11 +825,18 @@ class Diagnoser:
         # exact single-candidate FRF screening (non-linear in the value; strong effects that the linear MCI
         # screening mis-ranks), around the nominal parameters first (parameter updating may have bent them
         # to hide the effect), then around the current model
+        # joint and support releases are screened exactly too, at every place (updating.diagnosis.release)
+        releases = [c for c in lib if c.release is not None and c.key not in have]
         screens = []
         for p_scr in ([self.p_nomd, self.upd.p] if it == 0 else [p_cur]):
             try:
-                screens.append(frf_screen(pm_cur.structure(p_scr), lib, self.train,
-                                          loss_factor=float(pm_cur.model_at(p_scr).global_ge or 0.0)))
+                st_scr, m_scr = pm_cur.structure(p_scr), pm_cur.model_at(p_scr)
+                g_scr = float(m_scr.global_ge or 0.0)
+                scr = frf_screen(st_scr, lib, self.train, loss_factor=g_scr)
+                if releases:
+                    scr = sorted(scr + release_screen(st_scr, m_scr, releases, self.train, loss_factor=g_scr),
+                                 key=lambda t: -t[2])
+                screens.append(scr)
             except (np.linalg.LinAlgError, ModalabValueError) as e:
                 log.warning("FRF screening around parameters %s failed and is left out: %s", np.round(p_scr, 4), e)
         if self.use_mci:
@@ -849,23 +857,27 @@ class Diagnoser:
         if self.ranking is None:
             self.ranking, self.hot_nodes = rk, hot
         options = [(c, th) for c, th, g in rk[:cfg.n_try if self.use_mci else 0] if c.key not in have and g > 0.02]
-        # FRF-screen picks: the best two overall and the best of each kind of matrix
+        # FRF-screen picks: the best two overall, the best of each kind of matrix and the best release of each
+        # kind (joint, support): a release changes the DOF set, which no other candidate can imitate exactly
         listed = {c.key for c, _ in options}
         for scr in screens:
             by_kind: dict = {}
             for c, v, g in scr:
                 by_kind.setdefault(c.matrix, []).append((c, v, g))
+                if c.release is not None:
+                    by_kind.setdefault(c.physics, []).append((c, v, g))
             for c, v, g in scr[:2 if self.use_mci else 3] + [lst[0] for lst in by_kind.values()]:
                 if c.key not in listed and c.key not in have and g > 0.05:
                     options.append((c, v))
                     listed.add(c.key)
         near = set(hot) | {n for c, _, _ in rk[:1] for n in c.nodes}
-        # joints near the located nodes (within one element) and every support release (they are few)
+        # joints without an exact release form (rigid links softened) near the located nodes (within one element)
         near |= {b for e in pm_cur.model_at(p_cur).elements.values()
                  if near & set(_nodes_of(e)) for b in _nodes_of(e)}
-        options += [(c, None) for c in lib if not c.shared and c.physics == "joint_flexibility"
+        options += [(c, None) for c in lib if not c.shared and c.release is None and c.physics == "joint_flexibility"
                     and near & set(c.nodes) and c.key not in have][:cfg.n_try]
-        options += [(c, None) for c in lib if c.physics == "boundary_flexibility" and c.key not in have]
+        options += [(c, None) for c in lib if c.release is None and c.physics == "boundary_flexibility"
+                    and c.key not in have]
         return options
 
     def _start_value(self, c, pm_aug, p_par, prev) -> float:
@@ -902,20 +914,28 @@ class Diagnoser:
         prev = list(self.p_cur[n:])
         p_aug, rss_aug = None, np.inf
         try:
-            if th is None and self.use_mci:
-                th = self._start_value(c, pm_aug, None, prev)
+            values = [th]
+            if self.use_mci and (th is None or c.release is not None):
+                # a release's value from the exact FRF screening, and the MCI's own best decade: the MCI of a
+                # release is far from linear in its stiffness (the expansion of the DOFs it frees depends on it)
+                values = [v for v in (th, self._start_value(c, pm_aug, None, prev)) if v is not None]
             if self.use_mci:
                 starts = (self.p_cur[:n], self.p_nom[:n]) if it == 0 and not self.large else (self.p_cur[:n],)
             else:
                 starts = (self.p_cur[:n], self.p_nomd) if it == 0 else (self.p_cur[:n],)
-            for p_par in starts:
-                v = th if th is not None else self._start_value(c, pm_aug, p_par, prev)
+            for p_par, v0 in ((a, b) for a in starts for b in values):
+                v = v0 if v0 is not None else self._start_value(c, pm_aug, p_par, prev)
                 v = min(v, getattr(c, "upper", np.inf))
                 start = np.concatenate([p_par, prev, [v / scales[-1]]])
                 if self.use_mci:
                     pa, ra, _ = mci_update(pm_aug, start, self.train, clo, chi, weights=self.W,
                                            iters=3 if self.large else 6,
                                            free=np.concatenate([self.free_mci, np.ones(len(cpar), bool)]))
+                    if c.release is not None:
+                        # the iteration may leave the start for a worse value (see above): the start is a solution
+                        y0 = residual_system(pm_aug.structure(start), self.train, self.W).y
+                        if float(y0 @ y0) < ra:
+                            pa, ra = start, float(y0 @ y0)
                 else:
                     fr = self._fit(pm_aug, self.train, start, lower=clo, upper=chi, max_nfev=max(8, cfg.max_nfev // 2))
                     pa, ra = fr.p, fr.error ** 2
