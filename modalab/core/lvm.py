@@ -97,6 +97,24 @@ def _num(s: str, dec: str, path, line) -> float:
 def parse_lvm(path) -> LvmFile:
     """Parse an LVM text file (every segment).  Raises :class:`LvmError` on malformed content."""
     p = Path(path)
+    lines = _read_lines(p)
+    header, k, sep, dec, xcols = _file_header(lines, p)
+    segments = []
+    while k < len(lines):
+        # skip blank lines between segments
+        while k < len(lines) and not lines[k].strip(sep + " \r"):
+            k += 1
+        if k >= len(lines):
+            break
+        segment, k = _segment(lines, k, sep, dec, xcols, p)
+        segments.append(segment)
+    if not segments:
+        raise LvmError("no data segment after the file header (truncated file?)", path=p, line=len(lines))
+    return LvmFile(path=str(p), header=header, segments=segments)
+
+
+def _read_lines(p: Path) -> list:
+    """The file's lines, after checking it is readable and starts like an LVM file."""
     try:
         text = p.read_text(encoding="utf-8", errors="replace")
     except OSError as e:
@@ -105,7 +123,12 @@ def parse_lvm(path) -> LvmFile:
     if not lines or not lines[0].startswith("LabVIEW Measurement"):
         first = lines[0][:40] if lines else ""
         raise LvmError(f"first line is {first!r}; an LVM file starts with 'LabVIEW Measurement'", path=p, line=1)
-    # ------------------------------------------------ file header
+    return lines
+
+
+def _file_header(lines: list, p: Path):
+    """The file header: ``(header dict, index of the first line after it, separator, decimal separator,
+    X_Columns)``."""
     header: dict = {}
     k = 1
     sep = "\t"
@@ -128,90 +151,88 @@ def parse_lvm(path) -> LvmFile:
     if xcols not in ("No", "One", "Multi"):
         raise LvmError(f"X_Columns {xcols!r} unknown; expected No, One or Multi", path=p)
     k += 1
-    segments = []
-    while k < len(lines):
-        # skip blank lines between segments
-        while k < len(lines) and not lines[k].strip(sep + " \r"):
-            k += 1
-        if k >= len(lines):
-            break
-        seg_line = k + 1
-        sh: dict = {}
-        while k < len(lines) and not lines[k].startswith(_END):
-            parts = lines[k].split(sep)
-            if parts[0].strip():
-                sh[parts[0].strip()] = [v for v in parts[1:]]
-            k += 1
-        if k >= len(lines):
-            raise LvmError("a segment header has no '***End_of_Header***' line (truncated file?)",
+    return header, k, sep, dec, xcols
+
+
+def _segment(lines: list, k: int, sep: str, dec: str, xcols: str, p: Path):
+    """One data segment starting at line index ``k`` (its header, column names and data rows):
+    ``(LvmSegment, index of the line after it)``."""
+    # long: one segment's header, channel table and data rows share the same cursor and error context
+    seg_line = k + 1
+    sh: dict = {}
+    while k < len(lines) and not lines[k].startswith(_END):
+        parts = lines[k].split(sep)
+        if parts[0].strip():
+            sh[parts[0].strip()] = [v for v in parts[1:]]
+        k += 1
+    if k >= len(lines):
+        raise LvmError("a segment header has no '***End_of_Header***' line (truncated file?)",
+                       path=p, line=seg_line)
+    k += 1
+    if k >= len(lines):
+        raise LvmError("the segment has no column-name line and no data (truncated file?)", path=p, line=k)
+    try:
+        n_ch = int(sh["Channels"][0])
+    except (KeyError, IndexError, ValueError):
+        raise LvmError("segment header lacks a valid 'Channels' entry", path=p, line=seg_line) from None
+    if n_ch < 1:
+        raise LvmError(f"Channels = {n_ch}; expected at least 1", path=p, line=seg_line)
+
+    def per_channel(key, default=None, conv=None):
+        vals = sh.get(key)
+        if vals is None:
+            if default is None:
+                raise LvmError(f"segment header lacks '{key}'", path=p, line=seg_line)
+            return [default] * n_ch
+        vals = [v for v in vals][:n_ch]
+        if len(vals) < n_ch or any(not v.strip() for v in vals):
+            raise LvmError(f"'{key}' gives {len([v for v in vals if v.strip()])} values for {n_ch} channels",
                            path=p, line=seg_line)
-        k += 1
-        if k >= len(lines):
-            raise LvmError("the segment has no column-name line and no data (truncated file?)", path=p, line=k)
-        try:
-            n_ch = int(sh["Channels"][0])
-        except (KeyError, IndexError, ValueError):
-            raise LvmError("segment header lacks a valid 'Channels' entry", path=p, line=seg_line) from None
-        if n_ch < 1:
-            raise LvmError(f"Channels = {n_ch}; expected at least 1", path=p, line=seg_line)
+        return [conv(v) if conv else v.strip() for v in vals]
 
-        def per_channel(key, default=None, conv=None):
-            vals = sh.get(key)
-            if vals is None:
-                if default is None:
-                    raise LvmError(f"segment header lacks '{key}'", path=p, line=seg_line)
-                return [default] * n_ch
-            vals = [v for v in vals][:n_ch]
-            if len(vals) < n_ch or any(not v.strip() for v in vals):
-                raise LvmError(f"'{key}' gives {len([v for v in vals if v.strip()])} values for {n_ch} channels",
-                               path=p, line=seg_line)
-            return [conv(v) if conv else v.strip() for v in vals]
-
-        samples = per_channel("Samples", conv=lambda v: int(v))
-        dx = per_channel("Delta_X", conv=lambda v: _num(v, dec, p, seg_line))
-        x0 = per_channel("X0", default="0", conv=lambda v: _num(v, dec, p, seg_line))
-        units = per_channel("Y_Unit_Label", default="")
-        if any(d <= 0 for d in dx):
-            raise LvmError(f"Delta_X {dx} must be positive (s per sample)", path=p, line=seg_line)
-        names_line = lines[k].split(sep)
-        name_row = k + 1
-        if names_line[0].strip() != "X_Value":
-            raise LvmError(f"expected the column-name line starting with 'X_Value'; got {lines[k][:40]!r}",
-                           path=p, line=name_row)
+    samples = per_channel("Samples", conv=lambda v: int(v))
+    dx = per_channel("Delta_X", conv=lambda v: _num(v, dec, p, seg_line))
+    x0 = per_channel("X0", default="0", conv=lambda v: _num(v, dec, p, seg_line))
+    units = per_channel("Y_Unit_Label", default="")
+    if any(d <= 0 for d in dx):
+        raise LvmError(f"Delta_X {dx} must be positive (s per sample)", path=p, line=seg_line)
+    names_line = lines[k].split(sep)
+    name_row = k + 1
+    if names_line[0].strip() != "X_Value":
+        raise LvmError(f"expected the column-name line starting with 'X_Value'; got {lines[k][:40]!r}",
+                       path=p, line=name_row)
+    k += 1
+    # column 0 is X (empty when X_Columns = No); with Multi every channel has its own X column
+    cols = [2 * c + 1 for c in range(n_ch)] if xcols == "Multi" else [1 + c for c in range(n_ch)]
+    raw_names = [v.strip() for v in names_line]
+    names = [raw_names[c] if c < len(raw_names) else f"channel {i}" for i, c in enumerate(cols)]
+    n_max = max(samples)
+    data = np.empty((n_ch, n_max))
+    r = 0
+    while k < len(lines) and r < n_max:
+        row = lines[k]
+        if not row.strip(sep + " \r"):
+            break
+        if row.startswith("LabVIEW Measurement") or row.split(sep)[0].strip() in ("Channels",):
+            break
+        parts = row.split(sep)
+        if len(parts) <= cols[-1]:
+            raise LvmError(f"data row has {len(parts)} fields; expected at least {cols[-1] + 1} for "
+                           f"{n_ch} channels", path=p, line=k + 1)
+        for i, c in enumerate(cols):
+            data[i, r] = _num(parts[c], dec, p, k + 1)
+        r += 1
         k += 1
-        # column 0 is X (empty when X_Columns = No); with Multi every channel has its own X column
-        cols = [2 * c + 1 for c in range(n_ch)] if xcols == "Multi" else [1 + c for c in range(n_ch)]
-        raw_names = [v.strip() for v in names_line]
-        names = [raw_names[c] if c < len(raw_names) else f"channel {i}" for i, c in enumerate(cols)]
-        n_max = max(samples)
-        data = np.empty((n_ch, n_max))
-        r = 0
-        while k < len(lines) and r < n_max:
-            row = lines[k]
-            if not row.strip(sep + " \r"):
-                break
-            if row.startswith("LabVIEW Measurement") or row.split(sep)[0].strip() in ("Channels",):
-                break
-            parts = row.split(sep)
-            if len(parts) <= cols[-1]:
-                raise LvmError(f"data row has {len(parts)} fields; expected at least {cols[-1] + 1} for "
-                               f"{n_ch} channels", path=p, line=k + 1)
-            for i, c in enumerate(cols):
-                data[i, r] = _num(parts[c], dec, p, k + 1)
-            r += 1
-            k += 1
-        if r < n_max:
-            raise LvmError(f"the segment declares {n_max} samples but holds {r} data rows (truncated file?)",
-                           path=p, line=k + 1 if k < len(lines) else len(lines))
-        if len(set(samples)) != 1:
-            log.warning("%s: channels have different sample counts %s; shorter ones are padded with NaN", p, samples)
-            for i, s in enumerate(samples):
-                data[i, s:] = np.nan
-        segments.append(LvmSegment(names=names, unit_labels=units, x0=x0, delta_x=dx, data=data,
-                                   header=sh, line=seg_line))
-    if not segments:
-        raise LvmError("no data segment after the file header (truncated file?)", path=p, line=len(lines))
-    return LvmFile(path=str(p), header=header, segments=segments)
+    if r < n_max:
+        raise LvmError(f"the segment declares {n_max} samples but holds {r} data rows (truncated file?)",
+                       path=p, line=k + 1 if k < len(lines) else len(lines))
+    if len(set(samples)) != 1:
+        log.warning("%s: channels have different sample counts %s; shorter ones are padded with NaN", p, samples)
+        for i, s in enumerate(samples):
+            data[i, s:] = np.nan
+    segment = LvmSegment(names=names, unit_labels=units, x0=x0, delta_x=dx, data=data,
+                         header=sh, line=seg_line)
+    return segment, k
 
 
 def _infer_role(name: str, unit_si: str) -> str:

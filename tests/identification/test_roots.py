@@ -62,10 +62,10 @@ def _coeffs(roots):
 @pytest.fixture(scope="class")
 def track_from_degree_24():
     """In production tracking starts at degree 76 (cheaper eigenvalues below); the tests use smaller polynomials."""
-    from identification import polymax
+    from identification import polymax_roots
 
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(polymax, "_TRACK_MIN_DEGREE", 24)
+        mp.setattr(polymax_roots, "_TRACK_MIN_DEGREE", 24)
         yield
 
 
