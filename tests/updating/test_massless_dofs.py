@@ -90,8 +90,9 @@ def test_lanczos_refuses_more_modes_than_finite_ones(lumped):
 
 @pytest.mark.parametrize("n_above", [10_000, 50])
 def test_ritz_basis_on_the_lumped_deck(lumped, monkeypatch, n_above):
+    import modalab.core.dense as dense
     import updating.diagnosis.ritz as R
-    monkeypatch.setattr(R, "SPARSE_MODES_ABOVE", n_above)       # dense and Lanczos modes
+    monkeypatch.setattr(dense, "MODES_LIMIT", n_above)          # dense and Lanczos modes (the one rule)
     st = lumped.structure()
     w, _ = st.normal_modes(20)
     cols = [st.dofs.index(d) for d in st.dofs if d.node in (1, 16, 31) and d.axis in (2, 3)]
@@ -104,17 +105,17 @@ def test_ritz_basis_on_the_lumped_deck(lumped, monkeypatch, n_above):
 def test_solve_modes_about_a_positive_shift_on_the_lumped_deck(lumped):
     from updating.fe import Parameter, ParametricFEModel
     from updating.fe.sensitivity import solve_modes
-    import updating.fe.sensitivity as S
+    import modalab.core.dense as S
     pm = ParametricFEModel(lumped, [Parameter("E", "E", properties=tuple(lumped.properties))])
     w, _ = lumped.structure().normal_modes(12)
-    old = S._DENSE_LIMIT
-    S._DENSE_LIMIT = 10                                          # force the Lanczos paths on this small deck
+    old = S.EIGEN_LIMIT
+    S.EIGEN_LIMIT = 10                                          # force the Lanczos paths on this small deck
     try:
         sol = solve_modes(pm, n_modes=4, sigma=(2 * np.pi * 170.0) ** 2)
         again = solve_modes(pm, n_modes=4, sigma=(2 * np.pi * 170.0) ** 2)
         neg = solve_modes(pm, n_modes=10)
     finally:
-        S._DENSE_LIMIT = old
+        S.EIGEN_LIMIT = old
     np.testing.assert_allclose(np.sort(sol.omega), w[5:9], rtol=1e-8)        # the four nearest 170 Hz
     assert np.array_equal(sol.lam, again.lam) and np.array_equal(sol.phi, again.phi)
     np.testing.assert_allclose(neg.omega[5:], w[5:10], rtol=1e-8)

@@ -39,15 +39,13 @@ import scipy.sparse as sp
 from modalab.core.errors import ModalabValueError
 
 from updating.fe.assembly import assemble
-from updating.diagnosis.dynamics import dynamic_stiffness
+from modalab.core.dense import use_dense
+from updating.correlation.condensation import dynamic_stiffness
 from updating.diagnosis.fit import FRFData, _indices, frf_error
 
 log = logging.getLogger(__name__)
 __all__ = ["release_screen", "release_vectors", "released_receptance", "ReleaseVectors"]
 
-#: below this many DOFs the receptance columns come from batched dense solves, above from one sparse LU per line
-#: (as :data:`~updating.diagnosis.dynamics.DENSE_LIMIT`)
-_DENSE_BELOW = 80
 
 
 class ReleaseVectors:
@@ -138,7 +136,7 @@ def _solves(structure, s, cols):
     K, M, C, D = structure.K, structure.M, structure.C, structure.D
     E = np.zeros((n, len(cols)), complex, order="F")
     E[cols, np.arange(len(cols))] = 1.0
-    if n < _DENSE_BELOW:
+    if use_dense(n, "solve"):      # batched dense solves, else one sparse LU per line (modalab.core.dense)
         dense = [None if A is None else (A.toarray() if sp.issparse(A) else np.asarray(A)) for A in (K, M, C, D)]
         for a in range(0, s.size, 16):
             ss = s[a:a + 16]
