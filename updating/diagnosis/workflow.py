@@ -300,6 +300,10 @@ def _element_nodes(c: Candidate, model: FEModel) -> set:
 MIN_FREQ_EFFECT = 0.004
 #: exact-screening picks fitted on the FRFs when the MCI's best option fails (:meth:`Diagnoser._judge_picks`)
 FRF_PICKS = 3
+#: ... and is accepted only if it leaves at most this reduced χ² (in units of the measurement noise) on the
+#: training and the held-out FRFs: a term the MCI did not support that leaves the residual several times the
+#: noise is reducing model-form error (a coarse mesh, per-element scatter), not explaining a missing effect
+PICK_MAX_REDUCED_CHI2 = 3.0
 #: a damping term must add at least this fraction of the background loss factor to some in-band mode
 MIN_DAMPING_EFFECT = 0.25
 
@@ -765,10 +769,10 @@ class Diagnoser:
         and add the best term if it earns its place; False when none does.
 
         The best option by the criterion is judged first (:meth:`_judge`).  On the MCI criterion, when it
-        fails, the exact FRF screening's best picks are fitted on the FRFs and the best of them is judged by
-        the same tests (:meth:`_judge_picks`): the linearised MCI is blind to effects that act through
-        unmeasured DOFs or that mainly move rigid-body and suspension modes (a spring to ground on a free
-        frame), which the exact screening sees."""
+        fails for the first term, the exact FRF screening's best picks are fitted on the FRFs and the best of
+        them is judged by the same tests (:meth:`_judge_picks`): the linearised MCI is blind to effects that
+        act through unmeasured DOFs or that mainly move rigid-body and suspension modes (a spring to ground on
+        a free frame), which the exact screening sees."""
         cfg = self.config
         options = self._options(it)
         best, evaluated = None, []
@@ -793,7 +797,9 @@ class Diagnoser:
                     and r - self.rss_cur <= margin]
             self._route[c.key] = (next((g for o, _, g in (self.ranking or []) if o.key == c.key), 0.0), self.use_mci,
                                   None)
-        elif self.use_mci:
+        elif self.use_mci and not self.current:
+            # the rescue of the first term only: a further term needs the criterion's support (model-form error
+            # — a coarse mesh, per-element scatter — is what an exact single-term screening finds next)
             if best is not None:
                 self._say(f"  rejected: {best[0].label} ({why})")
             picked = self._judge_picks(it, n_eq)
@@ -900,6 +906,14 @@ class Diagnoser:
         else:
             ok, why = _term_holds(pm_ref, ref.p, pm_aug, fr.p, self.train, self.held, cfg.penalty,
                                   cfg.min_holdout_gain)
+            if ok:
+                # a pick the linearised criterion did not support must explain the residual, not only reduce it
+                st = pm_aug.structure(fr.p)
+                red = max(c1 / n1 for c1, n1 in (_chi2(st, self.train), _chi2(st, self.held)))
+                if red > PICK_MAX_REDUCED_CHI2:
+                    ok = False
+                    why += (f"; χ²/N {red:.3g} left, above {PICK_MAX_REDUCED_CHI2:g}: the term reduces a residual "
+                            "that stays far above the noise (model-form error it would absorb)")
             ok, why = self._effect_ok(ok, why, pm_aug, fr.p, c)
         log.info("screening pick %s on the FRFs: %s", c.label, why)
         if not ok:
