@@ -19,7 +19,11 @@
    by the reduced χ² left when model-form error dominates: an F-test), the held-out error falling by
    ``min_holdout_gain``, and (c) it changes an in-band natural frequency by :data:`MIN_FREQ_EFFECT` or the
    modal damping by :data:`MIN_DAMPING_EFFECT` of the background (smaller effects are the size of model-form
-   error).  Candidates elsewhere that fit as well (within the criterion's margin) make the finding ambiguous;
+   error).  Candidates elsewhere that fit as well (within the criterion's margin) make the finding ambiguous.
+   On the MCI criterion, when its best option fails for the first term, the exact FRF screening's best picks
+   are fitted on the FRFs and judged by the same tests, and must leave a reduced χ² of at most
+   :data:`PICK_MAX_REDUCED_CHI2` (the linearised MCI is blind to e.g. a spring to ground that mainly moves a
+   free frame's rigid-body modes);
 4. **model** — the selected terms updated jointly with the parameters on the FRFs; backward elimination
    drops terms that no longer earn their place;
 5. **prove** — nominal, parameter-only and augmented models compared on the held-out FRFs and on the test
