@@ -21,6 +21,7 @@ import logging
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.optimize import minimize_scalar
 
 from updating.correlation.condensation import solve_columns
 from updating.diagnosis.fit import RITZ_LIMIT, FRFData, _indices, frf_error
@@ -69,6 +70,23 @@ def _value_grid(c, K, M, rows, L, n: int = 13) -> np.ndarray:
     if hi <= lo:
         return np.array([hi])
     return np.geomspace(lo, hi, max(int(round(n * np.log10(hi / lo) / 6.0)), 3))
+
+
+def _updated_errors(inv, Hll, Hm, Hr, H0, sign, H, w, den2, wsum) -> np.ndarray:
+    """Weighted FRF errors of the model updated by a rank-r term, one per candidate value (Woodbury):
+    ``H0 − Hm [I/(θ f) + Hll]⁻¹ Hr`` with ``inv = 1/(θ f)`` (n_t, n_s), ``Hll`` (r, r, n_s), ``Hm`` (n_m, r,
+    n_s), ``Hr`` (r, n_r, n_s).  A value for which the r × r system is singular at some line (the updated,
+    undamped model resonates exactly there: its FRF is unbounded) has an infinite error — an explicit
+    answer, never a skipped candidate."""
+    r = Hll.shape[0]
+    A = np.eye(r)[None, None] * inv[:, :, None, None] + Hll.transpose(2, 0, 1)[None]     # (n_t, n_s, r, r)
+    bad = ~(np.linalg.cond(A) < 1.0 / np.finfo(float).eps)                                # (n_t, n_s)
+    A = np.where(bad[:, :, None, None], np.eye(r)[None, None], A)
+    X = np.linalg.solve(A, np.broadcast_to(Hr.transpose(2, 0, 1)[None], A.shape[:2] + Hr.shape[:2]))
+    dH = np.einsum("mkf,tfkr->tmrf", Hm, X, optimize=True)
+    e = np.abs((H0[None] - dH) * sign[None] - H[None]) ** 2 / den2[None]
+    out = np.sqrt(np.sum(w[None] * e, axis=(1, 2, 3)) / wsum)
+    return np.where(bad.any(axis=1), np.inf, out)
 
 
 class _Receptance:
@@ -176,48 +194,44 @@ def frf_screen(structure, candidates, data: FRFData, *, loss_factor: float = 0.0
             S = np.sum(Wt * np.abs(u) ** 2, axis=(0, 1))
 
         def errors(thetas):
+            # a value at which the modified model resonates without damping exactly on a line makes the r × r
+            # system singular there: its FRF is unbounded at that line, so the error of that value is infinite
+            # (an explicit answer, not a skipped candidate)
             inv = 1.0 / (thetas[:, None] * fac[None, :])                            # (n_t, n_s)
             if Hll.shape[0] == 1:
                 d = inv + Hll[0, 0][None, :]
+                bad = ~(np.abs(d) > 0)
+                d = np.where(bad, 1.0, d)
                 tot = c0 - 2 * np.sum((P[None] / d).real, axis=1) + np.sum(S[None] / np.abs(d) ** 2, axis=1)
-                return np.sqrt(np.clip(tot, 0, None) / wsum)
-            else:
-                r = Hll.shape[0]
-                A = np.eye(r)[None, None] * inv[:, :, None, None] + Hll.transpose(2, 0, 1)[None]
-                X = np.linalg.solve(A, np.broadcast_to(Hr.transpose(2, 0, 1)[None], A.shape[:2] + Hr.shape[:2]))
-                dH = np.einsum("mkf,tfkr->tmrf", Hm, X, optimize=True)
-            e = np.abs((H0[None] - dH) * R.sign[None] - data.H[None]) ** 2 / den2[None]
-            return np.sqrt(np.sum(w[None] * e, axis=(1, 2, 3)) / wsum)
+                out = np.sqrt(np.clip(tot, 0, None) / wsum)
+                return np.where(bad.any(axis=1), np.inf, out)
+            return _updated_errors(inv, Hll, Hm, Hr, H0, R.sign, data.H, w, den2, wsum)
 
-        try:
-            t = grid
-            err = errors(t)
-            for _ in range(2):             # refine twice between the neighbours of the best value
-                k = int(np.argmin(err))
-                lo_t = t[max(k - 1, 0)]
-                hi_t = t[min(k + 1, t.size - 1)]
-                if hi_t <= lo_t:
-                    break
-                t2 = np.geomspace(lo_t, hi_t, 7)
-                e2 = errors(t2)
-                t, err = np.concatenate([t, t2]), np.concatenate([err, e2])
-                o = np.argsort(t)
-                t, err = t[o], err[o]
-                keep = np.r_[True, np.diff(t) > 1e-9 * t[1:]]                  # drop repeated values
-                t, err = t[keep], err[keep]
-            if Hll.shape[0] == 1 and len(work) > 400 and err.min() > 0.9 * e0:
-                pass                       # many candidates and this one barely helps: no polishing
-            elif Hll.shape[0] == 1:          # cheap: polish the best value by Brent's method in log θ
-                from scipy.optimize import minimize_scalar
-                k = int(np.argmin(err))
-                a, b = np.log(t[max(k - 1, 0)]), np.log(t[min(k + 1, t.size - 1)])
-                if b > a:
-                    sol = minimize_scalar(lambda x: float(errors(np.array([np.exp(x)]))[0]), bounds=(a, b),
-                                          method="bounded", options={"xatol": 1e-4})
-                    if sol.fun < err[k]:
-                        t, err = np.append(t, np.exp(sol.x)), np.append(err, sol.fun)
-        except np.linalg.LinAlgError:
-            continue
+        t = grid
+        err = errors(t)
+        for _ in range(2):             # refine twice between the neighbours of the best value
+            k = int(np.argmin(err))
+            lo_t = t[max(k - 1, 0)]
+            hi_t = t[min(k + 1, t.size - 1)]
+            if hi_t <= lo_t:
+                break
+            t2 = np.geomspace(lo_t, hi_t, 7)
+            e2 = errors(t2)
+            t, err = np.concatenate([t, t2]), np.concatenate([err, e2])
+            o = np.argsort(t)
+            t, err = t[o], err[o]
+            keep = np.r_[True, np.diff(t) > 1e-9 * t[1:]]                  # drop repeated values
+            t, err = t[keep], err[keep]
+        if Hll.shape[0] == 1 and len(work) > 400 and err.min() > 0.9 * e0:
+            pass                       # many candidates and this one barely helps: no polishing
+        elif Hll.shape[0] == 1:          # cheap: polish the best value by Brent's method in log θ
+            k = int(np.argmin(err))
+            a, b = np.log(t[max(k - 1, 0)]), np.log(t[min(k + 1, t.size - 1)])
+            if b > a:
+                sol = minimize_scalar(lambda x: float(errors(np.array([np.exp(x)]))[0]), bounds=(a, b),
+                                      method="bounded", options={"xatol": 1e-4})
+                if sol.fun < err[k]:
+                    t, err = np.append(t, np.exp(sol.x)), np.append(err, sol.fun)
         k = int(np.argmin(err))
         if err[k] < e0:
             out.append((c, float(t[k]), 1.0 - float(err[k]) / e0))

@@ -19,7 +19,11 @@
    by the reduced χ² left when model-form error dominates: an F-test), the held-out error falling by
    ``min_holdout_gain``, and (c) it changes an in-band natural frequency by :data:`MIN_FREQ_EFFECT` or the
    modal damping by :data:`MIN_DAMPING_EFFECT` of the background (smaller effects are the size of model-form
-   error).  Candidates elsewhere that fit as well (within the criterion's margin) make the finding ambiguous;
+   error).  Candidates elsewhere that fit as well (within the criterion's margin) make the finding ambiguous.
+   On the MCI criterion, when its best option fails for the first term, the exact FRF screening's best picks
+   are fitted on the FRFs and judged by the same tests, and must leave a reduced χ² of at most
+   :data:`PICK_MAX_REDUCED_CHI2` (the linearised MCI is blind to e.g. a spring to ground that mainly moves a
+   free frame's rigid-body modes);
 4. **model** — the selected terms updated jointly with the parameters on the FRFs; backward elimination
    drops terms that no longer earn their place;
 5. **prove** — nominal, parameter-only and augmented models compared on the held-out FRFs and on the test
@@ -110,6 +114,7 @@ class Diagnosis:
     curves: dict = field(default_factory=dict)
     frequencies: dict = field(default_factory=dict)
     pairing: dict = field(default_factory=dict)     # per fit block: pairs and the modes left out on purpose
+    not_evaluated: list = field(default_factory=list)   # candidates whose augmented model could not be solved
 
     def save(self, directory, *, figures: bool = True, bulk: bool = True):
         """Write ``diagnosis.json``, the figures (:mod:`~updating.diagnosis.report`) and the augmented,
@@ -139,6 +144,7 @@ class Diagnosis:
                 "ranking": [{"candidate": c.label, "physics": c.physics, "explained": round(g, 4)}
                             for c, _, g in self.ranking[:12]],
                 "pairing": self.pairing,
+                "not_evaluated": list(self.not_evaluated),
                 "timings_s": {k: round(v, 3) for k, v in self.timings.items()}}
 
 
@@ -275,11 +281,7 @@ def _fit_continued(pm, train, p_start, damp_mask, lo, hi, max_nfev, *, levels=(0
     for level in levels:
         ps = p.copy()
         ps[damp_mask] = np.maximum(ps[damp_mask], level)
-        try:
-            sm = fit_frf(pm, train, ps, lower=lo, upper=hi, free=~damp_mask, max_nfev=max_nfev, prior=prior)
-        except (np.linalg.LinAlgError, ModalabValueError) as e:  # pragma: no cover - keep the direct fit
-            log.info("damping continuation failed: %s", e)
-            return direct
+        sm = fit_frf(pm, train, ps, lower=lo, upper=hi, free=~damp_mask, max_nfev=max_nfev, prior=prior)
         p[~damp_mask] = sm.p[~damp_mask]
     cont = fit_frf(pm, train, p, lower=lo, upper=hi, max_nfev=max_nfev, prior=prior)
     log.info("parameter fit: direct %.4g, with damping continuation %.4g", direct.error, cont.error)
@@ -303,6 +305,12 @@ def _element_nodes(c: Candidate, model: FEModel) -> set:
 #: errors near lightly damped resonances grow as Δf/(ζ f), so frequency shifts of the order of an FE model's own
 #: discretisation error (0.1-0.4 %) already give large FRF gains that a term would absorb
 MIN_FREQ_EFFECT = 0.004
+#: exact-screening picks fitted on the FRFs when the MCI's best option fails (:meth:`Diagnoser._judge_picks`)
+FRF_PICKS = 3
+#: ... and is accepted only if it leaves at most this reduced χ² (in units of the measurement noise) on the
+#: training and the held-out FRFs: a term the MCI did not support that leaves the residual several times the
+#: noise is reducing model-form error (a coarse mesh, per-element scatter), not explaining a missing effect
+PICK_MAX_REDUCED_CHI2 = 3.0
 #: a damping term must add at least this fraction of the background loss factor to some in-band mode
 MIN_DAMPING_EFFECT = 0.25
 
@@ -758,12 +766,20 @@ class Diagnoser:
                                                                                              nom.error ** 2)
         self.current, self.alternatives = [], {}
         self.pm_cur, self.lo_cur, self.hi_cur = self.pm, self.lo, self.hi
+        self._frf_cur = (self.pm, self.upd)             # the current model fitted on the FRFs
+        self._screens, self._route, self.not_evaluated = [], {}, []
         self.ranking, self.hot_nodes, self.n_lib = None, [], 0
 
     # ------------------------------------------------------------------ step 4, one term
     def screen(self, it: int) -> bool:
         """Screen the library around the current model, try the best options with the parameters re-fitted,
-        and add the best term if it earns its place; False when none does."""
+        and add the best term if it earns its place; False when none does.
+
+        The best option by the criterion is judged first (:meth:`_judge`).  On the MCI criterion, when it
+        fails for the first term, the exact FRF screening's best picks are fitted on the FRFs and the best of
+        them is judged by the same tests (:meth:`_judge_picks`): the linearised MCI is blind to effects that
+        act through unmeasured DOFs or that mainly move rigid-body and suspension modes (a spring to ground on
+        a free frame), which the exact screening sees."""
         cfg = self.config
         options = self._options(it)
         best, evaluated = None, []
@@ -774,45 +790,160 @@ class Diagnoser:
             evaluated.append((c, r[1], float(r[3][-1] * r[6])))
             if best is None or r[1] < best[1]:
                 best = r[:6]
-        # a term must earn its place: an information criterion with a penalty of ``penalty`` × ln N per term
-        # (ten times BIC's by default, because neighbouring lines and DOFs are far from independent); on the
-        # FRF criterion it must also lower the training FRF error by ``min_gain``
-        rss_cur = self.rss_cur
         n_eq = (self.W.size * len(self.train.responses) * 2) if self.use_mci else self.train.H.size * 2
-        if best is None or not (best[1] < rss_cur and n_eq * np.log(rss_cur / max(best[1], 1e-300))
-                                > cfg.penalty * np.log(n_eq)):
-            return False
-        # a further term must do more: model-form error (a finer truth mesh, per-element scatter) is what a
-        # small second term would otherwise absorb
-        need = cfg.min_gain if not self.current else max(cfg.min_gain, cfg.min_extra_gain)
-        if not self.use_mci and np.sqrt(best[1]) > np.sqrt(rss_cur) * (1 - need):
-            return False
-        ok, why = _term_holds(self.pm_cur, self.p_cur, best[2], best[3], self.train, self.held, cfg.penalty,
-                              cfg.min_holdout_gain)
+        ok, why = self._judge(best, n_eq)
+        if best is not None:
+            log.info("candidate %s on the %s: %s", best[0].label, "MCI and FRFs" if self.use_mci else "FRFs", why)
         if ok:
-            df, deta = term_effect(best[2], best[3], len(self.params), best[0], self.band)
-            why += f"; effect: frequencies {100 * df:.2g} %, damping {100 * deta:.2g} % of the background"
-            if df < MIN_FREQ_EFFECT and deta < MIN_DAMPING_EFFECT:
-                ok = False
-                why += (f": below {100 * MIN_FREQ_EFFECT:.1f} % in frequency and {100 * MIN_DAMPING_EFFECT:.0f} % in "
-                        "damping, the size of model-form error")
-        log.info("candidate %s on the FRFs: %s", best[0].label, why)
-        if not ok:
-            self._say(f"  rejected: {best[0].label} ({why})")
+            c, self.rss_cur, self.pm_cur, self.p_cur, self.lo_cur, self.hi_cur = best
+            self._frf_cur = None                       # the FRF fit of the new current model, when needed
+            # equally good explanations elsewhere: within the information criterion's margin of the best
+            margin = self.rss_cur * cfg.penalty * np.log(n_eq) / n_eq
+            alts = [(o, v) for o, r, v in sorted(evaluated, key=lambda t: t[1])
+                    if o.key != c.key and not _same_place(o, c, self.pm_cur.model_at(self.p_cur))
+                    and r - self.rss_cur <= margin]
+            self._route[c.key] = (next((g for o, _, g in (self.ranking or []) if o.key == c.key), 0.0), self.use_mci,
+                                  None)
+        elif self.use_mci and not self.current:
+            # the rescue of the first term only: a further term needs the criterion's support (model-form error
+            # — a coarse mesh, per-element scatter — is what an exact single-term screening finds next)
+            if best is not None:
+                self._say(f"  rejected: {best[0].label} ({why})")
+            picked = self._judge_picks(it, n_eq)
+            if picked is None:
+                return False
+            c, alts = picked
+        else:
+            if best is not None:
+                self._say(f"  rejected: {best[0].label} ({why})")
             return False
-        c, self.rss_cur, self.pm_cur, self.p_cur, self.lo_cur, self.hi_cur = best
         self.current.append(c)
-        # equally good explanations elsewhere: within the information criterion's margin of the best
-        margin = self.rss_cur * cfg.penalty * np.log(n_eq) / n_eq
-        alts = [(o, v) for o, r, v in sorted(evaluated, key=lambda t: t[1])
-                if o.key != c.key and not _same_place(o, c, self.pm_cur.model_at(self.p_cur))
-                and r - self.rss_cur <= margin]
         if alts:
             self.alternatives[c.key] = alts[:2]
             self._say(f"  ambiguous: {c.label} or {' or '.join(o.label for o, _ in alts[:2])} explain it equally well")
         self._say(f"  found: {c.label} ({'MCI residual' if self.use_mci else 'training FRF error'} down to "
                   f"{self.rss_cur if self.use_mci else np.sqrt(self.rss_cur):.3g})")
         return True
+
+    def _judge(self, best, n_eq: int) -> tuple[bool, str]:
+        """Whether the criterion's best option earns its place: (a) the information criterion (``penalty`` ×
+        ln N per term, ten times BIC's by default, because neighbouring lines and DOFs are far from
+        independent) on the criterion, and on the FRF criterion a drop of the training FRF error by
+        ``min_gain`` (``min_extra_gain`` for a further term: model-form error — a finer truth mesh,
+        per-element scatter — is what a small second term would otherwise absorb); (b) :func:`_term_holds`;
+        (c) the effect on the frequencies or damping (:func:`term_effect`)."""
+        cfg, rss_cur = self.config, self.rss_cur
+        if best is None:
+            return False, "no candidate could be fitted"
+        if not (best[1] < rss_cur and n_eq * np.log(rss_cur / max(best[1], 1e-300)) > cfg.penalty * np.log(n_eq)):
+            return False, "fails the information criterion"
+        need = cfg.min_gain if not self.current else max(cfg.min_gain, cfg.min_extra_gain)
+        if not self.use_mci and np.sqrt(best[1]) > np.sqrt(rss_cur) * (1 - need):
+            return False, f"lowers the training FRF error by less than {100 * need:.0f} %"
+        ok, why = _term_holds(self.pm_cur, self.p_cur, best[2], best[3], self.train, self.held, cfg.penalty,
+                              cfg.min_holdout_gain)
+        return self._effect_ok(ok, why, best[2], best[3], best[0])
+
+    def _effect_ok(self, ok: bool, why: str, pm_new, p_new, c) -> tuple[bool, str]:
+        """Test (c) of :meth:`_judge`: the term moves an in-band natural frequency by
+        :data:`MIN_FREQ_EFFECT` or adds :data:`MIN_DAMPING_EFFECT` of the background modal damping."""
+        if not ok:
+            return ok, why
+        df, deta = term_effect(pm_new, p_new, len(self.params), c, self.band)
+        why += f"; effect: frequencies {100 * df:.2g} %, damping {100 * deta:.2g} % of the background"
+        if df < MIN_FREQ_EFFECT and deta < MIN_DAMPING_EFFECT:
+            return False, why + (f": below {100 * MIN_FREQ_EFFECT:.1f} % in frequency and "
+                                 f"{100 * MIN_DAMPING_EFFECT:.0f} % in damping, the size of model-form error")
+        return True, why
+
+    def _frf_ref(self):
+        """The current model fitted on the training FRFs, ``(pm, FitResult)``: the parameter-only fit before
+        any term; after a term accepted on the MCI, its FRF fit from the MCI solution."""
+        if self._frf_cur is None:
+            fr = self._fit(self.pm_cur, self.train, self.p_cur, lower=self.lo_cur, upper=self.hi_cur,
+                           max_nfev=self.config.max_nfev)
+            self._frf_cur = (self.pm_cur, fr)
+        return self._frf_cur
+
+    def _judge_picks(self, it: int, n_eq_mci: int):
+        """The exact FRF screening's picks judged on the FRFs (MCI criterion, when the MCI's best failed).
+
+        The best pick of each screening (around the nominal and the updated parameters: updating may have
+        bent the parameters to hide the effect) and the best pick of another kind of physics — at most
+        :data:`FRF_PICKS` — are fitted with the parameters on the training FRFs from the screening's value;
+        the one with the lowest error is judged against the current model's FRF fit by the tests of
+        :meth:`_judge` on the FRF criterion.  Candidates of the same screening whose single-term error is
+        within the information criterion's margin, elsewhere, make the finding ambiguous.  Returns
+        ``(candidate, alternatives)`` with the state updated, or None."""
+        cfg, n = self.config, len(self.params)
+        have = {c.key for c in self.current}
+        picks, kinds = [], set()
+        for k, (scr, p_scr) in enumerate(self._screens):
+            top = [t for t in scr if t[0].key not in have and t[2] > cfg.min_gain]
+            if top and top[0][0].key not in {c.key for c, *_ in picks}:
+                picks.append((top[0][0], top[0][1], p_scr, k))
+                kinds.add(top[0][0].physics)
+        other = sorted(((t, p_scr, k) for k, (scr, p_scr) in enumerate(self._screens) for t in scr
+                        if t[0].key not in have and t[2] > cfg.min_gain and t[0].physics not in kinds),
+                       key=lambda x: -x[0][2])
+        if other:
+            (c, v, _), p_scr, k = other[0]
+            picks.append((c, v, p_scr, k))
+        if not picks:
+            return None
+        pm_ref, ref = self._frf_ref()
+        tried = []
+        for c, v, p_scr, k in picks[:FRF_PICKS]:
+            m_aug, cpar, scales = _augment(self.model0, self.current + [c])
+            pm_aug = ParametricFEModel(m_aug, self.params + cpar)
+            clo = np.concatenate([self.lo, np.zeros(len(cpar))])
+            chi = np.concatenate([self.hi, _upper(self.current + [c], scales)])
+            start = np.concatenate([p_scr, [min(v, getattr(c, "upper", np.inf)) / scales[-1]]])
+            fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
+                           max_nfev=max(8, cfg.max_nfev // 2))
+            log.info("screening pick %s fitted on the FRFs: error %.4g (current %.4g)", c.label, fr.error, ref.error)
+            tried.append((fr.error, c, pm_aug, fr, clo, chi, k))
+        err, c, pm_aug, fr, clo, chi, k = min(tried, key=lambda t: t[0])
+        n_eq = self.train.H.size * 2
+        need = cfg.min_gain if not self.current else max(cfg.min_gain, cfg.min_extra_gain)
+        if not (err < ref.error and n_eq * np.log(ref.error ** 2 / max(err ** 2, 1e-300)) > cfg.penalty * np.log(n_eq)):
+            ok, why = False, "fails the information criterion on the FRFs"
+        elif err > ref.error * (1 - need):
+            ok, why = False, f"lowers the training FRF error by less than {100 * need:.0f} %"
+        else:
+            ok, why = _term_holds(pm_ref, ref.p, pm_aug, fr.p, self.train, self.held, cfg.penalty,
+                                  cfg.min_holdout_gain)
+            if ok:
+                # a pick the linearised criterion did not support must explain the residual, not only reduce it
+                st = pm_aug.structure(fr.p)
+                red = max(c1 / n1 for c1, n1 in (_chi2(st, self.train), _chi2(st, self.held)))
+                if red > PICK_MAX_REDUCED_CHI2:
+                    ok = False
+                    why += (f"; χ²/N {red:.3g} left, above {PICK_MAX_REDUCED_CHI2:g}: the term reduces a residual "
+                            "that stays far above the noise (model-form error it would absorb)")
+            ok, why = self._effect_ok(ok, why, pm_aug, fr.p, c)
+        log.info("screening pick %s on the FRFs: %s", c.label, why)
+        if not ok:
+            self._say(f"  rejected: {c.label} ({why})")
+            return None
+        # the MCI state of the augmented model for the next term's criterion (minimised like every candidate's);
+        # the screenings and fits start from the FRF fit
+        free = np.concatenate([self.free_mci, np.ones(len(self.current) + 1, bool)])
+        _, self.rss_cur, _ = mci_update(pm_aug, fr.p, self.train, clo, chi, weights=self.W,
+                                        iters=3 if self.large else 6, free=free)
+        self.pm_cur, self.p_cur, self.lo_cur, self.hi_cur = pm_aug, fr.p, clo, chi
+        self._frf_cur = (pm_aug, fr)
+        scr = self._screens[k][0]
+        g_c = next(g for o, _, g in scr if o.key == c.key)
+        self._route[c.key] = (g_c, False, [(o, v, g) for o, v, g in scr if set(o.nodes) & set(c.nodes)
+                                            and o.key != c.key])
+        # equally good single-term explanations elsewhere in the same screening (χ² within the margin)
+        e_c = (1 - g_c) ** 2
+        margin = e_c * cfg.penalty * np.log(n_eq) / n_eq
+        m_now = pm_aug.model_at(fr.p)
+        alts = [(o, v) for o, v, g in scr if o.key != c.key and o.key not in have
+                and (1 - g) ** 2 - e_c <= margin and not _same_place(o, c, m_now)]
+        return c, alts
 
     def _options(self, it: int) -> list:
         """[(candidate, start value or None)] to try: the best of the linear MCI ranking and of the exact FRF
@@ -828,17 +959,16 @@ class Diagnoser:
         # joint and support releases are screened exactly too, at every place (updating.diagnosis.release)
         releases = [c for c in lib if c.release is not None and c.key not in have]
         screens = []
+        self._screens = []
         for p_scr in ([self.p_nomd, self.upd.p] if it == 0 else [p_cur]):
-            try:
-                st_scr, m_scr = pm_cur.structure(p_scr), pm_cur.model_at(p_scr)
-                g_scr = float(m_scr.global_ge or 0.0)
-                scr = frf_screen(st_scr, lib, self.train, loss_factor=g_scr)
-                if releases:
-                    scr = sorted(scr + release_screen(st_scr, m_scr, releases, self.train, loss_factor=g_scr),
-                                 key=lambda t: -t[2])
-                screens.append(scr)
-            except (np.linalg.LinAlgError, ModalabValueError) as e:
-                log.warning("FRF screening around parameters %s failed and is left out: %s", np.round(p_scr, 4), e)
+            st_scr, m_scr = pm_cur.structure(p_scr), pm_cur.model_at(p_scr)
+            g_scr = float(m_scr.global_ge or 0.0)
+            scr = frf_screen(st_scr, lib, self.train, loss_factor=g_scr)
+            if releases:
+                scr = sorted(scr + release_screen(st_scr, m_scr, releases, self.train, loss_factor=g_scr),
+                             key=lambda t: -t[2])
+            screens.append(scr)
+            self._screens.append((scr, np.asarray(p_scr, float)))
         if self.use_mci:
             rk, _, energy = rank_candidates(pm_cur, p_cur, lib, self.train, self.W)
             if it == 0:
@@ -941,8 +1071,11 @@ class Diagnoser:
                     pa, ra = fr.p, fr.error ** 2
                 if ra < rss_aug:
                     p_aug, rss_aug = pa, ra
-        except (np.linalg.LinAlgError, ModalabValueError) as e:
-            log.info("candidate %s could not be evaluated: %s", c.label, e)
+        except np.linalg.LinAlgError as e:
+            # the augmented model cannot be solved at some line: the candidate is not judged, and the diagnosis
+            # says so (``not_evaluated`` in diagnosis.json and the statement) instead of passing over it
+            log.warning("candidate %s could not be evaluated (%s): it is left out of the comparison", c.label, e)
+            self.not_evaluated.append({"candidate": c.label, "physics": c.physics, "reason": str(e)})
             return None
         log.info("candidate %s: %s %.4g (current %.4g)", c.label, "MCI residual" if self.use_mci else
                  "FRF error²", rss_aug, self.rss_cur)
@@ -1011,17 +1144,14 @@ class Diagnoser:
         # also from the MCI solution of the reduced set (the removed term may have dragged the others), and from
         # the nominal parameters
         starts = [np.concatenate([self.p_nomd, best_fit.p[keep][n0:]])]
-        try:
-            if self.use_mci:
-                p_r, _, _ = mci_update(pm_rest, np.concatenate([self.p_mci, best_fit.p[keep][n0:]]), self.train,
-                                       clo_r, chi_r, weights=self.W)
-                starts.insert(0, p_r)
-            for s0 in starts:
-                r2 = self._fit(pm_rest, self.train, s0, lower=clo_r, upper=chi_r, max_nfev=cfg.max_nfev)
-                if r2.error < refit.error:
-                    refit = r2
-        except (np.linalg.LinAlgError, ModalabValueError) as e:  # pragma: no cover - the first refit stands
-            log.info("restart of the reduced fit failed: %s", e)
+        if self.use_mci:
+            p_r, _, _ = mci_update(pm_rest, np.concatenate([self.p_mci, best_fit.p[keep][n0:]]), self.train,
+                                   clo_r, chi_r, weights=self.W)
+            starts.insert(0, p_r)
+        for s0 in starts:
+            r2 = self._fit(pm_rest, self.train, s0, lower=clo_r, upper=chi_r, max_nfev=cfg.max_nfev)
+            if r2.error < refit.error:
+                refit = r2
         if refit.error > best_fit.error * (1 + cfg.min_term_gain):
             return False
         log.info("dropping %s: without it the training FRF error is %.4g (with %.4g)", current[worst].label,
@@ -1083,7 +1213,8 @@ class Diagnoser:
             log.warning("FRF overlays/frequency table not prepared: %s", e)
             curves, freqs = {}, {}
         diag = Diagnosis(findings=findings, parameters=self._parameters(), fit=fit_blocks,
-                         statement=statement(findings, fit_blocks, self.held_desc), model=final_model,
+                         statement=statement(findings, fit_blocks, self.held_desc, self.not_evaluated),
+                         model=final_model, not_evaluated=list(self.not_evaluated),
                          parametric=self.best_pm, p=self.best_fit.p,
                          steps={"held_out": self.held_desc, "band_hz": self.band, "hot_nodes": self.hot_nodes,
                                 "n_candidates": self.n_lib, **steps_modes},
@@ -1105,9 +1236,10 @@ class Diagnoser:
             if host is not None:
                 host.parts.append((c, float(val), float(std)))
                 continue
-            same = [(o, t, g) for o, t, g in ranking if set(o.nodes) & set(c.nodes) and o.key != c.key]
-            gain = next((g for o, t, g in ranking if o.key == c.key), 0.0)
-            findings.append(Finding(c, float(val), float(std), _evidence(c, gain, same, self.band, self.use_mci), gain,
+            gain, by_mci, same = self._route.get(c.key, (0.0, self.use_mci, None))
+            if same is None:
+                same = [(o, t, g) for o, t, g in ranking if set(o.nodes) & set(c.nodes) and o.key != c.key]
+            findings.append(Finding(c, float(val), float(std), _evidence(c, gain, same, self.band, by_mci), gain,
                                     alternatives=list(self.alternatives.get(c.key, []))))
         return findings
 
@@ -1189,7 +1321,18 @@ def _describe(f: Finding) -> str:
     return s
 
 
-def statement(findings, fit, held_desc: str) -> str:
+def statement(findings, fit, held_desc: str, not_evaluated=()) -> str:
+    """The diagnosis in words; candidates that could not be evaluated are named (the conclusion does not cover
+    them)."""
+    text = _statement(findings, fit, held_desc)
+    if not_evaluated:
+        names = ", ".join(d["candidate"] for d in not_evaluated[:3]) + (" and others" if len(not_evaluated) > 3 else "")
+        text += (f" {len(not_evaluated)} candidate(s) could not be evaluated (the augmented model could not be solved: "
+                 f"{names}); this conclusion does not cover them.")
+    return text
+
+
+def _statement(findings, fit, held_desc: str) -> str:
     e_par = _Pct(100 * fit["parameters_only"]["frf_error_held_out"])
     e_phys = _Pct(100 * fit["with_physics"]["frf_error_held_out"])
     e_nom = _Pct(100 * fit["nominal"]["frf_error_held_out"])

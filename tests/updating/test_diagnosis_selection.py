@@ -1,0 +1,93 @@
+"""Selection and acceptance of a term (issue 13): the exact FRF screening's picks judged on the FRFs, the
+Woodbury update of the screening at singular values, candidates that cannot be evaluated named.
+
+Own synthetic case (not a benchmark case): a free-free 3-D beam of ten elements, truth = nominal + a spring to
+ground across the beam (4+Y, 2e4 N/m: a new mode at 36 Hz, the second bending mode in Y moved by 1.4 %), the
+spring's DOF not measured, 0.3 % complex noise.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from modalab.core.frf import FRF
+from updating.diagnosis import workflow as wf
+from updating.diagnosis.frfscreen import _updated_errors
+from updating.fe import Spring
+from updating.fe.models.beams import beam_model
+
+RESP = [f"{i}+Z" for i in (1, 3, 5, 6, 8, 11)] + [f"{i}+Y" for i in (1, 6, 9, 11)]
+
+
+def _case(spring: bool):
+    nominal = beam_model(10, length=1.0, kind="beam3d", bc="free")
+    nominal.global_ge = 0.01
+    truth = nominal.copy()
+    if spring:
+        truth.add_element(Spring(9001, a=(4, 2), b=None, k=2e4))
+    f = np.linspace(5, 900, 600)
+    H = truth.frf(f, RESP, ["11+Y", "11+Z"], quantity="receptance")
+    rng = np.random.default_rng(1)
+    Hn = H.H * (1 + 0.003 * (rng.standard_normal(H.H.shape) + 1j * rng.standard_normal(H.H.shape)) / np.sqrt(2))
+    return nominal, FRF(freq_hz=f, H=Hn, responses=H.responses, references=H.references,
+                        coherence=np.full(H.H.shape, 0.999), quantity="receptance")
+
+
+def _judge_picks(spring: bool):
+    nominal, meas = _case(spring)
+    d = wf.Diagnoser(wf.DiagnoserConfig(max_lines=80, progress=lambda m: None))
+    d._t0, d.timings = time.perf_counter(), {}
+    d.baseline(nominal, meas)
+    d.localise()
+    d._options(0)
+    return d, d._judge_picks(0, 1)
+
+
+def test_the_screening_pick_is_judged_on_the_frfs_and_named():
+    d, picked = _judge_picks(True)
+    assert picked is not None
+    c, alts = picked
+    assert c.physics == "ground_spring" and c.dofs == ("4+Y",), c.label
+    assert d.pm_cur.parameter_names[-1].startswith("k_4_2")
+    # the state follows the FRF fit: the spring's value is the truth's, the error at the noise
+    pm, fr = d._frf_cur
+    assert fr.p[-1] == pytest.approx(2e4, rel=0.05)
+    assert fr.error < 0.2 * d.upd.error
+    assert np.array_equal(d.p_cur, fr.p)
+
+
+def test_no_pick_passes_on_data_from_the_nominal():
+    d, picked = _judge_picks(False)
+    assert picked is None
+    assert d.current == []
+
+
+def test_the_rank_r_update_is_woodbury_and_infinite_where_singular():
+    rng = np.random.default_rng(0)
+    n_m, n_r, r, n_s = 3, 2, 2, 4
+    c = lambda *sh: rng.standard_normal(sh) + 1j * rng.standard_normal(sh)  # noqa: E731
+    Hm, Hr, H0, H = c(n_m, r, n_s), c(r, n_r, n_s), c(n_m, n_r, n_s), c(n_m, n_r, n_s)
+    Hll = c(r, r, n_s)
+    sign, w, den2 = np.ones((n_m, n_r, 1)), np.ones((n_m, n_r, n_s)), np.ones((n_m, n_r, n_s))
+    inv = c(2, n_s)
+    got = _updated_errors(inv, Hll, Hm, Hr, H0, sign, H, w, den2, float(w.sum()))
+    for t in range(2):
+        dH = np.stack([Hm[:, :, f] @ np.linalg.inv(inv[t, f] * np.eye(r) + Hll[:, :, f]) @ Hr[:, :, f]
+                       for f in range(n_s)], axis=-1)
+        want = np.sqrt(np.sum(np.abs(H0 - dH - H) ** 2) / w.sum())
+        assert got[t] == pytest.approx(want, rel=1e-10)
+    # a value making the r × r system singular at one line: the updated model is unbounded there
+    Hll[:, :, 2] = np.array([[1.0, 1.0], [1.0, 1.0]])
+    inv[0, 2] = 0.0
+    got = _updated_errors(inv, Hll, Hm, Hr, H0, sign, H, w, den2, float(w.sum()))
+    assert got[0] == np.inf and np.isfinite(got[1])
+
+
+def test_candidates_not_evaluated_are_named_in_the_statement():
+    fit = {k: {"frf_error_held_out": 0.1} for k in ("nominal", "parameters_only", "with_physics")}
+    ne = [{"candidate": "spring to ground at 3+Z", "physics": "ground_spring", "reason": "Singular matrix"}]
+    s = wf.statement([], fit, "response DOFs 3+Z", ne)
+    assert "1 candidate(s) could not be evaluated" in s and "spring to ground at 3+Z" in s
+    assert "could not be evaluated" not in wf.statement([], fit, "response DOFs 3+Z")
