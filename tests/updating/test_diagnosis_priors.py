@@ -95,3 +95,18 @@ def test_a_zero_nominal_value_has_no_relative_prior():
     params = [Parameter("di", "di", properties=(1,), mode="value")]
     _, sig = parameter_priors(params, [0.0])
     assert np.isinf(sig[0])
+
+
+def test_other_physics_at_the_same_node_is_another_explanation():
+    """Two kinds at one node (a spring or an inertia there) are two explanations, reported as one ambiguous
+    finding when both fit; the same kind one node over is a localisation spread, not a second explanation."""
+    from updating.diagnosis.workflow import _another_explanation
+    m = thesis_beam("analytical", cord_stiffness=None)
+    lib = build_library(m, kinds=["added_mass", "ground_spring"])
+    mass7 = next(c for c in lib if c.physics == "added_mass" and c.nodes == (7,) and c.value_name == "m")
+    spring7 = next(c for c in lib if c.physics == "ground_spring" and c.dofs == ("7+Z",))
+    spring8 = next(c for c in lib if c.physics == "ground_spring" and c.dofs == ("8+Z",))
+    spring3 = next(c for c in lib if c.physics == "ground_spring" and c.dofs == ("3+Z",))
+    assert _another_explanation(spring7, mass7, m) and _another_explanation(mass7, spring7, m)
+    assert not _another_explanation(spring8, spring7, m)        # the neighbour: the same explanation, spread
+    assert _another_explanation(spring3, spring7, m)            # elsewhere

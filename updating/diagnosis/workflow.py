@@ -297,6 +297,13 @@ def _same_place(a: Candidate, b: Candidate, model: FEModel) -> bool:
     return any(na & set(ns) and nb & set(ns) for ns in (_nodes_of(e) for e in model.elements.values()))
 
 
+def _another_explanation(a: Candidate, b: Candidate, model: FEModel) -> bool:
+    """Whether ``a`` is a different explanation from ``b``: elsewhere, or the same place with other physics (a
+    joint's flexibility and a rotary inertia at one node are two explanations; the same kind one node over is a
+    localisation spread, not a second one)."""
+    return a.physics != b.physics or not _same_place(a, b, model)
+
+
 def _element_nodes(c: Candidate, model: FEModel) -> set:
     return {n for e in c.elements if e in model.elements for n in _nodes_of(model.elements[e])}
 
@@ -800,7 +807,7 @@ class Diagnoser:
             # equally good explanations elsewhere: within the information criterion's margin of the best
             margin = self.rss_cur * cfg.penalty * np.log(n_eq) / n_eq
             alts = [(o, v) for o, r, v in sorted(evaluated, key=lambda t: t[1])
-                    if o.key != c.key and not _same_place(o, c, self.pm_cur.model_at(self.p_cur))
+                    if o.key != c.key and _another_explanation(o, c, self.pm_cur.model_at(self.p_cur))
                     and r - self.rss_cur <= margin]
             self._route[c.key] = (next((g for o, _, g in (self.ranking or []) if o.key == c.key), 0.0), self.use_mci,
                                   None)
@@ -942,7 +949,7 @@ class Diagnoser:
         margin = e_c * cfg.penalty * np.log(n_eq) / n_eq
         m_now = pm_aug.model_at(fr.p)
         alts = [(o, v) for o, v, g in scr if o.key != c.key and o.key not in have
-                and (1 - g) ** 2 - e_c <= margin and not _same_place(o, c, m_now)]
+                and (1 - g) ** 2 - e_c <= margin and _another_explanation(o, c, m_now)]
         return c, alts
 
     def _options(self, it: int) -> list:
