@@ -292,6 +292,13 @@ def _extended_rows(basis, rows, L, idx):
     return Wi, 0.5 * (Kr + Kr.T), Wp.T @ Lk
 
 
+def _observed(Vm):
+    """Norm of each model mode on the measured DOFs, and whether the sensors see it at all (a mode below
+    :data:`UNOBSERVABLE` of the largest has a MAC made of round-off and is never paired)."""
+    nrm = np.linalg.norm(Vm, axis=0)
+    return nrm, nrm > UNOBSERVABLE * max(nrm.max(initial=0.0), 1e-300)
+
+
 class ModalResidual:
     """Eigenvalue and shape residuals of a structure against test modes (the modes-only objective).
 
@@ -379,8 +386,7 @@ class ModalResidual:
             a = np.empty(nt, int)
             a[c] = el[r]
             return a, np.full(nt, np.nan)
-        nrm = np.linalg.norm(Vm, axis=0)
-        seen = nrm > UNOBSERVABLE * max(nrm.max(initial=0.0), 1e-300)
+        nrm, seen = _observed(Vm)
         U = Vm / np.maximum(nrm, 1e-300)
         mac = (U.T @ self.phi) ** 2                                           # (model, test)
         # the cost of modalab's one pairing rule (updating.correlation.metrics.pair_modes): (1 − MAC) plus the
@@ -442,8 +448,7 @@ def paired_test_modes(structure, test_modes: ModeSet):
     if not r.has_shapes:
         pr = pair_modes(None, fm, r.f)
     else:
-        nrm = np.linalg.norm(Vm, axis=0)
-        seen = nrm > UNOBSERVABLE * max(nrm.max(initial=0.0), 1e-300)
+        _, seen = _observed(Vm)
         # no frequency window: missing physics may move a mode far (a spring to ground gives a free bar a
         # mode of its own); what must stay out are modes the sensors cannot see and merges of close modes
         pr = pair_modes(mac_matrix(Vm, r.phi), fm, r.f, observability=seen.astype(float), max_freq_error=None,
