@@ -487,7 +487,7 @@ class MCIUpdater:
         self.mode_ = mode
         self.params_ = idx
         self.mci_initial_ = mci_from_columns(model, data, p)
-        lo, hi = _bounds(self.bounds, p_start)
+        lo, hi = default_bounds(self.bounds, p_start)
         scale_ref = np.where(p_start != 0, np.abs(p_start), 1.0)
         run = iterate(lambda q: self._propose(model, data, q, p_start, idx, mode), p, idx, lo, hi,
                       max_iter=self.max_iter, tol=self.tol, change_ref=lambda *_: scale_ref,
@@ -558,6 +558,3 @@ def _cost(r, p_start, p, idx, col_scale, penalty):
 
 
 _param_indices = parameter_indices
-
-
-_bounds = default_bounds

@@ -45,7 +45,7 @@ from modalab.core.frf import FRF
 from updating.correlation.condensation import solve_columns
 from updating.correlation.receptance import MeasuredColumns, measured_columns
 from updating.fe.sensitivity import StackedDerivatives
-from updating.methods.iteration import Proposal, default_bounds as _bounds, iterate
+from updating.methods.iteration import Proposal, default_bounds, iterate
 from updating.methods.mci import _mats, _param_indices, dynamic_expansion
 
 log = logging.getLogger(__name__)
@@ -213,7 +213,7 @@ class ResponseFunctionMethod:
         if p.shape != np.shape(model.p0):
             raise ShapeError(f"p_init has shape {p.shape}; expected {np.shape(model.p0)}")
         p_start = p.copy()
-        lo, hi = _bounds(self.bounds, p_start)
+        lo, hi = default_bounds(self.bounds, p_start)
         W = self._weights(data)
         self.params_ = idx
         self.p_init_ = p_start.copy()
