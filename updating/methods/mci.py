@@ -25,7 +25,8 @@ damping) the updated model satisfies ``Σ_i Δp_i [∂Z/∂p_i θ]_r = MCI_r(ω)
 ``[A]{Δp} = {δ}`` (Eq. 3.78) solved in the least-squares sense.  As the
 thesis prescribes, expansion and solution alternate until the parameters
 converge (a Gauss–Newton iteration on the MCI; for non-linear parameters the
-derivatives are re-evaluated at every step).
+derivatives are re-evaluated at every step), in the iteration loop all FRF-based updaters share
+(:func:`updating.methods.iteration.iterate`).
 
 Against the *trivial solution* the thesis warns of in 6.1.2 (MCI driven to zero
 by system matrices that shrink towards null) :class:`MCIUpdater` offers
