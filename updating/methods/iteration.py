@@ -23,11 +23,11 @@ from typing import Callable
 
 import numpy as np
 
-from modalab.core.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError, ShapeError
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Proposal", "Iterations", "iterate", "default_bounds"]
+__all__ = ["Proposal", "Iterations", "iterate", "start", "default_bounds"]
 
 
 @dataclass
@@ -95,6 +95,15 @@ def _line_search(p, idx, dp, lower, upper, accept, halvings):
             break
         step *= 0.5
     return p_new
+
+
+def start(model, p_init, bounds):
+    """The starting parameters (``model.p0`` or ``p_init``, checked against its shape) and their bounds
+    (:func:`default_bounds`)."""
+    p = np.array(model.p0 if p_init is None else p_init, dtype=float)
+    if p.shape != np.shape(model.p0):
+        raise ShapeError(f"p_init has shape {p.shape}; expected {np.shape(model.p0)}")
+    return (p,) + default_bounds(bounds, p)
 
 
 def default_bounds(bounds, p0):

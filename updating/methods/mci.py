@@ -50,14 +50,14 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from modalab.core.dense import use_dense
-from modalab.core.errors import ModalabValueError, NotFittedError, ShapeError
+from modalab.core.errors import ModalabValueError, NotFittedError
 from modalab.core.frf import FRF
 
 from updating.correlation.condensation import condensed_residual, dynamic_stiffness, dynamic_stiffness_batch
 from updating.correlation.receptance import MeasuredColumns, measured_columns
 from updating.fe.parametric import parameter_indices
 from updating.fe.sensitivity import StackedDerivatives
-from updating.methods.iteration import Proposal, default_bounds, iterate
+from updating.methods.iteration import Proposal, iterate, start
 from updating.methods.mci_plots import plot_convergence, plot_mci_map, plot_mci_maxima
 
 log = logging.getLogger(__name__)
@@ -480,15 +480,12 @@ class MCIUpdater:
             raise ModalabValueError(f"rows={self.rows!r}; expected 'all' or 'measured'")
         data = measured_columns(model, frf, references=self.references, bands=self.bands)
         idx = _param_indices(model, self.params)
-        p = np.array(model.p0 if p_init is None else p_init, dtype=float)
-        if p.shape != np.shape(model.p0):
-            raise ShapeError(f"p_init has shape {p.shape}; expected {np.shape(model.p0)}")
+        p, lo, hi = start(model, p_init, self.bounds)
         p_start = p.copy()
         self.p_init_ = p_start.copy()
         self.mode_ = mode
         self.params_ = idx
         self.mci_initial_ = mci_from_columns(model, data, p)
-        lo, hi = default_bounds(self.bounds, p_start)
         scale_ref = np.where(p_start != 0, np.abs(p_start), 1.0)
         run = iterate(lambda q: self._propose(model, data, q, p_start, idx, mode), p, idx, lo, hi,
                       max_iter=self.max_iter, tol=self.tol, change_ref=lambda *_: scale_ref,

@@ -39,13 +39,13 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from modalab.core.dense import use_dense
-from modalab.core.errors import ModalabValueError, NotFittedError, ShapeError
+from modalab.core.errors import ModalabValueError, NotFittedError
 from modalab.core.frf import FRF
 
 from updating.correlation.condensation import solve_columns
 from updating.correlation.receptance import MeasuredColumns, measured_columns
 from updating.fe.sensitivity import StackedDerivatives
-from updating.methods.iteration import Proposal, default_bounds, iterate
+from updating.methods.iteration import Proposal, iterate, start
 from updating.methods.mci import _mats, _param_indices, dynamic_expansion
 
 log = logging.getLogger(__name__)
@@ -209,11 +209,8 @@ class ResponseFunctionMethod:
             raise ModalabValueError(f"weighting={self.weighting!r}; expected 'relative' or 'none'")
         data = measured_columns(model, frf, references=self.references, bands=self.bands)
         idx = _param_indices(model, self.params)
-        p = np.array(model.p0 if p_init is None else p_init, dtype=float)
-        if p.shape != np.shape(model.p0):
-            raise ShapeError(f"p_init has shape {p.shape}; expected {np.shape(model.p0)}")
+        p, lo, hi = start(model, p_init, self.bounds)
         p_start = p.copy()
-        lo, hi = default_bounds(self.bounds, p_start)
         W = self._weights(data)
         self.params_ = idx
         self.p_init_ = p_start.copy()
