@@ -23,6 +23,8 @@ def cmd_update(a):
     if "table_before" in s:
         _print("before:\n" + s["table_before"])
         _print("after:\n" + s["table_after"])
+    if s.get("frequency_weights"):
+        _print(f"frequency weights: {s['frequency_weights']}")
     for name, v in (s.get("parameters") or {}).items():
         sd = "" if v["std"] is None else f" ± {v['std']:.3g}"
         _print(f"{name:>20}: {v['initial']:.4g} -> {v['updated']:.4g}{sd}")
@@ -30,8 +32,7 @@ def cmd_update(a):
     if idf:
         un = ", ".join(f"{k} ± {v:.3g}" if v is not None else f"{k} ± inf"
                        for k, v in idf["std_unregularised"].items())
-        _print(f"condition number {idf['condition_number']:.3g}; unregularised std: {un}; frequency weights: "
-               f"{idf['frequency_weights']}")
+        _print(f"condition number {idf['condition_number']:.3g}; unregularised std: {un}")
         if not idf["identifiable"]:
             _print("WARNING: the parameters are not identifiable from these data (condition number above 1e3): the "
                    "regularised ± above reflect the regularisation, not the data")
