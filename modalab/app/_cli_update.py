@@ -25,17 +25,24 @@ def cmd_update(a):
         _print("after:\n" + s["table_after"])
     if s.get("frequency_weights"):
         _print(f"frequency weights: {s['frequency_weights']}")
+    idf = s.get("identifiability")
     for name, v in (s.get("parameters") or {}).items():
         sd = "" if v["std"] is None else f" ± {v['std']:.3g}"
+        if v["std"] is None and idf and name in idf["std_unregularised"]:
+            sd = " ± inf (not determined by these data)"
         _print(f"{name:>20}: {v['initial']:.4g} -> {v['updated']:.4g}{sd}")
-    idf = s.get("identifiability")
     if idf:
+        for g, c in idf.get("residual_check", {}).items():
+            if c["std_factor"] > 1:
+                _print(f"the {g} residuals are {c['std_factor']:.3g} times their stated standard deviations "
+                       f"(chi2 {c['chi2']:.4g} for {c['dof']:.3g} degrees of freedom): the stated sigma are too small "
+                       "for these data, and the ± above are raised by that factor")
         un = ", ".join(f"{k} ± {v:.3g}" if v is not None else f"{k} ± inf"
                        for k, v in idf["std_unregularised"].items())
         _print(f"condition number {idf['condition_number']:.3g}; unregularised std: {un}")
         if not idf["identifiable"]:
-            _print("WARNING: the parameters are not identifiable from these data (condition number above 1e3): the "
-                   "regularised ± above reflect the regularisation, not the data")
+            _print("WARNING: the parameters are not identifiable from these data (condition number above 1e3): "
+                   "some combination of them is poorly determined, and its ± is large")
     _print(f"results in {a.output}")
     return 0
 

@@ -254,13 +254,17 @@ def _identifiability(up, pm, weights_text) -> dict:
     return {"condition_number": float(up.condition_), "identifiable": bool(up.identifiable_),
             "std_unregularised": {n: (float(v) if np.isfinite(v) else None)
                                   for n, v in zip(names, np.atleast_1d(up.std_unregularised_))},
-            "frequency_weights": weights_text}
+            "frequency_weights": weights_text,
+            "residual_check": {g: {"chi2": float(v["chi2"]), "dof": float(v["dof"]), "n": int(v["n"]),
+                                   "chi2_95": float(v["chi2_95"]) if np.isfinite(v["chi2_95"]) else None,
+                                   "std_factor": float(np.sqrt(v["factor"]))}
+                               for g, v in (getattr(up, "residual_check_", None) or {}).items()}}
 
 
 def _weights_text(test, fsig, given, modes_path, source) -> str:
     """Where the frequency weights come from, said plainly (an assumed 1 % is called an assumption)."""
     name = Path(modes_path).name if modes_path is not None else "the test modes"
-    src = f" of {Path(source).name} beside {name} (the same identification)" if source is not None else \
+    src = f" of {Path(source).name} beside {name}, the same identification" if source is not None else \
         f" stored with {name}"
     if given is not None:
         if np.ndim(fsig) and np.size(fsig) > 1:
