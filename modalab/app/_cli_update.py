@@ -35,8 +35,9 @@ def cmd_update(a):
         for g, c in idf.get("residual_check", {}).items():
             if c["std_factor"] > 1:
                 _print(f"the {g} residuals are {c['std_factor']:.3g} times their stated standard deviations "
-                       f"(chi2 {c['chi2']:.4g} for {c['dof']:.3g} degrees of freedom): the stated sigma are too small "
-                       "for these data, and the ± above are raised by that factor")
+                       f"(chi2 {c['chi2']:.4g} for {c['dof']:.3g} degrees of freedom): the ± above are raised by that "
+                       "factor. Either the stated sigma are too small, or the model leaves out physics that the "
+                       "parameters absorb (modalab diagnose); in that case the ± do not bound the parameters' bias")
         un = ", ".join(f"{k} ± {v:.3g}" if v is not None else f"{k} ± inf"
                        for k, v in idf["std_unregularised"].items())
         _print(f"condition number {idf['condition_number']:.3g}; unregularised std: {un}")

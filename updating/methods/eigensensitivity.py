@@ -645,8 +645,9 @@ class InverseEigensensitivity:
             if g["factor"] > 1:
                 log.warning("inverse eigensensitivity: the %s residuals are %.3g times their stated standard "
                             "deviations (chi2 %.4g for %.3g degrees of freedom, above its 95 %% point %.4g): the "
-                            "stated sigma are too small for these data (or the model misses something); the "
-                            "parameter standard deviations are raised accordingly", g["name"],
+                            "stated sigma are too small for these data, or the model leaves out physics the "
+                            "parameters absorb (then no standard deviation bounds their bias); the parameter "
+                            "standard deviations are raised accordingly", g["name"],
                             np.sqrt(g["factor"]), g["chi2"], g["dof"], g["chi2_95"])
         self.identifiable_ = bool(self.condition_ <= self.condition_max)
         if not self.identifiable_:
