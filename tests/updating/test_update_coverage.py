@@ -150,3 +150,26 @@ def test_tikhonov_on_the_initial_values_gives_the_posterior_with_its_prior():
     in1, in2, tol1, tol2 = _coverage(z)
     assert np.all(np.abs(in1 - 0.6827) <= tol1), (in1, tol1)
     assert np.all(np.abs(in2 - 0.9545) <= tol2), (in2, tol2)
+
+
+def test_a_nearly_unidentifiable_set_states_the_least_squares_std(caplog):
+    """Two nearly collinear parameters (issue 16 #14: the regularised fit used to print ±0.02 where the data allow
+    ±15): the default fit penalises the step, so the std it states are the least-squares ones, large, with the
+    condition number and a warning."""
+    import logging
+
+    K2 = _spring(1)
+    terms = [(f"k{j + 1}", Derivative(dK=_spring(j))) for j in range(N)]
+    terms.append(("k2bis", Derivative(dK=K2 + 1e-3 * _spring(2))))
+    p = np.r_[P_TRUE, 0.0]
+    model = MatrixModel(dofs=[f"{j + 1}+Z" for j in range(N)], terms=terms, p0=p, M0=np.diag(MASS))
+    K, M, _, _ = model.matrices(p)
+    f = np.sqrt(sla.eigh(K.toarray(), M.toarray(), eigvals_only=True)) / (2 * np.pi)
+    rng = np.random.default_rng(5)
+    ms = ModeSet(freq_hz=f * (1 + 1e-3 * rng.normal(size=N)))
+    with caplog.at_level(logging.WARNING):
+        up = InverseEigensensitivity(params=["k2", "k2bis"], freq_sigma=1e-3).fit(model, ms)
+    assert up.condition_ > 1e3 and not up.identifiable_
+    np.testing.assert_allclose(up.std_, up.std_unregularised_, rtol=1e-12)
+    assert up.std_[0] > 0.5 * P_TRUE[1]                 # the data do not determine k2 apart from k2bis
+    assert "not identifiable" in caplog.text
