@@ -64,7 +64,8 @@ def register(sub):
     s.add_argument("--freq-sigma", type=float, nargs="+",
                    help="relative standard deviation of each test frequency (one value, or one per mode); default: "
                         "the covariance stored with the modes, else the standard deviations modalab identify "
-                        "stored in modes.json (freq_std_hz), else 1 %%")
+                        "stored in modes.json (freq_std_hz; for modes.uff, the modes.json of the same identify run "
+                        "beside it), else an assumed 1 %%")
     s.add_argument("--band", nargs=2, type=float, action="append", metavar=("LO", "HI"),
                    help="updating band in Hz for mci/rfm (repeatable)")
     s.add_argument("--max-iter", type=int, default=30, help="iteration limit (default 30)")

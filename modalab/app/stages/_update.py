@@ -36,7 +36,8 @@ class UpdateOptions:
     """``modalab update``: method (:data:`UPDATE_METHODS`), parameter file (default E and density per property),
     iteration limit, and for eigensensitivity the regularisation ('lcurve', 'gcv' or a number), use of mode
     shapes (never for a frequency-only test set), relative frequency standard deviation (one value or one per
-    test mode; None: the covariance stored with the modes, else their identified freq_std_hz, else 1 %) and
+    test mode; None: the covariance stored with the modes, else their identified freq_std_hz — for a UFF 55,
+    which cannot carry them, those of the modes.json identify wrote beside it — else an assumed 1 %) and
     shape standard deviation (a floor, raised per mode to the noise its complexity shows); bands (Hz) for
     mci/rfm; correlation options (DOF map, frequency window: the pairing of every method)."""
 
