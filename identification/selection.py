@@ -44,7 +44,7 @@ from .stabilisation import StabilisationDiagram, mac_vectors, pole_freq_damping
 log = logging.getLogger(__name__)
 
 __all__ = ["SelectionOptions", "SelectedPoles", "select_poles", "auto_select", "select_frequencies",
-           "load_selection_file", "order_spread"]
+           "load_selection_file", "order_spread", "unresolved_modes"]
 
 
 @dataclass(frozen=True)
@@ -175,6 +175,47 @@ def _mean_participation(Lg):
     return v * (abs(v[k]) / v[k])
 
 
+def _resolved_at_upper_orders(members, f, od, opts):
+    """Order-wise split of a cluster that holds one pole per order below and ``k >= 2`` above.
+
+    Returns ``k`` arrays of pole indices (rank ``r`` in frequency at every resolved order goes to
+    mode ``r``), or None.  A cluster is resolved when, over its upper third of orders, most orders hold
+    ``k`` poles, at least ``min_poles`` orders hold exactly ``k`` and form a contiguous run up to the
+    cluster's highest order, and the modes stay apart: the spread of each mode's poles is smaller than
+    a quarter of the gap between neighbouring modes (two converged estimates, not a wandering extra pole).
+    The merged poles of the lower orders are left out of the modes (they estimate neither).
+    """
+    orders, cnt = np.unique(od[members], return_counts=True)
+    if orders.size < opts.min_poles:
+        return None
+    upper = orders >= np.percentile(orders, 67)
+    k = int(np.round(np.median(cnt[upper])))
+    if k < 2:
+        return None
+    exact = orders[cnt == k]
+    # the run of orders with exactly k poles that ends at the cluster's highest order
+    run = []
+    for n, c in zip(orders[::-1], cnt[::-1]):
+        if c != k:
+            break
+        run.append(n)
+    if len(run) < opts.min_poles or exact.size < opts.min_poles:
+        return None
+    run = np.array(run[::-1])
+    ranks = [[] for _ in range(k)]
+    for n in run:
+        at = members[od[members] == n]
+        for r, i in enumerate(at[np.argsort(f[at], kind="stable")]):
+            ranks[r].append(i)
+    modes = [np.array(q) for q in ranks]
+    centre = np.array([np.median(f[q]) for q in modes])
+    spread = np.array([np.std(f[q]) for q in modes])
+    gaps = np.diff(centre)
+    if np.any(gaps <= 0) or np.any(np.maximum(spread[:-1], spread[1:]) > 0.25 * gaps):
+        return None
+    return modes
+
+
 def _same_mode(orders_a, orders_b, la, lb, opts) -> bool:
     """Two near clusters are one mode unless they coexist order by order or their participations differ."""
     shared = len(orders_a & orders_b)
@@ -242,18 +283,34 @@ def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = N
     _, seg_starts, seg_sizes = np.unique(klab[o2], return_index=True, return_counts=True)
     k_per = _segment_medians(cnt[o2].astype(float), seg_starts, seg_sizes)
     k_all = np.round(k_per).astype(int)
-    groups = []
+    groups, support = [], []
     for ci in range(labels.size):
         members = by_lab[starts[ci]:starts[ci] + counts[ci]]
         k = k_all[ci]
-        if k >= 2 and members.size >= 2 * k:
+        log.debug("cluster %d: %d poles, %.6g..%.6g Hz, orders %d..%d, median poles per order %d", ci, members.size,
+                  f[members].min(), f[members].max(), od[members].min(), od[members].max(), k)
+        resolved = _resolved_at_upper_orders(members, f, od, opts)
+        if resolved is not None:
+            # k modes at the cluster's upper orders, perhaps one merged pole below (a close pair the lower
+            # orders cannot resolve, issue 16): the modes are the poles of the resolved orders, taken rank
+            # by rank; the cluster's stability over all its orders supports each of them
+            groups.extend(resolved)
+            support.extend([members.size] * len(resolved))
+            log.info("automatic selection: the cluster at %.5g Hz resolves into %d modes (%s Hz) from order %d on",
+                     float(np.median(f[members])), len(resolved),
+                     ", ".join(f"{np.median(f[q]):.5g}" for q in resolved), int(min(od[q].min() for q in resolved)))
+        elif k >= 2 and members.size >= 2 * k:
             feat = np.column_stack([f[members] / f[members].mean(), 0.1 * z[members] / max(z[members].mean(), 1e-12)])
             sub = fcluster(linkage(feat, method="ward"), t=k, criterion="maxclust")
-            groups.extend(members[sub == s] for s in np.unique(sub))
+            parts_ = [members[sub == s] for s in np.unique(sub)]
+            groups.extend(parts_)
+            support.extend(q.size for q in parts_)
         else:
             groups.append(members)
+            support.append(members.size)
     sizes = np.array([g.size for g in groups])
-    keep = (sizes >= opts.min_poles) & (sizes >= opts.min_fraction * diag.orders.size)
+    support = np.array(support)
+    keep = (sizes >= opts.min_poles) & (support >= opts.min_fraction * diag.orders.size)
     # one physical mode split into several clusters: keep the largest — but only when the two clusters are
     # one mode's wandering estimates: they rarely hold a pole at the same order (two modes coexist order by
     # order) and, with several references, their participation vectors agree (MAC >= same_mode_mac)
@@ -298,6 +355,49 @@ def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = N
     sp_ = np.array(spread, float).reshape(-1, 3)
     return SelectedPoles(np.array(lam), np.array(parts).T, np.array(orders), np.array(csize), "auto",
                          sp_[:, 0], sp_[:, 1], sp_[:, 2].astype(int))._sorted()
+
+
+def unresolved_modes(diag: StabilisationDiagram, selected: SelectedPoles,
+                     options: SelectionOptions | None = None) -> np.ndarray:
+    """Selected modes that look like a close pair still being resolved at the highest orders.
+
+    For each selected mode, over the last ``max(min_poles, 20 %)`` evaluated orders: an order holds a
+    *companion* when, besides the pole nearest the mode, it has another physical pole within
+    ``distance/2`` of the mode's frequency, with damping at most ``2 ζ + 0.2 %`` and nearer this mode
+    than any other selected mode (the least damped such pole is the order's companion).  Companions at
+    60 % or more of those orders whose frequencies agree (standard deviation below ``distance/8`` of the
+    mode's frequency) say the model order is just reaching a second mode there (a merged pole below,
+    two poles above: issue 16's close pair at 0.3 %).  Noise poles near a mode are more damped and
+    wander from order to order.
+
+    Returns the indices (into ``selected``) of such modes.
+    """
+    opts = options if options is not None else SelectionOptions()
+    if len(selected) == 0 or diag.orders.size == 0:
+        return np.zeros(0, int)
+    n_top = max(opts.min_poles, int(np.ceil(0.2 * diag.orders.size)))
+    top_orders = diag.orders[-n_top:]
+    fsel, zsel = selected.freq_hz, selected.damping
+    phys = (diag.damping > 0) & (diag.damping <= opts.max_damping)
+    out = []
+    for m, (fm, zm) in enumerate(zip(fsel, zsel)):
+        near = phys & (np.abs(diag.freq_hz - fm) < 0.5 * opts.distance * fm) & (diag.damping <= 2 * zm + 0.002)
+        if fsel.size > 1:
+            # a pole nearer another selected mode belongs to that one
+            others = np.delete(fsel, m)
+            near &= np.abs(diag.freq_hz - fm) <= np.min(np.abs(diag.freq_hz[:, None] - others[None, :]), axis=1)
+        comp = []
+        for n in top_orders:
+            c = np.flatnonzero(near & (diag.order == n))
+            if c.size < 2:
+                continue
+            c = np.delete(c, np.argmin(np.abs(diag.freq_hz[c] - fm)))          # the mode's own pole
+            comp.append(diag.freq_hz[c[np.argmin(diag.damping[c])]])
+        if len(comp) >= 0.6 * n_top and np.std(comp) < opts.distance / 8 * fm:
+            log.debug("mode at %.5g Hz: a companion at %.5g Hz (std %.3g Hz) at %d of the last %d orders", fm,
+                      float(np.median(comp)), float(np.std(comp)), len(comp), n_top)
+            out.append(m)
+    return np.array(out, int)
 
 
 def select_frequencies(diag: StabilisationDiagram, freqs_hz, options: SelectionOptions | None = None) -> SelectedPoles:
