@@ -161,8 +161,9 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
         Highest model order (order n gives n·n_in poles); default :func:`default_max_order`.  With the
         default and automatic selection, when a selected mode still resolves into a close pair at the top
         orders (:func:`~identification.selection.unresolved_modes`) the identification runs once more up
-        to ``EXTEND_ORDER`` times that order (``settings['max_order_extended']`` says from, to and why);
-        a mode still unresolved then is logged as a warning.
+        to ``EXTEND_ORDER`` times that order, kept if it resolves one of them into several modes
+        (``settings['max_order_extended']``: from, to, the modes, kept); a mode still unresolved is logged
+        as a warning.
     select : 'auto' | sequence of Hz | path
         Automatic clustering, the analyst's frequencies, or a JSON/TOML selection file.
     references : DOF labels or None
@@ -245,21 +246,27 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
 
     pm = _fit(n_order)
     extended = None
-    is_auto = isinstance(select, str) and select == "auto"
-    if is_auto:
-        unres = unresolved_modes(pm.stabilisation_, pm.selected_, selection)
+    if isinstance(select, str) and select == "auto":
+        band = (float(pm.frf_.freq_hz[0]), float(pm.frf_.freq_hz[-1]))
+        unres = unresolved_modes(pm.stabilisation_, pm.selected_, selection, band_hz=band)
         if unres.size and max_order is None:
             # a close pair still being resolved at the top orders (a merged pole below, two above): once,
-            # with EXTEND_ORDER times the default order (only when the analyst left the order to us)
-            first = [float(x) for x in pm.selected_.freq_hz[unres]]
+            # with EXTEND_ORDER times the default order (only when the analyst left the order to us); the
+            # higher order is kept only if it resolves one of them into several modes
+            first = pm.selected_.freq_hz[unres]
             p2 = int(math.ceil(EXTEND_ORDER * n_order))
             log.info("mode(s) at %s Hz still resolving at order %d (a second pole appears beside them at the "
                      "top orders): identifying again up to order %d",
                      ", ".join(f"{x:.5g}" for x in first), n_order, p2)
-            pm = _fit(p2)
-            extended = {"from": int(n_order), "to": p2, "modes_hz": first}
-            n_order = p2
-            unres = unresolved_modes(pm.stabilisation_, pm.selected_, selection)
+            pm2 = _fit(p2)
+            tol = 0.5 * (selection or SelectionOptions()).distance
+            split = [int(np.sum(np.abs(pm2.selected_.freq_hz - x) <= tol * x)) >= 2 for x in first]
+            extended = {"from": int(n_order), "to": p2, "modes_hz": [float(x) for x in first], "kept": any(split)}
+            if any(split):
+                pm, n_order = pm2, p2
+                unres = unresolved_modes(pm.stabilisation_, pm.selected_, selection, band_hz=band)
+            else:
+                log.info("order %d did not resolve them: the identification at order %d is kept", p2, n_order)
         if unres.size:
             log.warning("mode(s) at %s Hz may hide a close pair not resolved by order %d (a second pole keeps "
                         "appearing beside them at the top orders); raise --max-order or pick them with --select",

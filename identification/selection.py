@@ -180,10 +180,10 @@ def _resolved_at_upper_orders(members, f, od, opts):
 
     Returns ``k`` arrays of pole indices (rank ``r`` in frequency at every resolved order goes to
     mode ``r``), or None.  A cluster is resolved when, over its upper third of orders, most orders hold
-    ``k`` poles, at least ``min_poles`` orders hold exactly ``k`` and form a contiguous run up to the
-    cluster's highest order, and the modes stay apart: the spread of each mode's poles is smaller than
-    a quarter of the gap between neighbouring modes (two converged estimates, not a wandering extra pole).
-    The merged poles of the lower orders are left out of the modes (they estimate neither).
+    ``k`` poles and at least ``min_poles`` of them hold exactly ``k`` (the resolved orders), and the modes
+    stay apart: the robust spread (1.4826 MAD) of each mode's poles is smaller than a quarter of the gap
+    between neighbouring modes (converged estimates, not a wandering extra pole).  The poles of the other
+    orders (merged below, or one missing or one extra at a noisy order) are left out of the modes.
     """
     orders, cnt = np.unique(od[members], return_counts=True)
     if orders.size < opts.min_poles:
@@ -192,16 +192,9 @@ def _resolved_at_upper_orders(members, f, od, opts):
     k = int(np.round(np.median(cnt[upper])))
     if k < 2:
         return None
-    exact = orders[cnt == k]
-    # the run of orders with exactly k poles that ends at the cluster's highest order
-    run = []
-    for n, c in zip(orders[::-1], cnt[::-1]):
-        if c != k:
-            break
-        run.append(n)
-    if len(run) < opts.min_poles or exact.size < opts.min_poles:
+    run = orders[upper & (cnt == k)]
+    if run.size < opts.min_poles:
         return None
-    run = np.array(run[::-1])
     ranks = [[] for _ in range(k)]
     for n in run:
         at = members[od[members] == n]
@@ -209,7 +202,7 @@ def _resolved_at_upper_orders(members, f, od, opts):
             ranks[r].append(i)
     modes = [np.array(q) for q in ranks]
     centre = np.array([np.median(f[q]) for q in modes])
-    spread = np.array([np.std(f[q]) for q in modes])
+    spread = np.array([1.4826 * np.median(np.abs(f[q] - np.median(f[q]))) for q in modes])     # robust std
     gaps = np.diff(centre)
     if np.any(gaps <= 0) or np.any(np.maximum(spread[:-1], spread[1:]) > 0.25 * gaps):
         return None
@@ -358,17 +351,19 @@ def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = N
 
 
 def unresolved_modes(diag: StabilisationDiagram, selected: SelectedPoles,
-                     options: SelectionOptions | None = None) -> np.ndarray:
+                     options: SelectionOptions | None = None, *, band_hz=None) -> np.ndarray:
     """Selected modes that look like a close pair still being resolved at the highest orders.
 
     For each selected mode, over the last ``max(min_poles, 20 %)`` evaluated orders: an order holds a
     *companion* when, besides the pole nearest the mode, it has another physical pole within
     ``distance/2`` of the mode's frequency, with damping at most ``2 ζ + 0.2 %`` and nearer this mode
-    than any other selected mode (the least damped such pole is the order's companion).  Companions at
-    60 % or more of those orders whose frequencies agree (standard deviation below ``distance/8`` of the
-    mode's frequency) say the model order is just reaching a second mode there (a merged pole below,
-    two poles above: issue 16's close pair at 0.3 %).  Noise poles near a mode are more damped and
-    wander from order to order.
+    than any other selected mode (the two least damped such poles are the order's pair).  Pairs at
+    60 % or more of those orders whose lower and upper frequencies each agree over the orders (standard
+    deviation, as 1.4826 MAD, below ``distance/16`` of the mode's frequency, and further apart than that) say the model
+    order is just reaching a second mode there (a merged pole below, two poles above, or two poles at
+    some orders only: issue 16's close pair at 0.3 %).  Noise poles near a mode are more damped and
+    wander from order to order.  Modes within 5 % of the band's width from an edge of ``band_hz`` are
+    not judged (the fit puts computational poles near the edges).
 
     Returns the indices (into ``selected``) of such modes.
     """
@@ -379,23 +374,32 @@ def unresolved_modes(diag: StabilisationDiagram, selected: SelectedPoles,
     top_orders = diag.orders[-n_top:]
     fsel, zsel = selected.freq_hz, selected.damping
     phys = (diag.damping > 0) & (diag.damping <= opts.max_damping)
+    lo, hi = band_hz if band_hz is not None else (-np.inf, np.inf)
+    edge = 0.05 * (hi - lo) if np.isfinite(hi - lo) else 0.0
     out = []
     for m, (fm, zm) in enumerate(zip(fsel, zsel)):
+        if fm < lo + edge or fm > hi - edge:
+            continue
         near = phys & (np.abs(diag.freq_hz - fm) < 0.5 * opts.distance * fm) & (diag.damping <= 2 * zm + 0.002)
         if fsel.size > 1:
             # a pole nearer another selected mode belongs to that one
             others = np.delete(fsel, m)
             near &= np.abs(diag.freq_hz - fm) <= np.min(np.abs(diag.freq_hz[:, None] - others[None, :]), axis=1)
-        comp = []
+        two = []
         for n in top_orders:
             c = np.flatnonzero(near & (diag.order == n))
             if c.size < 2:
                 continue
-            c = np.delete(c, np.argmin(np.abs(diag.freq_hz[c] - fm)))          # the mode's own pole
-            comp.append(diag.freq_hz[c[np.argmin(diag.damping[c])]])
-        if len(comp) >= 0.6 * n_top and np.std(comp) < opts.distance / 8 * fm:
-            log.debug("mode at %.5g Hz: a companion at %.5g Hz (std %.3g Hz) at %d of the last %d orders", fm,
-                      float(np.median(comp)), float(np.std(comp)), len(comp), n_top)
+            c = c[np.argsort(diag.damping[c], kind="stable")[:2]]              # the two least damped
+            two.append(np.sort(diag.freq_hz[c]))
+        two = np.array(two).reshape(-1, 2)
+        tol = opts.distance / 16 * fm
+        if two.shape[0] < 0.6 * n_top:
+            continue
+        spread = 1.4826 * np.median(np.abs(two - np.median(two, axis=0)), axis=0)        # robust std
+        if np.all(spread < tol) and np.median(two[:, 1] - two[:, 0]) > tol:
+            log.debug("mode at %.5g Hz: two poles at %.5g and %.5g Hz (spread %.3g, %.3g Hz) at %d of the last "
+                      "%d orders", fm, *np.median(two, axis=0), *spread, two.shape[0], n_top)
             out.append(m)
     return np.array(out, int)
 
