@@ -8,9 +8,13 @@ operational modal analysis using multi-stage clustering", MSSP 76)
 2. cluster them hierarchically (average linkage) with the distance
    ``d_ij = |f_i−f_j|/max(f_i,f_j) + w_ζ·|ζ_i−ζ_j|/max(ζ_i,ζ_j) + w_mac·(1 − MAC(l_i,l_j))``
    cut at ``distance`` (default 1 %, the frequency stabilisation tolerance);
-3. a cluster that holds two or more poles of the same order in most of its
-   orders contains several modes: it is split (Ward linkage on frequency and
-   damping) into that many;
+3. a cluster that holds ``k >= 2`` poles per order over its upper third of orders
+   contains ``k`` modes (a close pair is often one merged pole at the lower orders and
+   two from some order on, issue 16): its modes are the poles of the upper orders holding
+   exactly ``k``, taken rank by rank in frequency (:func:`_resolved_at_upper_orders`), when at
+   least ``min_poles`` such orders agree; each is supported by the whole cluster's stability.
+   Otherwise a cluster holding two or more poles of the same order in most of its orders is
+   split (Ward linkage on frequency and damping) into that many;
 4. keep clusters holding stable poles from at least ``min_fraction`` of the evaluated
    orders and at least ``min_poles`` poles: spurious poles are rarely stable over many
    orders; of two kept clusters closer than ``distance/2`` in frequency only the larger
@@ -24,6 +28,10 @@ operational modal analysis using multi-stage clustering", MSSP 76)
 6. represent each cluster by the median frequency and damping of its poles in the upper third of
    its orders (estimates converge with the order), with the participation vector of the pole
    closest to that median.
+
+:func:`unresolved_modes` flags a selected mode beside which two consistent, lightly damped poles keep
+appearing at the top orders (a pair the order does not yet resolve); :func:`~identification.api.identify`
+then tries 1.5 times the default order once.
 
 Manual selection: a list of frequencies in Hz, or a selection file (JSON list,
 ``{"freq_hz": [...]}``, or TOML ``freq_hz = [...]``); for each, the nearest
