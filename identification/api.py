@@ -22,7 +22,7 @@ from modalab.core.frf import FRF
 from modalab.core.modes import ModeSet
 from .lsfd import LSFDResult
 from .polymax import PolyMAX
-from .selection import SelectedPoles, SelectionOptions
+from .selection import SelectedPoles, SelectionOptions, unresolved_modes
 from .stabilisation import StabilisationCriteria, StabilisationDiagram
 
 log = logging.getLogger(__name__)
@@ -33,6 +33,10 @@ __all__ = ["identify", "IdentificationReport", "default_max_order", "roving_hamm
 #: an FRF with at least this many times more references than responses (and more than 3 references)
 #: is a roving-hammer export: fixed accelerometers as responses, the hammer points as references
 ROVING_RATIO = 2
+
+#: with the default order, a mode that still resolves into a close pair at the top orders
+#: (:func:`~identification.selection.unresolved_modes`) is identified again up to this times the order
+EXTEND_ORDER = 1.5
 
 
 def default_max_order(n_in: int) -> int:
@@ -154,7 +158,12 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
     band_hz : (lo, hi) or None
         Band to identify in; the whole FRF by default (lines at 0 Hz are dropped).
     max_order : int or None
-        Highest model order (order n gives n·n_in poles); default :func:`default_max_order`.
+        Highest model order (order n gives n·n_in poles); default :func:`default_max_order`.  With the
+        default and automatic selection, when a selected mode still resolves into a close pair at the top
+        orders (:func:`~identification.selection.unresolved_modes`) the identification runs once more up
+        to ``EXTEND_ORDER`` times that order, kept if it resolves one of them into several modes
+        (``settings['max_order_extended']``: from, to, the modes, kept); a mode still unresolved is logged
+        as a warning.
     select : 'auto' | sequence of Hz | path
         Automatic clustering, the analyst's frequencies, or a JSON/TOML selection file.
     references : DOF labels or None
@@ -228,10 +237,40 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
         frf = frf._replace(window_beta_per_s=beta)
     data = frf if references is None else frf.select(references=references)
     n_order = default_max_order(data.n_in) if max_order is None else max_order
-    pm = PolyMAX(max_order=n_order, min_order=min_order, order_step=order_step, weighting=weighting,
-                 band_hz=band_hz, criteria=criteria, select=select, selection=selection,
-                 lower_residual=lower_residual, upper_residual=upper_residual,
-                 window_correction=window_correction, refine=refine, uncertainty=uncertainty).fit(data)
+
+    def _fit(p):
+        return PolyMAX(max_order=p, min_order=min_order, order_step=order_step, weighting=weighting,
+                       band_hz=band_hz, criteria=criteria, select=select, selection=selection,
+                       lower_residual=lower_residual, upper_residual=upper_residual,
+                       window_correction=window_correction, refine=refine, uncertainty=uncertainty).fit(data)
+
+    pm = _fit(n_order)
+    extended = None
+    if isinstance(select, str) and select == "auto":
+        band = (float(pm.frf_.freq_hz[0]), float(pm.frf_.freq_hz[-1]))
+        unres = unresolved_modes(pm.stabilisation_, pm.selected_, selection, band_hz=band)
+        if unres.size and max_order is None:
+            # a close pair still being resolved at the top orders (a merged pole below, two above): once,
+            # with EXTEND_ORDER times the default order (only when the analyst left the order to us); the
+            # higher order is kept only if it resolves one of them into several modes
+            first = pm.selected_.freq_hz[unres]
+            p2 = int(math.ceil(EXTEND_ORDER * n_order))
+            log.info("mode(s) at %s Hz still resolving at order %d (a second pole appears beside them at the "
+                     "top orders): identifying again up to order %d",
+                     ", ".join(f"{x:.5g}" for x in first), n_order, p2)
+            pm2 = _fit(p2)
+            tol = 0.5 * (selection or SelectionOptions()).distance
+            split = [int(np.sum(np.abs(pm2.selected_.freq_hz - x) <= tol * x)) >= 2 for x in first]
+            extended = {"from": int(n_order), "to": p2, "modes_hz": [float(x) for x in first], "kept": any(split)}
+            if any(split):
+                pm, n_order = pm2, p2
+                unres = unresolved_modes(pm.stabilisation_, pm.selected_, selection, band_hz=band)
+            else:
+                log.info("order %d did not resolve them: the identification at order %d is kept", p2, n_order)
+        if unres.size:
+            log.warning("mode(s) at %s Hz may hide a close pair not resolved by order %d (a second pole keeps "
+                        "appearing beside them at the top orders); raise --max-order or pick them with --select",
+                        ", ".join(f"{x:.5g}" for x in pm.selected_.freq_hz[unres]), n_order)
     modes: ModeSet = pm.modes_
     synth = pm.lsfd_.synthesise(pm.frf_)
     report = IdentificationReport(
@@ -246,7 +285,7 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
                   "n_lines": pm.frf_.n_freq, "quantity": pm.frf_.quantity,
                   "window_correction": {"beta_per_s": float(beta) if window_correction else 0.0,
                                         "source": beta_source},
-                  "reciprocity": recip,
+                  "reciprocity": recip, "max_order_extended": extended,
                   "criteria": pm.stabilisation_.to_dict()["criteria"]})
     if plots_dir is not None:
         from .plots import plot_automac, plot_stabilisation, plot_synthesis

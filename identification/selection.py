@@ -8,9 +8,13 @@ operational modal analysis using multi-stage clustering", MSSP 76)
 2. cluster them hierarchically (average linkage) with the distance
    ``d_ij = |f_i−f_j|/max(f_i,f_j) + w_ζ·|ζ_i−ζ_j|/max(ζ_i,ζ_j) + w_mac·(1 − MAC(l_i,l_j))``
    cut at ``distance`` (default 1 %, the frequency stabilisation tolerance);
-3. a cluster that holds two or more poles of the same order in most of its
-   orders contains several modes: it is split (Ward linkage on frequency and
-   damping) into that many;
+3. a cluster that holds ``k >= 2`` poles per order over its upper third of orders
+   contains ``k`` modes (a close pair is often one merged pole at the lower orders and
+   two from some order on, issue 16): its modes are the poles of the upper orders holding
+   exactly ``k``, taken rank by rank in frequency (:func:`_resolved_at_upper_orders`), when at
+   least ``min_poles`` such orders agree; each is supported by the whole cluster's stability.
+   Otherwise a cluster holding two or more poles of the same order in most of its orders is
+   split (Ward linkage on frequency and damping) into that many;
 4. keep clusters holding stable poles from at least ``min_fraction`` of the evaluated
    orders and at least ``min_poles`` poles: spurious poles are rarely stable over many
    orders; of two kept clusters closer than ``distance/2`` in frequency only the larger
@@ -24,6 +28,10 @@ operational modal analysis using multi-stage clustering", MSSP 76)
 6. represent each cluster by the median frequency and damping of its poles in the upper third of
    its orders (estimates converge with the order), with the participation vector of the pole
    closest to that median.
+
+:func:`unresolved_modes` flags a selected mode beside which two consistent, lightly damped poles keep
+appearing at the top orders (a pair the order does not yet resolve); :func:`~identification.api.identify`
+then tries 1.5 times the default order once.
 
 Manual selection: a list of frequencies in Hz, or a selection file (JSON list,
 ``{"freq_hz": [...]}``, or TOML ``freq_hz = [...]``); for each, the nearest
@@ -44,7 +52,7 @@ from .stabilisation import StabilisationDiagram, mac_vectors, pole_freq_damping
 log = logging.getLogger(__name__)
 
 __all__ = ["SelectionOptions", "SelectedPoles", "select_poles", "auto_select", "select_frequencies",
-           "load_selection_file", "order_spread"]
+           "load_selection_file", "order_spread", "unresolved_modes"]
 
 
 @dataclass(frozen=True)
@@ -175,6 +183,40 @@ def _mean_participation(Lg):
     return v * (abs(v[k]) / v[k])
 
 
+def _resolved_at_upper_orders(members, f, od, opts):
+    """Order-wise split of a cluster that holds one pole per order below and ``k >= 2`` above.
+
+    Returns ``k`` arrays of pole indices (rank ``r`` in frequency at every resolved order goes to
+    mode ``r``), or None.  A cluster is resolved when, over its upper third of orders, most orders hold
+    ``k`` poles and at least ``min_poles`` of them hold exactly ``k`` (the resolved orders), and the modes
+    stay apart: the robust spread (1.4826 MAD) of each mode's poles is smaller than a quarter of the gap
+    between neighbouring modes (converged estimates, not a wandering extra pole).  The poles of the other
+    orders (merged below, or one missing or one extra at a noisy order) are left out of the modes.
+    """
+    orders, cnt = np.unique(od[members], return_counts=True)
+    if orders.size < opts.min_poles:
+        return None
+    upper = orders >= np.percentile(orders, 67)
+    k = int(np.round(np.median(cnt[upper])))
+    if k < 2:
+        return None
+    run = orders[upper & (cnt == k)]
+    if run.size < opts.min_poles:
+        return None
+    ranks = [[] for _ in range(k)]
+    for n in run:
+        at = members[od[members] == n]
+        for r, i in enumerate(at[np.argsort(f[at], kind="stable")]):
+            ranks[r].append(i)
+    modes = [np.array(q) for q in ranks]
+    centre = np.array([np.median(f[q]) for q in modes])
+    spread = np.array([1.4826 * np.median(np.abs(f[q] - np.median(f[q]))) for q in modes])     # robust std
+    gaps = np.diff(centre)
+    if np.any(gaps <= 0) or np.any(np.maximum(spread[:-1], spread[1:]) > 0.25 * gaps):
+        return None
+    return modes
+
+
 def _same_mode(orders_a, orders_b, la, lb, opts) -> bool:
     """Two near clusters are one mode unless they coexist order by order or their participations differ."""
     shared = len(orders_a & orders_b)
@@ -242,18 +284,34 @@ def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = N
     _, seg_starts, seg_sizes = np.unique(klab[o2], return_index=True, return_counts=True)
     k_per = _segment_medians(cnt[o2].astype(float), seg_starts, seg_sizes)
     k_all = np.round(k_per).astype(int)
-    groups = []
+    groups, support = [], []
     for ci in range(labels.size):
         members = by_lab[starts[ci]:starts[ci] + counts[ci]]
         k = k_all[ci]
-        if k >= 2 and members.size >= 2 * k:
+        log.debug("cluster %d: %d poles, %.6g..%.6g Hz, orders %d..%d, median poles per order %d", ci, members.size,
+                  f[members].min(), f[members].max(), od[members].min(), od[members].max(), k)
+        resolved = _resolved_at_upper_orders(members, f, od, opts)
+        if resolved is not None:
+            # k modes at the cluster's upper orders, perhaps one merged pole below (a close pair the lower
+            # orders cannot resolve, issue 16): the modes are the poles of the resolved orders, taken rank
+            # by rank; the cluster's stability over all its orders supports each of them
+            groups.extend(resolved)
+            support.extend([members.size] * len(resolved))
+            log.info("automatic selection: the cluster at %.5g Hz resolves into %d modes (%s Hz) from order %d on",
+                     float(np.median(f[members])), len(resolved),
+                     ", ".join(f"{np.median(f[q]):.5g}" for q in resolved), int(min(od[q].min() for q in resolved)))
+        elif k >= 2 and members.size >= 2 * k:
             feat = np.column_stack([f[members] / f[members].mean(), 0.1 * z[members] / max(z[members].mean(), 1e-12)])
             sub = fcluster(linkage(feat, method="ward"), t=k, criterion="maxclust")
-            groups.extend(members[sub == s] for s in np.unique(sub))
+            parts_ = [members[sub == s] for s in np.unique(sub)]
+            groups.extend(parts_)
+            support.extend(q.size for q in parts_)
         else:
             groups.append(members)
+            support.append(members.size)
     sizes = np.array([g.size for g in groups])
-    keep = (sizes >= opts.min_poles) & (sizes >= opts.min_fraction * diag.orders.size)
+    support = np.array(support)
+    keep = (sizes >= opts.min_poles) & (support >= opts.min_fraction * diag.orders.size)
     # one physical mode split into several clusters: keep the largest — but only when the two clusters are
     # one mode's wandering estimates: they rarely hold a pole at the same order (two modes coexist order by
     # order) and, with several references, their participation vectors agree (MAC >= same_mode_mac)
@@ -298,6 +356,60 @@ def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = N
     sp_ = np.array(spread, float).reshape(-1, 3)
     return SelectedPoles(np.array(lam), np.array(parts).T, np.array(orders), np.array(csize), "auto",
                          sp_[:, 0], sp_[:, 1], sp_[:, 2].astype(int))._sorted()
+
+
+def unresolved_modes(diag: StabilisationDiagram, selected: SelectedPoles,
+                     options: SelectionOptions | None = None, *, band_hz=None) -> np.ndarray:
+    """Selected modes that look like a close pair still being resolved at the highest orders.
+
+    For each selected mode, over the last ``max(min_poles, 20 %)`` evaluated orders: an order holds a
+    *companion* when, besides the pole nearest the mode, it has another physical pole within
+    ``distance/2`` of the mode's frequency, with damping at most ``2 ζ + 0.2 %`` and nearer this mode
+    than any other selected mode (the two least damped such poles are the order's pair).  Pairs at
+    60 % or more of those orders whose lower and upper frequencies each agree over the orders (standard
+    deviation, as 1.4826 MAD, below ``distance/16`` of the mode's frequency, and further apart than that) say the model
+    order is just reaching a second mode there (a merged pole below, two poles above, or two poles at
+    some orders only: issue 16's close pair at 0.3 %).  Noise poles near a mode are more damped and
+    wander from order to order.  Modes within 5 % of the band's width from an edge of ``band_hz`` are
+    not judged (the fit puts computational poles near the edges).
+
+    Returns the indices (into ``selected``) of such modes.
+    """
+    opts = options if options is not None else SelectionOptions()
+    if len(selected) == 0 or diag.orders.size == 0:
+        return np.zeros(0, int)
+    n_top = max(opts.min_poles, int(np.ceil(0.2 * diag.orders.size)))
+    top_orders = diag.orders[-n_top:]
+    fsel, zsel = selected.freq_hz, selected.damping
+    phys = (diag.damping > 0) & (diag.damping <= opts.max_damping)
+    lo, hi = band_hz if band_hz is not None else (-np.inf, np.inf)
+    edge = 0.05 * (hi - lo) if np.isfinite(hi - lo) else 0.0
+    out = []
+    for m, (fm, zm) in enumerate(zip(fsel, zsel)):
+        if fm < lo + edge or fm > hi - edge:
+            continue
+        near = phys & (np.abs(diag.freq_hz - fm) < 0.5 * opts.distance * fm) & (diag.damping <= 2 * zm + 0.002)
+        if fsel.size > 1:
+            # a pole nearer another selected mode belongs to that one
+            others = np.delete(fsel, m)
+            near &= np.abs(diag.freq_hz - fm) <= np.min(np.abs(diag.freq_hz[:, None] - others[None, :]), axis=1)
+        two = []
+        for n in top_orders:
+            c = np.flatnonzero(near & (diag.order == n))
+            if c.size < 2:
+                continue
+            c = c[np.argsort(diag.damping[c], kind="stable")[:2]]              # the two least damped
+            two.append(np.sort(diag.freq_hz[c]))
+        two = np.array(two).reshape(-1, 2)
+        tol = opts.distance / 16 * fm
+        if two.shape[0] < 0.6 * n_top:
+            continue
+        spread = 1.4826 * np.median(np.abs(two - np.median(two, axis=0)), axis=0)        # robust std
+        if np.all(spread < tol) and np.median(two[:, 1] - two[:, 0]) > tol:
+            log.debug("mode at %.5g Hz: two poles at %.5g and %.5g Hz (spread %.3g, %.3g Hz) at %d of the last "
+                      "%d orders", fm, *np.median(two, axis=0), *spread, two.shape[0], n_top)
+            out.append(m)
+    return np.array(out, int)
 
 
 def select_frequencies(diag: StabilisationDiagram, freqs_hz, options: SelectionOptions | None = None) -> SelectedPoles:

@@ -45,6 +45,12 @@ def _print_settings(report, _print):
         _print(f"reciprocity refused: {rc['measured_shape'][0]} responses x {rc['measured_shape'][1]} "
                "references identified as given")
     _print(_window_line(report.settings["window_correction"]))
+    ext = report.settings.get("max_order_extended")
+    if ext:
+        hz = ", ".join(f"{x:.5g}" for x in ext["modes_hz"])
+        _print(f"model order raised from {ext['from']} to {ext['to']}: {hz} Hz still resolving into close modes "
+               "at the top orders" + ("" if ext["kept"] else f"; order {ext['to']} did not resolve them, "
+                                      f"order {ext['from']} kept"))
 
 
 def cmd_identify(a):
