@@ -71,3 +71,69 @@ def test_local_matrix_storage_does_not_grow_with_the_model():
     assert G.rows.tolist() == [7, 99_998] and G.block.shape == (2, 2)
     assert G.rows.nbytes + G.block.nbytes < 100
     np.testing.assert_array_equal(G.tocsr()[[7, 99_998]][:, [7, 99_998]].toarray(), np.eye(2))
+
+
+# ------------------------------------------------------------------ the modes-only screening on the low-rank form
+def _gvt_case(tmp_path):
+    """A 21-grid lumped-mass CBEAM deck without SPC and the modes of an independent finer beam carrying a
+    concealed 0.06 kg mass at grid 18 (the test helpers of test_diagnosis_modes)."""
+    from test_diagnosis_modes import _gvt_deck, _gvt_modes
+    from updating.diagnosis.modes import ModalResidual, _on_independent_dofs
+    model = _gvt_deck(tmp_path / "gvt.bdf")
+    st = model.structure()
+    lib = _on_independent_dofs(build_library(model, kinds=["ground_spring", "added_mass"]), st)
+    return st, lib, ModalResidual(_gvt_modes(masses=[(18, 0.06)]))
+
+
+def test_screening_numbers_are_the_same_from_low_rank_and_explicit_matrices(tmp_path):
+    import dataclasses
+    from updating.diagnosis.modes import screen_modes
+    st, lib, resid = _gvt_case(tmp_path)
+    explicit = [dataclasses.replace(c, G=c.G.tocsr()) for c in lib]
+    assert all(isinstance(c.G, sp.csr_matrix) for c in explicit)
+    a = screen_modes(st, lib, resid)
+    b = screen_modes(st, explicit, resid)
+    assert len(a) > 10
+    assert [c.key for c, _, _ in a] == [c.key for c, _, _ in b]
+    np.testing.assert_array_equal([v for _, v, _ in a], [v for _, v, _ in b])
+    np.testing.assert_array_equal([g for _, _, g in a], [g for _, _, g in b])
+
+
+def test_first_order_sensitivities_match_finite_differences_in_the_subspace(tmp_path):
+    # ∂e/∂θ of the pre-screen against central differences of the residual of the subspace eigenproblem
+    # Kr + θ bbᵀ (or Mr + θ bbᵀ) at a small value, the pairing fixed: eigenvalues and shapes to first order
+    import scipy.linalg as sla
+    from updating.diagnosis.modes_screen import _jacobians, _ScreenState
+    st, lib, resid = _gvt_case(tmp_path)
+    state = _ScreenState(st, resid, None)
+    Kr0, Mr0 = state.basis.project(state.K, state.M)
+    for label in ("spring to ground at 9+Z", "point mass at node 14", "rotary inertia at 5+RY"):
+        c = next(c for c in lib if c.label == label)
+        rows, L = c.G.low_rank()
+        J = _jacobians(state, c.matrix, rows[None], L[None])[0]
+        b = state.basis.rows_of(rows).T @ L
+        scale = np.trace(L.T @ (state.K if c.matrix == "K" else state.M)[rows][:, rows].toarray() @ L)
+        h = 1e-5 * abs(scale) / max(float(np.sum(b * b)), 1e-300) if c.matrix == "K" else 1e-5 * 0.1
+
+        def e(theta):
+            Kr = Kr0 + theta * b @ b.T if c.matrix == "K" else Kr0
+            Mr = Mr0 + theta * b @ b.T if c.matrix == "M" else Mr0
+            w2, Psi = sla.eigh(Kr, Mr)
+            fm = np.sqrt(np.clip(w2[:state.kn], 0, None)) / (2 * np.pi)
+            return resid.residual(fm, state.Um @ np.linalg.solve(state.Psi0, Psi[:, :state.kn]))
+
+        fd = (e(h) - e(-h)) / (2 * h)
+        assert np.abs(fd).max() > 0, label
+        np.testing.assert_allclose(J, fd, rtol=1e-4, atol=1e-4 * np.abs(fd).max(), err_msg=label)
+
+
+def test_first_order_prescreen_keeps_what_the_full_screening_finds(tmp_path):
+    from updating.diagnosis.modes import screen_modes
+    st, lib, resid = _gvt_case(tmp_path)
+    full = screen_modes(st, lib, resid)
+    pre = screen_modes(st, lib, resid, prescreen_above=0, keep=20)          # 20 of ~200 evaluated exactly
+    assert len(lib) > 150 and len(pre) <= 20
+    # the best candidates of the full screening survive the pre-screen, with the same numbers
+    for c, v, g in full[:4]:
+        hit = next(x for x in pre if x[0].key == c.key)
+        assert hit[1] == v and hit[2] == g
