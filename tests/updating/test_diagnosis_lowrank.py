@@ -137,3 +137,20 @@ def test_first_order_prescreen_keeps_what_the_full_screening_finds(tmp_path):
     for c, v, g in full[:4]:
         hit = next(x for x in pre if x[0].key == c.key)
         assert hit[1] == v and hit[2] == g
+
+
+def test_mci_columns_are_the_same_from_low_rank_and_explicit_matrices():
+    # the MCI screening's residual columns (updating.methods.mci_condensed._column) from the block alone
+    from updating.methods.mci_condensed import _column
+    m = _frame()
+    cands = [c for c in build_library(m) if c.shared and c.G is not None]
+    n = m.reduction().n_dof
+    rng = np.random.default_rng(0)
+    x = rng.standard_normal((n, 2, 5)) + 1j * rng.standard_normal((n, 2, 5))
+    T = rng.standard_normal((n, 3, 5))
+    s = 1j * np.linspace(10.0, 60.0, 5)
+    w = np.ones((2, 5))
+    for c in cands:
+        a = _column(T, x, c.G, s ** 2, w)
+        b = _column(T, x, c.G.tocsr(), s ** 2, w)
+        np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-13 * np.abs(b).max())
