@@ -21,7 +21,9 @@ mass) and massless mechanisms exactly; a failing eigen-solution is an error, nev
    on a plausible grid (:func:`screen_modes`), around the updated and the nominal parameters: a low-rank
    update ``θ L Lᵀ`` in the subspace of the lowest modes extended by the static corrections of the
    candidate's DOFs (:class:`ModalSubspace`; the FRF screening's Ritz idea), a small eigenproblem per
-   value.  A candidate that changes none of the model modes paired with test modes (``Lᵀφ_j = 0``: a
+   value; with many candidates (a 100k-DOF model has ~10⁵) a first-order pre-screen by the eigenvalue and
+   eigenvector sensitivities of the paired modes chooses the few hundred evaluated so
+   (:mod:`~updating.diagnosis.modes_screen`).  A candidate that changes none of the model modes paired with test modes (``Lᵀφ_j = 0``: a
    rotational spring about the vertical axis seen by vertical sensors) has no evidence and is dropped;
 3. the best few are fitted jointly with the stiffness parameters (densities stay nominal: a density
    multiplier mimics an added mass, and on suspension modes any grounded stiffness) — in the subspace for
