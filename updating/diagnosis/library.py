@@ -25,7 +25,8 @@ The frequency signature of each follows from the dynamic stiffness it adds:
 real and constant (stiffness), real ∝ −ω² (mass), imaginary ∝ ω (viscous),
 imaginary and constant (hysteretic).  Candidates of the first three kinds act
 on the existing DOFs (``shared=True``): their unit matrix ``G`` on the model's
-constrained DOFs enters the linear screening.  Joint and boundary candidates
+constrained DOFs enters the linear screening.  ``G`` is a :class:`LocalMatrix` (the few DOF indices it
+touches and a small dense block), never an n × n matrix: a 100k-DOF model has ~10⁵ candidates.  Joint and boundary candidates
 change the DOF set; they carry their ``release`` and are screened exactly, at
 every place, as rank-1..3 updates of the nominal receptance
 (:mod:`~updating.diagnosis.release`).
