@@ -105,11 +105,7 @@ class ModalResidual:
         M = structure.M if M is None else M
         mi, ms = self.rows(structure)
         if basis is not None and basis.matches(structure):
-            Kr, Mr = basis.project(sp.csr_matrix(K), sp.csr_matrix(M))
-            w2, Psi = sla.eigh(Kr, Mr)
-            k = self.n_pairable(np.sqrt(np.clip(w2, 0, None)) / (2 * np.pi))
-            Vm = (basis.rows_of(mi) * ms[:, None]) @ Psi[:, :k]
-            return np.sqrt(np.clip(w2[:k], 0, None)) / (2 * np.pi), Vm
+            return self.projected_modes(structure, basis, *basis.project(sp.csr_matrix(K), sp.csr_matrix(M)))
         Ks, Ms = sp.csr_matrix(K), sp.csr_matrix(M)
         k = self.n_model_modes
         while True:                    # every model mode up to PAIR_FACTOR × the highest test frequency
@@ -118,6 +114,15 @@ class ModalResidual:
                 break
             k = min(2 * k, Ks.shape[0] - 2)
         return w / (2 * np.pi), V[mi] * ms[:, None]
+
+    def projected_modes(self, structure, basis, Kr, Mr):
+        """Model frequencies (Hz) and measured shapes from the subspace matrices ``Kr = VᵀKV``, ``Mr = VᵀMV``
+        of ``basis`` (the Ritz values and vectors)."""
+        mi, ms = self.rows(structure)
+        w2, Psi = sla.eigh(Kr, Mr)
+        k = self.n_pairable(np.sqrt(np.clip(w2, 0, None)) / (2 * np.pi))
+        Vm = (basis.rows_of(mi) * ms[:, None]) @ Psi[:, :k]
+        return np.sqrt(np.clip(w2[:k], 0, None)) / (2 * np.pi), Vm
 
     def n_pairable(self, fm) -> int:
         """How many of the ascending model frequencies ``fm`` pairing may choose from: every mode up to
