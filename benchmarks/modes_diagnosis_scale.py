@@ -48,6 +48,27 @@ Measured 2026-11-25 (massless branch), shared 2-core machine, load average 9-15,
   and the candidate library would need ~67 GB (n × n CSR per candidate).  So a 100k-DOF model does not screen
   "in minutes": the library must store candidates in low-rank form (rows, L) and fewer candidates must reach
   the subspace evaluation (a first-order pre-screen), both outside the eigen-solvers.
+
+Measured 2026-11-25 after the low-rank library (:class:`~updating.diagnosis.library.LocalMatrix`), the
+first-order pre-screen (:mod:`~updating.diagnosis.modes_screen`, above 4000 candidates, the best 500
+evaluated exactly) and the CBEAM lumped torsional inertia (the lumped deck now has six rigid modes), at
+51522f5, ``--table``, lumped mass, load average 14-16 on the 2 cores (wall times inflated 3-5x; CPU is the
+measure), one BLAS thread:
+
+====== ======= ====== ===== ======== ========= ===== ====== ======= ====================================
+grids  DOFs    wall s CPU s base CPU CPU ratio /60 s RSS MB base MB finding (truth grid)
+====== ======= ====== ===== ======== ========= ===== ====== ======= ====================================
+367    2202    150    24    22.7     1.06      0.40  135    174     point mass 331, 0.148 kg (330)
+1500   9000    188    39    107      0.36      0.64  271    -       point mass 1351, 0.149 kg, ambiguous (1350)
+5000   30000   975    226   -        -         3.76  642    -       point mass 4508, 0.148 kg, ambiguous (4500)
+====== ======= ====== ===== ======== ========= ===== ====== ======= ====================================
+
+(base: the code before, 05ed0d1, run here at 367 grids under the same load, and its 9000-DOF CPU time above;
+at 30000 and 100000 DOFs it could not run: its library alone needs 6 and 67 GB.)  At 367 grids there are
+3670 candidates: no pre-screen, the same screening numbers and finding as before.  At 30000 DOFs the
+screening took 159 s and the candidate fits 618 s of the wall time: every evaluation of a fit assembled the
+model and projected n-size matrices.  Since d3c7e78 a fit over parameters that enter K and M linearly uses
+projected derivatives instead (a 9000-DOF baseline fit 7.4 → 1.9 s CPU, the same residual to 7 digits).
 """
 from __future__ import annotations
 
