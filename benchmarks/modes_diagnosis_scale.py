@@ -61,7 +61,12 @@ grids  DOFs    wall s CPU s base CPU CPU ratio /60 s RSS MB base MB finding (tru
 367    2202    150    24    22.7     1.06      0.40  135    174     point mass 331, 0.148 kg (330)
 1500   9000    188    39    107      0.36      0.64  271    -       point mass 1351, 0.149 kg, ambiguous (1350)
 5000   30000   975    226   -        -         3.76  642    -       point mass 4508, 0.148 kg, ambiguous (4500)
+16667  100002  1582   372   -        -         6.20  1394   -       point mass 15061, 0.145 kg, ambiguous (15000)
 ====== ======= ====== ===== ======== ========= ===== ====== ======= ====================================
+
+(the 100002-DOF row at d3c7e78, with the projected-derivative fits, alone (``--dofs 100000 --quick``), load
+10-15: wall-time split baseline fit 66 s, screening 362 s, candidate fits 1022 s; the truth there is as fine
+as the deck, and the mass is placed 11 mm from it, one of six grids within 2 mm reported as equally good.)
 
 (base: the code before, 05ed0d1, run here at 367 grids under the same load, and its 9000-DOF CPU time above;
 at 30000 and 100000 DOFs it could not run: its library alone needs 6 and 67 GB.)  At 367 grids there are
