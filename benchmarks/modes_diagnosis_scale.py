@@ -11,8 +11,10 @@ end grid), 1 % relative scatter per shape entry.  Sensors in z only: the lateral
 torsion modes of the model are unobservable.
 
 Options: ``--grids N`` (a deck of N grids, the same beam more finely meshed; the truth at least as fine)
-or ``--dofs N``; above 3000 grids the whole diagnosis does not fit in memory (see :func:`parts`) and its parts
-are timed instead.
+or ``--dofs N``; ``--parts`` times the parts of a large diagnosis one by one (:func:`parts`); ``--table`` runs
+367 grids, 9000, 30000 and 100000 DOFs (lumped mass), each in a process of its own, and prints a table: wall
+and CPU time, peak RSS, the ratio of CPU time to the baseline measured before the low-rank library and the
+first-order pre-screen (:data:`BASELINE`) and to the issue's budget of 60 s, and the finding.
 
 Prints, per mass formulation, the time of the whole diagnosis against the issue's budget of 60 s on 2
 cores (ratio < 1 is within budget) and the finding.  Run: ``python benchmarks/modes_diagnosis_scale.py``
@@ -46,6 +48,32 @@ Measured 2026-11-25 (massless branch), shared 2-core machine, load average 9-15,
   and the candidate library would need ~67 GB (n × n CSR per candidate).  So a 100k-DOF model does not screen
   "in minutes": the library must store candidates in low-rank form (rows, L) and fewer candidates must reach
   the subspace evaluation (a first-order pre-screen), both outside the eigen-solvers.
+
+Measured 2026-11-25 after the low-rank library (:class:`~updating.diagnosis.library.LocalMatrix`), the
+first-order pre-screen (:mod:`~updating.diagnosis.modes_screen`, above 4000 candidates, the best 500
+evaluated exactly) and the CBEAM lumped torsional inertia (the lumped deck now has six rigid modes), at
+51522f5, ``--table``, lumped mass, load average 14-16 on the 2 cores (wall times inflated 3-5x; CPU is the
+measure), one BLAS thread:
+
+====== ======= ====== ===== ======== ========= ===== ====== ======= ====================================
+grids  DOFs    wall s CPU s base CPU CPU ratio /60 s RSS MB base MB finding (truth grid)
+====== ======= ====== ===== ======== ========= ===== ====== ======= ====================================
+367    2202    150    24    22.7     1.06      0.40  135    174     point mass 331, 0.148 kg (330)
+1500   9000    188    39    107      0.36      0.64  271    -       point mass 1351, 0.149 kg, ambiguous (1350)
+5000   30000   975    226   -        -         3.76  642    -       point mass 4508, 0.148 kg, ambiguous (4500)
+16667  100002  1582   372   -        -         6.20  1394   -       point mass 15061, 0.145 kg, ambiguous (15000)
+====== ======= ====== ===== ======== ========= ===== ====== ======= ====================================
+
+(the 100002-DOF row at d3c7e78, with the projected-derivative fits, alone (``--dofs 100000 --quick``), load
+10-15: wall-time split baseline fit 66 s, screening 362 s, candidate fits 1022 s; the truth there is as fine
+as the deck, and the mass is placed 11 mm from it, one of six grids within 2 mm reported as equally good.)
+
+(base: the code before, 05ed0d1, run here at 367 grids under the same load, and its 9000-DOF CPU time above;
+at 30000 and 100000 DOFs it could not run: its library alone needs 6 and 67 GB.)  At 367 grids there are
+3670 candidates: no pre-screen, the same screening numbers and finding as before.  At 30000 DOFs the
+screening took 159 s and the candidate fits 618 s of the wall time: every evaluation of a fit assembled the
+model and projected n-size matrices.  Since d3c7e78 a fit over parameters that enter K and M linearly uses
+projected derivatives instead (a 9000-DOF baseline fit 7.4 → 1.9 s CPU, the same residual to 7 digits).
 """
 from __future__ import annotations
 
@@ -115,29 +143,41 @@ def truth_modes(refine=4, e_factor=1.02, mass=0.15, x_mass=2.7, n_modes=10, nois
         int(round(x_mass / LENGTH * n_deck)) + 1
 
 
-def main():
-    quick = "--quick" in sys.argv
+#: measured before the low-rank library and the first-order pre-screen (this docstring, 2026-11-25, lumped
+#: mass): process CPU seconds and peak RSS (MB) by DOF count; None where the run could not be made
+BASELINE = {2202: (22.7, 174.0), 9000: (107.0, None), 30000: (None, None), 100002: (None, None)}
+#: the sizes of ``--table``: 367 grids (the issue's deck), ~9k, ~30k and 100k DOFs
+TABLE = (("--grids", 367), ("--dofs", 9000), ("--dofs", 30000), ("--dofs", 100000))
+
+
+def _n_el():
     n_el = N_EL
     if "--grids" in sys.argv:
         n_el = int(sys.argv[sys.argv.index("--grids") + 1]) - 1
     if "--dofs" in sys.argv:                                    # e.g. --dofs 100000: 16667 grids x 6 DOFs
         n_el = int(np.ceil(int(sys.argv[sys.argv.index("--dofs") + 1]) / 6)) - 1
-    if n_el + 1 > FULL_RUN_MAX_GRIDS:
-        return parts(n_el)
+    return n_el
+
+
+def run_one(n_el: int, coupled=(False, True)):
+    """The whole modes-only diagnosis of the deck with ``n_el`` elements; one ``RESULT {json}`` line per mass
+    formulation (wall, CPU, peak RSS, finding)."""
+    import json
     refine = max(1, round(4 * N_EL / n_el))                     # the truth: 1464 elements or more (at least the deck's)
     t0 = time.perf_counter()
     test, grid = truth_modes(refine=refine, n_deck=n_el)
     print(f"truth ({n_el * refine} elements, {time.perf_counter() - t0:.1f} s): 0.15 kg at grid {grid}; test modes "
           f"{np.round(test.freq_hz, 2)} Hz at {len(test.dofs)} z DOFs")
     with tempfile.TemporaryDirectory() as tmp:
-        for coup in ((False,) if quick else (False, True)):
+        for coup in coupled:
             t0 = time.perf_counter()
             model = build_model(read_bdf(deck(Path(tmp) / "beam.bdf", coup, n_el)))
             t_build = time.perf_counter() - t0
             t0, c0 = time.perf_counter(), time.process_time()
             d = diagnose_modes(model, test)
             dt, dc = time.perf_counter() - t0, time.process_time() - c0
-            print(f"{'coupled' if coup else 'lumped '} mass, {n_el + 1} grids, {model.structure().n_dof} DOFs "
+            n = model.structure().n_dof
+            print(f"{'coupled' if coup else 'lumped '} mass, {n_el + 1} grids, {n} DOFs "
                   f"(deck read and built in {t_build:.1f} s): {dt:6.1f} s wall, {dc:6.1f} s CPU (ratio to the 60 s "
                   f"budget {dt / BUDGET_S:.2f} wall, {dc / BUDGET_S:.2f} CPU; load average {os.getloadavg()[0]:.1f}; "
                   f"peak RSS {_peak_rss_mb():.0f} MB)")
@@ -147,10 +187,44 @@ def main():
                       + (" (ambiguous)" if f.ambiguous else ""))
             print("   fit:", {k: round(v["freq_error_max_pct"], 3) for k, v in d.fit.items()})
             print("   " + d.statement)
+            finding = "; ".join(f"{f.candidate.label} = {f.value:.3g} {f.candidate.unit}"
+                                + (" (ambiguous)" if f.ambiguous else "") for f in d.findings) or "none"
+            print("RESULT " + json.dumps(dict(mass="coupled" if coup else "lumped", grids=n_el + 1, dofs=n, wall=dt,
+                                              cpu=dc, rss=_peak_rss_mb(), load=os.getloadavg()[0],
+                                              timings=d.timings, finding=finding, truth_grid=grid)), flush=True)
 
 
-#: above this many grids the whole diagnosis is not run (see :func:`parts`)
-FULL_RUN_MAX_GRIDS = 3000
+def table(sizes=TABLE):
+    """Each size in a process of its own (peak RSS per run), lumped mass; a table with the ratios to the
+    baseline and to the 60 s budget."""
+    import json
+    import subprocess
+    rows = []
+    for flag, val in sizes:
+        out = subprocess.run([sys.executable, __file__, flag, str(val), "--quick"], capture_output=True, text=True)
+        res = [json.loads(line[7:]) for line in out.stdout.splitlines() if line.startswith("RESULT ")]
+        if not res:
+            print(f"{flag} {val}: failed\n{out.stdout[-2000:]}\n{out.stderr[-2000:]}", flush=True)
+            continue
+        rows.append(res[0])
+        print(f"{flag} {val}: done in {res[0]['wall']:.0f} s wall", flush=True)
+    print(f"\n{'grids':>6} {'DOFs':>7} {'wall s':>7} {'CPU s':>7} {'base CPU':>8} {'CPU ratio':>9} {'/60 s':>6} "
+          f"{'RSS MB':>7} {'base MB':>7} {'screen s':>8} {'fits s':>7}  finding (truth grid)")
+    for r in rows:
+        base_cpu, base_mb = BASELINE.get(r["dofs"], (None, None))
+        ratio = f"{r['cpu'] / base_cpu:9.2f}" if base_cpu else f"{'-':>9}"
+        print(f"{r['grids']:6d} {r['dofs']:7d} {r['wall']:7.0f} {r['cpu']:7.0f} {base_cpu or '-':>8} {ratio} "
+              f"{r['cpu'] / BUDGET_S:6.2f} {r['rss']:7.0f} {base_mb or '-':>7} {r['timings']['screening']:8.0f} "
+              f"{r['timings']['fits']:7.0f}  {r['finding']} ({r['truth_grid']})")
+
+
+def main():
+    if "--table" in sys.argv:
+        return table()
+    n_el = _n_el()
+    if "--parts" in sys.argv:
+        return parts(n_el)
+    run_one(n_el, (False,) if "--quick" in sys.argv else (False, True))
 
 
 def parts(n_el: int):

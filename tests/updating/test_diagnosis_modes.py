@@ -73,12 +73,14 @@ def test_modes_only_needs_two_modes():
 _L, _B, _H, _E, _RHO, _NEL = 1.2, 0.05, 0.008, 7e10, 2700.0, 20
 
 
-def _gvt_deck(path, n_el=_NEL, extra=()):
-    """CBEAM/PBEAML BAR along x, no SPC, no COUPMASS (lumped mass: massless rotations, a massless rigid
+def _gvt_deck(path, n_el=_NEL, extra=(), card="CBEAM"):
+    """CBEAM/PBEAML BAR along x, no SPC, no COUPMASS (lumped mass: massless bending rotations; the CBEAM's
+    lumped torsional inertia, as in Nastran; ``card="CBAR"``: PBARL, no torsional inertia, a massless rigid
     torsion); DIM1 (8 mm) along the element z axis, so that the vertical plane is the flexible one."""
-    lines = ["SOL 103", "CEND", "BEGIN BULK", "MAT1,1,7.e10,,.33,2700.", "PBEAML,1,1,,BAR", "+,.008,.05"]
+    prop = {"CBEAM": "PBEAML", "CBAR": "PBARL"}[card]
+    lines = ["SOL 103", "CEND", "BEGIN BULK", "MAT1,1,7.e10,,.33,2700.", f"{prop},1,1,,BAR", "+,.008,.05"]
     lines += [f"GRID,{i + 1},,{_L * i / n_el:.8f},0.,0." for i in range(n_el + 1)]
-    lines += [f"CBEAM,{i + 1},1,{i + 1},{i + 2},0.,1.,0." for i in range(n_el)]
+    lines += [f"{card},{i + 1},1,{i + 1},{i + 2},0.,1.,0." for i in range(n_el)]
     path.write_text("\n".join(lines + list(extra) + ["ENDDATA", ""]))
     from updating.fe.bulk import build_model, read_bdf
     return build_model(read_bdf(path))
@@ -174,8 +176,10 @@ def test_frequency_only_four_numbers_two_parameters(tmp_path):
 
 def test_frequency_only_mirror_masses_are_one_ambiguous_finding(tmp_path):
     # a free-free uniform beam: a mass at grid 9 or at its mirror grid 33 gives the same frequencies (a
-    # 40-element deck: the 20-element one's lumped-mass discretisation error is itself a pattern of ~2 %)
-    model = _gvt_deck(tmp_path / "gvt.bdf", n_el=40)
+    # 40-element deck: the 20-element one's lumped-mass discretisation error is itself a pattern of ~2 %).  A
+    # CBAR deck: its lumped mass has no torsional inertia, so the model has no torsion modes among the bending
+    # ones (the truth has none; frequencies alone cannot tell a torsion mode from a bending one)
+    model = _gvt_deck(tmp_path / "gvt.bdf", n_el=40, card="CBAR")
     f, _ = _independent_beam(masses=[(9, 0.08)], n_modes=7, n_deck=40)
     diag = diagnose_modes(model, ModeSet(freq_hz=f, shapes=np.zeros((0, 7)), dofs=[]), kinds=("added_mass",))
     assert len(diag.findings) == 1, diag.statement

@@ -206,13 +206,14 @@ _BETA_FREE = (4.730040745, 7.853204624, 10.99560784, 14.13716549) + tuple((2 * n
 
 
 def _free_beam_deck(path, n_el, *, coupmass=False, length=1.2):
-    """A Nastran deck as a GVT engineer's: CBEAM/PBEAML along x, no SPC, lumped mass unless ``coupmass``."""
+    """A Nastran deck as a GVT engineer's: CBAR/PBARL along x, no SPC, lumped mass unless ``coupmass`` (a
+    lumped CBAR has no torsional inertia: the rigid torsion is a massless mechanism)."""
     lines = ["SOL 103", "CEND", "BEGIN BULK", "EIGRL,10,,,20"]
     if coupmass:
         lines.append("PARAM,COUPMASS,1")
-    lines += ["MAT1,1,7.e10,,.33,2700.", "PBEAML,1,1,,BAR", "+,.05,.008"]
+    lines += ["MAT1,1,7.e10,,.33,2700.", "PBARL,1,1,,BAR", "+,.05,.008"]
     lines += [f"GRID,{i + 1},,{length * i / n_el:.8f},0.,0." for i in range(n_el + 1)]
-    lines += [f"CBEAM,{i + 1},1,{i + 1},{i + 2},0.,1.,0." for i in range(n_el)]
+    lines += [f"CBAR,{i + 1},1,{i + 1},{i + 2},0.,1.,0." for i in range(n_el)]
     path.write_text("\n".join(lines + ["ENDDATA", ""]).replace("\n", "\r\n"))
     return path
 

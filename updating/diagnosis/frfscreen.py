@@ -36,6 +36,8 @@ _FACTOR = {"K": lambda s: np.ones_like(s), "M": lambda s: s ** 2, "C": lambda s:
 
 def _low_rank(G):
     """``(rows, L)`` with ``G = E_rows L Lᵀ E_rowsᵀ`` (PSD part; None when G is empty)."""
+    if hasattr(G, "low_rank"):          # a library LocalMatrix: the block is at hand
+        return G.low_rank()
     G = sp.csr_matrix(G)
     rows = np.unique(G.nonzero()[0])
     if rows.size == 0:

@@ -25,7 +25,8 @@ The frequency signature of each follows from the dynamic stiffness it adds:
 real and constant (stiffness), real ∝ −ω² (mass), imaginary ∝ ω (viscous),
 imaginary and constant (hysteretic).  Candidates of the first three kinds act
 on the existing DOFs (``shared=True``): their unit matrix ``G`` on the model's
-constrained DOFs enters the linear screening.  Joint and boundary candidates
+constrained DOFs enters the linear screening.  ``G`` is a :class:`LocalMatrix` (the few DOF indices it
+touches and a small dense block), never an n × n matrix: a 100k-DOF model has ~10⁵ candidates.  Joint and boundary candidates
 change the DOF set; they carry their ``release`` and are screened exactly, at
 every place, as rank-1..3 updates of the nominal receptance
 (:mod:`~updating.diagnosis.release`).
@@ -48,11 +49,11 @@ from modalab.core.dof import DIRECTION_NAMES, Dof
 from modalab.core.errors import ModalabValueError
 
 from updating.fe import Damper, FEModel, LumpedMass, Parameter, Spring
-from updating.fe.assembly import assemble
+from updating.fe.assembly import assemble, element_stiffness
 from updating.fe.constraints import RBE2, SPC
 
 log = logging.getLogger(__name__)
-__all__ = ["Candidate", "build_library", "UNITS"]
+__all__ = ["Candidate", "LocalMatrix", "build_library", "UNITS"]
 
 UNITS = {("ground_spring", 1): "N/m", ("ground_spring", 4): "N·m/rad", ("added_mass", 1): "kg",
          ("added_mass", 4): "kg·m²", ("local_damping", "D"): "-", ("local_damping", "C"): "N·s/m",
@@ -80,7 +81,7 @@ class Candidate:
     matrix: str                      # 'K', 'M', 'C', 'D'
     shared: bool
     apply: Callable = field(repr=False, default=None)   # (FEModel, eid) -> (FEModel, Parameter, scale)
-    G: sp.spmatrix | None = field(repr=False, default=None)
+    G: "LocalMatrix | sp.spmatrix | None" = field(repr=False, default=None)   # the unit matrix on the a-set
     initial: float = 0.0
     key: str = ""
     upper: float = np.inf            # largest plausible value (in ``unit``); the fits are bounded by it
@@ -94,15 +95,103 @@ class Candidate:
             self.key = f"{self.physics}:{self.label}"
 
 
-def _T_rows(red, dofs_full_index, keys):
-    """Rows of the reduction T for the (node, comp) keys present in the full DOF list."""
-    rows = [dofs_full_index[k] for k in keys if k in dofs_full_index]
-    return red.T[rows] if rows else None
+class LocalMatrix:
+    """A symmetric n × n matrix that is zero outside the block ``rows × rows``: ``G = E_rows B E_rowsᵀ``.
+
+    A candidate's unit matrix touches a few DOFs (1 for a spring, 3 for a point mass, ≤ 18 for an element
+    group); stored as an n × n CSR its row pointer alone is 4(n + 1) bytes, ~67 GB for the ~10 candidates per
+    grid of a 100k-DOF model.  Here it is the indices and the small dense block.  ``toarray``/``tocsr`` give
+    the explicit matrix (for code that wants one); :meth:`low_rank` the factor ``(rows, L)``, ``B = L Lᵀ``
+    (PSD part), that the screenings use."""
+
+    __slots__ = ("rows", "block", "n")
+
+    def __init__(self, rows, block, n: int):
+        self.rows = np.asarray(rows, int)
+        self.block = np.asarray(block, float)
+        self.n = int(n)
+
+    @classmethod
+    def from_factor(cls, R, n: int):
+        """``Rᵀ R`` for a sparse ``R`` (k × n, e.g. rows of the reduction T), kept on its nonzero rows."""
+        R = sp.coo_matrix(R)
+        return cls._from_triplets(R.row, R.col, R.data, R.shape[0], n)
+
+    @classmethod
+    def from_csr_rows(cls, T: sp.csr_matrix, rows, n: int):
+        """``Rᵀ R`` with ``R = T[rows]`` read straight from the CSR arrays (no scipy indexing per candidate:
+        the library builds one per DOF of a 100k-DOF model)."""
+        ip = T.indptr
+        lens = np.array([ip[r + 1] - ip[r] for r in rows], int)
+        idx = np.concatenate([np.arange(ip[r], ip[r + 1]) for r in rows]) if lens.sum() else np.zeros(0, int)
+        return cls._from_triplets(np.repeat(np.arange(len(rows)), lens), T.indices[idx], T.data[idx], len(rows), n)
+
+    @classmethod
+    def _from_triplets(cls, row, col, data, k: int, n: int):
+        nz = data != 0
+        cols = np.unique(col[nz])
+        if cols.size == 0:
+            return None
+        D = np.zeros((k, cols.size))
+        np.add.at(D, (row[nz], np.searchsorted(cols, col[nz])), data[nz])
+        return cls._trimmed(cols, D.T @ D, n)
+
+    @classmethod
+    def _trimmed(cls, rows, B, n):
+        """Drop the rows (and columns) of ``B`` that are all zero, as ``G.nonzero()`` would not list them."""
+        keep = np.any(B != 0, axis=1)
+        if not keep.any():
+            return None
+        return cls(np.asarray(rows)[keep], B[np.ix_(keep, keep)], n)
+
+    @property
+    def shape(self) -> tuple:
+        return (self.n, self.n)
+
+    @property
+    def nnz(self) -> int:
+        return int(np.count_nonzero(self.block))
+
+    def tocsr(self) -> sp.csr_matrix:
+        r = np.repeat(self.rows, self.rows.size)
+        c = np.tile(self.rows, self.rows.size)
+        return sp.csr_matrix((self.block.ravel(), (r, c)), shape=self.shape)
+
+    def tocoo(self):
+        return self.tocsr().tocoo()
+
+    def toarray(self) -> np.ndarray:
+        return self.tocsr().toarray()
+
+    def nonzero(self):
+        return self.tocsr().nonzero()
+
+    def low_rank(self):
+        """``(rows, L)`` with ``G = E_rows L Lᵀ E_rowsᵀ`` (the PSD part of the block; None when it has none),
+        the same factor as :func:`~updating.diagnosis.frfscreen._low_rank` of the explicit matrix."""
+        B = self.block
+        w, U = np.linalg.eigh(0.5 * (B + B.T))
+        keep = w > 1e-9 * max(np.abs(w).max(), 1e-300)
+        if not keep.any():
+            return None
+        return self.rows, U[:, keep] * np.sqrt(w[keep])
 
 
-def _element_K(model: FEModel, red, el):
-    K = assemble(model, elements=[el], include_global=False).K
-    return sp.csr_matrix(red.T.T @ K @ red.T)
+def _group_G(red, blocks, n_red):
+    """``Tᵀ (Σ K_e) T`` of element blocks ``[(full rows, K_e)]`` as a :class:`LocalMatrix` (no n × n product)."""
+    full = np.unique(np.concatenate([r for r, _ in blocks]))
+    Kl = np.zeros((full.size, full.size))
+    for r, Ke in blocks:
+        p = np.searchsorted(full, r)
+        Kl[np.ix_(p, p)] += Ke
+    R = sp.coo_matrix(red.T[full])
+    nz = R.data != 0
+    cols = np.unique(R.col[nz])
+    if cols.size == 0:
+        return None
+    D = np.zeros((full.size, cols.size))
+    np.add.at(D, (R.row[nz], np.searchsorted(cols, R.col[nz])), R.data[nz])
+    return LocalMatrix._trimmed(cols, D.T @ Kl @ D, n_red)
 
 
 def _nodes_of(el) -> tuple:
@@ -229,31 +318,60 @@ def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, g
         links, and nodes where elements of different properties meet).
     group_size : element groups for local damping are single elements and runs of this many
         neighbouring elements sharing a node.
+
+    The unit matrices ``G`` of shared candidates are :class:`LocalMatrix` (indices and a small block).
     """
     kinds = validate_kinds(kinds)
-    red = model.reduction()
-    full = red.full_dofs
-    fidx = {(d.node, d.axis): i for i, d in enumerate(full)}
-    present = {}
-    for d in full:
-        present.setdefault(d.node, []).append(d.axis)
-    fixed = {(d.node, d.axis) for d in red.fixed}
-    sel_nodes = sorted(present) if nodes is None else [n for n in nodes if n in present]
+    ctx = _LibraryContext(model, nodes)
     cands: list[Candidate] = []
-    m_max, j_max = _plausible_inertia(model)
-    Kdiag = None
+    if kinds & {"ground_spring", "local_damping", "added_mass"}:
+        cands += _dof_candidates(ctx, kinds)
+    if "local_damping" in kinds:
+        cands += _group_damping_candidates(ctx, group_size)
+    if "boundary_flexibility" in kinds:
+        cands += _boundary_candidates(ctx)
+    if "joint_flexibility" in kinds:
+        jnodes = set(joint_nodes) if joint_nodes is not None else None
+        cands += _link_candidates(ctx, jnodes) + _member_end_candidates(ctx, jnodes)
+    log.info("candidate library: %d candidates (%s)", len(cands),
+             ", ".join(f"{k}={sum(c.physics == k for c in cands)}" for k in sorted(kinds)))
+    return cands
 
-    def dof_G(keys):
-        R = _T_rows(red, fidx, keys)
-        if R is None or R.nnz == 0:
+
+class _LibraryContext:
+    """What every part of the library needs to know about the model: its reduction (``u = T u_a``), the
+    full DOF index, the components present and constrained at each node, the selected nodes."""
+
+    def __init__(self, model: FEModel, nodes):
+        self.model = model
+        self.red = red = model.reduction()
+        self.full = red.full_dofs
+        self.fidx = {(d.node, d.axis): i for i, d in enumerate(self.full)}
+        self.present: dict = {}
+        for d in self.full:
+            self.present.setdefault(d.node, []).append(d.axis)
+        self.fixed = {(d.node, d.axis) for d in red.fixed}
+        self.nodes = nodes
+        self.sel_nodes = sorted(self.present) if nodes is None else [n for n in nodes if n in self.present]
+
+    def dof_G(self, keys):
+        """``Rᵀ R``, ``R`` the rows of T for the (node, comp) ``keys`` (None when none moves)."""
+        rows = [self.fidx[k] for k in keys if k in self.fidx]
+        if not rows:
             return None
-        return sp.csr_matrix(R.T @ R)
+        return LocalMatrix.from_csr_rows(self.red.T, rows, self.red.n_dof)
 
-    for n in sel_nodes:
-        comps = [c for c in present[n] if (n, c) not in fixed]
+
+def _dof_candidates(ctx: _LibraryContext, kinds) -> list[Candidate]:
+    """Springs and dashpots to ground, rotary inertias on each free DOF, point masses at each node."""
+    out = []
+    m_max, j_max = _plausible_inertia(ctx.model)
+    present = ctx.present
+    for n in ctx.sel_nodes:
+        comps = [c for c in present[n] if (n, c) not in ctx.fixed]
         for c in comps:
             lbl = f"{n}+{DIRECTION_NAMES[c]}"
-            G = dof_G([(n, c)])
+            G = ctx.dof_G([(n, c)])
             if G is None:
                 continue
             if "ground_spring" in kinds:
@@ -261,15 +379,15 @@ def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, g
                     m = m.copy()
                     m.add_element(Spring(eid, a=(n, c), b=None, k=0.0, group=f"diag_k_{eid}"))
                     return m, Parameter(f"k_{n}_{c}", "k", elements=(eid,), mode="value"), 1.0
-                cands.append(Candidate("ground_spring", f"spring to ground at {lbl}", (n,), (lbl,), (), "k",
-                                       _unit("ground_spring", c), "K", True, add_spring, G))
+                out.append(Candidate("ground_spring", f"spring to ground at {lbl}", (n,), (lbl,), (), "k",
+                                     _unit("ground_spring", c), "K", True, add_spring, G))
             if "local_damping" in kinds:
                 def add_damper(m, eid, n=n, c=c):
                     m = m.copy()
                     m.add_element(Damper(eid, a=(n, c), b=None, c=0.0, group=f"diag_c_{eid}"))
                     return m, Parameter(f"c_{n}_{c}", "c", elements=(eid,), mode="value"), 1.0
-                cands.append(Candidate("local_damping", f"dashpot to ground at {lbl}", (n,), (lbl,), (), "c",
-                                       _unit("local_damping", matrix="C"), "C", True, add_damper, G))
+                out.append(Candidate("local_damping", f"dashpot to ground at {lbl}", (n,), (lbl,), (), "c",
+                                     _unit("local_damping", matrix="C"), "C", True, add_damper, G))
             if "added_mass" in kinds and c >= 4:
                 def add_inertia(m, eid, n=n, c=c, guess=1e-3):
                     m = m.copy()
@@ -278,193 +396,214 @@ def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, g
                     m.add_element(LumpedMass(eid, n, mass=0.0, inertia=inertia, group=f"diag_J_{eid}"))
                     _fix_foreign(m, n, present[n])
                     return m, Parameter(f"J_{n}_{c}", "inertia", elements=(eid,), mode="factor"), guess
-                cands.append(Candidate("added_mass", f"rotary inertia at {lbl}", (n,), (lbl,), (), "J",
-                                       _unit("added_mass", c), "M", True, add_inertia, G, upper=j_max))
+                out.append(Candidate("added_mass", f"rotary inertia at {lbl}", (n,), (lbl,), (), "J",
+                                     _unit("added_mass", c), "M", True, add_inertia, G, upper=j_max))
         trans = [c for c in comps if c <= 3]
         if "added_mass" in kinds and trans:
-            G = dof_G([(n, c) for c in trans])
+            G = ctx.dof_G([(n, c) for c in trans])
             if G is not None:
                 def add_mass(m, eid, n=n):
                     m = m.copy()
                     m.add_element(LumpedMass(eid, n, mass=0.0, group=f"diag_m_{eid}"))
                     _fix_foreign(m, n, present[n])
                     return m, Parameter(f"m_{n}", "mass", elements=(eid,), mode="value"), 1.0
-                cands.append(Candidate("added_mass", f"point mass at node {n}", (n,),
-                                       tuple(f"{n}+{DIRECTION_NAMES[c]}" for c in trans), (), "m",
-                                       _unit("added_mass", 1), "M", True, add_mass, G, upper=m_max))
+                out.append(Candidate("added_mass", f"point mass at node {n}", (n,),
+                                     tuple(f"{n}+{DIRECTION_NAMES[c]}" for c in trans), (), "m",
+                                     _unit("added_mass", 1), "M", True, add_mass, G, upper=m_max))
+    return out
 
-    # ---------------------------------------------------------------- local damping on element groups
-    if "local_damping" in kinds:
-        # structural elements with a property (beams, rods, shells): single elements and runs sharing a node
-        beams = [e for e in model.elements.values() if getattr(e, "pid", None) is not None
-                 and len(_nodes_of(e)) >= 2 and hasattr(model.properties.get(e.pid), "mid")]
-        groups = [(e.eid,) for e in beams]
-        if group_size > 1:
-            by_node: dict[int, list] = {}
-            for e in beams:
-                for n in _nodes_of(e):
-                    by_node.setdefault(n, []).append(e.eid)
-            for n, eids in sorted(by_node.items()):
-                if len(eids) >= 2:
-                    groups.append(tuple(sorted(eids))[:group_size + 1])
-        seen = set()
-        for g in groups:
-            if g in seen:
+
+def _damping_groups(model: FEModel, group_size: int) -> list[tuple]:
+    """Element groups for local damping: every structural element with a property (beams, rods, shells)
+    alone, and the runs of up to ``group_size + 1`` elements sharing a node; each group once."""
+    beams = [e for e in model.elements.values() if getattr(e, "pid", None) is not None
+             and len(_nodes_of(e)) >= 2 and hasattr(model.properties.get(e.pid), "mid")]
+    groups = [(e.eid,) for e in beams]
+    if group_size > 1:
+        by_node: dict[int, list] = {}
+        for e in beams:
+            for n in _nodes_of(e):
+                by_node.setdefault(n, []).append(e.eid)
+        for n, eids in sorted(by_node.items()):
+            if len(eids) >= 2:
+                groups.append(tuple(sorted(eids))[:group_size + 1])
+    return list(dict.fromkeys(groups))
+
+
+def _add_group_damping(m, eid, g):
+    """The elements ``g`` moved to clones of their properties with a loss factor (GE) of their own."""
+    m = m.copy()
+    new_pid = max(m.properties) + 1
+    groupname = f"diag_damped_{eid}"
+    pids = {m.elements[i].pid for i in g}
+    mapping = {}
+    for k, pid in enumerate(sorted(pids)):
+        prop = m.properties[pid]
+        clone = dataclasses.replace(prop, pid=new_pid + k, ge=0.0)
+        if hasattr(clone, "name"):
+            clone = dataclasses.replace(clone, name=getattr(prop, "name", ""))
+        m.add_property(clone)
+        mapping[pid] = new_pid + k
+    for i in g:
+        m.elements[i] = dataclasses.replace(m.elements[i], pid=mapping[m.elements[i].pid])
+    m._changed()
+    m.metadata.setdefault("diagnosis_groups", {})[groupname] = list(mapping.values())
+    return m, Parameter(f"eta_{'_'.join(map(str, g))}", "ge", properties=tuple(mapping.values()), mode="value"), 1.0
+
+
+def _group_damping_candidates(ctx: _LibraryContext, group_size: int) -> list[Candidate]:
+    """Structural damping on element groups; ``G`` the group's stiffness on the a-set."""
+    model, nodes = ctx.model, ctx.nodes
+    groups = [g for g in _damping_groups(model, group_size)
+              if nodes is None or any(n in nodes for i in g for n in _nodes_of(model.elements[i]))]
+    used = sorted({i for g in groups for i in g})
+    blocks = dict(zip(used, element_stiffness(model, [model.elements[i] for i in used])))
+    out = []
+    for g in groups:
+        G = _group_G(ctx.red, [blocks[i] for i in g if i in blocks], ctx.red.n_dof) \
+            if any(i in blocks for i in g) else None
+        enodes = tuple(sorted({n for i in g for n in _nodes_of(model.elements[i])}))
+        out.append(Candidate("local_damping", f"structural damping on element(s) {', '.join(map(str, g))}",
+                             enodes, (), g, "eta", "-", "D", True,
+                             lambda m, eid, g=g: _add_group_damping(m, eid, g), G))
+    return out
+
+
+def _active_components(ctx: _LibraryContext, spc, Kfull, moving) -> list[int]:
+    """The components of ``spc`` that hold something: released, they couple through the element stiffness
+    to a DOF that moves (not the components a planar model constrains everywhere)."""
+    active = []
+    for c in spc.components:
+        i = ctx.fidx.get((spc.node, c))
+        if i is None:
+            continue
+        row = Kfull.getrow(i)
+        if np.any(moving[row.indices[np.abs(row.data) > 1e-12 * max(abs(Kfull[i, i]), 1e-300)]]):
+            active.append(c)
+    return active
+
+
+def _release_spc(m, eid, spc, group):
+    """The components ``group`` of ``spc`` released into springs to ground (one parameter)."""
+    m = m.copy()
+    m.spcs = [s for s in m.spcs if s is not spc]
+    rest = tuple(x for x in spc.components if x not in group)
+    if rest:
+        m.add_spc(spc.node, "".join(map(str, rest)))
+    for k, c in enumerate(group):
+        m.add_element(Spring(eid + k, a=(spc.node, c), b=None, k=0.0, group=f"diag_bc_{eid}"))
+    m._changed()
+    return m, Parameter(f"kbc_{spc.node}_{''.join(map(str, group))}", "k",
+                        elements=tuple(eid + k for k in range(len(group))), mode="value"), 1.0
+
+
+def _boundary_candidates(ctx: _LibraryContext) -> list[Candidate]:
+    """Constrained components released into springs to ground: each alone, and a clamp's translations (one
+    stiffness) and rotations (one rotational stiffness) together, a rank-2..3 change each."""
+    model, red = ctx.model, ctx.red
+    out, Kfull, moving = [], None, None
+    free_keys = {(d.node, d.axis) for d in red.dofs} if hasattr(red, "dofs") else set()
+    for spc in model.spcs:
+        if ctx.nodes is not None and spc.node not in ctx.nodes:
+            continue
+        if Kfull is None:
+            Kfull = sp.csr_matrix(assemble(model).K)
+            moving = np.zeros(len(ctx.full), bool)
+            moving[[ctx.fidx[k] for k in free_keys if k in ctx.fidx]] = True
+        active = _active_components(ctx, spc, Kfull, moving)
+        for c in active:
+            lbl = f"{spc.node}+{DIRECTION_NAMES[c]}"
+            out.append(Candidate("boundary_flexibility", f"support flexibility at {lbl}", (spc.node,), (lbl,),
+                                 (), "k", _unit("boundary_flexibility", c), "K", False,
+                                 lambda m, eid, spc=spc, c=c: _release_spc(m, eid, spc, (c,)), None,
+                                 release=("support", spc.node, (c,), ())))
+        for group in ([c for c in active if c <= 3], [c for c in active if c >= 4]):
+            if len(group) < 2:
                 continue
-            seen.add(g)
-            els = [model.elements[i] for i in g]
-            if nodes is not None and not any(n in nodes for e in els for n in _nodes_of(e)):
+            lbls = tuple(f"{spc.node}+{DIRECTION_NAMES[c]}" for c in group)
+            what = "translations" if group[0] <= 3 else "rotations"
+            out.append(Candidate("boundary_flexibility", f"support flexibility at node {spc.node} ({what} "
+                                 f"{', '.join(DIRECTION_NAMES[c] for c in group)})", (spc.node,), lbls, (),
+                                 "k", _unit("boundary_flexibility", group[0]), "K", False,
+                                 lambda m, eid, spc=spc, group=tuple(group): _release_spc(m, eid, spc, group),
+                                 None, release=("support", spc.node, tuple(group), ())))
+    return out
+
+
+def _soften_link(m, eid, link, dep, c):
+    """Component ``c`` of the rigid link's dependent node ``dep`` replaced by a spring."""
+    m = m.copy()
+    del m.rbe2s[link.eid]
+    others = tuple(d for d in link.dependents if d != dep)
+    if others:
+        m.add_rbe2(link.eid, link.independent, others, "".join(map(str, link.components)))
+    rest = tuple(x for x in link.components if x != c)
+    new = _next_id(m)
+    if rest:
+        m.add_rbe2(max(new, eid + 1), link.independent, (dep,), "".join(map(str, rest)))
+    m.add_element(Spring(eid, a=(link.independent, c), b=(dep, c), k=0.0, group=f"diag_j_{eid}"))
+    m._changed()
+    return m, Parameter(f"kj_{dep}_{c}", "k", elements=(eid,), mode="value"), 1.0
+
+
+def _link_candidates(ctx: _LibraryContext, jnodes) -> list[Candidate]:
+    """Rigid links: one component of a dependent node released into a spring."""
+    out = []
+    for link in ctx.model.rbe2s.values():
+        for dep in link.dependents:
+            if jnodes is not None and dep not in jnodes and link.independent not in jnodes:
                 continue
-            G = sum((_element_K(model, red, e) for e in els), sp.csr_matrix((red.n_dof, red.n_dof)))
-            enodes = tuple(sorted({n for e in els for n in _nodes_of(e)}))
+            for c in link.components:
+                lbl = f"{dep}+{DIRECTION_NAMES[c]}"
+                out.append(Candidate("joint_flexibility", f"flexible joint ({DIRECTION_NAMES[c]}) at the link "
+                                     f"{link.independent}-{dep}", (link.independent, dep), (lbl,), (link.eid,),
+                                     "k", _unit("joint_flexibility", c), "K", False,
+                                     lambda m, eid, link=link, dep=dep, c=c: _soften_link(m, eid, link, dep, c),
+                                     None))
+    return out
 
-            def add_group_damping(m, eid, g=g):
-                m = m.copy()
-                new_pid = max(m.properties) + 1
-                groupname = f"diag_damped_{eid}"
-                pids = {m.elements[i].pid for i in g}
-                mapping = {}
-                for k, pid in enumerate(sorted(pids)):
-                    prop = m.properties[pid]
-                    clone = dataclasses.replace(prop, pid=new_pid + k, ge=0.0)
-                    if hasattr(clone, "name"):
-                        clone = dataclasses.replace(clone, name=getattr(prop, "name", ""))
-                    m.add_property(clone)
-                    mapping[pid] = new_pid + k
-                for i in g:
-                    m.elements[i] = dataclasses.replace(m.elements[i], pid=mapping[m.elements[i].pid])
-                m._changed()
-                m.metadata.setdefault("diagnosis_groups", {})[groupname] = list(mapping.values())
-                return m, Parameter(f"eta_{'_'.join(map(str, g))}", "ge", properties=tuple(mapping.values()),
-                                    mode="value"), 1.0
-            cands.append(Candidate("local_damping", f"structural damping on element(s) {', '.join(map(str, g))}",
-                                   enodes, (), g, "eta", "-", "D", True, add_group_damping, G))
 
-    # ---------------------------------------------------------------- boundary flexibility
-    if "boundary_flexibility" in kinds:
-        # only constraints that hold something: a released component must couple, through the element
-        # stiffness, to a DOF that moves (not the components a planar model constrains everywhere)
-        Kfull = None
-        free_keys = {(d.node, d.axis) for d in red.dofs} if hasattr(red, "dofs") else set()
-        for spc in model.spcs:
-            if nodes is not None and spc.node not in nodes:
+def _split_node(m, eid, n, side, c, comps_present):
+    """The member end ``side`` at node ``n`` on a new GRID, joined rigidly except rotation ``c`` (a spring)."""
+    m = m.copy()
+    nn = _next_node(m)
+    m.add_node(nn, m.nodes[n].xyz, m.nodes[n].cd)
+    for i in side:
+        e = m.elements[i]
+        kw = {}
+        if e.n1 == n:
+            kw["n1"] = nn
+        if e.n2 == n:
+            kw["n2"] = nn
+        m.elements[i] = dataclasses.replace(e, **kw)
+    comps = [x for x in comps_present if x != c]
+    rid = eid + 1
+    while rid in m.elements or rid in m.rbe2s:
+        rid += 1
+    if comps:
+        m.add_rbe2(rid, n, (nn,), "".join(map(str, comps)))
+    _fix_foreign(m, n, comps_present)
+    _fix_foreign(m, nn, comps_present)
+    m.add_element(Spring(eid, a=(n, c), b=(nn, c), k=0.0, group=f"diag_j_{eid}"))
+    m._changed()
+    return m, Parameter(f"kj_{n}_{c}", "k", elements=(eid,), mode="value"), 1.0
+
+
+def _member_end_candidates(ctx: _LibraryContext, jnodes) -> list[Candidate]:
+    """Member ends at beam junctions (every node where two or more members meet): one member end gets the
+    released rotation of its own (a node split); screened exactly by :mod:`~updating.diagnosis.release`."""
+    out = []
+    for n, side in _member_ends(ctx.model):
+        if jnodes is not None and n not in jnodes:
+            continue
+        for c in ctx.present.get(n, []):
+            if c < 4 or (n, c) in ctx.fixed:
                 continue
-            if Kfull is None:
-                Kfull = sp.csr_matrix(assemble(model).K)
-                moving = np.zeros(len(full), bool)
-                moving[[fidx[k] for k in free_keys if k in fidx]] = True
-            active = []
-            for c in spc.components:
-                i = fidx.get((spc.node, c))
-                if i is None:
-                    continue
-                row = Kfull.getrow(i)
-                if np.any(moving[row.indices[np.abs(row.data) > 1e-12 * max(abs(Kfull[i, i]), 1e-300)]]):
-                    active.append(c)
-            for c in active:
-                lbl = f"{spc.node}+{DIRECTION_NAMES[c]}"
-
-                def release(m, eid, spc=spc, c=c):
-                    m = m.copy()
-                    m.spcs = [s for s in m.spcs if s is not spc]
-                    rest = tuple(x for x in spc.components if x != c)
-                    if rest:
-                        m.add_spc(spc.node, "".join(map(str, rest)))
-                    m.add_element(Spring(eid, a=(spc.node, c), b=None, k=0.0, group=f"diag_bc_{eid}"))
-                    m._changed()
-                    return m, Parameter(f"kbc_{spc.node}_{c}", "k", elements=(eid,), mode="value"), 1.0
-                cands.append(Candidate("boundary_flexibility", f"support flexibility at {lbl}", (spc.node,), (lbl,),
-                                       (), "k", _unit("boundary_flexibility", c), "K", False, release, None,
-                                       release=("support", spc.node, (c,), ())))
-            # a clamp elastic in several components: its translations (one stiffness) and its rotations (one
-            # rotational stiffness) released together, a rank-2..3 change each
-            for group in ([c for c in active if c <= 3], [c for c in active if c >= 4]):
-                if len(group) < 2:
-                    continue
-                lbls = tuple(f"{spc.node}+{DIRECTION_NAMES[c]}" for c in group)
-
-                def release_group(m, eid, spc=spc, group=tuple(group)):
-                    m = m.copy()
-                    m.spcs = [s for s in m.spcs if s is not spc]
-                    rest = tuple(x for x in spc.components if x not in group)
-                    if rest:
-                        m.add_spc(spc.node, "".join(map(str, rest)))
-                    for k, c in enumerate(group):
-                        m.add_element(Spring(eid + k, a=(spc.node, c), b=None, k=0.0, group=f"diag_bc_{eid}"))
-                    m._changed()
-                    return m, Parameter(f"kbc_{spc.node}_{''.join(map(str, group))}", "k",
-                                        elements=tuple(eid + k for k in range(len(group))), mode="value"), 1.0
-                what = "translations" if group[0] <= 3 else "rotations"
-                cands.append(Candidate("boundary_flexibility", f"support flexibility at node {spc.node} ({what} "
-                                       f"{', '.join(DIRECTION_NAMES[c] for c in group)})", (spc.node,), lbls, (),
-                                       "k", _unit("boundary_flexibility", group[0]), "K", False, release_group, None,
-                                       release=("support", spc.node, tuple(group), ())))
-
-    # ---------------------------------------------------------------- joint flexibility
-    if "joint_flexibility" in kinds:
-        jnodes = set(joint_nodes) if joint_nodes is not None else None
-        # rigid links: release one component of a dependent node
-        for link in model.rbe2s.values():
-            for dep in link.dependents:
-                if jnodes is not None and dep not in jnodes and link.independent not in jnodes:
-                    continue
-                for c in link.components:
-                    lbl = f"{dep}+{DIRECTION_NAMES[c]}"
-
-                    def soften(m, eid, link=link, dep=dep, c=c):
-                        m = m.copy()
-                        del m.rbe2s[link.eid]
-                        others = tuple(d for d in link.dependents if d != dep)
-                        if others:
-                            m.add_rbe2(link.eid, link.independent, others, "".join(map(str, link.components)))
-                        rest = tuple(x for x in link.components if x != c)
-                        new = _next_id(m)
-                        if rest:
-                            m.add_rbe2(max(new, eid + 1), link.independent, (dep,), "".join(map(str, rest)))
-                        m.add_element(Spring(eid, a=(link.independent, c), b=(dep, c), k=0.0, group=f"diag_j_{eid}"))
-                        m._changed()
-                        return m, Parameter(f"kj_{dep}_{c}", "k", elements=(eid,), mode="value"), 1.0
-                    cands.append(Candidate("joint_flexibility", f"flexible joint ({DIRECTION_NAMES[c]}) at the link "
-                                           f"{link.independent}-{dep}", (link.independent, dep), (lbl,), (link.eid,),
-                                           "k", _unit("joint_flexibility", c), "K", False, soften, None))
-        # member ends at beam junctions: every node where two or more members meet; one member end (a side)
-        # gets the released rotation of its own (a node split: new GRID, rigid link on the other components,
-        # a spring on the released one); screened exactly by :mod:`~updating.diagnosis.release`
-        for n, side in _member_ends(model):
-            if jnodes is not None and n not in jnodes:
-                continue
-            for c in present.get(n, []):
-                if c < 4 or (n, c) in fixed:
-                    continue
-                lbl = f"{n}+{DIRECTION_NAMES[c]}"
-
-                def split(m, eid, n=n, side=side, c=c):
-                    m = m.copy()
-                    nn = _next_node(m)
-                    m.add_node(nn, m.nodes[n].xyz, m.nodes[n].cd)
-                    for i in side:
-                        e = m.elements[i]
-                        kw = {}
-                        if e.n1 == n:
-                            kw["n1"] = nn
-                        if e.n2 == n:
-                            kw["n2"] = nn
-                        m.elements[i] = dataclasses.replace(e, **kw)
-                    comps = [x for x in present[n] if x != c]
-                    rid = eid + 1
-                    while rid in m.elements or rid in m.rbe2s:
-                        rid += 1
-                    if comps:
-                        m.add_rbe2(rid, n, (nn,), "".join(map(str, comps)))
-                    _fix_foreign(m, n, present[n])
-                    _fix_foreign(m, nn, present[n])
-                    m.add_element(Spring(eid, a=(n, c), b=(nn, c), k=0.0, group=f"diag_j_{eid}"))
-                    m._changed()
-                    return m, Parameter(f"kj_{n}_{c}", "k", elements=(eid,), mode="value"), 1.0
-                cands.append(Candidate("joint_flexibility", f"flexible joint ({DIRECTION_NAMES[c]}) at node {n} "
-                                       f"between element(s) {', '.join(map(str, side))} and the rest", (n,), (lbl,),
-                                       side, "k", _unit("joint_flexibility", c), "K", False, split, None,
-                                       release=("joint", n, (c,), side)))
-    log.info("candidate library: %d candidates (%s)", len(cands),
-             ", ".join(f"{k}={sum(c.physics == k for c in cands)}" for k in sorted(kinds)))
-    return cands
+            lbl = f"{n}+{DIRECTION_NAMES[c]}"
+            out.append(Candidate("joint_flexibility", f"flexible joint ({DIRECTION_NAMES[c]}) at node {n} "
+                                 f"between element(s) {', '.join(map(str, side))} and the rest", (n,), (lbl,),
+                                 side, "k", _unit("joint_flexibility", c), "K", False,
+                                 lambda m, eid, n=n, side=side, c=c: _split_node(m, eid, n, side, c,
+                                                                                 ctx.present[n]),
+                                 None, release=("joint", n, (c,), side)))
+    return out

@@ -21,7 +21,9 @@ mass) and massless mechanisms exactly; a failing eigen-solution is an error, nev
    on a plausible grid (:func:`screen_modes`), around the updated and the nominal parameters: a low-rank
    update ``θ L Lᵀ`` in the subspace of the lowest modes extended by the static corrections of the
    candidate's DOFs (:class:`ModalSubspace`; the FRF screening's Ritz idea), a small eigenproblem per
-   value.  A candidate that changes none of the model modes paired with test modes (``Lᵀφ_j = 0``: a
+   value; with many candidates (a 100k-DOF model has ~10⁵) a first-order pre-screen by the eigenvalue and
+   eigenvector sensitivities of the paired modes chooses the few hundred evaluated so
+   (:mod:`~updating.diagnosis.modes_screen`).  A candidate that changes none of the model modes paired with test modes (``Lᵀφ_j = 0``: a
    rotational spring about the vertical axis seen by vertical sensors) has no evidence and is dropped;
 3. the best few are fitted jointly with the stiffness parameters (densities stay nominal: a density
    multiplier mimics an added mass, and on suspension modes any grounded stiffness) — in the subspace for
@@ -44,28 +46,27 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.optimize as so
 import scipy.sparse as sp
 
-from modalab.core.dense import use_dense
 from modalab.core.errors import ModalabValueError
 from modalab.core.modes import ModeSet
 
 from updating.fe import FEModel, ParametricFEModel
-from updating.fe.solvers import (DEFAULT_SHIFT_HZ, _drop_mechanisms, eigen_dense, eigen_sparse, factorize,
-                          massless_mechanisms)
+from updating.diagnosis.subspace import ModalSubspace, _extended_rows, _new_directions  # noqa: F401 (re-exported)
+from updating.diagnosis.modal_residual import (fit_modes, modal_force_map,  # noqa: F401 (re-exported)
+                                              EXTRA_MODES, PAIR_FACTOR, SIGMA_F_DEFAULT, SIGMA_F_FLOOR,  # noqa: F401
+                                              UNOBSERVABLE, ModalResidual, _exact_modes, _observed, _sigma_f,
+                                              mode_errors, paired_test_modes)
 from updating.diagnosis.fit import FitResult, FRFData, parameter_std
 from updating.diagnosis.library import build_library
 from updating.diagnosis.workflow import (Diagnosis, Finding, _augment, _bounds, _fmt, _upper, default_parameters,
                        promote_measured, statement)
-from updating.diagnosis.frfscreen import _low_rank, _value_grid
+from updating.diagnosis.modes_screen import MIN_OBSERVED_EFFECT, screen_modes  # noqa: F401 (re-exported)
 from updating.correlation.dofmap import as_dofmap
 from updating.diagnosis.library import _nodes_of
 from modalab.core.dof import parse_dofs
-from modalab.core.dof import locate
-from updating.correlation.condensation import condensed_residual
-from updating.correlation.metrics import mac as mac_matrix, pair_modes, shape_noise
+from updating.correlation.metrics import shape_noise
 
 log = logging.getLogger(__name__)
 __all__ = ["diagnose_modes", "modes_data", "fit_modes", "mode_errors", "modal_force_map", "ModalResidual",
@@ -86,490 +87,41 @@ def modes_data(test_modes: ModeSet, keep=None) -> FRFData:
 
 #: models above this many DOFs are evaluated in a Ritz subspace of their lowest modes (exactly below)
 SUBSPACE_ABOVE = 600
-#: a model mode whose measured part is below this fraction of the best observed mode's is unobservable
-UNOBSERVABLE = 1e-6
-#: model modes beyond the test modes' count that pairing may choose from
-EXTRA_MODES = 12
-#: ... and at least every model mode up to this factor times the highest test frequency (modes of other
-#: planes, unobservable or rigid, interleave with the observed ones)
-PAIR_FACTOR = 1.5
 
 
-def _exact_modes(K, M, k):
-    """The lowest ``k`` modes (ω, mass-normalised Φ) with massless DOFs and massless mechanisms handled
-    (:mod:`updating.fe.solvers`); dense for small models, shift-invert Lanczos above
-    :data:`modalab.core.dense.MODES_LIMIT`."""
-    n = K.shape[0]
-    if use_dense(n, "modes"):
-        return eigen_dense(K, M, min(k, n))
-    return eigen_sparse(K, M, min(k, n - 2))
+#: parameter fields that enter K and M linearly (as a factor or a value: E, ρ, spring stiffness, masses,
+#: inertias, non-structural mass); a fit over such parameters only is evaluated from projected derivatives
+LINEAR_FIELDS = ("E", "rho", "k", "mass", "inertia", "nsm")
 
 
-def _new_directions(V, S, M) -> np.ndarray:
-    """M-orthonormal directions of ``S`` outside the M-orthonormal basis ``V``.  The static correction of a
-    DOF beyond the lowest modes has a tiny mass (the high modes' share of a static deflection is weighted by
-    1/ω⁴) but matters for a stiff spring or heavy mass there; a direction is dropped only when it is
-    numerically inside ``V`` (Euclidean norm after two Gram-Schmidt passes below 1e-10 of its own) or has no
-    mass."""
-    if S.shape[1] == 0:
-        return S
-    n0 = np.linalg.norm(S, axis=0)
-    for _ in range(2):
-        S = S - V @ (V.T @ (M @ S))
-    n1 = np.linalg.norm(S, axis=0)
-    S = S[:, n1 > 1e-10 * np.maximum(n0, 1e-300)]
-    if S.shape[1] == 0:
-        return S
-    S = S / np.linalg.norm(S, axis=0)
-    ms = S.T @ (M @ S)
-    mu, U = np.linalg.eigh(0.5 * (ms + ms.T))
-    mmax = float(np.abs(M.diagonal()).max(initial=0.0))
-    ok = mu > 1e-12 * max(mmax, 1e-300)
-    S = S @ (U[:, ok] / np.sqrt(mu[ok]))
-    for _ in range(2):                          # re-orthogonalise after the scaling
-        S = S - V @ (V.T @ (M @ S))
-    return S
+class _ProjectedModel:
+    """``VᵀK(p)V``, ``VᵀM(p)V`` of a parametric model whose parameters all enter K and M linearly, from the
+    projections at ``p0`` and of the exact derivatives: ``VᵀK(p)V = VᵀK(p₀)V + Σ (p_i − p₀_i) Vᵀ∂K/∂p_i V``.
+    No assembly and no product with an n-size matrix per evaluation (at 100k DOFs each was seconds)."""
 
+    def __init__(self, pmodel, basis: ModalSubspace, p0):
+        self.p0 = np.asarray(p0, float)
+        self.structure = st = pmodel.structure(self.p0)
+        self.basis = basis
+        self.Kr, self.Mr = basis.project(sp.csr_matrix(st.K), sp.csr_matrix(st.M))
+        zero = sp.csr_matrix((st.n_dof, st.n_dof))
+        self.dKr, self.dMr = [], []
+        for d in pmodel.derivatives(self.p0):
+            dK, dM = basis.project(zero if d.dK is None else sp.csr_matrix(d.dK),
+                                   zero if d.dM is None else sp.csr_matrix(d.dM))
+            self.dKr.append(dK)
+            self.dMr.append(dM)
 
-class ModalSubspace:
-    """A Ritz basis for the lowest modes of a structure and their changes (modes-only screening and fits).
+    @staticmethod
+    def applies(pmodel) -> bool:
+        pars = getattr(pmodel, "parameters", None)
+        return bool(pars) and all(getattr(par, "field", None) in LINEAR_FIELDS for par in pars)
 
-    ``V = [Φ (modes up to ``mode_factor`` × the highest test frequency, at least ``n_min``), K_σ⁻¹ E (static
-    corrections at the measured DOFs and the DOFs in ``cols``)]``, M-orthonormal and K-diagonal, on the
-    structure's DOFs (a massless mechanism's constrained DOF is zero, see :mod:`updating.fe.solvers`).  The
-    modes of a changed structure (new parameters, an added spring or mass) are the Ritz values of ``VᵀKV``,
-    ``VᵀMV`` — the modal-truncation-augmentation basis of :class:`~updating.diagnosis.ritz.RitzBasis`,
-    whose static corrections make a stiffness or mass added at those DOFs exact at low frequency.
-    :meth:`extended` adds the static corrections of one candidate's DOFs (a low-rank update of the basis).
-    """
-
-    def __init__(self, structure, cols, f_top_hz: float, n_min: int, *, mode_factor: float = 2.5):
-        K, M = sp.csr_matrix(structure.K), sp.csr_matrix(structure.M)
-        n = K.shape[0]
-        keep, Kk, Mk = _drop_mechanisms(K, M)
-        keep = np.arange(n) if keep is None else keep
-        fixed = np.setdiff1d(np.arange(n), keep)
-        nk = keep.size
-        k = min(max(n_min, 24), nk - 2)
-        while True:
-            w, phi = eigen_dense(Kk, Mk, k) if use_dense(nk, "modes") else eigen_sparse(Kk, Mk, k)
-            if w[-1] >= 2 * np.pi * mode_factor * f_top_hz or k >= nk - 2 or k >= 400:
-                break
-            k = min(2 * k, nk - 2, 400)
-        self.sigma = -(2 * np.pi * DEFAULT_SHIFT_HZ) ** 2
-        self.factor = factorize(sp.csc_matrix(Kk - self.sigma * Mk), "auto")
-        pos = np.full(n, -1)
-        pos[keep] = np.arange(nk)
-        self.pos, self.keep, self.n, self.Kk, self.Mk = pos, keep, n, Kk, Mk
-        self.mechanism_dofs = fixed
-        c = pos[np.unique(np.asarray(cols, int))]
-        c = c[c >= 0]
-        E = np.zeros((nk, c.size))
-        E[c, np.arange(c.size)] = 1.0
-        R = self.factor.solve(E) if c.size else np.zeros((nk, 0))
-        V = _new_directions(np.zeros((nk, 0)), phi, Mk)          # the modes, M-orthonormal
-        V = np.hstack([V, _new_directions(V, R, Mk)])
-        Kr = V.T @ (Kk @ V)
-        w2, Psi = np.linalg.eigh(0.5 * (Kr + Kr.T))
-        self.V = np.ascontiguousarray(V @ Psi)                  # on the kept DOFs
-        self.w2 = w2
-        self.n_modes = int(phi.shape[1])
-        self.dofs = list(structure.dofs)
-
-    @property
-    def size(self) -> int:
-        return self.V.shape[1]
-
-    @property
-    def deflation(self):
-        """``(MV, VᵀMV)`` on the kept DOFs, computed once (for :func:`_extended_rows`)."""
-        if getattr(self, "_deflation", None) is None:
-            MV = np.asarray(self.Mk @ self.V)
-            self._deflation = (MV, 0.5 * (self.V.T @ MV + MV.T @ self.V))
-        return self._deflation
-
-    def full(self, V=None) -> np.ndarray:
-        V = self.V if V is None else V
-        out = np.zeros((self.n, V.shape[1]))
-        out[self.keep] = V
-        return out
-
-    def rows_of(self, idx, V=None) -> np.ndarray:
-        """Rows ``idx`` (full-DOF indices) of :meth:`full` without forming it (zero at a mechanism's DOF)."""
-        V = self.V if V is None else V
-        p = self.pos[np.asarray(idx, int)]
-        out = np.zeros((p.size, V.shape[1]))
-        out[p >= 0] = V[p[p >= 0]]
-        return out
-
-    def matches(self, structure) -> bool:
-        return list(structure.dofs) == self.dofs
-
-    def project(self, K, M):
-        """``VᵀKV``, ``VᵀMV`` of full-size matrices of a structure on the same DOFs."""
-        Vf = self.full()
-        Kr, Mr = Vf.T @ (K @ Vf), Vf.T @ (M @ Vf)
-        return 0.5 * (Kr + Kr.T), 0.5 * (Mr + Mr.T)
-
-    def extended(self, rows, L):
-        """``(W, Kr, b)``: the basis extended by the M-orthonormal static corrections of ``E_rows L``
-        (``W`` on the kept DOFs), ``Kr = WᵀKW`` (the nominal stiffness) and ``b = W[rows]ᵀ L`` (so that the
-        candidate's ``θ G`` projects to ``θ b bᵀ``).  Rows on a massless mechanism's constrained DOF drop
-        out: there the candidate changes no finite mode (a spring fixes the mechanism, an inertia adds only
-        its 0 Hz rigid rotation)."""
-        p = self.pos[rows]
-        on = p >= 0
-        Lk = L[on]
-        p = p[on]
-        V = self.V
-        if p.size == 0:
-            return V, np.diag(self.w2), np.zeros((V.shape[1], L.shape[1]))
-        E = np.zeros((V.shape[0], Lk.shape[1]))
-        E[p] = Lk
-        S = _new_directions(V, self.factor.solve(E), self.Mk)
-        W = np.hstack([V, S])
-        KS = self.Kk @ S
-        m = V.shape[1]
-        Kr = np.zeros((W.shape[1], W.shape[1]))
-        Kr[:m, :m] = np.diag(self.w2)
-        Kr[:m, m:] = V.T @ KS
-        Kr[m:, :m] = Kr[:m, m:].T
-        Kr[m:, m:] = S.T @ KS
-        return W, 0.5 * (Kr + Kr.T), W[p].T @ Lk
-
-
-def _extended_rows(basis, rows, L, idx):
-    """:meth:`ModalSubspace.extended` with two passes over the basis instead of some ten: ``(W[idx], Kr, b)``,
-    ``W[idx]`` the rows ``idx`` (full-DOF indices) of the extended basis; the same Ritz problem up to a
-    rotation of the new directions among themselves.
-
-    The static correction is solved for a load with the basis' share removed, ``S₀ = K_σ⁻¹ (E − MV a)``,
-    ``a = VᵀE = V[rows]ᵀL`` (``K_σ = K − σM``): for a free-free structure ``K_σ⁻¹E`` is dominated by the
-    rigid-body and low modes (the new direction holds ~1e-13 of its mass), which the explicit Gram-Schmidt of
-    :meth:`ModalSubspace.extended` removes in repeated passes; the deflated load never creates them, so one
-    projection ``c = (MV)ᵀS₀`` makes ``S₁ = S₀ − Vc`` M-orthogonal to the basis.  The stiffness blocks follow
-    from ``K = K_σ + σM`` without a product with K: ``VᵀKS₀ = VᵀF + σc``, ``S₀ᵀKS₀ = S₀ᵀF + σS₀ᵀMS₀``
-    (``F`` the deflated load), then ``VᵀKS₁ = VᵀKS₀ − ω²c`` and ``S₁ᵀKS₁ = S₀ᵀKS₀ − cᵀVᵀKS₀ − (VᵀKS₀)ᵀc +
-    cᵀω²c``.  Only the rows ``idx`` and ``rows`` of ``S₁`` are formed.  A new direction whose mass is not
-    clear of the projection (below 1e-6 of ``S₀ᵀMS₀``) falls back to the explicit extension.
-    """
-    p = basis.pos[rows]
-    on = p >= 0
-    Lk, p = L[on], p[on]
-    V, w2, sg = basis.V, basis.w2, basis.sigma
-    m = V.shape[1]
-    if p.size == 0:
-        return basis.rows_of(idx), np.diag(w2), np.zeros((m, L.shape[1]))
-    MV, VMV = basis.deflation
-    a = V[p].T @ Lk
-    F = -(MV @ a)
-    np.add.at(F, p, Lk)
-    S0 = np.asarray(basis.factor.solve(F))
-    c = MV.T @ S0
-    g0 = S0.T @ (basis.Mk @ S0)
-    g0 = 0.5 * (g0 + g0.T)
-    G = g0 - c.T @ c
-    mu, U = np.linalg.eigh(0.5 * (G + G.T))
-    if mu.min() < 1e-6 * max(float(np.linalg.eigvalsh(g0).max()), 1e-300):
-        W, Kr, b = basis.extended(rows, L)
-        return basis.rows_of(idx, W), Kr, b
-    T = U / np.sqrt(mu)
-    VKS0 = (a - VMV @ a) + sg * c
-    k0 = S0[p].T @ Lk - c.T @ a + sg * g0
-    SKS1 = 0.5 * (k0 + k0.T) - c.T @ VKS0 - VKS0.T @ c + c.T @ (w2[:, None] * c)
-    r = T.shape[1]
-    Kr = np.zeros((m + r, m + r))
-    Kr[:m, :m] = np.diag(w2)
-    Kr[:m, m:] = (VKS0 - w2[:, None] * c) @ T
-    Kr[m:, :m] = Kr[:m, m:].T
-    Kr[m:, m:] = T.T @ SKS1 @ T
-    q = basis.pos[np.asarray(idx, int)]
-    Wi = np.zeros((q.size, m + r))
-    hit = q >= 0
-    Wi[hit, :m] = V[q[hit]]
-    Wi[hit, m:] = (S0[q[hit]] - V[q[hit]] @ c) @ T
-    Wp = np.hstack([V[p], (S0[p] - V[p] @ c) @ T])
-    return Wi, 0.5 * (Kr + Kr.T), Wp.T @ Lk
-
-
-def _observed(Vm):
-    """Norm of each model mode on the measured DOFs, and whether the sensors see it at all (a mode below
-    :data:`UNOBSERVABLE` of the largest has a MAC made of round-off and is never paired)."""
-    nrm = np.linalg.norm(Vm, axis=0)
-    return nrm, nrm > UNOBSERVABLE * max(nrm.max(initial=0.0), 1e-300)
-
-
-class ModalResidual:
-    """Eigenvalue and shape residuals of a structure against test modes (the modes-only objective).
-
-    ``e = [(f_j − f_test,j)/(σ_f f_test,j) ; (a_j φ_j − φ_test,j)/σ_φ]`` over the test modes ``keep``, each
-    paired with the model mode of largest MAC (a model mode used once; clearest test modes first; model
-    modes the measured DOFs cannot see are never paired), shapes unit-norm on the measured DOFs and ``a_j``
-    the least-squares scale.  Shape residuals in displacement space weigh measurement noise as it is (a
-    relative scatter of ``σ_φ``), where the force residual ``Z φ`` amplifies it by the stiffness; ``σ_f`` is
-    the frequency precision.  Without shapes (frequency-only data) the model's elastic modes are paired
-    by frequency (an assignment on ``|ln f/f_test|``, which keeps their order) and only frequencies enter.
-
-    Modes come from :func:`updating.fe.solvers.eigen_dense` / ``eigen_sparse`` (massless DOFs and
-    mechanisms handled), or from a :class:`ModalSubspace` when one is given.
-    """
-
-    def __init__(self, test_modes: ModeSet, keep=None, *, sigma_f: float = 0.005, sigma_phi: float = 0.02):
-        idx = np.arange(test_modes.n_modes) if keep is None else np.asarray(keep, int)
-        phi = np.asarray(test_modes.shapes).reshape(len(test_modes.dofs), test_modes.n_modes)[:, idx]
-        phi = np.real(phi) if np.iscomplexobj(phi) else phi
-        self.phi = phi / np.maximum(np.linalg.norm(phi, axis=0), 1e-300)
-        self.f = np.asarray(test_modes.freq_hz, float)[idx]
-        self.dofs = list(test_modes.dofs)
-        sf, sphi = np.asarray(sigma_f, float), np.asarray(sigma_phi, float)     # one value, or one per test mode
-        self.sigma_f = float(sf) if sf.ndim == 0 else sf[idx]
-        self.sigma_phi = float(sphi) if sphi.ndim == 0 else sphi[idx]
-        self._loc = None
-
-    @property
-    def has_shapes(self) -> bool:
-        return self.phi.shape[0] > 0
-
-    @property
-    def n_eq(self) -> int:
-        return int(self.f.size * (1 + self.phi.shape[0]))
-
-    @property
-    def n_model_modes(self) -> int:
-        return self.f.size + EXTRA_MODES
-
-    def rows(self, structure):
-        if self._loc is None or self._loc[0] is not structure.dofs:
-            from modalab.core.dof import locate
-            if self.dofs:
-                mi, ms = locate(structure.dofs, self.dofs, "test-mode DOF")
-            else:
-                mi, ms = [], []
-            self._loc = (structure.dofs, np.asarray(mi, int), np.asarray(ms, float))
-        return self._loc[1], self._loc[2]
-
-    def model_modes(self, structure, K=None, M=None, basis: ModalSubspace | None = None):
-        """Model frequencies (Hz) and shapes on the measured DOFs (n_m, n_modes), mass-normalised."""
-        K = structure.K if K is None else K
-        M = structure.M if M is None else M
-        mi, ms = self.rows(structure)
-        if basis is not None and basis.matches(structure):
-            Kr, Mr = basis.project(sp.csr_matrix(K), sp.csr_matrix(M))
-            w2, Psi = sla.eigh(Kr, Mr)
-            k = self.n_pairable(np.sqrt(np.clip(w2, 0, None)) / (2 * np.pi))
-            Vm = (basis.rows_of(mi) * ms[:, None]) @ Psi[:, :k]
-            return np.sqrt(np.clip(w2[:k], 0, None)) / (2 * np.pi), Vm
-        Ks, Ms = sp.csr_matrix(K), sp.csr_matrix(M)
-        k = self.n_model_modes
-        while True:                    # every model mode up to PAIR_FACTOR × the highest test frequency
-            w, V = _exact_modes(Ks, Ms, k)
-            if w.size < k or w[-1] / (2 * np.pi) > PAIR_FACTOR * self.f.max() or k >= Ks.shape[0] - 2:
-                break
-            k = min(2 * k, Ks.shape[0] - 2)
-        return w / (2 * np.pi), V[mi] * ms[:, None]
-
-    def n_pairable(self, fm) -> int:
-        """How many of the ascending model frequencies ``fm`` pairing may choose from: every mode up to
-        ``PAIR_FACTOR`` × the highest test frequency, and at least ``n_model_modes``."""
-        return int(min(fm.size, max(self.n_model_modes, np.searchsorted(fm, PAIR_FACTOR * self.f.max(), "right"))))
-
-    def pairs(self, fm, Vm):
-        """``(a, mac)``: the model mode paired with each test mode and the MAC (NaN without shapes)."""
-        nt = self.f.size
-        if not self.has_shapes:
-            el = np.flatnonzero(fm > 1e-3)
-            if el.size < nt:
-                raise ModalabValueError(f"the model has {el.size} elastic modes among its lowest {fm.size}; "
-                                        f"{nt} test frequencies cannot be paired")
-            cost = np.abs(np.log(fm[el][:, None] / self.f[None, :]))
-            r, c = so.linear_sum_assignment(cost)
-            a = np.empty(nt, int)
-            a[c] = el[r]
-            return a, np.full(nt, np.nan)
-        nrm, seen = _observed(Vm)
-        U = Vm / np.maximum(nrm, 1e-300)
-        mac = (U.T @ self.phi) ** 2                                           # (model, test)
-        # the cost of modalab's one pairing rule (updating.correlation.metrics.pair_modes): (1 − MAC) plus the
-        # relative frequency distance, one-to-one by the Hungarian algorithm (deterministic); a mode the
-        # sensors cannot see is never paired.  Greedy MAC alone paired an exact model's 37.5 Hz test mode
-        # with a model mode far away and moved its parameters by 3-4 %.
-        cost = (1.0 - mac) + np.abs(fm[:, None] - self.f[None, :]) / self.f[None, :]
-        cost[~seen] = 1e6
-        r, c = so.linear_sum_assignment(cost)
-        a = np.empty(nt, int)
-        a[c] = r
-        return a, np.clip(np.einsum("ij,ij->j", U[:, a], self.phi) ** 2, 0.0, 1.0)
-
-    def residual(self, fm, Vm) -> np.ndarray:
-        a, _ = self.pairs(fm, Vm)
-        ef = (fm[a] - self.f) / (self.sigma_f * self.f)
-        if not self.has_shapes:
-            return ef
-        nrm = np.maximum(np.linalg.norm(Vm[:, a], axis=0), 1e-300)
-        V = Vm[:, a] / nrm
-        proj = np.einsum("ij,ij->j", V, self.phi)
-        es = (V * proj[None, :] - self.phi) / self.sigma_phi
-        return np.concatenate([ef, es.ravel()])
-
-    def __call__(self, structure, K=None, M=None, basis: ModalSubspace | None = None) -> np.ndarray:
-        return self.residual(*self.model_modes(structure, K, M, basis))
-
-
-#: relative frequency precision without identified standard deviations (a UFF 55 carries none)
-SIGMA_F_DEFAULT = 0.005
-#: the smallest relative frequency precision used: an FE model's frequencies are not better than about 0.1 %
-#: (mesh, mass lumping), so an identified standard deviation of 1e-5 must not make such a difference significant
-SIGMA_F_FLOOR = 1e-3
-
-
-def _sigma_f(test_modes: ModeSet, sigma_f):
-    """The relative frequency precision per test mode (see :func:`diagnose_modes`)."""
-    if sigma_f is not None:
-        return sigma_f
-    std = (test_modes.indicators or {}).get("freq_std_hz")
-    if std is None:
-        return SIGMA_F_DEFAULT
-    rel = np.asarray(std, float).ravel() / np.asarray(test_modes.freq_hz, float)
-    if rel.size != test_modes.n_modes or not np.all(np.isfinite(rel) & (rel > 0)):
-        log.info("modes: the test modes' freq_std_hz are incomplete; relative frequency sigma %g", SIGMA_F_DEFAULT)
-        return SIGMA_F_DEFAULT
-    return np.maximum(rel, SIGMA_F_FLOOR)
-
-
-def paired_test_modes(structure, test_modes: ModeSet):
-    """The test modes that pair with a mode of ``structure`` by modalab's one pairing rule
-    (:func:`updating.correlation.metrics.pair_modes`: MAC and frequency, modes the sensors cannot see and
-    rigid-body modes excluded, a test mode that is a merge of close model modes left out; no frequency window,
-    since the physics sought may move a mode far), as ``(indices, {left-out index: reason})``.  The modes-only objective is defined on these modes
-    only: a test mode without a counterpart in the nominal model would otherwise pull the parameters
-    towards a wrong partner."""
-    r = ModalResidual(test_modes)
-    fm, Vm = r.model_modes(structure)
-    if not r.has_shapes:
-        pr = pair_modes(None, fm, r.f)
-    else:
-        _, seen = _observed(Vm)
-        # no frequency window: missing physics may move a mode far (a spring to ground gives a free bar a
-        # mode of its own); what must stay out are modes the sensors cannot see and merges of close modes
-        pr = pair_modes(mac_matrix(Vm, r.phi), fm, r.f, observability=seen.astype(float), max_freq_error=None,
-                        mode_shapes=(Vm, r.phi))
-    usable = np.array(sorted(int(x) for _, x in pr.pairs), int)
-    left = {int(j): pr.unpaired_reason.get(int(j), "no mode of the nominal model pairs with it")
-            for j in range(test_modes.n_modes) if int(j) not in set(usable.tolist())}
-    return usable, left
-
-
-def mode_errors(structure, test_modes: ModeSet, keep=None):
-    """Relative frequency errors and MACs (NaN without shapes) of the test modes ``keep``, paired with the
-    model's modes as in :class:`ModalResidual`."""
-    r = ModalResidual(test_modes, keep)
-    fm, Vm = r.model_modes(structure)
-    a, mac = r.pairs(fm, Vm)
-    return (fm[a] - r.f) / r.f, mac
-
-
-def _candidate_effect(resid, fm, Vm_basis_modes, b_modes, theta, matrix):
-    """Largest first-order relative change of a paired model eigenvalue for value ``theta`` (see
-    :func:`screen_modes`)."""
-    lam = (2 * np.pi * fm) ** 2
-    s = np.sum(b_modes ** 2, axis=1) * theta
-    rel = s / np.maximum(lam, 1e-300) if matrix == "K" else s
-    return float(np.max(np.abs(rel))) if rel.size else 0.0
-
-
-#: a candidate whose best value changes no paired (observed) model eigenvalue by this fraction acts only
-#: on modes the sensors cannot see: its gain comes from pairing, not from evidence
-MIN_OBSERVED_EFFECT = 1e-4
-
-
-def screen_modes(structure, candidates, resid: ModalResidual, basis: ModalSubspace | None = None) -> list:
-    """Each shared stiffness or mass candidate added alone to ``structure`` at its best value on a plausible
-    grid, judged on the modal residual: ``[(candidate, value, gain)]`` best first (gain = relative drop of
-    the residual's squared norm; only candidates that lower it).
-
-    No eigen-solution of the full model per value: the candidate ``θ G = θ L Lᵀ`` (rank 1 for a spring,
-    3 for a point mass) is added in the subspace of the lowest modes extended by the static corrections of
-    its own DOFs (:meth:`ModalSubspace.extended`) — a small ``(m + r)`` eigenproblem per value, batched
-    over the grid.  A candidate is kept only if its best value changes a model mode paired with a test
-    mode (``L ᵀφ_j ≠ 0``: otherwise every paired mode is an exact eigenpair of the changed model too, and
-    any gain would come from a different pairing of modes the sensors cannot see)."""
-    K, M = sp.csr_matrix(structure.K), sp.csr_matrix(structure.M)
-    if basis is None or not basis.matches(structure):
-        # the lowest modes alone: each candidate brings the static corrections of its own DOFs
-        basis = ModalSubspace(structure, [], float(resid.f.max()), resid.n_model_modes)
-    mi, ms = resid.rows(structure)
-    Kr0, Mr0 = basis.project(K, M)
-    w20, Psi0 = sla.eigh(Kr0, Mr0)
-    k0 = resid.n_pairable(np.sqrt(np.clip(w20, 0, None)) / (2 * np.pi))
-    fm0 = np.sqrt(np.clip(w20[:k0], 0, None)) / (2 * np.pi)
-    Vm0 = (basis.rows_of(mi) * ms[:, None]) @ Psi0[:, :k0]
-    e0 = resid.residual(fm0, Vm0)
-    r0 = float(e0 @ e0)
-    a0, _ = resid.pairs(fm0, Vm0)
-    Phi_pair = basis.full() @ Psi0[:, a0]                       # paired model modes on all DOFs
-    kn = resid.n_pairable(np.sqrt(np.clip(w20, 0, None)) / (2 * np.pi))
-    out = []
-    n_blind = 0
-    for c in candidates:
-        if not c.shared or c.G is None or c.matrix not in ("K", "M"):
-            continue
-        lr = _low_rank(c.G)
-        if lr is None:
-            continue
-        rows, L = lr
-        grid = _value_grid(c, K, M, rows, L, n=13)
-        if grid.size == 0:
-            continue
-        bp = L.T @ Phi_pair[rows]                               # (r, n_pairs): the candidate on paired modes
-        if _candidate_effect(resid, fm0[a0], None, bp.T, grid[-1], c.matrix) < MIN_OBSERVED_EFFECT:
-            n_blind += 1        # even its largest value leaves every paired mode an exact eigenpair: no evidence
-            continue
-        Wm, Kr, b = _extended_rows(basis, rows, L, mi)
-        if not np.any(b):
-            continue
-        Wm = Wm * ms[:, None]
-
-        def evaluate(thetas):
-            G = b @ b.T
-            if c.matrix == "K":
-                w2, Psi = np.linalg.eigh(Kr[None] + thetas[:, None, None] * G[None])
-            else:
-                Mt = np.eye(Kr.shape[0])[None] + thetas[:, None, None] * G[None]
-                C = np.linalg.cholesky(Mt)
-                Ci = np.linalg.inv(C)
-                A = Ci @ Kr[None] @ Ci.transpose(0, 2, 1)
-                w2, Y = np.linalg.eigh(0.5 * (A + A.transpose(0, 2, 1)))
-                Psi = Ci.transpose(0, 2, 1) @ Y
-            res = np.empty(thetas.size)
-            for t in range(thetas.size):
-                fm = np.sqrt(np.clip(w2[t, :kn], 0, None)) / (2 * np.pi)
-                e = resid.residual(fm, Wm @ Psi[t][:, :kn])
-                res[t] = float(e @ e)
-            return res
-
-        t = grid
-        rr = evaluate(t)
-        for _ in range(2 if rr.min() < 0.95 * r0 else 0):   # refine twice between the best value's neighbours
-            k = int(np.argmin(rr))
-            lo_t, hi_t = t[max(k - 1, 0)], t[min(k + 1, t.size - 1)]
-            if hi_t <= lo_t:
-                break
-            t2 = np.geomspace(lo_t, hi_t, 7)[1:-1]
-            t, rr = np.concatenate([t, t2]), np.concatenate([rr, evaluate(t2)])
-            o = np.argsort(t, kind="stable")
-            t, rr = t[o], rr[o]
-        k = int(np.argmin(rr))
-        if rr[k] >= r0:
-            continue
-        if _candidate_effect(resid, fm0[a0], None, bp.T, t[k], c.matrix) < MIN_OBSERVED_EFFECT:
-            log.info("modes: %s would explain %.0f %% of the residual but changes no observed mode; not evidence",
-                     c.label, 100 * (1 - rr[k] / max(r0, 1e-300)))
-            continue
-        out.append((c, float(t[k]), 1.0 - rr[k] / max(r0, 1e-300)))
-    out.sort(key=lambda x: (-x[2], x[0].key))
-    log.info("modes: screened %d candidates in a %d-vector subspace; %d act on no observed mode", len(candidates),
-             basis.size, n_blind)
-    return out
+    def residual(self, resid: ModalResidual, p) -> np.ndarray:
+        dp = np.asarray(p, float) - self.p0
+        Kr = self.Kr + sum(x * A for x, A in zip(dp, self.dKr) if x != 0)
+        Mr = self.Mr + sum(x * A for x, A in zip(dp, self.dMr) if x != 0)
+        return resid.residual(*resid.projected_modes(self.structure, self.basis, Kr, Mr))
 
 
 def fit_modal_residual(pmodel, resid: ModalResidual, p_start, *, lower, upper, reg: float = 1e-2,
@@ -583,7 +135,9 @@ def fit_modal_residual(pmodel, resid: ModalResidual, p_start, *, lower, upper, r
     Models above ``SUBSPACE_ABOVE`` DOFs are fitted in a :class:`ModalSubspace` (built at the start with
     static corrections at the measured DOFs and the DOF labels ``cols``, or ``basis``); the result is checked
     against the exact modes and the fit repeated in a basis rebuilt there when the two residuals differ by
-    more than 2 % (at most ``max_rebuild`` times)."""
+    more than 2 % (at most ``max_rebuild`` times).  When every parameter enters K and M linearly
+    (:data:`LINEAR_FIELDS`) the subspace matrices come from projected derivatives (:class:`_ProjectedModel`).
+    """
     p_all = np.asarray(p_start, float)
     free = np.ones(p_all.size, bool) if free is None else np.asarray(free, bool)
     lower = np.asarray(lower, float)[free]
@@ -605,8 +159,13 @@ def fit_modal_residual(pmodel, resid: ModalResidual, p_start, *, lower, upper, r
             p[free] = x * scale
             return p
 
-        def fun(x, p0=p0, scale=scale):
-            e = resid(pmodel.structure(full(x)), basis=basis if big else None)
+        proj = _ProjectedModel(pmodel, basis, p_all) if big and _ProjectedModel.applies(pmodel) else None
+
+        def fun(x, p0=p0, scale=scale, proj=proj, basis=basis):
+            if proj is not None:
+                e = proj.residual(resid, full(x))
+            else:
+                e = resid(pmodel.structure(full(x)), basis=basis if big else None)
             return np.concatenate([e, reg * (x - p0 / scale) * np.sqrt(e.size)])
 
         lo, hi = lower / scale, upper / scale
@@ -628,33 +187,6 @@ def fit_modal_residual(pmodel, resid: ModalResidual, p_start, *, lower, upper, r
     s2 = rss / max(e.size - int(free.sum()), 1)
     std[free] = parameter_std(J, s2) * scale              # inf where the modes do not determine a parameter
     return p, std, rss
-
-
-def fit_modes(pmodel, test_modes: ModeSet, p_start, *, lower, upper, keep=None, w_mac: float = 0.3,
-              reg: float = 1e-3, max_nfev: int = 60) -> FitResult:
-    """Bounded least squares of eigenvalue and MAC residuals (finite-difference Jacobian).
-
-    A weak pull ``reg`` towards the start keeps the unidentifiable common scale of stiffness and mass put.
-    A failing eigen-solution fails the fit (it is never turned into a residual).
-    """
-    p0 = np.asarray(p_start, float)
-    scale = np.where(np.isfinite(upper) & (np.abs(p0) > 0), np.abs(p0), np.maximum(np.abs(p0), 1.0))
-
-    def fun(x):
-        p = x * scale
-        df, mac = mode_errors(pmodel.structure(p), test_modes, keep)
-        mac = np.nan_to_num(mac, nan=1.0)
-        return np.concatenate([df, w_mac * (1 - mac), reg * (x - p0 / scale)])
-
-    lo, hi = np.asarray(lower, float) / scale, np.asarray(upper, float) / scale
-    x0 = np.clip(p0 / scale, lo, hi)
-    sol = so.least_squares(fun, x0, bounds=(lo, hi), max_nfev=max_nfev, diff_step=1e-4, method="trf")
-    p = sol.x * scale
-    J = sol.jac
-    s2 = float(sol.fun @ sol.fun) / max(sol.fun.size - p.size, 1)
-    std = np.sqrt(np.clip(np.diag(np.linalg.pinv(J.T @ J)) * s2, 0, None)) * scale
-    df, _ = mode_errors(pmodel.structure(p), test_modes, keep)
-    return FitResult(p, std, float(np.sqrt(np.mean(df ** 2))), [], bool(sol.success), str(sol.message))
 
 
 def _block(structure, test_modes, keep):
@@ -734,43 +266,92 @@ def _on_independent_dofs(cands, structure) -> list:
     return out
 
 
-def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
-                   kinds=("ground_spring", "added_mass"), max_findings: int = 3, penalty: float = 3.0,
-                   n_try: int = 4, min_gain: float = 0.3, min_term_gain: float = 0.15, sigma_f=None,
-                   sigma_phi: float = 0.02, progress=None) -> Diagnosis:
-    """Diagnose stiffness and mass physics from identified modes only (module docstring).
+@dataclass
+class _ModesProblem:
+    """What the steps of :func:`diagnose_modes` share: the model and its parameters, the test modes split into
+    training and held-out modes, the modal residual on the training modes."""
 
-    ``test_modes`` on the model's node numbers (real or complex shapes; complex shapes are used through
-    their real part after phase alignment by the identification), or frequencies alone (a mode set without
-    DOFs).  Returns a :class:`Diagnosis` whose fit blocks hold ``freq_error_max_pct``,
-    ``freq_error_rms_pct`` and ``mac_min`` (with shapes) on the held-out modes (``frf_error_held_out`` is
-    None: there are no FRFs).  A numerical failure of an eigen-solution is an error, never a residual.
+    model: FEModel
+    test_modes: ModeSet
+    params: list
+    pm: ParametricFEModel
+    p_nom: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    train: np.ndarray
+    held: np.ndarray
+    resid: ModalResidual
+    dens_free: np.ndarray
+    has_shapes: bool
+    kinds: tuple
+    say: object
+    tm: dict = field(default_factory=lambda: {"baseline": 0.0, "screening": 0.0, "fits": 0.0})
 
-    ``sigma_f`` (relative frequency precision; one value or one per test mode): by default the standard
-    deviations the identification stored with the modes (``freq_std_hz``), not below
-    :data:`SIGMA_F_FLOOR`, else :data:`SIGMA_F_DEFAULT`.  Shapes are weighted by ``sigma_phi`` raised to the
-    noise each identified shape shows by its complexity.  Test modes that do not pair with the nominal model
-    (:func:`paired_test_modes`) are left out, each with its reason.
-    """
-    t0 = time.perf_counter()
-    say = progress or (lambda msg: log.info(msg))
+    @property
+    def n_eq(self) -> int:
+        return self.resid.n_eq
+
+    @property
+    def n_free(self) -> int:
+        return int(self.dens_free.sum())
+
+    @property
+    def separable(self) -> bool:
+        # without a force the data are n_eq numbers: a physics term and the free parameters must be fewer than
+        # half of them, or the data cannot separate the physics from parameter error
+        return self.n_eq >= 2 * (self.n_free + 1) + 1
+
+
+@dataclass
+class _State:
+    """The model being built: its terms, parametric model, parameters (with the terms' values), uncertainties
+    and modal residual."""
+
+    current: list
+    pm: ParametricFEModel
+    p: np.ndarray
+    std: np.ndarray
+    rss: float
+
+
+def _measured_test_modes(model: FEModel, test_modes: ModeSet, say):
+    """``(model, test_modes)``: measured nodes that a rigid link eliminates promoted (the link reversed), or
+    their DOFs left out with a warning; frequency-only sets pass through."""
+    if not len(test_modes.dofs):
+        say("modes: frequencies only (no shapes): model modes are paired by frequency order")
+        return model, test_modes
+    model = promote_measured(model, list(test_modes.dofs))
+    have = {(d.node, d.axis) for d in model.structure().dofs}
+    dropped = [str(d) for d in test_modes.dofs if (d.node, d.axis) not in have]
+    if dropped:
+        log.warning("test-mode DOF(s) %s are eliminated in the model and left out", ", ".join(dropped))
+        kept = [str(d) for d in test_modes.dofs if (d.node, d.axis) in have]
+        if not kept:
+            raise ModalabValueError("none of the test modes' DOFs is an independent DOF of the model; check "
+                                    "the node numbering (or give --map)")
+        test_modes = test_modes.select_dofs(kept)
+    return model, test_modes
+
+
+def _shape_sigma(test_modes: ModeSet, sigma_phi):
+    """``sigma_phi`` raised, per mode, to the noise a complex identified shape shows (a weakly excited mode,
+    MPC 0.64, is weighted by that noise, as in the update stage; a clean one by ``sigma_phi``)."""
+    if not len(test_modes.dofs) or not np.iscomplexobj(test_modes.shapes):
+        return sigma_phi
+    noise = shape_noise(np.asarray(test_modes.shapes).reshape(len(test_modes.dofs), test_modes.n_modes))
+    raised = np.flatnonzero(noise > sigma_phi)
+    if raised.size:
+        log.info("modes: test mode(s) %s carry more shape noise than %g: sigma %s",
+                 ", ".join(str(j + 1) for j in raised), sigma_phi, np.round(noise[raised], 3))
+    return np.maximum(float(sigma_phi), noise)
+
+
+def _modes_problem(model, test_modes, parameters, kinds, sigma_f, sigma_phi, say) -> _ModesProblem:
+    """The parameters, the test modes that pair with the nominal model (the others left out, each with its
+    reason), every third of them held out (from five on), and the modal residual of the training modes."""
     if test_modes.n_modes < 2:
         raise ModalabValueError(f"{test_modes.n_modes} test mode(s); a modes-only diagnosis needs at least 2")
-    has_shapes = len(test_modes.dofs) > 0
-    if has_shapes:
-        # measured nodes that a rigid link eliminates: reverse the link, or leave the DOF out (with a warning)
-        model = promote_measured(model, list(test_modes.dofs))
-        have = {(d.node, d.axis) for d in model.structure().dofs}
-        dropped = [str(d) for d in test_modes.dofs if (d.node, d.axis) not in have]
-        if dropped:
-            log.warning("test-mode DOF(s) %s are eliminated in the model and left out", ", ".join(dropped))
-            kept = [str(d) for d in test_modes.dofs if (d.node, d.axis) in have]
-            if not kept:
-                raise ModalabValueError("none of the test modes' DOFs is an independent DOF of the model; check "
-                                        "the node numbering (or give --map)")
-            test_modes = test_modes.select_dofs(kept)
-    else:
-        say("modes: frequencies only (no shapes): model modes are paired by frequency order")
+    model, test_modes = _measured_test_modes(model, test_modes, say)
     params = list(parameters) if parameters is not None else default_parameters(model)
     pm = ParametricFEModel(model, params)
     p_nom = np.array(pm.p0, float)
@@ -784,162 +365,174 @@ def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
                                 "at least 2: check the DOF map and the model")
     held = usable[2::3] if usable.size >= 5 else np.array([], int)
     train = np.setdiff1d(usable, held)
-    sigma_f = _sigma_f(test_modes, sigma_f)
-    if has_shapes and np.iscomplexobj(test_modes.shapes):
-        # a shape identified with noise (complexity: a weakly excited mode, MPC 0.64) is weighted by that noise,
-        # as in the update stage; a clean one by sigma_phi
-        noise = shape_noise(np.asarray(test_modes.shapes).reshape(len(test_modes.dofs), test_modes.n_modes))
-        raised = np.flatnonzero(noise > sigma_phi)
-        if raised.size:
-            log.info("modes: test mode(s) %s carry more shape noise than %g: sigma %s",
-                     ", ".join(str(j + 1) for j in raised), sigma_phi, np.round(noise[raised], 3))
-        sigma_phi = np.maximum(float(sigma_phi), noise)
-    resid = ModalResidual(test_modes, train, sigma_f=sigma_f, sigma_phi=sigma_phi)
-    n_eq = resid.n_eq
+    resid = ModalResidual(test_modes, train, sigma_f=_sigma_f(test_modes, sigma_f),
+                          sigma_phi=_shape_sigma(test_modes, sigma_phi))
     dens_free = np.array([par.field not in ("rho", "nsm") for par in params])
-    n_free = int(dens_free.sum())
-    # without a force the data are n_eq numbers: a physics term and the free parameters must be fewer than
-    # half of them, or the data cannot separate the physics from parameter error
-    separable = n_eq >= 2 * (n_free + 1) + 1
-    say("modes: parameter-only updating (baseline)")
-    tm = {"baseline": 0.0, "screening": 0.0, "fits": 0.0}
+    return _ModesProblem(model, test_modes, params, pm, p_nom, lo, hi, train, held, resid, dens_free,
+                         len(test_modes.dofs) > 0, kinds, say)
+
+
+def _screen_options(pb: _ModesProblem, st: _State, first: bool, n_try: int) -> list:
+    """``[(candidate, value)]``: the best ``n_try`` of each screening (around the current parameters, and on
+    the first pass around the nominal ones too: updating may have bent them to hide the effect) that are not
+    terms yet and explain more than 5 % of the residual."""
     t1 = time.perf_counter()
-    p_upd, std_upd, rss_upd = fit_modal_residual(pm, resid, p_nom, lower=lo, upper=hi)
-    tm["baseline"] = time.perf_counter() - t1
-    upd = FitResult(p_upd, std_upd, _freq_rms(pm.structure(p_upd), test_modes, train), [], True, "")
-    current, p_cur, pm_cur, rss_cur = [], p_upd, pm, rss_upd
-    std_cur = std_upd
-    ranking = None
-    alternatives: dict = {}
-    nb = _neighbours(model)
+    st_cur = st.pm.structure(st.p)
+    lib = _on_independent_dofs(build_library(st.pm.model_at(st.p), kinds=pb.kinds), st_cur)
+    pb.say(f"modes: screening {len(lib)} candidates")
+    screens = [screen_modes(st_cur, lib, pb.resid)]
+    if first:
+        st_nom = pb.pm.structure(pb.p_nom)
+        screens.append(screen_modes(st_nom, _on_independent_dofs(build_library(pb.pm.model_at(pb.p_nom),
+                                                                                kinds=pb.kinds), st_nom), pb.resid))
+    pb.tm["screening"] += time.perf_counter() - t1
+    have_keys = {c.key for c in st.current}
+    options, listed = [], set()
+    for scr in screens:
+        for c, th, g in scr[:n_try]:
+            if c.key not in have_keys and c.key not in listed and g > 0.05:
+                options.append((c, th))
+                listed.add(c.key)
+    return options, screens[0]
+
+
+def _fit_option(pb: _ModesProblem, st: _State, c, th, first: bool, cols):
+    """The candidate ``c`` (screened value ``th``) fitted with the current terms and the stiffness parameters
+    (densities stay nominal: without a force a density multiplier mimics an added mass, and on suspension
+    modes any grounded stiffness), from the current and on the first pass also the nominal parameters:
+    ``(c, rss, pm, p, std)`` of the better, or None when it fits to (nearly) nothing."""
+    params, n_par = pb.params, len(pb.params)
+    m_aug, cpar, scales = _augment(pb.model, st.current + [c])
+    pm_aug = ParametricFEModel(m_aug, params + cpar)
+    clo = np.concatenate([pb.lo, np.zeros(len(cpar))])
+    chi = np.concatenate([pb.hi, _upper(st.current + [c], scales)])
+    best = None
+    for p_par in [st.p] + ([pb.p_nom] if first else []):
+        if th <= 0:
+            break
+        start = np.concatenate([p_par[:n_par], st.p[n_par:], [min(th, c.upper) / scales[-1]]])
+        start[:n_par][~pb.dens_free] = pb.p_nom[~pb.dens_free]
+        pa, sa, ra = fit_modal_residual(pm_aug, pb.resid, start, lower=clo, upper=chi, cols=cols,
+                                        free=np.concatenate([pb.dens_free, np.ones(len(cpar), bool)]))
+        log.info("modes: candidate %s: modal residual %.4g (current %.4g)", c.label, ra, st.rss)
+        if pa[-1] * scales[-1] <= 1e-3 * th:      # fitted to (nearly) nothing: not this term
+            continue
+        if best is None or ra < best[1]:
+            best = (c, ra, pm_aug, pa, sa)
+    return best
+
+
+def _forward_selection(pb: _ModesProblem, st: _State, *, max_findings, n_try, min_gain, penalty):
+    """Terms added one at a time while the residual exceeds the noise level (χ² rule): the screened options
+    fitted, the best kept if it lowers ‖e‖² by ``min_gain`` and passes the information criterion (``penalty``
+    × ln N per term); the options that fit as well (within :data:`AMBIGUOUS_RSS`, not the same physics next
+    door) are its alternatives.  Returns ``(state, ranking, alternatives)``."""
+    ranking, alternatives = None, {}
+    nb = _neighbours(pb.model)
+    n_eq = pb.n_eq
     for it in range(max_findings):
-        if rss_cur <= n_eq:
-            # χ² stopping rule: the residual is within what the stated precisions (σ_f, σ_φ) explain
-            log.info("modes: residual %.4g within the %d-equation noise level; no further term", rss_cur, n_eq)
+        if st.rss <= n_eq:
+            log.info("modes: residual %.4g within the %d-equation noise level; no further term", st.rss, n_eq)
             break
-        if not separable:
-            log.info("modes: %d numbers for %d free parameters and a physics term: not separable", n_eq, n_free)
+        if not pb.separable:
+            log.info("modes: %d numbers for %d free parameters and a physics term: not separable", n_eq, pb.n_free)
             break
-        st_cur = pm_cur.structure(p_cur)
-        lib = _on_independent_dofs(build_library(pm_cur.model_at(p_cur), kinds=kinds), st_cur)
-        say(f"modes: screening {len(lib)} candidates")
+        options, first_screen = _screen_options(pb, st, it == 0, n_try)
+        ranking = first_screen if ranking is None else ranking
         t1 = time.perf_counter()
-        screens = [screen_modes(st_cur, lib, resid)]
-        if it == 0:      # and around the nominal parameters (updating may have bent them to hide the effect)
-            st_nom = pm.structure(p_nom)
-            screens.append(screen_modes(st_nom, _on_independent_dofs(build_library(pm.model_at(p_nom),
-                                                                                    kinds=kinds), st_nom), resid))
-        tm["screening"] += time.perf_counter() - t1
-        t1 = time.perf_counter()
-        if ranking is None:
-            ranking = screens[0]
-        have_keys = {c.key for c in current}
-        options, listed = [], set()
-        for scr in screens:
-            for c, th, g in scr[:n_try]:
-                if c.key not in have_keys and c.key not in listed and g > 0.05:
-                    options.append((c, th))
-                    listed.add(c.key)
-        results = []
         cols = [d for c, _ in options for d in c.dofs]            # static corrections of the subspace fits
-        for c, th in options:
-            m_aug, cpar, scales = _augment(model, current + [c])
-            pm_aug = ParametricFEModel(m_aug, params + cpar)
-            clo = np.concatenate([lo, np.zeros(len(cpar))])
-            chi = np.concatenate([hi, _upper(current + [c], scales)])
-            starts = [p_cur] + ([p_nom] if it == 0 else [])
-            best_c = None
-            for p_par in starts:
-                if th <= 0:
-                    break
-                start = np.concatenate([p_par[:len(params)], p_cur[len(params):], [min(th, c.upper) / scales[-1]]])
-                # without a force a density multiplier mimics an added mass (and, on suspension modes, any
-                # grounded stiffness): densities stay nominal while physics terms are fitted
-                start[:len(params)][~dens_free] = p_nom[~dens_free]
-                pa, sa, ra = fit_modal_residual(pm_aug, resid, start, lower=clo, upper=chi, cols=cols,
-                                                free=np.concatenate([dens_free, np.ones(len(cpar), bool)]))
-                log.info("modes: candidate %s: modal residual %.4g (current %.4g)", c.label, ra, rss_cur)
-                if pa[-1] * scales[-1] <= 1e-3 * th:      # fitted to (nearly) nothing: not this term
-                    continue
-                if best_c is None or ra < best_c[1]:
-                    best_c = (c, ra, pm_aug, pa, sa, clo, chi)
-            if best_c is not None:
-                results.append(best_c)
+        results = [r for r in (_fit_option(pb, st, c, th, it == 0, cols) for c, th in options) if r is not None]
         results.sort(key=lambda r: (r[1], r[0].key))
-        tm["fits"] += time.perf_counter() - t1
+        pb.tm["fits"] += time.perf_counter() - t1
         best = results[0] if results else None
-        # an information criterion (``penalty`` × ln N per term) and a relative drop of ``min_gain``
-        if best is None or not (best[1] < rss_cur * (1 - min_gain) and
-                                n_eq * np.log(rss_cur / max(best[1], 1e-300)) > penalty * np.log(n_eq)):
+        if best is None or not (best[1] < st.rss * (1 - min_gain) and
+                                n_eq * np.log(st.rss / max(best[1], 1e-300)) > penalty * np.log(n_eq)):
             break
-        c, rss_cur, pm_cur, p_cur, std_cur, _, _ = best
-        # other candidates that explain the same residual as well are not a second finding but an ambiguity
-        alternatives[c.key] = [(o[0], float(o[3][-1]) * _augment(model, current + [o[0]])[2][-1], o[1])
+        c = best[0]
+        alternatives[c.key] = [(o[0], float(o[3][-1]) * _augment(pb.model, st.current + [o[0]])[2][-1], o[1])
                                for o in results[1:]
                                if o[1] <= best[1] * (1 + AMBIGUOUS_RSS) + 1.0 and not _same_place(c, o[0], nb)]
-        current.append(c)
+        st = _State(st.current + [c], best[2], best[3], best[4], best[1])
         alt = ", ".join(a.label for a, _, _ in alternatives[c.key])
-        say(f"  found (modes): {c.label}" + (f" (or, equally well: {alt})" if alt else ""))
-    # backward elimination: a term whose removal (the rest refitted) costs less than ``min_term_gain`` of the
-    # residual has not earned its place
-    while len(current) > 1:
+        pb.say(f"  found (modes): {c.label}" + (f" (or, equally well: {alt})" if alt else ""))
+    return st, ranking, alternatives
+
+
+def _backward_elimination(pb: _ModesProblem, st: _State, min_term_gain: float) -> _State:
+    """A term whose removal (the rest refitted) costs less than ``min_term_gain`` of the residual has not
+    earned its place: dropped, and the test repeated."""
+    n_par = len(pb.params)
+    while len(st.current) > 1:
         trial = []
-        for k in range(len(current)):
-            rest = current[:k] + current[k + 1:]
-            m_r, cpar_r, sc_r = _augment(model, rest)
-            pm_r = ParametricFEModel(m_r, params + cpar_r)
-            keep_i = np.r_[np.arange(len(params)), len(params) + np.array([i for i in range(len(current)) if i != k], int)]
-            pr, sr, rr = fit_modal_residual(pm_r, resid, p_cur[keep_i], lower=np.concatenate([lo, np.zeros(len(rest))]),
-                                            upper=np.concatenate([hi, _upper(rest, sc_r)]),
-                                            free=np.concatenate([dens_free, np.ones(len(rest), bool)]))
-            trial.append((rr, k, rest, pm_r, pr, sr))
-        rr, k, rest, pm_r, pr, sr = min(trial, key=lambda t: (t[0], t[1]))
-        if rr > rss_cur * (1 + min_term_gain):
+        for k in range(len(st.current)):
+            rest = st.current[:k] + st.current[k + 1:]
+            m_r, cpar_r, sc_r = _augment(pb.model, rest)
+            pm_r = ParametricFEModel(m_r, pb.params + cpar_r)
+            keep_i = np.r_[np.arange(n_par), n_par + np.array([i for i in range(len(st.current)) if i != k], int)]
+            pr, sr, rr = fit_modal_residual(pm_r, pb.resid, st.p[keep_i],
+                                            lower=np.concatenate([pb.lo, np.zeros(len(rest))]),
+                                            upper=np.concatenate([pb.hi, _upper(rest, sc_r)]),
+                                            free=np.concatenate([pb.dens_free, np.ones(len(rest), bool)]))
+            trial.append((rr, k, _State(rest, pm_r, pr, sr, rr)))
+        rr, k, new = min(trial, key=lambda t: (t[0], t[1]))
+        if rr > st.rss * (1 + min_term_gain):
             break
-        log.info("modes: dropping %s (residual %.4g without it, %.4g with)", current[k].label, rr, rss_cur)
-        current, pm_cur, p_cur, std_cur, rss_cur = rest, pm_r, pr, sr, rr
-    best_fit, best_pm, scales = upd, pm, []
+        log.info("modes: dropping %s (residual %.4g without it, %.4g with)", st.current[k].label, rr, st.rss)
+        st = new
+    return st
+
+
+def _judge(pb: _ModesProblem, upd: FitResult, st: _State, min_gain: float):
+    """The terms kept only if they fit the training frequencies better than parameter updating and improve
+    the held-out modes.  Returns ``(current, scales, best_fit, best_pm, fit blocks, unproven labels)``."""
+    current, best_fit, best_pm, scales = st.current, upd, pb.pm, []
     if current:
-        phys_err = _freq_rms(pm_cur.structure(p_cur), test_modes, train)
+        phys_err = _freq_rms(st.pm.structure(st.p), pb.test_modes, pb.train)
         if phys_err < upd.error * (1 - min_gain):
-            _, _, scales = _augment(model, current)
-            best_fit = FitResult(p_cur, std_cur, phys_err, [], True, "")
-            best_pm = pm_cur
+            _, _, scales = _augment(pb.model, current)
+            best_fit, best_pm = FitResult(st.p, st.std, phys_err, [], True, ""), st.pm
         else:
             log.info("modes: the augmented model does not fit the test frequencies better; nothing added")
             current = []
-    keep_eval = held if held.size else train
-    fit = {"nominal": _block(pm.structure(p_nom), test_modes, keep_eval),
-           "parameters_only": _block(pm.structure(upd.p), test_modes, keep_eval),
-           "with_physics": _block(best_pm.structure(best_fit.p), test_modes, keep_eval)}
+    keep_eval = pb.held if pb.held.size else pb.train
+    fit = {"nominal": _block(pb.pm.structure(pb.p_nom), pb.test_modes, keep_eval),
+           "parameters_only": _block(pb.pm.structure(upd.p), pb.test_modes, keep_eval),
+           "with_physics": _block(best_pm.structure(best_fit.p), pb.test_modes, keep_eval)}
     unproven = []
-    if current and held.size and \
+    if current and pb.held.size and \
             fit["with_physics"]["freq_error_rms_pct"] >= fit["parameters_only"]["freq_error_rms_pct"]:
         # the terms fit the training modes but do not predict the held-out ones: not proven, not claimed
         unproven = [c.label for c in current]
         log.info("modes: %s lower the training residual but not the held-out error; nothing added",
                  ", ".join(unproven))
-        current, scales, best_fit, best_pm = [], [], upd, pm
+        current, scales, best_fit, best_pm = [], [], upd, pb.pm
         fit["with_physics"] = dict(fit["parameters_only"])
-    n_par = len(params)
+    return current, scales, best_fit, best_pm, fit, unproven
+
+
+def _modes_findings(pb: _ModesProblem, current, scales, best_fit, ranking, alternatives) -> list:
+    n_par = len(pb.params)
     findings = []
     for k, (c, sc) in enumerate(zip(current, scales)):
         gain = next((g for o, _, g in (ranking or []) if o.key == c.key), 0.0)
         alts = alternatives.get(c.key, [])
         ev = (f"the eigenvalue and shape residual of the test modes at {', '.join(c.dofs)} is removed by this term; "
               f"it alone explains {100 * gain:.0f} % of the residual left after parameter updating")
-        if not has_shapes:
+        if not pb.has_shapes:
             ev = ev.replace("eigenvalue and shape residual", "frequency residual")
         if alts:
             ev += ("; AMBIGUOUS: " + ", ".join(f"{a.label} ({_fmt(v, a.unit)})" for a, v, _ in alts)
                    + " explains it as well, and the test modes cannot tell them apart")
         findings.append(ModesFinding(c, float(best_fit.p[n_par + k] * sc), float(best_fit.std[n_par + k] * sc), ev,
                                      gain, alternatives=alts))
-    pars = {par.name: {"initial": float(p_nom[k]), "updated": float(best_fit.p[k]),
-                       "parameters_only": float(upd.p[k]),
-                       "std": float(best_fit.std[k]) if np.isfinite(best_fit.std[k]) else None, "mode": par.mode}
-            for k, par in enumerate(params)}
-    if held.size:
+    return findings
+
+
+def _modes_statement(pb: _ModesProblem, findings, fit, unproven) -> tuple[str, str]:
+    """``(statement, held-out description)``: what was found and how much it improves the held-out modes;
+    a training error is never called held-out."""
+    keep_eval = pb.held if pb.held.size else pb.train
+    if pb.held.size:
         held_desc = f"test modes {', '.join(str(i + 1) for i in keep_eval)}"
         word = "held-out frequency error"
     else:
@@ -957,49 +550,65 @@ def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
                 f"do not describe (or its mesh is too coarse). Updating the model's own parameters brings the "
                 f"held-out frequency error from {fit['nominal']['freq_error_rms_pct']:.3g} % to "
                 f"{fit['parameters_only']['freq_error_rms_pct']:.3g} % RMS.")
-    if not separable:
-        text = (f"The data cannot separate missing physics from parameter error: {n_eq} numbers "
-                f"({resid.f.size} training {'modes' if has_shapes else 'frequencies'}"
-                f"{' with shapes' if has_shapes else ', no shapes'}) against {len(params)} "
+    if not pb.separable:
+        text = (f"The data cannot separate missing physics from parameter error: {pb.n_eq} numbers "
+                f"({pb.resid.f.size} training {'modes' if pb.has_shapes else 'frequencies'}"
+                f"{' with shapes' if pb.has_shapes else ', no shapes'}) against {len(pb.params)} "
                 f"parameters and a physics term; no physics is claimed. Frequency error after updating the parameters: "
                 f"{fit['parameters_only']['freq_error_rms_pct']:.3g} % RMS ({held_desc}).")
+    return text, held_desc
+
+
+def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
+                   kinds=("ground_spring", "added_mass"), max_findings: int = 3, penalty: float = 3.0,
+                   n_try: int = 4, min_gain: float = 0.3, min_term_gain: float = 0.15, sigma_f=None,
+                   sigma_phi: float = 0.02, progress=None) -> Diagnosis:
+    """Diagnose stiffness and mass physics from identified modes only (module docstring).
+
+    ``test_modes`` on the model's node numbers (real or complex shapes; complex shapes are used through
+    their real part after phase alignment by the identification), or frequencies alone (a mode set without
+    DOFs).  Returns a :class:`Diagnosis` whose fit blocks hold ``freq_error_max_pct``,
+    ``freq_error_rms_pct`` and ``mac_min`` (with shapes) on the held-out modes (``frf_error_held_out`` is
+    None: there are no FRFs).  A numerical failure of an eigen-solution is an error, never a residual.
+
+    ``sigma_f`` (relative frequency precision; one value or one per test mode): by default the standard
+    deviations the identification stored with the modes (``freq_std_hz``), not below
+    :data:`SIGMA_F_FLOOR`, else :data:`SIGMA_F_DEFAULT`.  Shapes are weighted by ``sigma_phi`` raised to the
+    noise each identified shape shows by its complexity.  Test modes that do not pair with the nominal model
+    (:func:`paired_test_modes`) are left out, each with its reason.
+
+    Steps: the problem (:func:`_modes_problem`), parameter-only updating, forward selection of terms
+    (:func:`_forward_selection`), backward elimination, the held-out judgement (:func:`_judge`), findings and
+    statement.
+    """
+    t0 = time.perf_counter()
+    say = progress or (lambda msg: log.info(msg))
+    pb = _modes_problem(model, test_modes, parameters, kinds, sigma_f, sigma_phi, say)
+    say("modes: parameter-only updating (baseline)")
+    t1 = time.perf_counter()
+    p_upd, std_upd, rss_upd = fit_modal_residual(pb.pm, pb.resid, pb.p_nom, lower=pb.lo, upper=pb.hi)
+    pb.tm["baseline"] = time.perf_counter() - t1
+    upd = FitResult(p_upd, std_upd, _freq_rms(pb.pm.structure(p_upd), pb.test_modes, pb.train), [], True, "")
+    st, ranking, alternatives = _forward_selection(pb, _State([], pb.pm, p_upd, std_upd, rss_upd),
+                                                   max_findings=max_findings, n_try=n_try, min_gain=min_gain,
+                                                   penalty=penalty)
+    st = _backward_elimination(pb, st, min_term_gain)
+    current, scales, best_fit, best_pm, fit, unproven = _judge(pb, upd, st, min_gain)
+    findings = _modes_findings(pb, current, scales, best_fit, ranking, alternatives)
+    pars = {par.name: {"initial": float(pb.p_nom[k]), "updated": float(best_fit.p[k]),
+                       "parameters_only": float(upd.p[k]),
+                       "std": float(best_fit.std[k]) if np.isfinite(best_fit.std[k]) else None, "mode": par.mode}
+            for k, par in enumerate(pb.params)}
+    text, held_desc = _modes_statement(pb, findings, fit, unproven)
     maps = {}
-    if has_shapes:       # localisation for the report: the modal force residual per measured DOF and mode
-        mdata = modes_data(test_modes, train)
-        maps = {"freq_hz": np.asarray(test_modes.freq_hz, float)[train],
-                "responses": [str(d) for d in test_modes.dofs],
-                "before": modal_force_map(pm.structure(upd.p), mdata),
+    if pb.has_shapes:       # localisation for the report: the modal force residual per measured DOF and mode
+        mdata = modes_data(pb.test_modes, pb.train)
+        maps = {"freq_hz": np.asarray(pb.test_modes.freq_hz, float)[pb.train],
+                "responses": [str(d) for d in pb.test_modes.dofs],
+                "before": modal_force_map(pb.pm.structure(upd.p), mdata),
                 "after": modal_force_map(best_pm.structure(best_fit.p), mdata)}
     return Diagnosis(findings=findings, parameters=pars, fit=fit, statement=text,
                      model=best_pm.model_at(best_fit.p), parametric=best_pm, p=best_fit.p,
-                     steps={"held_out": held_desc, "source": "modes", "separable": bool(separable),
-                            "n_equations": n_eq, "n_free_parameters": n_free},
-                     ranking=ranking or [], maps=maps, timings=dict(tm, total=time.perf_counter() - t0))
-
-
-def modal_force_map(structure, data: FRFData) -> np.ndarray:
-    """|r| / σ per measured DOF and mode of the homogeneous condensed residual ``[Z(iω_j) x_j]_m`` (the
-    modal force residual: thesis eq. 3.89 with f = 0, unmeasured DOFs expanded by the model), (n_m, n_modes).
-    A massless mechanism (``K n = M n = 0``) is constrained at one DOF first, exactly as in the eigen-solvers:
-    otherwise the expansion ``Z_ss`` is singular at every frequency."""
-
-    mi, ms = locate(structure.dofs, data.responses, "test-mode DOF")
-    K, M = sp.csr_matrix(structure.K), sp.csr_matrix(structure.M)
-    C = None if structure.C is None else sp.csr_matrix(structure.C)
-    D = None if structure.D is None else sp.csr_matrix(structure.D)
-    fix, _ = massless_mechanisms(K, M)
-    mi = np.asarray(mi, int)
-    if fix.size:
-        if np.isin(mi, fix).any():
-            fix = np.setdiff1d(fix, mi)        # a measured DOF on a mechanism keeps its value (rare)
-        keep = np.setdiff1d(np.arange(K.shape[0]), fix)
-        pos = np.full(K.shape[0], -1)
-        pos[keep] = np.arange(keep.size)
-        K, M = K[keep][:, keep], M[keep][:, keep]
-        C = None if C is None else C[keep][:, keep]
-        D = None if D is None else D[keep][:, keep]
-        mi = pos[mi]
-    x = data.H * np.asarray(ms, float)[:, None, None]
-    F = np.zeros((K.shape[0], 1))
-    _, r, _, sigma = condensed_residual(K, M, C, D, data.s, mi, x, F)
-    return np.abs(r[:, 0, :]) / (sigma[0][None, :] + 1e-300)
+                     steps={"held_out": held_desc, "source": "modes", "separable": bool(pb.separable),
+                            "n_equations": pb.n_eq, "n_free_parameters": pb.n_free},
+                     ranking=ranking or [], maps=maps, timings=dict(pb.tm, total=time.perf_counter() - t0))

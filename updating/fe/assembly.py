@@ -104,6 +104,36 @@ def _add_batch(model, cls, group, ctx, idx, parts):
         parts["D"][2].append((ge[:, None, None] * K).ravel())
 
 
+def element_stiffness(model, elements, index: dict | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``[(rows, K_e)]``: each element's stiffness (dense, on the model's DOF indices ``rows``), exactly the block
+    :func:`assemble` adds for it, without forming an n × n matrix (the candidate library needs one block per
+    element of a 100k-DOF model)."""
+    idx = dof_index(model.dofs) if index is None else index
+    ctx = AssemblyContext(model)
+    els = list(elements)
+    out: dict = {}
+    batched: dict = {}
+    for el in els:
+        if hasattr(type(el), "batch_matrices"):
+            batched.setdefault(type(el), []).append(el)
+            continue
+        em = el.matrices(ctx)
+        if em.K is None:
+            continue
+        T = _cd_transform(model, em.dofs) if el.frame == "basic" else None
+        out[id(el)] = (np.array([idx[d] for d in em.dofs], int), em.K if T is None else T.T @ em.K @ T)
+    for cls, group in batched.items():
+        K, _, _ = cls.batch_matrices(group, ctx)
+        for k, el in enumerate(group):
+            keys = el.dofs()
+            Ke = K[k]
+            if any(model.nodes[n].cd is not None for n in el.nodes):
+                T = _cd_transform(model, keys)
+                Ke = T.T @ Ke @ T
+            out[id(el)] = (np.array([idx[d] for d in keys], int), Ke)
+    return [out[id(el)] for el in els if id(el) in out]
+
+
 def assemble(model, elements=None, dtype=float, index: dict | None = None,
              include_global: bool = True) -> Matrices:
     """Assemble K, M, C, D of ``model`` (or of the listed ``elements`` only) on ``model.dofs``.

@@ -35,13 +35,20 @@ def _factor(matrix: str, s: np.ndarray) -> np.ndarray:
 
 
 def _column(T, x_full, A, factor, w):
-    """−Tᵀ (A·factor) x, weighted, stacked real/imag, for a sparse A."""
-    A = A.tocsr()
-    rows = np.unique(A.nonzero()[0])
-    if rows.size == 0:
-        return None
+    """−Tᵀ (A·factor) x, weighted, stacked real/imag, for a sparse A (or a diagnosis library's
+    :class:`~updating.diagnosis.library.LocalMatrix`: its block, without an n × n matrix)."""
     n, nq, ns = x_full.shape
-    v = (A[rows] @ x_full.reshape(n, -1)).reshape(rows.size, nq, ns) * factor[None, None, :]
+    if hasattr(A, "block") and hasattr(A, "rows"):
+        rows = A.rows
+        if rows.size == 0:
+            return None
+        v = (A.block @ x_full[rows].reshape(rows.size, -1)).reshape(rows.size, nq, ns) * factor[None, None, :]
+    else:
+        A = A.tocsr()
+        rows = np.unique(A.nonzero()[0])
+        if rows.size == 0:
+            return None
+        v = (A[rows] @ x_full.reshape(n, -1)).reshape(rows.size, nq, ns) * factor[None, None, :]
     if rows.size <= 4:
         c = -np.einsum("smf,sqf->mqf", T[rows], v)
     else:   # one BLAS product per line

@@ -316,7 +316,8 @@ def _bar_element(bulk, eid: int, e, cd_axes: dict):
         shear = isinstance(prop, C.Pbar) and (prop.k1 or prop.k2)
         cls = Timoshenko3D if shear else Beam3D
     return cls(eid, e.ga, e.gb, e.pid, orientation=orient,
-               offset_a=None if wa is None else tuple(wa), offset_b=None if wb is None else tuple(wb))
+               offset_a=None if wa is None else tuple(wa), offset_b=None if wb is None else tuple(wb),
+               lumped_torsion=isinstance(e, C.Cbeam))           # lumped CBEAM mass has torsional inertia
 
 
 def _scalar_or_mass_element(m: FEModel, bulk, eid: int, e, wt: float):

@@ -142,13 +142,14 @@ def _bending_M_batch(m, rhoI, L, phi, n, dtype):
 
 
 def frame_local_batch(L, E, G, rho, A, Iy, Iz, J, Ip, nsm, *, shear_y=None, shear_z=None,
-                      lumped=False, rotary=False):
+                      lumped=False, rotary=False, lumped_torsion=False):
     """Local 12×12 stiffness and mass of n 3-D frame elements (every argument an (n,) array).
 
     shear_y, shear_z : shear factors κ (n,) for Timoshenko behaviour in the x–y and
     x–z planes (None, or 0 for an element: shear-rigid).  rotary : include rotary
     inertia of bending.  lumped : Nastran-style lumped mass (half the translational
-    mass at each node, no rotary or torsional inertia), as with PARAM COUPMASS < 0.
+    mass at each node, no rotary inertia), as with PARAM COUPMASS < 0; with the torsional inertia
+    ρ·Ip·L/2 at each node where ``lumped_torsion`` (bool or (n,) bool: Nastran's CBEAM), none elsewhere (CBAR).
     """
     n = L.shape[0]
     dtype = np.result_type(E, G, rho, A, Iy, Iz, J, Ip, nsm, float)
@@ -178,6 +179,8 @@ def frame_local_batch(L, E, G, rho, A, Iy, Iz, J, Ip, nsm, *, shear_y=None, shea
     if lumped:
         for k in (0, 1, 2, 6, 7, 8):
             M[:, k, k] = m * L / 2
+        tors = np.where(np.broadcast_to(np.asarray(lumped_torsion, bool), (n,)), rho * Ip * L / 2, 0.0)
+        M[:, 3, 3] = M[:, 9, 9] = tors
         return K, M
     C = np.array([[2.0, 1.0], [1.0, 2.0]])
     M[:, iu[:, None], iu[None, :]] = (m * L / 6)[:, None, None] * C

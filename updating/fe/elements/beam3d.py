@@ -3,7 +3,8 @@
 Two nodes, 6 DOFs each in the basic system; axial, torsion and bending in two
 planes.  Consistent mass (cubic Hermite bending, linear axial and torsional
 shapes, as Nastran's coupled CBAR mass) or lumped mass when the model's
-``coupled_mass`` is False (PARAM COUPMASS).  Stiffness:
+``coupled_mass`` is False (PARAM COUPMASS): half the translational mass at each end, and for a CBEAM
+(``lumped_torsion``) half the torsional inertia ρ·Ip·L too.  Stiffness:
 Przemieniecki, *Theory of Matrix Structural Analysis* (1968), eq. 5.115.
 
 End offsets (CBAR WA/WB) are rigid: the beam runs between x_A + w_A and
@@ -44,9 +45,13 @@ class Beam3D(Element):
     orientation: object = (0.0, 0.0, 1.0)
     offset_a: object = None
     offset_b: object = None
+    #: lumped mass (no COUPMASS) with the torsional inertia ρ·Ip·L/2 at each end, as Nastran's CBEAM; None:
+    #: the class default (:class:`Timoshenko3D`, which the bulk data reader builds for CBEAM: yes; Beam3D: no)
+    lumped_torsion: bool | None = None
 
     frame = "basic"
     _shear = False
+    _lumped_torsion = False
 
     @property
     def nodes(self) -> tuple:
@@ -123,7 +128,9 @@ class Beam3D(Element):
         ky, kz = arr["ky"], arr["kz"]   # 0 marks a shear-rigid plane
         Kl, Ml = frame_local_batch(L, arr["E"], arr["G"], arr["rho"], arr["A"], arr["Iy"], arr["Iz"], arr["J"],
                                    arr["Ip"], arr["nsm"], shear_y=ky, shear_z=kz, lumped=not ctx.coupled_mass,
-                                   rotary=cls._shear)
+                                   rotary=cls._shear,
+                                   lumped_torsion=np.array([cls._lumped_torsion if el.lumped_torsion is None
+                                                            else bool(el.lumped_torsion) for el in elements]))
         K, M = to_basic(Kl, lam), to_basic(Ml, lam)
         for k, wa, wb in offset:
             W = np.eye(12)
