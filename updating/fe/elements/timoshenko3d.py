@@ -7,11 +7,13 @@ rotary inertia ρI.  A section without shear factors (``ky``/``kz`` None)
 behaves as shear-rigid in that plane (rotary inertia is still included).
 
 Lumped mass (no PARAM,COUPMASS): as Nastran's CBEAM, half the translational mass and half the torsional
-inertia ρ·Ip·L at each end (MSC Nastran QRG, PARAM,COUPMASS: the lumped mass matrices "may include torsion
-inertia for beam elements"; Autodesk Nastran: "the diagonal mass matrix formulation includes rotary inertia
-terms").  Without it a free-free lumped CBEAM deck has five rigid modes and a massless rigid torsion
-instead of six rigid modes.  A CBAR with shear factors, also built as this class, sets ``lumped_torsion``
-False (Nastran's lumped CBAR mass is translational only).
+inertia ρ·Ip·L at each end (Autodesk Nastran reference, PARAM,COUPMASS: the diagonal mass matrix is the
+coupled one's diagonal scaled to the element mass, and "includes rotary inertia terms",
+https://help.autodesk.com/cloudhelp/2020/ITA/NSTRN-Reference/files/GUID-F96EEE43-1AF8-44B9-B766-0BD4CA65054B.htm;
+we did not find MSC's wording).  Without it a free-free lumped CBEAM deck has five rigid modes and a
+massless rigid torsion instead of six rigid modes.  A CBAR with shear factors, also built as this class, sets
+``lumped_torsion`` False: the source above does not say what CBAR's diagonal mass holds, and CBAR stays as it
+was (translational lumped mass only) — an assumption, not a documented Nastran rule.
 """
 from __future__ import annotations
 
