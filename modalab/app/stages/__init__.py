@@ -3,7 +3,7 @@
 =============  =====================================  ============================================================
 stage          function                               writes
 =============  =====================================  ============================================================
-sim            :func:`sim` (:class:`SimOptions`)      raw hits (UFF 58), ``first_hit.png``; ``model.bdf`` and
+sim            :func:`sim` (:class:`SimOptions`)      raw hits (UFF 58), ``*_first_hit.png``; ``model.bdf`` and
                                                       ``params.toml`` of the structure with ``export_model``
 frf            :func:`frf` (:class:`FRFOptions`)      FRFs + coherence (UFF 58), figure; with ``details_dir``:
                                                       ``frf.json``, ``reciprocity.json``, ``coherence.png``

@@ -76,9 +76,8 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
             test_modes = map_test_modes(test_modes, model, opts.dofmap)
         diag = diagnose_modes(model, test_modes, parameters=params, progress=progress, **kw)
     else:
-        from modalab.core import uff
-
-        H = _band(uff.read_frf(frf_path), opts.band_hz) if opts.band_hz else uff.read_frf(frf_path)
+        H = _read_measured(frf_path)
+        H = _band(H, opts.band_hz) if opts.band_hz else H
         kw = {k: getattr(opts, k) for k in ("max_lines", "max_findings", "max_nfev", "holdout")
               if getattr(opts, k) is not None}
         if opts.kinds:
@@ -95,6 +94,21 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
     if out_dir is not None:
         files += _diagnosis_files(diag, model, H, Path(out_dir), opts, updated_model)
     return StageResult(diag, tuple(files), {"statement": diag.statement, "findings": len(diag.findings)})
+
+
+def _read_measured(frf_path):
+    """The measured FRFs; a file of identified modes given in their place is pointed to ``--modes``."""
+    from modalab.core import uff
+    from modalab.core.errors import UffError
+
+    try:
+        return uff.read_frf(frf_path)
+    except UffError:
+        if "55" in uff.info(frf_path).get("datasets", {}):
+            raise PlanError(f"'{frf_path}' holds identified modes (dataset 55), not measured FRFs (dataset 58); "
+                            f"for a diagnosis from modes alone give it with --modes: modalab diagnose MODEL.bdf "
+                            f"--modes {frf_path}") from None
+        raise
 
 
 def _diagnosis_files(diag, model, H, d: Path, opts: DiagnoseOptions, updated_model) -> list:
