@@ -249,6 +249,8 @@ def cmd_frf(a):
     H = r.result
     _print(f"wrote {H.n_out} x {H.n_in} {H.metadata.get('estimator', a.estimator)} FRFs "
            f"({H.n_freq} lines, {H.freq_hz[0]:g}-{H.freq_hz[-1]:g} Hz) with coherence to {r.files[0]}")
+    if H.metadata.get("backend") == "sim":
+        _print("note: the hits are simulated (backend sim), not measured")
     if plot:
         _print(f"plot: {plot}")
     return 0
@@ -364,6 +366,8 @@ def cmd_acquire(a):
     obs = _ConsoleObserver(out, live_plot=live, quiet=a.quiet)
     prompter = None if a.auto else _TerminalPrompter()
     resume_cmd = (f"modalab acquire {a.plan} --backend {a.backend} {'--auto ' if a.auto else ''}--resume -o {out}")
+    _print("backend: " + ("sim - the simulated lab (hardware_sim): the data are SIMULATED, not measured; "
+                          "--backend nidaqmx for NI hardware" if a.backend == "sim" else f"{a.backend} (NI hardware)"))
     try:
         sess, summary, exported = acquire(a.plan, out, backend=a.backend, auto=a.auto, resume=a.resume,
                                           prompter=prompter, observer=obs, seed=a.seed)
@@ -447,7 +451,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("acquire", help="run a test plan (impact test) on NI hardware or the simulated lab")
     s.add_argument("plan", help="test plan (TOML; see the README)")
-    s.add_argument("--backend", default="sim", choices=["sim", "nidaqmx"], help="DAQ backend (default sim)")
+    s.add_argument("--backend", default="sim", choices=["sim", "nidaqmx"],
+                   help="DAQ backend (default sim: the simulated lab; the backend is printed and recorded in "
+                        "session.json and the UFF's ID lines)")
     s.add_argument("--auto", action="store_true", help="accept automatically: best N of M hits by coherence")
     s.add_argument("--resume", action="store_true", help="continue an interrupted session in OUTPUT")
     s.add_argument("-o", "--output", required=True, help="session folder")
@@ -534,7 +540,7 @@ _FOLDER_FLAGS = {"output": "-o", "plots": "--plots", "report": "--report", "expo
 #: files a command writes into its output folder (checked against its inputs)
 _WRITES_INTO = {"update": ("output", ("updated.bdf", "update.json", "updated_matrices.npz", "mac_before.png",
                                       "mac_after.png", "frequencies_after.png", "convergence.png")),
-                "diagnose": ("report", ("diagnosis.json", "diagnosed.bdf", "mci_maps.png", "frf_overlay.png"))}
+                "diagnose": ("report", ("diagnosis.json", "diagnosed.bdf", "frf_overlay_models.png"))}
 #: commands whose output folder is a resumable session/run: kept on failure unless empty
 _KEEP_FOLDER = {"run", "demo", "acquire"}
 

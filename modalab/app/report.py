@@ -9,7 +9,8 @@ and after updating, frequency 45° plots, FRF overlays at the chosen DOFs, MCI m
 convergence, the diagnosis statement and its evidence.  A section whose stage did not run says so.
 
 The plotting helpers used by the stages live here too (:func:`plot_coherence_map`,
-:func:`plot_convergence`, :func:`plot_mci_maps`, :func:`plot_frf_overlays`); they write PNG files with
+:func:`plot_convergence`, :func:`plot_frf_overlays`; the MCI maps are the diagnosis engine's,
+:mod:`updating.diagnosis.report`); they write PNG files with
 matplotlib's object API (no pyplot state, safe headless).
 """
 from __future__ import annotations
@@ -30,7 +31,7 @@ from modalab.core.plots import plot_geometry
 
 log = logging.getLogger(__name__)
 
-__all__ = ["build_report", "plot_coherence_map", "plot_convergence", "plot_mci_maps", "plot_frf_overlays",
+__all__ = ["build_report", "plot_coherence_map", "plot_convergence", "plot_frf_overlays",
            "embed_png"]
 
 
@@ -89,31 +90,9 @@ def plot_convergence(history, names, path) -> Path:
     return _save(fig, path)
 
 
-def plot_mci_maps(maps: dict, path) -> Path:
-    """Condensed force residual |r| (MCI map) per measured DOF and line: after parameter updating and after
-    the diagnosis' augmentation, on the same colour scale."""
-    f = np.asarray(maps["freq_hz"], float)
-    resp = list(maps["responses"])
-    before = np.asarray(maps["before"], float)
-    after = np.asarray(maps.get("after", before), float)
-    vmax = float(np.nanmax(before)) if before.size else 1.0
-    fig = _figure(7.5, 1.5 + 0.2 * len(resp) * 2)
-    axes = fig.subplots(2, 1)
-    im = None
-    for ax, m, t in ((axes[0], before, "after parameter updating"), (axes[1], after, "with the diagnosed physics")):
-        im = ax.imshow(m, aspect="auto", origin="lower", cmap="magma", vmin=0.0, vmax=vmax,
-                       extent=(0, len(f), -0.5, len(resp) - 0.5), interpolation="nearest")
-        ax.set_yticks(range(len(resp)), resp, fontsize=6)
-        ticks = np.linspace(0, len(f) - 1, min(8, len(f))).astype(int)
-        ax.set_xticks(ticks + 0.5, [f"{f[i]:.1f}" for i in ticks], fontsize=7)
-        ax.set_title(f"MCI map {t}", fontsize=9)
-    axes[-1].set_xlabel("frequency line [Hz] (lines used by the diagnosis)")
-    fig.colorbar(im, ax=list(axes), label="|residual force| / σ", shrink=0.8)
-    return _save(fig, path)
-
-
-def plot_frf_overlays(curves: dict, path, *, responses, reference) -> Path:
-    """|H| of several FRF sets (name -> FRF) at the given responses and one reference, one panel each."""
+def plot_frf_overlays(curves: dict, path, *, responses, reference, beta: float = 0.0) -> Path:
+    """|H| of several FRF sets (name -> FRF) at the given responses and one reference, one panel each;
+    ``beta``: the exponential window's decay rate (1/s) the data and the model curves share (in the title)."""
     fig = _figure(7, 2.2 * len(responses) + 0.6)
     axes = fig.subplots(len(responses), 1, squeeze=False)[:, 0]
     styles = {"measured": dict(color="k", lw=1.2), "nominal": dict(color="tab:gray", ls=":", lw=1.2)}
@@ -128,7 +107,8 @@ def plot_frf_overlays(curves: dict, path, *, responses, reference) -> Path:
         ax.set_ylabel(f"|H| {r}/{reference}", fontsize=8)
         ax.grid(True, which="both", lw=0.3)
     axes[0].legend(fontsize=7)
-    axes[0].set_title("FRF overlays (accelerance, m/s²/N)")
+    axes[0].set_title("FRF overlays (accelerance, m/s²/N)" + (
+        f"; exponential window β = {beta:.3g} 1/s on data and models (s = iω + β)" if beta else ""), fontsize=9)
     axes[-1].set_xlabel("frequency [Hz]")
     return _save(fig, path)
 
@@ -192,6 +172,68 @@ def _num(v, fmt: str) -> str:
     return "—" if v is None else format(float(v), fmt)
 
 
+#: the mode table's columns: heading (with unit) and what it means; damping columns are printed in % like
+#: damping_pct (modes.json keeps damping_std etc. as fractions, as ModeSet.indicators does)
+_MODE_COLUMNS = {
+    "mode": ("mode", ""),
+    "freq_hz": ("f [Hz]", "natural frequency"),
+    "damping_pct": ("ζ [%]", "damping ratio, exponential-window corrected"),
+    "freq_std_hz": ("σ f [Hz]", "standard deviation of f: FRF noise and spread over the stable orders combined"),
+    "damping_std": ("σ ζ [%]", "standard deviation of ζ (same combination)"),
+    "MPC": ("MPC [0-1]", "modal phase collinearity: 1 for a real (normal) mode"),
+    "MPD": ("MPD [°]", "mean phase deviation of the shape's components from their best straight line: 0° for a "
+                       "normal mode"),
+    "MCF": ("MCF [0-1]", "modal complexity factor, 1 − MPC"),
+    "MOV": ("MOV [0-1]", "mode overcomplexity value: share of responses whose frequency falls with added mass"),
+    "contribution": ("contribution [0-1]", "share of the measured FRFs' energy (Σ|H|²) this mode's synthesis "
+                                            "carries"),
+    "chi2_ratio": ("χ² ratio [-]", "residual of the local fit over its expected value from the FRF noise: about 1 "
+                                   "when the noise model explains the scatter, above 1 when the model misses "
+                                   "something (close modes, leakage, nonlinearity)"),
+    "cluster_size": ("cluster [poles]", "stable poles gathered into this mode over the model orders"),
+    "order": ("order", "model order the pole was taken from"),
+    "freq_std_noise_hz": ("σ f noise [Hz]", "part of σ f from the FRF noise"),
+    "damping_std_noise": ("σ ζ noise [%]", "part of σ ζ from the FRF noise"),
+    "freq_std_orders_hz": ("σ f orders [Hz]", "part of σ f from the spread over the stable orders"),
+    "damping_std_orders": ("σ ζ orders [%]", "part of σ ζ from the spread over the stable orders"),
+}
+_PCT_COLUMNS = ("damping_std", "damping_std_noise", "damping_std_orders")
+
+
+def _mode_table(modes: list) -> str:
+    """The identified modes with every indicator in stated units (damping columns in %) and a legend."""
+    keys = ["mode", "freq_hz", "damping_pct"] + [c for c in modes[0] if c not in ("mode", "freq_hz", "damping_pct")]
+    rows = [{_MODE_COLUMNS.get(k, (k, ""))[0]: (100 * float(r[k]) if k in _PCT_COLUMNS and r.get(k) is not None
+                                                else r.get(k)) for k in keys} for r in modes]
+    cols = [_MODE_COLUMNS.get(k, (k, ""))[0] for k in keys]
+    fmt = {"f [Hz]": "{:.3f}", "ζ [%]": "{:.3f}", "σ ζ [%]": "{:.2g}", "MPD [°]": "{:.3g}"}
+    legend = "".join(f"<li><b>{html.escape(_MODE_COLUMNS[k][0])}</b>: {html.escape(_MODE_COLUMNS[k][1])}</li>"
+                     for k in keys if k in _MODE_COLUMNS and _MODE_COLUMNS[k][1])
+    return _table(rows, cols, fmt) + f'<ul class="muted">{legend}</ul>'
+
+
+def _which_model(diag: dict | None, upd: dict | None) -> tuple[str, str] | None:
+    """(file to use, why) between ``update/updated.bdf`` (parameters only) and ``diagnose/diagnosed.bdf``
+    (the diagnosed physics added, parameters re-fitted with it)."""
+    if not diag:
+        return ("update/updated.bdf", "the diagnosis has not run: the parameter-updated model is the best there is"
+                ) if upd else None
+    if diag.get("findings"):
+        what = "; ".join(f.get("description", f.get("physics", "")) for f in diag["findings"])
+        return ("diagnose/diagnosed.bdf",
+                f"the diagnosis added physics the nominal model leaves out ({what}) and re-fitted the parameters "
+                "with it. update/updated.bdf is a parameters-only update: its parameters absorb the missing "
+                "physics and are biased by it (compare the two parameter tables); do not use it as the model of "
+                "the structure")
+    if not upd:
+        return ("diagnose/diagnosed.bdf", "the diagnosis found no missing physics and no parameter update ran: the "
+                "diagnosis' own parameter fit on the FRFs is the model")
+    return ("update/updated.bdf",
+            "the diagnosis found no missing physics: the parameter update (inverse eigensensitivity on the "
+            "identified modes) is the model to use; diagnose/diagnosed.bdf holds the diagnosis' own parameter "
+            "fit on the FRFs, without added physics, for comparison")
+
+
 def _load(path):
     p = Path(path)
     if not p.is_file():
@@ -236,6 +278,43 @@ def _geometry_figure(run_dir: Path, report_dir: Path, project=None) -> Path | No
     return path
 
 
+#: captions of the diagnosis engine's figures (:func:`updating.diagnosis.report.write_figures`)
+_ENGINE_FIGURES = {
+    "mci_maps.png": "MCI maps: condensed residual force per measured DOF and frequency line, after parameter "
+                    "updating and with the diagnosed physics",
+    "frf_overlay.png": "Receptance at the located DOFs: measured, nominal, parameters only, with the physics "
+                       "(the engine's lines, at s = iω + β)",
+    "frequencies.png": "Paired frequencies of the nominal, parameters-only and diagnosed models"}
+
+
+def _selection_html(diag: dict, sel: dict | None) -> list:
+    """The selected terms, the first screening's ranking (with the selected terms marked or said to be outside
+    it) and the candidates the selection turned down with the engine's reason."""
+    out = []
+    ranked = [r.get("candidate") for r in diag.get("ranking", [])]
+    chosen = [f.get("description", f.get("physics", "")) for f in diag.get("findings", [])]
+    if chosen:
+        rows = [{"selected term": c, "physics": f.get("physics", ""),
+                 "rank in the first screening": (ranked.index(c) + 1) if c in ranked else
+                 f"not in its top {len(ranked)}" if ranked else "—"}
+                for c, f in zip(chosen, diag["findings"])]
+        out += ["<p>Selected terms (modelled, fitted with the parameters and kept because they cut the held-out "
+                "error):</p>", _table(rows, ["selected term", "physics", "rank in the first screening"])]
+    if ranked:
+        rk = [{**r, "selected": "yes" if r.get("candidate") in chosen else ""} for r in diag["ranking"][:8]]
+        out += ["<p>First screening: candidates ranked by the share of the residual each explains alone "
+                "(a selected term outside this list was found by the exact FRF screening's picks):</p>",
+                _table(rk, ["candidate", "physics", "explained", "selected"])]
+    rej = [d for d in (sel or {}).get("decisions", []) if d.get("decision") == "rejected"]
+    if rej:
+        out += ["<p>Candidates the selection tried and turned down, with the reason:</p>",
+                _table(rej[:10], ["candidate", "reason"])]
+    elif sel is None and ranked:
+        out.append('<p class="muted">(Why other candidates were turned down is not recorded for this run: '
+                   "diagnose/selection.json is missing.)</p>")
+    return out
+
+
 def build_report(run_dir, report_dir=None, *, project=None, title: str | None = None) -> tuple[Path, Path]:
     """Write ``report.html`` (self-contained) and ``summary.json`` into ``report_dir``; returns both paths."""
     run_dir = Path(run_dir)
@@ -251,9 +330,18 @@ def build_report(run_dir, report_dir=None, *, project=None, title: str | None = 
     upd = _load(run_dir / "update" / "update.json")
     diag = _load(run_dir / "diagnose" / "diagnosis.json")
     manifest = _load(run_dir / "manifest.json") or {"stages": {}}
+    backend = (frf_s or {}).get("backend")
+    use = _which_model(diag, upd)
     parts = [f"<h1>{html.escape(name)}</h1>",
              f'<p class="muted">modalab run report, {_dt.datetime.now(_dt.timezone.utc):%Y-%m-%d %H:%M} UTC. '
              "Every figure is embedded in this file.</p>"]
+    if backend == "sim":
+        parts.append('<p class="statement"><b>Simulated data.</b> The hits were produced by the simulated lab '
+                     "(hardware_sim, backend sim), not measured on hardware.</p>")
+    elif backend:
+        parts.append(f"<p>Data acquired with the {html.escape(str(backend))} backend.</p>")
+    if use:
+        parts.append(f'<p class="statement"><b>Model to use: {html.escape(use[0])}</b> — {html.escape(use[1])}.</p>')
     # stages
     rows = [{"stage": s, "completed (UTC)": e.get("completed_utc", ""), "time [s]": float(e.get("elapsed_s", 0.0)),
              "key": e.get("key", "")[:12]} for s, e in manifest.get("stages", {}).items()]
@@ -277,21 +365,16 @@ def build_report(run_dir, report_dir=None, *, project=None, title: str | None = 
             if keys:
                 parts += ["<p>Error of each model (" + ", ".join(_FIT_LABELS[c] for c in keys) + "):</p>",
                           _table(frows, ["model"] + keys)]
-        rk = diag.get("ranking", [])
-        if rk:
-            parts += ["<p>Candidate physics ranked by the share of the residual each explains alone:</p>",
-                      _table(rk[:8], ["candidate", "physics", "explained"])]
+        parts += _selection_html(diag, _load(run_dir / "diagnose" / "selection.json"))
         pars = diag.get("parameters", {})
         if pars:
             prow = [{"parameter": k, **{kk: v[kk] for kk in ("initial", "parameters_only", "updated", "std") if kk in v}}
                     for k, v in pars.items()]
             parts += ["<p>Parameters in the diagnosis (parameter-only updating and jointly with the physics):</p>",
                       _table(prow, ["parameter", "initial", "parameters_only", "updated", "std"])]
-        parts.append(_fig(run_dir / "diagnose" / "mci_maps.png",
-                          "MCI maps: condensed residual force per measured DOF and frequency line"))
         figs = sorted((run_dir / "diagnose" / "figures").glob("*.png")) if (run_dir / "diagnose" / "figures").is_dir() else []
         for p in figs:
-            parts.append(_fig(p, p.stem.replace("_", " ")))
+            parts.append(_fig(p, _ENGINE_FIGURES.get(p.name, p.stem.replace("_", " "))))
     else:
         parts.append('<p class="muted">The diagnosis stage has not run.</p>')
     # test overview
@@ -311,8 +394,7 @@ def build_report(run_dir, report_dir=None, *, project=None, title: str | None = 
     parts.append("<h2>Identification</h2>")
     parts.append(_fig(run_dir / "identify" / "stabilisation.png", "Stabilisation diagram"))
     if modes:
-        cols = ["mode", "freq_hz", "damping_pct"] + [c for c in modes[0] if c not in ("mode", "freq_hz", "damping_pct")]
-        parts += ["<p>Identified modes with their indicators:</p>", _table(modes, cols, {"freq_hz": "{:.3f}"})]
+        parts += ["<p>Identified modes with their indicators:</p>", _mode_table(modes)]
     parts.append(_fig(run_dir / "identify" / "synthesis.png", "Synthesised vs measured FRFs"))
     # correlation
     parts.append("<h2>Correlation before and after updating</h2>")
@@ -323,19 +405,25 @@ def build_report(run_dir, report_dir=None, *, project=None, title: str | None = 
     # updating
     parts.append("<h2>Model updating (inverse eigensensitivity)</h2>")
     if upd:
+        if diag and diag.get("findings"):
+            parts.append("<p>Parameters only (update/updated.bdf): with physics missing from the model these values "
+                         "absorb it; the diagnosis' joint fit above is the one to trust.</p>")
         prow = [{"parameter": k, **{kk: v[kk] for kk in ("initial", "updated", "std")}} for k, v in upd["parameters"].items()]
         parts.append(_table(prow, ["parameter", "initial", "updated", "std"]))
         parts.append(f"<p>{'Converged' if upd.get('converged') else 'Not converged'} after {upd.get('iterations')} "
                      "iterations.</p>")
     parts.append(_fig(run_dir / "update" / "convergence.png", "Parameter convergence"))
     parts.append("<h2>FRF overlays</h2>")
-    parts.append(_fig(run_dir / "diagnose" / "frf_overlay.png", "Measured and model FRFs at chosen DOFs"))
+    parts.append(_fig(run_dir / "diagnose" / "frf_overlay_models.png",
+                      "Measured FRFs and the nominal, parameter-updated and diagnosed models at the chosen DOFs "
+                      "(models evaluated at s = iω + β of the measurement's exponential window)"))
     doc = ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
            f"<title>{html.escape(name)}</title><style>{_CSS}</style></head><body>\n"
            + "\n".join(parts) + "\n</body></html>\n")
     out = rd / "report.html"
     write_text(out, doc)
-    summary = {"title": name, "frf": frf_s, "reciprocity": {"max_rel_diff": (rec or {}).get("max_rel_diff")},
+    summary = {"title": name, "backend": backend, "simulated": backend == "sim" if backend else None,
+               "model_to_use": {"file": use[0], "why": use[1]} if use else None, "frf": frf_s, "reciprocity": {"max_rel_diff": (rec or {}).get("max_rel_diff")},
                "modes": modes, "identification": {k: (ident or {}).get(k) for k in ("settings", "elapsed_s")},
                "correlation_before": corr, "update": upd, "diagnosis": diag,
                "stages": {s: {"key": e.get("key"), "elapsed_s": e.get("elapsed_s")}

@@ -88,7 +88,15 @@ def test_a_refused_resume_names_the_changed_keys_only(tmp_path, capsys):
     out = tmp_path / "s"
     plan = small_plan(tmp_path, points=("14+Z",), averages=2)
     assert main(["acquire", str(plan), "--auto", "--quiet", "-o", str(out)]) == 0
-    capsys.readouterr()
+    # no --backend: the simulated lab, said on screen and recorded with the data
+    assert "backend: sim - the simulated lab (hardware_sim): the data are SIMULATED" in capsys.readouterr().out
+    import json
+
+    assert json.loads((out / "session.json").read_text())["backend"] == "sim"
+    from modalab.core import uff
+
+    assert uff.read_frf(out / "session.uff").metadata["backend"] == "sim"
+    assert all(r.metadata.get("backend") == "sim" for r in uff.read_records(out / "session.uff"))
     plan = small_plan(tmp_path, points=("14+Z",), averages=3, name="plan2.toml")
     assert main(["acquire", str(plan), "--auto", "--quiet", "--resume", "-o", str(out)]) == 2
     err = _one_line(capsys)

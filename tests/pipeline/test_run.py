@@ -83,8 +83,8 @@ def test_end_to_end_artifacts_and_manifest(demo):
     assert all(res.status[s] == "ran" for s in STAGES), res.status
     for rel in ("acquire/session.uff", "frf/frf.uff", "frf/coherence.png", "identify/modes.uff",
                 "identify/stabilisation.png", "correlate/mac_before.png", "update/updated.bdf", "update/mac_after.png",
-                "update/convergence.png", "diagnose/diagnosis.json", "diagnose/diagnosed.bdf", "diagnose/mci_maps.png",
-                "diagnose/frf_overlay.png", "report/report.html", "report/summary.json"):
+                "update/convergence.png", "diagnose/diagnosis.json", "diagnose/diagnosed.bdf", "diagnose/figures/mci_maps.png",
+                "diagnose/frf_overlay_models.png", "diagnose/selection.json", "report/report.html", "report/summary.json"):
         assert (out / rel).is_file(), rel
     man = json.loads((out / "manifest.json").read_text())
     assert list(man["stages"]) == list(STAGES)
@@ -141,6 +141,26 @@ def test_diagnosis_finds_the_concealed_effect(demo):
     for name in ("rho_fuselage", "E_wing"):
         assert abs(d["parameters"][name]["updated"] - truth[name]) < \
             abs(upd["parameters"][name]["updated"] - truth[name]), name
+
+
+def test_report_says_simulated_which_model_and_the_selection(demo):
+    """Issue 14: simulated data are said so (session.json, UFF ID lines, summary.json, the report); the report
+    names the model to use; the selected term is shown with its rank; damping columns in %; each file has one
+    writer (the engine's figures in figures/, the stage's overlay under its own name)."""
+    out = demo["out"]
+    assert json.loads((out / "acquire" / "session" / "session.json").read_text())["backend"] == "sim"
+    assert b'"backend":"sim"' in (out / "acquire" / "session.uff").read_bytes()
+    assert b'"backend":"sim"' in (out / "frf" / "frf.uff").read_bytes()
+    s = json.loads((out / "report" / "summary.json").read_text())
+    assert s["backend"] == "sim" and s["simulated"] is True
+    assert s["model_to_use"]["file"] == "diagnose/diagnosed.bdf" and "parameters-only" in s["model_to_use"]["why"]
+    text = (out / "report" / "report.html").read_text(encoding="utf-8")
+    assert "<b>Simulated data.</b>" in text and "Model to use: diagnose/diagnosed.bdf" in text
+    sel = json.loads((out / "diagnose" / "selection.json").read_text())
+    assert any("218" in t["candidate"] for t in sel["selected"])
+    assert "Selected terms" in text and "point mass at node 218" in text.split("Selected terms")[1][:2000]
+    assert "σ ζ [%]" in text and "damping_std" not in text and "MPD [°]" in text and "χ² ratio" in text
+    assert not (out / "diagnose" / "mci_maps.png").exists() and not (out / "diagnose" / "frf_overlay.png").exists()
 
 
 def _conclusions(out: Path) -> dict:

@@ -125,6 +125,7 @@ def sim(out_uff, opts: SimOptions = SimOptions(), *, plot_path=None, export_mode
             progress(k + 1, len(pts), pt)
     for i, r in enumerate(recs, start=1):
         r.hit_id = i
+        r.metadata = {**(r.metadata or {}), "backend": "sim"}     # simulated data say so in the UFF
     out = Path(out_uff)
     out.parent.mkdir(parents=True, exist_ok=True)
     if getattr(st, "coords", None):
