@@ -24,7 +24,7 @@ Each function takes its input files, its output locations and one frozen options
 :class:`StageResult`: the product (an FRF, a ModeSet, a correlation, a summary dict, a Diagnosis), the files it
 wrote and a short JSON-ready summary.  Every text/JSON file goes through :mod:`modalab.app.outputs` (one writer,
 umask permissions, atomic replace); ``modes.json``, ``diagnosis.json`` and ``summary.json`` follow the schemas
-shipped in ``modalab/schemas``.  Library code logs; ``progress`` callables let the CLI show progress.
+shipped in ``modalab/app/schemas``.  Library code logs; ``progress`` callables let the CLI show progress.
 """
 from __future__ import annotations
 
