@@ -21,7 +21,7 @@ from modalab.core.errors import ModalabError
 from modalab.app.stages import SimOptions, sim
 from modalab.app.stages import FRFOptions, frf
 from modalab.core import uff
-from modalab.app.pipeline import acquire
+from modalab.app.stages import acquire
 from modalab.app._cli_run import run_with_progress
 from modalab.app.demo_project import run_demo
 from modalab.core._output import check_outputs

@@ -2,7 +2,7 @@
 the selected terms and the turned-down candidates (issue 14)."""
 import json
 
-from modalab.app.report import _mode_table, _selection_html, _which_model, build_report
+from modalab.app.stages._report import _mode_table, _selection_html, _which_model, build_report
 
 
 def _diag(findings):
