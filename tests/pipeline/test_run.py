@@ -201,6 +201,8 @@ def test_run_command_prints_a_line_per_stage_and_the_report_last(demo, capsys):
     assert all("up to date" in ln for ln in lines[:len(STAGES) - 1])
     assert re.fullmatch(r"\[7/7\] report +done in \d+\.\d s", lines[len(STAGES) - 1])
     assert lines[-1] == f"report: {demo['out'] / 'report' / 'report.html'}"
+    assert "data: simulated (backend sim: the simulated lab, not hardware)" in lines
+    assert f"model to use: {demo['out'] / 'diagnose' / 'diagnosed.bdf'}" in lines
 
 
 def test_ctrl_c_during_run_says_how_to_continue(tmp_path):
