@@ -580,7 +580,7 @@ def _check_folder_names(a) -> None:
         attrs.append("output")
     for attr in attrs:
         v = getattr(a, attr, None)
-        if not v or os.path.isdir(v) or str(v).endswith(("/", os.sep)):
+        if not v or os.path.lexists(v) or str(v).endswith(("/", os.sep)):     # an existing path: check_outputs
             continue
         suf = Path(v).suffix.lower()
         if suf in _FILE_SUFFIXES:
