@@ -47,7 +47,9 @@ def _import_nidaqmx():
         import nidaqmx.errors
         import nidaqmx.stream_readers
     except ImportError as e:  # package itself missing
-        raise DaqNotFoundError(_NO_DRIVER.format(detail=f"python package nidaqmx not importable: {e}")) from None
+        raise DaqNotFoundError(f"the python package nidaqmx is not installed ({e}): install it with "
+                               f"pip install 'modalab[daq]' (and the NI-DAQmx driver), or run with --backend sim "
+                               f"to use the simulated lab") from None
     return nidaqmx
 
 

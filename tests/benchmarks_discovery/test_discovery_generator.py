@@ -153,3 +153,21 @@ def test_score_counts_a_finding_within_one_node_and_flags_control_findings():
     truth["control"] = True
     r = score.score_case(truth, score.parse_diagnosis(diag), {"error": None})
     assert not r["right"] and r["spurious"] == 2
+
+
+def test_score_marks_a_match_through_an_ambiguous_findings_alternative():
+    truth = {"control": False, "seed": 1, "environment": [],
+             "concealed": [{"physics": "ground_spring", "nodes": [2], "elements": [], "dofs": ["2+Y"], "value": 1e4,
+                            "unit": "N/m"}],
+             "nominal": {"edges": [[1, 2], [2, 3], [3, 4], [4, 5]],
+                         "elements": {"1": [1, 2], "2": [2, 3], "3": [3, 4], "4": [4, 5]}}}
+    diag = {"findings": [{"physics": "ground_spring", "nodes": [5], "elements": [], "dofs": ["5+Y"],
+                          "values": [{"name": "k", "value": 1e4, "unit": "N/m", "std": 1.0}],
+                          "alternatives": [{"physics": "ground_spring", "nodes": [2]}]}],
+            "fit": {}}
+    r = score.score_case(truth, score.parse_diagnosis(diag), {"error": None})
+    assert r["right"] and r["via_alternative"] and r["distance"] == 0
+    assert "(or ground_spring at n 2)" in r["findings"][0]
+    diag["findings"][0]["nodes"] = [2]          # the best-fitting explanation itself is right
+    r = score.score_case(truth, score.parse_diagnosis(diag), {"error": None})
+    assert r["right"] and not r["via_alternative"]

@@ -153,3 +153,26 @@ def test_rfm_receptance_rows_banded_equals_the_shared_solver():
     st = A.structure()
     Z = st.K.toarray() + (1j * w[3]) ** 2 * st.M.toarray() + 1j * w[3] * st.C.toarray()
     np.testing.assert_allclose(a[3], np.linalg.inv(Z)[rows], rtol=1e-9)
+
+
+def test_diagnosis_and_mci_updater_linearise_the_same_mci():
+    """The Jacobian diagnosis' mci_update steps with (−Tᵀ ∂Z/∂p x per parameter) is −(T A), the condensed
+    Jacobian of MCIUpdater (Eq. 3.77 through the expansion): the two step proposals linearise one MCI."""
+    from updating.methods.mci import condensation_operator, mci_system
+    from updating.methods.mci_condensed import derivatives
+
+    X = six_dof_model("experimental")
+    A = six_dof_model("analytical")
+    frf = X.structure().frf(F, references=["2+X"], quantity="receptance").select(responses=["1+X", "2+X", "4+X"])
+    data = receptance_data(frf)
+    rs = residual_system(A.structure(), data, weights=np.ones((1, F.size)))
+    B = rs.derivative_columns(derivatives(A, A.p0))                     # (2·nm·nq·ns, P), rows (m, q, f)
+    nm, nq, ns = rs.shape
+    B = (B[: B.shape[0] // 2] + 1j * B[B.shape[0] // 2:]).reshape(nm, nq, ns, -1)
+    cols = measured_columns(A, frf)
+    full = dynamic_expansion(A, cols)
+    Am, _ = mci_system(A, full, cols.w, cols.references, A.p0)
+    J = (condensation_operator(A, cols, A.p0) @ Am).toarray().reshape(nq, ns, nm, -1)   # rows (q, f, m)
+    J = np.transpose(J, (2, 0, 1, 3))
+    np.testing.assert_allclose(B, -J, rtol=1e-8, atol=1e-10 * np.abs(J).max())
+    assert np.abs(J).max() > 0

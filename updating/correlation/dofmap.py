@@ -401,8 +401,31 @@ def geometry_map(test_coords: Mapping, model_coords: Mapping, test_nodes=None, *
     naming the nodes that have no model node within ``tol``, or two test nodes that land on the
     same model node.
     """
-    from scipy.spatial import cKDTree
+    nodes, P, mids, Q = _checked_coordinates(test_coords, model_coords, test_nodes)
+    ext = float(np.ptp(Q, axis=0).max()) if len(Q) > 1 else 1.0
+    tol = 0.02 * max(ext, 1e-12) if tol is None else float(tol)
+    R, t, d, j = _rigid_placement(nodes, P, Q, tol, ext, max_iter)
+    mapped = [mids[k] for k in j]
+    dup = {}
+    for n, m in zip(nodes, mapped):
+        dup.setdefault(m, []).append(n)
+    clash = {m: ns for m, ns in dup.items() if len(ns) > 1}
+    if clash:
+        m, ns = sorted(clash.items())[0]
+        raise DofError(f"test nodes {ns} all map onto model node {m} by geometry; the test mesh is finer than the "
+                       "model or the geometry is off: give a DOF map (--map)")
+    rotated = not np.allclose(R, np.eye(3), atol=1e-9)
+    dm = DofMap(nodes=dict(zip(nodes, mapped)), same_nodes=False,
+                test_frames={n: R for n in nodes} if rotated else None, name="geometry")
+    report = {"rotation": R.tolist(), "translation": t.tolist(), "tol_m": tol,
+              "max_distance_m": float(d.max()), "rms_distance_m": float(np.sqrt(np.mean(d ** 2))),
+              "nodes": {str(n): {"model_node": int(m), "distance_m": float(dd)} for n, m, dd in zip(nodes, mapped, d)}}
+    return dm, report
 
+
+def _checked_coordinates(test_coords, model_coords, test_nodes):
+    """The test nodes (sorted) and their coordinates ``P``, the model nodes (sorted) and theirs ``Q``; a
+    :class:`~modalab.core.errors.DofError` for a node without coordinates, none at all, or NaN/inf."""
     nodes = sorted(int(n) for n in (test_coords if test_nodes is None else test_nodes))
     missing = [n for n in nodes if n not in {int(k) for k in test_coords}]
     if missing:
@@ -418,8 +441,16 @@ def geometry_map(test_coords: Mapping, model_coords: Mapping, test_nodes=None, *
     Q = np.array([model_coords[m] for m in mids], float)
     if not (np.all(np.isfinite(P)) and np.all(np.isfinite(Q))):
         raise DofError("node coordinates contain NaN or inf")
-    ext = float(np.ptp(Q, axis=0).max()) if len(Q) > 1 else 1.0
-    tol = 0.02 * max(ext, 1e-12) if tol is None else float(tol)
+    return nodes, P, mids, Q
+
+
+def _rigid_placement(nodes, P, Q, tol, ext, max_iter):
+    """``(R, t, d, j)``: the rotation and translation placing the test nodes ``P`` on the model nodes ``Q``, the
+    distances and the nearest model node of each.  The identity when every node is within ``tol``; else
+    iterated closest points (Kabsch) from the 24 axis-aligned rotations and the identity, the one rigid
+    placement that fits (an error when none fits, or several that map differently)."""
+    from scipy.spatial import cKDTree
+
     tree = cKDTree(Q)
 
     def fit(R, t):
@@ -462,19 +493,4 @@ def geometry_map(test_coords: Mapping, model_coords: Mapping, test_nodes=None, *
                            "(a symmetric structure or sensor layout): the mapping is ambiguous; give a DOF map (--map) "
                            "or the test geometry in the model's frame")
         R, t, d, j = next(iter(maps.values()))
-    mapped = [mids[k] for k in j]
-    dup = {}
-    for n, m in zip(nodes, mapped):
-        dup.setdefault(m, []).append(n)
-    clash = {m: ns for m, ns in dup.items() if len(ns) > 1}
-    if clash:
-        m, ns = sorted(clash.items())[0]
-        raise DofError(f"test nodes {ns} all map onto model node {m} by geometry; the test mesh is finer than the "
-                       "model or the geometry is off: give a DOF map (--map)")
-    rotated = not np.allclose(R, I3, atol=1e-9)
-    dm = DofMap(nodes=dict(zip(nodes, mapped)), same_nodes=False,
-                test_frames={n: R for n in nodes} if rotated else None, name="geometry")
-    report = {"rotation": R.tolist(), "translation": t.tolist(), "tol_m": tol,
-              "max_distance_m": float(d.max()), "rms_distance_m": float(np.sqrt(np.mean(d ** 2))),
-              "nodes": {str(n): {"model_node": int(m), "distance_m": float(dd)} for n, m, dd in zip(nodes, mapped, d)}}
-    return dm, report
+    return R, t, d, j

@@ -179,43 +179,21 @@ def pair_modes(mac_matrix=None, freq_a_hz=None, freq_x_hz=None, *, mac_min: floa
     paired with MAC 0.53 at 37.5 Hz whose shape the FE modes at 37.30, 37.42 and 37.63 Hz explain with
     MAC 1.00 together is such a merge (issue 14).
     """
-    # long by its docstring (the rule, stated in full where it is applied); the body is ~65 lines of named steps
     Mc, fa, fx, rel, has_f, freq_weight, window = _checked_inputs(mac_matrix, freq_a_hz, freq_x_hz, mac_min,
                                                                   freq_weight, max_freq_error, rigid)
     na, nx = Mc.shape
-
-    # --- analysis modes kept out on purpose
     excluded, rigid_a, elastic = _excluded_modes(fa, fx, na, has_f, rigid_hz, rigid, observability,
                                                  min_observability)
-
-    # --- candidates
     shapes = mac_matrix is not None
-    allowed = np.ones((na, nx), bool)
+    allowed = np.ones((na, nx), bool)          # the candidates: MAC, frequency window, elastic analysis modes
     if shapes:
         allowed &= Mc >= mac_min
     if window is not None:
         allowed &= rel <= window
     allowed &= elastic[:, None]
-
-    merged: dict[int, str] = {}
-    Sa = Sx = None
-    if mode_shapes is not None and shapes and has_f:
-        Sa, Sx = (np.asarray(v) for v in mode_shapes)
-        if Sa.ndim != 2 or Sx.ndim != 2 or Sa.shape[1] != na or Sx.shape[1] != nx or Sa.shape[0] != Sx.shape[0]:
-            raise ShapeError(f"mode_shapes are {Sa.shape} and {Sx.shape}; expected (n_dof, {na}) and (n_dof, {nx}) "
-                             "on the same DOFs as the MAC matrix")
-    while True:
-        pairs = _assign(Mc, rel, fa, fx, allowed, shapes, freq_weight, mac_min, window) if na and nx else []
-        if Sa is None:
-            break
-        new = _merged_tests(pairs, Mc, Sa, Sx, fa, fx, elastic, close_modes, merge_gain)
-        if not new:
-            break
-        merged.update(new)
-        for j in new:
-            allowed[:, j] = False
-    pairs.sort(key=lambda p: p[1])
-
+    Sa, Sx = _checked_shapes(mode_shapes, na, nx) if shapes and has_f else (None, None)
+    pairs, merged = _assign_without_merges(Mc, rel, fa, fx, allowed, shapes, freq_weight, mac_min, window, Sa, Sx,
+                                           elastic, close_modes, merge_gain)
     rigid_pairs = (_rigid_pairs(Mc, fa, fx, pairs, rigid_a, elastic, has_f, mac_min, nx)
                    if rigid == "pair" and shapes and rigid_a.any() and nx else [])
 
@@ -238,6 +216,38 @@ def pair_modes(mac_matrix=None, freq_a_hz=None, freq_x_hz=None, *, mac_min: floa
         log.info("test modes without an analysis partner: %s",
                  "; ".join(f"{j + 1}: {reasons[j]}" for j in res.unpaired_test))
     return res
+
+
+def _checked_shapes(mode_shapes, na, nx):
+    """The analysis and test shapes at the test DOFs of :func:`pair_modes` (``(None, None)`` when not given)."""
+    if mode_shapes is None:
+        return None, None
+    Sa, Sx = (np.asarray(v) for v in mode_shapes)
+    if Sa.ndim != 2 or Sx.ndim != 2 or Sa.shape[1] != na or Sx.shape[1] != nx or Sa.shape[0] != Sx.shape[0]:
+        raise ShapeError(f"mode_shapes are {Sa.shape} and {Sx.shape}; expected (n_dof, {na}) and (n_dof, {nx}) "
+                         "on the same DOFs as the MAC matrix")
+    return Sa, Sx
+
+
+def _assign_without_merges(Mc, rel, fa, fx, allowed, shapes, freq_weight, mac_min, window, Sa, Sx, elastic,
+                           close_modes, merge_gain):
+    """The assignment, redone without the test modes found to be merges of close analysis modes (with shapes
+    ``Sa``, ``Sx``) until none is left: the pairs in test-mode order and the merged test modes with their
+    reasons.  Clears the merged columns of ``allowed``."""
+    na, nx = Mc.shape
+    merged: dict[int, str] = {}
+    while True:
+        pairs = _assign(Mc, rel, fa, fx, allowed, shapes, freq_weight, mac_min, window) if na and nx else []
+        if Sa is None:
+            break
+        new = _merged_tests(pairs, Mc, Sa, Sx, fa, fx, elastic, close_modes, merge_gain)
+        if not new:
+            break
+        merged.update(new)
+        for j in new:
+            allowed[:, j] = False
+    pairs.sort(key=lambda p: p[1])
+    return pairs, merged
 
 
 def _checked_inputs(mac_matrix, freq_a_hz, freq_x_hz, mac_min, freq_weight, max_freq_error, rigid):

@@ -374,40 +374,55 @@ def eigenvector_sensitivities(model, p=None, modes=None, *, method: str = "nelso
     free = np.setdiff1d(np.arange(n), mech)
     if method == "nelson":
         for a, r in enumerate(modes):
-            g = group_of[int(r)]
-            x = phi[:, r]
-            Mx = M @ x
-            A = (K - lam[r] * M).tocsr()
-            if len(g) == 1:
-                k = int(np.argmax(np.abs(x)))
-                keep = free[free != k]
-                solve = _factor(A[keep][:, keep])
-                border = None
-            else:
-                log.warning("mode %d belongs to a repeated group %s: returning the eigenvector derivative "
-                            "component outside the degenerate subspace only", r, g)
-                B = sp.csr_matrix((M @ phi[:, g])[free])
-                Ab = sp.bmat([[A[free][:, free], B], [B.T, None]], format="csc")
-                solve = _factor(Ab)
-                border = len(g)
-            for s0 in range(0, sd.P, chunk):
-                ps = np.arange(s0, min(sd.P, s0 + chunk))
-                F = -(sd.columns("K", x, ps) - lam[r] * sd.columns("M", x, ps)).toarray()
-                halfm = 0.5 * sd.quadratic("M", x)[ps]
-                if border is None:
-                    F += np.outer(Mx, dlam[r, ps])
-                    V = np.zeros((n, ps.size))
-                    V[keep] = solve(F[keep])
-                    c = -(Mx @ V) - halfm
-                else:
-                    Fb = np.vstack([F[free], np.zeros((border, ps.size))])
-                    V = np.zeros((n, ps.size))
-                    V[free] = solve(Fb)[:free.size]
-                    c = -(Mx @ V) - halfm
-                out[:, a, ps] = V[rows] + np.outer(x[rows], c)
+            out[:, a, :] = _nelson_mode(sol, sd, int(r), group_of[int(r)], dlam[r], free, rows, chunk)
         return out
     if method != "modal":
         raise ModalabValueError(f"method {method!r}; expected 'nelson' or 'modal'")
+    return _modal(sol, sd, modes, group_of, free, rows, n_modal, shift, chunk, out)
+
+
+def _nelson_mode(sol, sd, r, group, dlam_r, free, rows, chunk):
+    """Nelson's method for mode ``r``: ``∂φ_r/∂p = V + c φ_r`` with ``(K − λ_r M) V = F`` solved with the DOF of
+    the largest component held (one factorisation per mode), or, for a repeated group, bordered by the
+    group's mass-weighted modes (the component outside the degenerate subspace only).  (len(rows), P)."""
+    lam, phi, K, M = sol.lam, sol.phi, sol.K, sol.M
+    n = K.shape[0]
+    x = phi[:, r]
+    Mx = M @ x
+    A = (K - lam[r] * M).tocsr()
+    if len(group) == 1:
+        k = int(np.argmax(np.abs(x)))
+        keep = free[free != k]
+        solve = _factor(A[keep][:, keep])
+        border = None
+    else:
+        log.warning("mode %d belongs to a repeated group %s: returning the eigenvector derivative "
+                    "component outside the degenerate subspace only", r, group)
+        B = sp.csr_matrix((M @ phi[:, group])[free])
+        Ab = sp.bmat([[A[free][:, free], B], [B.T, None]], format="csc")
+        solve = _factor(Ab)
+        border = len(group)
+    out = np.zeros((rows.size, sd.P))
+    for s0 in range(0, sd.P, chunk):
+        ps = np.arange(s0, min(sd.P, s0 + chunk))
+        F = -(sd.columns("K", x, ps) - lam[r] * sd.columns("M", x, ps)).toarray()
+        halfm = 0.5 * sd.quadratic("M", x)[ps]
+        V = np.zeros((n, ps.size))
+        if border is None:
+            F += np.outer(Mx, dlam_r[ps])
+            V[keep] = solve(F[keep])
+        else:
+            V[free] = solve(np.vstack([F[free], np.zeros((border, ps.size))]))[:free.size]
+        c = -(Mx @ V) - halfm
+        out[:, ps] = V[rows] + np.outer(x[rows], c)
+    return out
+
+
+def _modal(sol, sd, modes, group_of, free, rows, n_modal, shift, chunk, out):
+    """Modal superposition over ``n_modal`` modes plus the static correction with ``shift`` (exact when all
+    modes are kept) into ``out`` (len(rows), len(modes), P)."""
+    lam, phi, K, M = sol.lam, sol.phi, sol.K, sol.M
+    n = K.shape[0]
     nb = lam.size if n_modal is None else int(n_modal)
     if nb > lam.size:
         raise ModalabValueError(f"n_modal={nb} but the solution holds {lam.size} modes; solve more modes first")

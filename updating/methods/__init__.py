@@ -8,8 +8,8 @@ From identified modes
 From FRFs
     :class:`MCIUpdater` and :func:`mci` (MisCorrelation Index, 3.2.4); :func:`mci_update` (the MCI on the
     condensed residual with noise-model line weights, which diagnosis uses); :class:`ResponseFunctionMethod`
-    (3.2.3).  All read FRFs through :mod:`updating.correlation.receptance` and expand them with
-    :mod:`updating.correlation.condensation`.
+    (3.2.3).  All read FRFs through :mod:`updating.correlation.receptance`, expand them with
+    :mod:`updating.correlation.condensation` and iterate in :func:`updating.methods.iteration.iterate`.
 Direct matrix updating (3.1)
     :func:`lagrange_stiffness`, :func:`lagrange_mass`, :func:`lagrange_mass_stiffness`, :func:`error_matrix`,
     :func:`direct_matrix_updating`, :func:`matrix_mixing`, :func:`baruch_orthogonalise`.

@@ -25,7 +25,8 @@ damping) the updated model satisfies ``Σ_i Δp_i [∂Z/∂p_i θ]_r = MCI_r(ω)
 ``[A]{Δp} = {δ}`` (Eq. 3.78) solved in the least-squares sense.  As the
 thesis prescribes, expansion and solution alternate until the parameters
 converge (a Gauss–Newton iteration on the MCI; for non-linear parameters the
-derivatives are re-evaluated at every step).
+derivatives are re-evaluated at every step), in the iteration loop all FRF-based updaters share
+(:func:`updating.methods.iteration.iterate`).
 
 Against the *trivial solution* the thesis warns of in 6.1.2 (MCI driven to zero
 by system matrices that shrink towards null) :class:`MCIUpdater` offers
@@ -49,13 +50,14 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from modalab.core.dense import use_dense
-from modalab.core.errors import ModalabValueError, NotFittedError, ShapeError
+from modalab.core.errors import ModalabValueError, NotFittedError
 from modalab.core.frf import FRF
 
 from updating.correlation.condensation import condensed_residual, dynamic_stiffness, dynamic_stiffness_batch
 from updating.correlation.receptance import MeasuredColumns, measured_columns
 from updating.fe.parametric import parameter_indices
 from updating.fe.sensitivity import StackedDerivatives
+from updating.methods.iteration import Proposal, iterate, start
 from updating.methods.mci_plots import plot_convergence, plot_mci_map, plot_mci_maxima
 
 log = logging.getLogger(__name__)
@@ -478,62 +480,52 @@ class MCIUpdater:
             raise ModalabValueError(f"rows={self.rows!r}; expected 'all' or 'measured'")
         data = measured_columns(model, frf, references=self.references, bands=self.bands)
         idx = _param_indices(model, self.params)
-        p = np.array(model.p0 if p_init is None else p_init, dtype=float)
-        if p.shape != np.shape(model.p0):
-            raise ShapeError(f"p_init has shape {p.shape}; expected {np.shape(model.p0)}")
+        p, lo, hi = start(model, p_init, self.bounds)
         p_start = p.copy()
         self.p_init_ = p_start.copy()
         self.mode_ = mode
-        lo, hi = _bounds(self.bounds, p_start)
-        scale_ref = np.where(p_start != 0, np.abs(p_start), 1.0)
-        self.history_ = []
-        self.converged_ = False
         self.params_ = idx
         self.mci_initial_ = mci_from_columns(model, data, p)
-        change = np.inf
-        it = 0
-        for it in range(1, self.max_iter + 1):
-            r, J, wts = self._linearise(model, data, p, idx, mode)
-            cn = np.sqrt(np.asarray(abs(J).power(2).sum(axis=0)).ravel()) if sp.issparse(J) \
-                else np.linalg.norm(J, axis=0)
-            cn[cn == 0] = 1.0
-            col_scale = 1.0 / cn
-            x_prior = (p_start[idx] - p[idx]) / col_scale if self.penalty else None
-            dp, _ = _lsq(J, r, col_scale=col_scale, penalty=self.penalty, x_prior=x_prior)
-            rel = np.abs(dp) / scale_ref[idx]
-            if rel.max() > self.step_limit:
-                dp *= self.step_limit / rel.max()
-            cost0 = _cost(r, p_start, p, idx, col_scale, self.penalty)
-            step = 1.0
-            for _ls in range(12):
-                p_new = p.copy()
-                p_new[idx] = np.clip(p[idx] + step * dp, lo[idx], hi[idx])
-                if not self.line_search:
-                    break
-                r_new, _, _ = self._linearise(model, data, p_new, idx, mode, need_jac=False, w=wts)
-                if _cost(r_new, p_start, p_new, idx, col_scale, self.penalty) <= cost0:
-                    break
-                step *= 0.5
-            change = float(np.max(np.abs(p_new[idx] - p[idx]) / scale_ref[idx]))
-            p = p_new
-            self.history_.append({"iteration": it, "p": p.copy(), "max_rel_change": change, "cost": cost0})
-            log.debug("MCI iteration %d: cost %.4g, max relative change %.3g", it, cost0, change)
-            if change < self.tol:
-                self.converged_ = True
-                break
+        scale_ref = np.where(p_start != 0, np.abs(p_start), 1.0)
+        run = iterate(lambda q: self._propose(model, data, q, p_start, idx, mode), p, idx, lo, hi,
+                      max_iter=self.max_iter, tol=self.tol, change_ref=lambda *_: scale_ref,
+                      step_limit=self.step_limit, step_ref=scale_ref, label="MCI")
+        self.history_, self.converged_, self.n_iter_, p = run.history, run.converged, run.n_iter, run.p
         if not self.converged_:
             log.warning("MCI minimisation did not converge in %d iterations (last relative change %.3g)",
-                        self.max_iter, change)
+                        self.max_iter, run.change)
+        self.covariance_ = self._covariance(model, data, p, idx, mode)
+        self.p_ = p
+        self.mci_final_ = mci_from_columns(model, data, p)
+        return self
+
+    def _propose(self, model, data, p, p_start, idx, mode) -> Proposal:
+        """The Gauss–Newton step at ``p`` on the column-equilibrated system (Eq. 3.78), with the Tikhonov
+        penalty on the departure from ``p_start`` and, for the line search, the cost at frozen weights."""
+        r, J, wts = self._linearise(model, data, p, idx, mode)
+        cn = np.sqrt(np.asarray(abs(J).power(2).sum(axis=0)).ravel()) if sp.issparse(J) \
+            else np.linalg.norm(J, axis=0)
+        cn[cn == 0] = 1.0
+        col_scale = 1.0 / cn
+        x_prior = (p_start[idx] - p[idx]) / col_scale if self.penalty else None
+        dp, _ = _lsq(J, r, col_scale=col_scale, penalty=self.penalty, x_prior=x_prior)
+        cost0 = _cost(r, p_start, p, idx, col_scale, self.penalty)
+        if not self.line_search:
+            return Proposal(dp, cost0)
+
+        def accept(p_new):
+            r_new, _, _ = self._linearise(model, data, p_new, idx, mode, need_jac=False, w=wts)
+            return _cost(r_new, p_start, p_new, idx, col_scale, self.penalty) <= cost0
+        return Proposal(dp, cost0, accept)
+
+    def _covariance(self, model, data, p, idx, mode):
+        """``s²(JᵀJ)⁻¹`` of the updated parameters from the Jacobian at ``p``."""
         r, J, _ = self._linearise(model, data, p, idx, mode)
         Jd = J.toarray() if sp.issparse(J) else J
         Jr = np.vstack([Jd.real, Jd.imag])
         rr = np.concatenate([r.real, r.imag])
         dof = max(Jr.shape[0] - Jr.shape[1], 1)
-        self.covariance_ = float(rr @ rr) / dof * np.linalg.pinv(Jr.T @ Jr)
-        self.n_iter_ = it
-        self.p_ = p
-        self.mci_final_ = mci_from_columns(model, data, p)
-        return self
+        return float(rr @ rr) / dof * np.linalg.pinv(Jr.T @ Jr)
 
     def parameter_history(self) -> np.ndarray:
         """(n_iter + 1, P) parameter vectors, the initial one first."""
@@ -564,16 +556,3 @@ def _cost(r, p_start, p, idx, col_scale, penalty):
 
 
 _param_indices = parameter_indices
-
-
-def _bounds(bounds, p0):
-    if bounds is None:
-        lo = np.where(p0 > 0, 0.05 * p0, np.where(p0 < 0, 20 * p0, 0.0))
-        hi = np.where(p0 > 0, 20 * p0, np.where(p0 < 0, 0.05 * p0, np.inf))
-        return lo, hi
-    lo, hi = bounds
-    lo = np.broadcast_to(np.asarray(-np.inf if lo is None else lo, float), p0.shape).copy()
-    hi = np.broadcast_to(np.asarray(np.inf if hi is None else hi, float), p0.shape).copy()
-    if np.any(lo > hi):
-        raise ModalabValueError("bounds: some lower bounds exceed the upper ones; pass (lower, upper) arrays")
-    return lo, hi

@@ -6,11 +6,13 @@ with the unmeasured DOFs expanded by the current model at every iteration
 :class:`~updating.methods.mci.MCIUpdater` and the response-function method use too).  The residual
 ``r_m = [Z x − f]_m`` is the negative MCI of thesis eq. (3.69) on the measured rows; its first-order change
 with a parameter is ``−Tᵀ ∂Z/∂p x`` (:class:`ResidualSystem`), and :func:`mci_update` iterates damped
-Gauss–Newton steps on it.
+Gauss–Newton steps on it — in the one iteration loop of the FRF-based updaters
+(:func:`updating.methods.iteration.iterate`), which :class:`~updating.methods.mci.MCIUpdater` and the
+response-function method run too.
 
-Where it differs from :class:`~updating.methods.mci.MCIUpdater`: the lines are weighted by √coherence / σ of
-the model (σ the residual a unit relative FRF error would cause), frozen after the first iteration so that
-residuals of different models compare; the step is damped (Tikhonov on the normalised step, not on the
+Where it differs from :class:`~updating.methods.mci.MCIUpdater` (in the step it proposes): the lines are
+weighted by √coherence / σ of the model (σ the residual a unit relative FRF error would cause), frozen after
+the first iteration so that residuals of different models compare; the step is damped (Tikhonov on the normalised step, not on the
 departure from the start) and clipped to the bounds; there is no line search and no whitening of the
 condensed residual.  Both read the data through :mod:`updating.correlation.receptance`.
 """
@@ -23,6 +25,7 @@ import numpy as np
 
 from updating.correlation.condensation import condensed_residual
 from updating.fe import ParametricFEModel
+from updating.methods.iteration import Proposal, iterate
 
 __all__ = ["ResidualSystem", "residual_system", "mci_update", "derivatives"]
 
@@ -158,22 +161,22 @@ def mci_update(pmodel, p, data, lower, upper, *, iters: int = 6, weights=None, t
     thesis 6.1.2).  Returns the parameters, the final weighted residual norm² and the line weights.
     """
     p = np.asarray(p, float).copy()
-    lo, hi = np.asarray(lower, float), np.asarray(upper, float)
+    lo, hi = (np.broadcast_to(np.asarray(b, float), p.shape) for b in (lower, upper))
     free = np.ones(p.size, bool) if free is None else np.asarray(free, bool)
-    rss = np.inf
-    for _ in range(iters):
-        rsys = residual_system(pmodel.structure(p), data, weights)
-        if weights is None:
-            weights = rsys.w
-        ders = derivatives(pmodel, p)
-        B = rsys.derivative_columns([d for d, f in zip(ders, free) if f])
-        rss = float(rsys.y @ rsys.y)
+    frozen = {"w": weights}
+
+    def propose(p):
+        rsys = residual_system(pmodel.structure(p), data, frozen["w"])
+        if frozen["w"] is None:
+            frozen["w"] = rsys.w
+        B = rsys.derivative_columns([d for d, f in zip(derivatives(pmodel, p), free) if f])
         dp = np.zeros(p.size)
         dp[free] = _solve_ls(B, rsys.y, reg)
-        p_new = np.clip(p + dp, lo, hi)
-        step = np.max(np.abs(p_new - p) / np.maximum(np.abs(p), 1e-12))
-        p = p_new
-        if step < tol:
-            break
+        return Proposal(dp, float(rsys.y @ rsys.y))
+
+    # every parameter is clipped (the fixed ones too) and the change is relative to the current value
+    p = iterate(propose, p, np.arange(p.size), lo, hi, max_iter=iters, tol=tol,
+                change_ref=lambda p, p_new: np.maximum(np.abs(p), 1e-12), label="diagnosis MCI").p
+    weights = frozen["w"]
     rsys = residual_system(pmodel.structure(p), data, weights)
     return p, float(rsys.y @ rsys.y), weights

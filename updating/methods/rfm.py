@@ -39,13 +39,14 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from modalab.core.dense import use_dense
-from modalab.core.errors import ModalabValueError, NotFittedError, ShapeError
+from modalab.core.errors import ModalabValueError, NotFittedError
 from modalab.core.frf import FRF
 
 from updating.correlation.condensation import solve_columns
 from updating.correlation.receptance import MeasuredColumns, measured_columns
 from updating.fe.sensitivity import StackedDerivatives
-from updating.methods.mci import _bounds, _mats, _param_indices, dynamic_expansion
+from updating.methods.iteration import Proposal, iterate, start
+from updating.methods.mci import _mats, _param_indices, dynamic_expansion
 
 log = logging.getLogger(__name__)
 
@@ -208,43 +209,26 @@ class ResponseFunctionMethod:
             raise ModalabValueError(f"weighting={self.weighting!r}; expected 'relative' or 'none'")
         data = measured_columns(model, frf, references=self.references, bands=self.bands)
         idx = _param_indices(model, self.params)
-        p = np.array(model.p0 if p_init is None else p_init, dtype=float)
-        if p.shape != np.shape(model.p0):
-            raise ShapeError(f"p_init has shape {p.shape}; expected {np.shape(model.p0)}")
+        p, lo, hi = start(model, p_init, self.bounds)
         p_start = p.copy()
-        lo, hi = _bounds(self.bounds, p_start)
         W = self._weights(data)
         self.params_ = idx
         self.p_init_ = p_start.copy()
-        self.history_ = []
-        self.converged_ = False
-        change = np.inf
-        it = 0
         big = not use_dense(data.n, "projected")      # above: normal equations accumulated chunk by chunk
-        for it in range(1, self.max_iter + 1):
+
+        def propose(p):
             full = dynamic_expansion(model, data, p)
             N, g, cost = self._normal(model, data, full, p, idx, W, big)
-            cn = np.sqrt(np.clip(np.diag(N), 0, None))
-            cn[cn == 0] = 1.0
-            Ns = N / np.outer(cn, cn)
-            gs = g / cn
-            if self.penalty:
-                Ns = Ns + self.penalty ** 2 * np.eye(idx.size)
-                gs = gs + self.penalty ** 2 * (p_start[idx] - p[idx]) * cn
-            dp = np.linalg.lstsq(Ns, gs, rcond=None)[0] / cn
-            p_new = p.copy()
-            p_new[idx] = np.clip(p[idx] + dp, lo[idx], hi[idx])
-            ref = np.where(p_start[idx] != 0, np.abs(p_start[idx]), np.maximum(np.abs(p_new[idx]), 1e-300))
-            change = float(np.max(np.abs(p_new[idx] - p[idx]) / ref))
-            p = p_new
-            self.history_.append({"iteration": it, "p": p.copy(), "cost": cost, "max_rel_change": change})
-            log.debug("RFM iteration %d: cost %.4g, max relative change %.3g", it, cost, change)
-            if change < self.tol:
-                self.converged_ = True
-                break
+            return Proposal(self._step(N, g, p_start[idx] - p[idx]), cost)
+
+        def change_ref(p, p_new):
+            return np.where(p_start != 0, np.abs(p_start), np.maximum(np.abs(p_new), 1e-300))
+        run = iterate(propose, p, idx, lo, hi, max_iter=self.max_iter, tol=self.tol, change_ref=change_ref,
+                      label="RFM")
+        self.history_, self.converged_, it, p = run.history, run.converged, run.n_iter, run.p
         if not self.converged_:
             log.warning("response-function method did not converge in %d iterations (last change %.3g)",
-                        self.max_iter, change)
+                        self.max_iter, run.change)
         full = dynamic_expansion(model, data, p)
         N, g, cost = self._normal(model, data, full, p, idx, W, big)
         nobs = 2 * data.theta.size
@@ -253,6 +237,18 @@ class ResponseFunctionMethod:
         self.n_iter_ = it
         self.p_ = p
         return self
+
+    def _step(self, N, g, departure):
+        """The least-squares step from the normal equations, columns equilibrated, with the Tikhonov penalty
+        on the ``departure`` from the initial parameters."""
+        cn = np.sqrt(np.clip(np.diag(N), 0, None))
+        cn[cn == 0] = 1.0
+        Ns = N / np.outer(cn, cn)
+        gs = g / cn
+        if self.penalty:
+            Ns = Ns + self.penalty ** 2 * np.eye(N.shape[0])
+            gs = gs + self.penalty ** 2 * departure * cn
+        return np.linalg.lstsq(Ns, gs, rcond=None)[0] / cn
 
     def _normal(self, model, data, full, p, idx, W, big):
         if big:

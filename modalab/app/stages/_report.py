@@ -265,81 +265,14 @@ def build_report(run_dir, report_dir=None, *, project=None, title: str | None = 
         parts.append(f"<p>Data acquired with the {html.escape(str(backend))} backend.</p>")
     if use:
         parts.append(f'<p class="statement"><b>Model to use: {html.escape(use[0])}</b> — {html.escape(use[1])}.</p>')
-    # stages
     rows = [{"stage": s, "completed (UTC)": e.get("completed_utc", ""), "time [s]": float(e.get("elapsed_s", 0.0)),
              "key": e.get("key", "")[:12]} for s, e in manifest.get("stages", {}).items()]
     parts += ["<h2>Stages</h2>", _table(rows, ["stage", "completed (UTC)", "time [s]", "key"], {"time [s]": "{:.1f}"})]
     # diagnosis first: it is what people came for
-    parts.append("<h2>Diagnosis</h2>")
-    if diag:
-        parts.append(f'<p class="statement">{html.escape(diag.get("statement", ""))}</p>')
-        for f in diag.get("findings", []):
-            vals = "; ".join(f"{v['name']} = {_num(v['value'], '.4g')} ± {_num(v.get('std'), '.2g')} {v['unit']}"
-                             for v in f.get("values", []))
-            parts.append(f"<p><b>{html.escape(f.get('description', f.get('physics', '')))}</b> — {html.escape(vals)}"
-                         f"<br><i>Evidence:</i> {html.escape(f.get('evidence', ''))}</p>")
-        fit = diag.get("fit", {})
-        if fit:
-            # values may be null (no held-out DOFs; a modes-only diagnosis has no FRF error): shown as "—"
-            frows = [{"model": k, **{kk: None if vv is None else float(vv) for kk, vv in v.items()}}
-                     for k, v in fit.items()]
-            keys = [c for c in ("frf_error_train", "frf_error_held_out", "freq_error_max_pct", "mac_min")
-                    if any(r.get(c) is not None for r in frows)]
-            if keys:
-                parts += ["<p>Error of each model (" + ", ".join(_FIT_LABELS[c] for c in keys) + "):</p>",
-                          _table(frows, ["model"] + keys)]
-        parts += _selection_html(diag, _load(run_dir / "diagnose" / "selection.json"))
-        pars = diag.get("parameters", {})
-        if pars:
-            prow = [{"parameter": k, **{kk: v[kk] for kk in ("initial", "parameters_only", "updated", "std") if kk in v}}
-                    for k, v in pars.items()]
-            parts += ["<p>Parameters in the diagnosis (parameter-only updating and jointly with the physics):</p>",
-                      _table(prow, ["parameter", "initial", "parameters_only", "updated", "std"])]
-        figs = sorted((run_dir / "diagnose" / "figures").glob("*.png")) if (run_dir / "diagnose" / "figures").is_dir() else []
-        for p in figs:
-            parts.append(_fig(p, _ENGINE_FIGURES.get(p.name, p.stem.replace("_", " "))))
-    else:
-        parts.append('<p class="muted">The diagnosis stage has not run.</p>')
-    # test overview
-    parts.append("<h2>Test overview</h2>")
-    g = _geometry_figure(run_dir, rd, project)
-    if g:
-        parts.append(_fig(g, "Geometry and measured DOFs"))
-    if frf_s:
-        parts.append(f"<p>{frf_s['responses']} response DOFs × references {', '.join(frf_s['references'])}; "
-                     f"{frf_s['lines']} lines, {frf_s['band_hz'][0]:.3g}–{frf_s['band_hz'][1]:.4g} Hz; median "
-                     f"coherence {frf_s['median_coherence']:.3f}.</p>")
-    if rec and "max_rel_diff" in rec:
-        parts.append(f"<p>Reciprocity: largest relative difference between reciprocal FRFs "
-                     f"{100 * float(rec['max_rel_diff']):.1f} %.</p>")
-    parts.append(_fig(run_dir / "frf" / "coherence.png", "Coherence map"))
-    # identification
-    parts.append("<h2>Identification</h2>")
-    parts.append(_fig(run_dir / "identify" / "stabilisation.png", "Stabilisation diagram"))
-    if modes:
-        parts += ["<p>Identified modes with their indicators:</p>", _mode_table(modes)]
-    parts.append(_fig(run_dir / "identify" / "synthesis.png", "Synthesised vs measured FRFs"))
-    # correlation
-    parts.append("<h2>Correlation before and after updating</h2>")
-    parts.append(_fig(run_dir / "correlate" / "mac_before.png", "MAC, nominal model"))
-    parts.append(_fig(run_dir / "update" / "mac_after.png", "MAC, updated model"))
-    parts.append(_fig(run_dir / "correlate" / "frequencies_before.png", "Frequencies, nominal model (45° plot)"))
-    parts.append(_fig(run_dir / "update" / "frequencies_after.png", "Frequencies, updated model (45° plot)"))
-    # updating
-    parts.append("<h2>Model updating (inverse eigensensitivity)</h2>")
-    if upd:
-        if diag and diag.get("findings"):
-            parts.append("<p>Parameters only (update/updated.bdf): with physics missing from the model these values "
-                         "absorb it; the diagnosis' joint fit above is the one to trust.</p>")
-        prow = [{"parameter": k, **{kk: v[kk] for kk in ("initial", "updated", "std")}} for k, v in upd["parameters"].items()]
-        parts.append(_table(prow, ["parameter", "initial", "updated", "std"]))
-        parts.append(f"<p>{'Converged' if upd.get('converged') else 'Not converged'} after {upd.get('iterations')} "
-                     "iterations.</p>")
-    parts.append(_fig(run_dir / "update" / "convergence.png", "Parameter convergence"))
-    parts.append("<h2>FRF overlays</h2>")
-    parts.append(_fig(run_dir / "diagnose" / "frf_overlay_models.png",
-                      "Measured FRFs and the nominal, parameter-updated and diagnosed models at the chosen DOFs "
-                      "(models evaluated at s = iω + β of the measurement's exponential window)"))
+    parts += _diagnosis_section(run_dir, diag)
+    parts += _test_section(run_dir, rd, project, frf_s, rec)
+    parts += _identification_section(run_dir, modes)
+    parts += _correlation_and_update_sections(run_dir, upd, diag)
     doc = ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
            f"<title>{html.escape(name)}</title><style>{_CSS}</style></head><body>\n"
            + "\n".join(parts) + "\n</body></html>\n")
@@ -352,3 +285,83 @@ def build_report(run_dir, report_dir=None, *, project=None, title: str | None = 
                "stages": {s: {"key": e.get("key"), "elapsed_s": e.get("elapsed_s")}
                           for s, e in manifest.get("stages", {}).items()}}
     return out, write_json(rd / "summary.json", summary)
+
+
+def _diagnosis_section(run_dir, diag) -> list:
+    """The findings with their values and evidence, the error of each model, the candidate ranking, the
+    parameters and the diagnosis figures."""
+    parts = ["<h2>Diagnosis</h2>"]
+    if not diag:
+        return parts + ['<p class="muted">The diagnosis stage has not run.</p>']
+    parts.append(f'<p class="statement">{html.escape(diag.get("statement", ""))}</p>')
+    for f in diag.get("findings", []):
+        vals = "; ".join(f"{v['name']} = {_num(v['value'], '.4g')} ± {_num(v.get('std'), '.2g')} {v['unit']}"
+                         for v in f.get("values", []))
+        parts.append(f"<p><b>{html.escape(f.get('description', f.get('physics', '')))}</b> — {html.escape(vals)}"
+                     f"<br><i>Evidence:</i> {html.escape(f.get('evidence', ''))}</p>")
+    fit = diag.get("fit", {})
+    if fit:
+        # values may be null (no held-out DOFs; a modes-only diagnosis has no FRF error): shown as "—"
+        frows = [{"model": k, **{kk: None if vv is None else float(vv) for kk, vv in v.items()}}
+                 for k, v in fit.items()]
+        keys = [c for c in ("frf_error_train", "frf_error_held_out", "freq_error_max_pct", "mac_min")
+                if any(r.get(c) is not None for r in frows)]
+        if keys:
+            parts += ["<p>Error of each model (" + ", ".join(_FIT_LABELS[c] for c in keys) + "):</p>",
+                      _table(frows, ["model"] + keys)]
+    parts += _selection_html(diag, _load(run_dir / "diagnose" / "selection.json"))
+    pars = diag.get("parameters", {})
+    if pars:
+        prow = [{"parameter": k, **{kk: v[kk] for kk in ("initial", "parameters_only", "updated", "std") if kk in v}}
+                for k, v in pars.items()]
+        parts += ["<p>Parameters in the diagnosis (parameter-only updating and jointly with the physics):</p>",
+                  _table(prow, ["parameter", "initial", "parameters_only", "updated", "std"])]
+    figs = sorted((run_dir / "diagnose" / "figures").glob("*.png")) if (run_dir / "diagnose" / "figures").is_dir() else []
+    return parts + [_fig(p, _ENGINE_FIGURES.get(p.name, p.stem.replace("_", " "))) for p in figs]
+
+
+def _test_section(run_dir, rd, project, frf_s, rec) -> list:
+    """Geometry, the FRF set, reciprocity and coherence."""
+    parts = ["<h2>Test overview</h2>"]
+    g = _geometry_figure(run_dir, rd, project)
+    if g:
+        parts.append(_fig(g, "Geometry and measured DOFs"))
+    if frf_s:
+        parts.append(f"<p>{frf_s['responses']} response DOFs × references {', '.join(frf_s['references'])}; "
+                     f"{frf_s['lines']} lines, {frf_s['band_hz'][0]:.3g}–{frf_s['band_hz'][1]:.4g} Hz; median "
+                     f"coherence {frf_s['median_coherence']:.3f}.</p>")
+    if rec and "max_rel_diff" in rec:
+        parts.append(f"<p>Reciprocity: largest relative difference between reciprocal FRFs "
+                     f"{100 * float(rec['max_rel_diff']):.1f} %.</p>")
+    return parts + [_fig(run_dir / "frf" / "coherence.png", "Coherence map")]
+
+
+def _identification_section(run_dir, modes) -> list:
+    """Stabilisation diagram, the modes table and the synthesis."""
+    parts = ["<h2>Identification</h2>", _fig(run_dir / "identify" / "stabilisation.png", "Stabilisation diagram")]
+    if modes:
+        parts += ["<p>Identified modes with their indicators:</p>", _mode_table(modes)]
+    return parts + [_fig(run_dir / "identify" / "synthesis.png", "Synthesised vs measured FRFs")]
+
+
+def _correlation_and_update_sections(run_dir, upd, diag=None) -> list:
+    """MAC and frequency plots before and after updating, the updated parameters and the FRF overlays."""
+    parts = ["<h2>Correlation before and after updating</h2>",
+             _fig(run_dir / "correlate" / "mac_before.png", "MAC, nominal model"),
+             _fig(run_dir / "update" / "mac_after.png", "MAC, updated model"),
+             _fig(run_dir / "correlate" / "frequencies_before.png", "Frequencies, nominal model (45° plot)"),
+             _fig(run_dir / "update" / "frequencies_after.png", "Frequencies, updated model (45° plot)"),
+             "<h2>Model updating (inverse eigensensitivity)</h2>"]
+    if upd:
+        if diag and diag.get("findings"):
+            parts.append("<p>Parameters only (update/updated.bdf): with physics missing from the model these values "
+                         "absorb it; the diagnosis' joint fit above is the one to trust.</p>")
+        prow = [{"parameter": k, **{kk: v[kk] for kk in ("initial", "updated", "std")}} for k, v in upd["parameters"].items()]
+        parts.append(_table(prow, ["parameter", "initial", "updated", "std"]))
+        parts.append(f"<p>{'Converged' if upd.get('converged') else 'Not converged'} after {upd.get('iterations')} "
+                     "iterations.</p>")
+    parts.append(_fig(run_dir / "update" / "convergence.png", "Parameter convergence"))
+    parts.append("<h2>FRF overlays</h2>")
+    return parts + [_fig(run_dir / "diagnose" / "frf_overlay_models.png",
+                         "Measured FRFs and the nominal, parameter-updated and diagnosed models at the chosen DOFs "
+                         "(models evaluated at s = iω + β of the measurement's exponential window)")]

@@ -11,12 +11,17 @@ __all__ = ["Card"]
 
 
 def _meta():
-    return field(default=None, compare=False, repr=False)
+    return field(default=None, compare=False, repr=False, kw_only=True)
 
 
 @dataclass
 class Card:
-    """Base: source location and comment (not compared)."""
+    """Base: source location and comment (not compared; keyword-only, so every card's own fields keep their
+    positions).  ``from_raw`` fills them with :meth:`_set_meta`."""
+
+    line: int | None = _meta()
+    path: str | None = _meta()
+    comment: list | None = _meta()
 
     @property
     def name(self) -> str:

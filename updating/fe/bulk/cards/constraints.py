@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from updating.fe.bulk.cards.base import Card, _meta
+from updating.fe.bulk.cards.base import Card
 from updating.fe.bulk.cards.geometry import Grid
 
 __all__ = ["Spc", "Spc1", "Spcadd", "Rbe2"]
@@ -17,9 +17,6 @@ class Spc(Card):
     KEY = "sid"
     sid: int
     items: tuple = ()
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r):
@@ -77,9 +74,6 @@ class Spc1(Card):
     sid: int
     c: str = "123456"
     grid_ids: tuple = ()
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r):
@@ -103,9 +97,6 @@ class Spcadd(Card):
     KEY = "sid"
     sid: int
     sets: tuple = ()
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r):
@@ -129,9 +120,6 @@ class Rbe2(Card):
     cm: str
     gm: tuple = ()
     alpha: float = 0.0
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r):

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from updating.fe.bulk.cards.base import Card, _meta
+from updating.fe.bulk.cards.base import Card
 
 __all__ = ["Param", "Tabdmp1", "Eigrl"]
 
@@ -16,9 +16,6 @@ class Param(Card):
     KEY = "pname"
     pname: str
     vals: tuple = ()
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r):
@@ -47,9 +44,6 @@ class Tabdmp1(Card):
     type: str = "G"
     freq_hz: tuple = ()
     damping: tuple = ()
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r):
@@ -102,9 +96,6 @@ class Eigrl(Card):
     maxset: int | None = None
     shfscl: float | None = None
     norm: str = "MASS"
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r):

@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from updating.fe.bulk.fields import RawCard
-from updating.fe.bulk.cards.base import Card, _meta
+from updating.fe.bulk.cards.base import Card
 
 __all__ = ["Cbar", "Cbeam", "Crod", "Conrod", "Cquad4", "Ctria3"]
 
@@ -42,9 +42,6 @@ class Cbar(Card):
     pb: str = ""
     wa: tuple = (0.0, 0.0, 0.0)
     wb: tuple = (0.0, 0.0, 0.0)
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     N_MAX = 16
 
@@ -105,9 +102,6 @@ class Crod(Card):
     pid: int
     ga: int
     gb: int
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r):
@@ -140,9 +134,6 @@ class Conrod(Card):
     J: float = 0.0
     c: float = 0.0
     nsm: float = 0.0
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r):
@@ -188,9 +179,6 @@ class Cquad4(Card):
     zoffs: float = 0.0
     tflag: int = 0
     t: tuple = (None, None, None, None)
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     N_GRID = 4
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from updating.fe.bulk.fields import RawCard
-from updating.fe.bulk.cards.base import Card, _meta
+from updating.fe.bulk.cards.base import Card
 
 __all__ = ["Grid", "Coord"]
 
@@ -21,9 +21,6 @@ class Grid(Card):
     cd: int = 0
     ps: str = ""
     seid: int = 0
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r: RawCard):
@@ -57,9 +54,6 @@ class Coord(Card):
     a: tuple = (0.0, 0.0, 0.0)
     b: tuple = (0.0, 0.0, 1.0)
     c: tuple = (1.0, 0.0, 0.0)
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @property
     def name(self) -> str:

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from updating.fe.bulk.cards.base import Card, _meta
+from updating.fe.bulk.cards.base import Card
 
 __all__ = ["Mat1"]
 
@@ -26,9 +26,6 @@ class Mat1(Card):
     sc: float = 0.0
     ss: float = 0.0
     mcsid: int = 0
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r):

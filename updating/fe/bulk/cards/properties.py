@@ -5,7 +5,7 @@ from dataclasses import dataclass, field
 
 from modalab.core.errors import BulkDataError
 
-from updating.fe.bulk.cards.base import Card, _meta
+from updating.fe.bulk.cards.base import Card
 from updating.fe.bulk.cards.sections import SECTION_DIMS, section_properties
 
 __all__ = ["Pbar", "Pbarl", "Pbeam", "Pbeaml", "Prod", "Pshell", "Pelas", "Pdamp"]
@@ -28,9 +28,6 @@ class Pbar(Card):
     k1: float | None = None
     k2: float | None = None
     i12: float = 0.0
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r):
@@ -63,9 +60,6 @@ class Pbarl(Card):
     type: str = "BAR"
     dims: tuple = ()
     nsm: float = 0.0
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r):
@@ -107,9 +101,6 @@ class Pbeam(Card):
     k1: float = 1.0
     k2: float = 1.0
     tail: tuple = (0.0,) * 14     # S1 S2 NSI(A) NSI(B) CW(A) CW(B) M1(A) M2(A) M1(B) M2(B) N1(A) N2(A) N1(B) N2(B)
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r):
@@ -209,9 +200,6 @@ class Pbeaml(Card):
     group: str = "MSCBML0"
     type: str = "BAR"
     stations: tuple = ()
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r):
@@ -280,9 +268,6 @@ class Prod(Card):
     J: float = 0.0
     c: float = 0.0
     nsm: float = 0.0
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r):
@@ -311,9 +296,6 @@ class Pshell(Card):
     z1: float | None = None
     z2: float | None = None
     mid4: int | None = None
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r):
@@ -345,9 +327,6 @@ class Pelas(Card):
     k: float
     ge: float = 0.0
     s: float = 0.0
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw_all(cls, r):
@@ -369,9 +348,6 @@ class Pdamp(Card):
     KEY = "pid"
     pid: int
     b: float
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw_all(cls, r):

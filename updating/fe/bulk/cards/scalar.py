@@ -6,7 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from updating.fe.bulk.fields import REQUIRED
-from updating.fe.bulk.cards.base import Card, _meta
+from updating.fe.bulk.cards.base import Card
 
 __all__ = ["Celas1", "Cdamp1", "Celas2", "Cdamp2", "Conm2"]
 
@@ -55,9 +55,6 @@ class Celas1(_Scalar):
     pid: int
     a: tuple | None
     b: tuple | None = None
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r):
@@ -89,9 +86,6 @@ class Celas2(_Scalar):
     b: tuple | None = None
     ge: float = 0.0
     s: float = 0.0
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r):
@@ -114,9 +108,6 @@ class Cdamp2(_Scalar):
     b_value: float
     a: tuple | None
     b: tuple | None = None
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r):
@@ -144,9 +135,6 @@ class Conm2(Card):
     m: float = 0.0
     x: tuple = (0.0, 0.0, 0.0)
     inertia: tuple = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)   # I11 I21 I22 I31 I32 I33
-    line: int | None = _meta()
-    path: str | None = _meta()
-    comment: list | None = _meta()
 
     @classmethod
     def from_raw(cls, r):
