@@ -45,17 +45,26 @@ def cmd_update(a):
     if "table_before" in s:
         _print("before:\n" + s["table_before"])
         _print("after:\n" + s["table_after"])
-    for name, v in (s.get("parameters") or {}).items():
-        _print(f"{name:>20}: {parameter_change(v['initial'], v['updated'], v['std'])}")
+    if s.get("frequency_weights"):
+        _print(f"frequency weights: {s['frequency_weights']}")
     idf = s.get("identifiability")
+    for name, v in (s.get("parameters") or {}).items():
+        sd = " ± inf (not determined by these data)" if (v["std"] is None and idf
+                                                          and name in idf["std_unregularised"]) else ""
+        _print(f"{name:>20}: {parameter_change(v['initial'], v['updated'], v['std'])}{sd}")
     if idf:
+        for g, c in idf.get("residual_check", {}).items():
+            if c["std_factor"] > 1:
+                _print(f"the {g} residuals are {c['std_factor']:.3g} times their stated standard deviations "
+                       f"(chi2 {c['chi2']:.4g} for {c['dof']:.3g} degrees of freedom): the ± above are raised by that "
+                       "factor. Either the stated sigma are too small, or the model leaves out physics that the "
+                       "parameters absorb (modalab diagnose); in that case the ± do not bound the parameters' bias")
         un = ", ".join(f"{k} ± {v:.3g}" if v is not None else f"{k} ± inf"
                        for k, v in idf["std_unregularised"].items())
-        _print(f"condition number {idf['condition_number']:.3g}; unregularised std: {un}; frequency weights: "
-               f"{idf['frequency_weights']}")
+        _print(f"condition number {idf['condition_number']:.3g}; unregularised std: {un}")
         if not idf["identifiable"]:
-            _print("WARNING: the parameters are not identifiable from these data (condition number above 1e3): the "
-                   "regularised ± above reflect the regularisation, not the data")
+            _print("WARNING: the parameters are not identifiable from these data (condition number above 1e3): "
+                   "some combination of them is poorly determined, and its ± is large")
     _print(f"results in {a.output}")
     return 0
 
@@ -76,7 +85,8 @@ def register(sub):
     s.add_argument("--freq-sigma", type=float, nargs="+",
                    help="relative standard deviation of each test frequency (one value, or one per mode); default: "
                         "the covariance stored with the modes, else the standard deviations modalab identify "
-                        "stored in modes.json (freq_std_hz), else 1 %%")
+                        "stored in modes.json (freq_std_hz; for modes.uff, the modes.json of the same identify run "
+                        "beside it), else an assumed 1 %%")
     s.add_argument("--band", nargs=2, type=float, action="append", metavar=("LO", "HI"),
                    help="updating band in Hz for mci/rfm (repeatable)")
     s.add_argument("--max-iter", type=int, default=30, help="iteration limit (default 30)")

@@ -11,8 +11,8 @@ sha256 of (options, input-file hashes, the output hashes of the stages it depend
 
 * a rerun skips a stage whose key is unchanged and whose outputs are still there with the same hashes;
 * a changed option changes only the key of that stage; a downstream stage's key holds the hashes of the
-  *products* it reads (:data:`PRODUCTS`: ``session.uff``, ``frf.uff``, ``modes.uff``, ...; not figures or
-  timings), so it reruns only when those changed (the dependencies are a graph, not a chain: ``update`` and
+  *products* it reads (:data:`PRODUCTS`: ``session.uff``, ``frf.uff``, ``modes.uff``, ``modes.json``, ...; not
+  figures or timings), so it reruns only when those changed (the dependencies are a graph, not a chain: ``update`` and
   ``diagnose`` do not depend on each other; the report depends on everything);
 * a stage without a manifest entry is incomplete — an interrupted run redoes it (the acquisition itself
   resumes hit by hit through the session's store) and continues with the rest.
@@ -60,7 +60,7 @@ DEPENDS = {"acquire": (), "frf": ("acquire",), "identify": ("frf",), "correlate"
 SECTIONS = {"acquire": ("test",), "frf": ("frf", "test"), "identify": ("identify",), "correlate": ("correlate", "model"),
             "update": ("update", "model", "correlate"), "diagnose": ("diagnose", "model"), "report": ("report", "project")}
 #: the outputs downstream stages consume (their hashes enter the downstream keys; figures and timings do not)
-PRODUCTS = {"acquire": ("session.uff",), "frf": ("frf.uff",), "identify": ("modes.uff",),
+PRODUCTS = {"acquire": ("session.uff",), "frf": ("frf.uff",), "identify": ("modes.uff", "modes.json"),
             "correlate": ("correlation.json",), "update": ("updated.bdf", "update.json"),
             "diagnose": ("diagnosis.json", "diagnosed.bdf")}
 MANIFEST = "manifest.json"
@@ -315,7 +315,9 @@ def stage_update(ctx: _Context) -> tuple[list, dict]:
                                 max_iter=o["max_iter"], regularisation=o["regularisation"],
                                 use_shapes=o["use_shapes"], freq_sigma=o["freq_sigma"], shape_sigma=o["shape_sigma"],
                                 correlation=_correlate_options(ctx))
-    r = stages.update(ctx.project.bulk_path, ctx.dir("update"), opts, modes_path=ctx.out / "identify" / "modes.uff")
+    # modes.json, not modes.uff: it carries the identification's frequency standard deviations (freq_std_hz),
+    # which weight the frequencies; a UFF 55 cannot, and the update would fall back to an assumed 1 %
+    r = stages.update(ctx.project.bulk_path, ctx.dir("update"), opts, modes_path=ctx.out / "identify" / "modes.json")
     return list(r.files), r.summary
 
 

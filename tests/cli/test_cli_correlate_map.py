@@ -99,7 +99,7 @@ def test_frequency_only_set_end_to_end(case, capsys, tmp_path):
     out = capsys.readouterr().out
     assert "frequency-only test set" in out and "condition number" in out
     js = json.loads((tmp_path / "u" / "update.json").read_text())
-    assert js["identifiability"]["frequency_weights"] == "covariance of the test frequencies"
+    assert js["frequency_weights"].startswith("covariance of the test frequencies")
     for name, v in js["parameters"].items():
         sd = js["identifiability"]["std_unregularised"][name]
         assert abs(v["updated"] - 1.0) < 4 * sd, (name, v, sd)

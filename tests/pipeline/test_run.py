@@ -135,12 +135,36 @@ def test_diagnosis_finds_the_concealed_effect(demo):
     fit = d["fit"]
     assert fit["with_physics"]["frf_error_held_out"] < fit["parameters_only"]["frf_error_held_out"] \
         < fit["nominal"]["frf_error_held_out"]
-    # with the missing mass in the model, the parameters it had biased come back towards the truth
-    upd = json.loads((demo["out"] / "update" / "update.json").read_text())
+    # with the missing mass in the model, the wing parameters it had biased come back towards the truth: compared
+    # within the same fit (the diagnosis' own parameters-only fit), not across methods.  (This test used to compare
+    # rho_fuselage with the update stage's value; that held only while the update weighted every frequency with an
+    # assumed 1 %.  With the identification's sigma the update puts rho_fuselage within 0.6 % of the truth, 0.9448
+    # vs 0.95, and both diagnosis fits at 0.962-0.966: a difference between methods, and rho_fuselage is not what
+    # a wing-tip mass biases.)
     truth = dict(zip(DEMO_PARAMETERS, _ERRORS))
-    for name in ("rho_fuselage", "E_wing"):
-        assert abs(d["parameters"][name]["updated"] - truth[name]) < \
-            abs(upd["parameters"][name]["updated"] - truth[name]), name
+    for name in ("E_wing", "t_wing"):
+        v = d["parameters"][name]
+        assert abs(v["updated"] - truth[name]) < abs(v["parameters_only"] - truth[name]), (name, v)
+    err = {k: np.sqrt(np.mean([(d["parameters"][n][k] - truth[n]) ** 2 for n in DEMO_PARAMETERS]))
+           for k in ("parameters_only", "updated")}
+    assert err["updated"] < 0.6 * err["parameters_only"], err
+    # the update stage (parameters only, from the modes) absorbs the mass the same way: E_wing stays biased, and it
+    # says that its frequency residuals are far beyond the identification's sigma (the model leaves something out)
+    upd = json.loads((demo["out"] / "update" / "update.json").read_text())
+    assert abs(d["parameters"]["E_wing"]["updated"] - truth["E_wing"]) < \
+        0.2 * abs(upd["parameters"]["E_wing"]["updated"] - truth["E_wing"])
+    assert upd["identifiability"]["residual_check"]["frequency"]["std_factor"] > 10
+
+
+def test_the_update_uses_the_identifications_uncertainties_and_the_report_says_so(demo):
+    """run/demo update from modes.json (the UFF carries no frequency uncertainty): the frequencies are weighted by
+    the identification's freq_std_hz, and the report says so, and that the residuals exceed them (the demo's
+    model leaves out a mass)."""
+    upd = json.loads((demo["out"] / "update" / "update.json").read_text())
+    assert upd["frequency_weights"].startswith("relative sigma per test mode") and "modes.json" in upd["frequency_weights"]
+    html = (demo["out"] / "report" / "report.html").read_text()
+    assert "Frequency weights: relative sigma per test mode" in html
+    assert "The frequency residuals are" in html
 
 
 def test_report_says_simulated_which_model_and_the_selection(demo):

@@ -360,6 +360,14 @@ def _correlation_and_update_sections(run_dir, upd, diag=None) -> list:
         parts.append(_table(prow, ["parameter", "initial", "updated", "std"]))
         parts.append(f"<p>{'Converged' if upd.get('converged') else 'Not converged'} after {upd.get('iterations')} "
                      "iterations.</p>")
+        if upd.get("frequency_weights"):
+            parts.append(f"<p>Frequency weights: {html.escape(str(upd['frequency_weights']))}.</p>")
+        for g, c in ((upd.get("identifiability") or {}).get("residual_check") or {}).items():
+            if c.get("std_factor", 1.0) > 1:
+                parts.append(f"<p>The {html.escape(g)} residuals are {c['std_factor']:.3g} times their stated standard "
+                             "deviations: the std above are raised by that factor. Either those deviations are too "
+                             "small, or the model leaves out physics that the parameters absorb (see the diagnosis); "
+                             "then no std bounds the parameters' bias.</p>")
     parts.append(_fig(run_dir / "update" / "convergence.png", "Parameter convergence"))
     parts.append("<h2>FRF overlays</h2>")
     return parts + [_fig(run_dir / "diagnose" / "frf_overlay_models.png",

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from modalab.core.errors import PlanError
+from modalab.core.errors import ModalabError, PlanError
 from modalab.app.outputs import write_json, write_text
 from modalab.app.stages._common import StageResult, load_model, load_modes, load_parameters
 from modalab.app.stages._correlate import (CorrelateOptions, DofMapping, _correlation, _correlation_figures, _freq_err, _n_analysis,
@@ -36,7 +36,8 @@ class UpdateOptions:
     """``modalab update``: method (:data:`UPDATE_METHODS`), parameter file (default E and density per property),
     iteration limit, and for eigensensitivity the regularisation ('lcurve', 'gcv' or a number), use of mode
     shapes (never for a frequency-only test set), relative frequency standard deviation (one value or one per
-    test mode; None: the covariance stored with the modes, else their identified freq_std_hz, else 1 %) and
+    test mode; None: the covariance stored with the modes, else their identified freq_std_hz — for a UFF 55,
+    which cannot carry them, those of the modes.json identify wrote beside it — else an assumed 1 %) and
     shape standard deviation (a floor, raised per mode to the noise its complexity shows); bands (Hz) for
     mci/rfm; correlation options (DOF map, frequency window: the pairing of every method)."""
 
@@ -73,6 +74,60 @@ def _on_model_dofs(modes, dofs, dofmap):
                     "(kept in the correlation): %s", len(modes.dofs) - len(keep),
                     ", ".join(str(d) for d in modes.dofs if d not in keep))
     return modes.select_dofs(keep)
+
+
+def _same_modes(a, b) -> bool:
+    """True when two mode sets hold the same modes (frequencies, damping, DOFs and shapes as written)."""
+    if a.n_modes != b.n_modes or [str(d) for d in a.dofs] != [str(d) for d in b.dofs]:
+        return False
+    if not np.allclose(a.freq_hz, b.freq_hz, rtol=1e-9, atol=0):
+        return False
+    if (a.damping is None) != (b.damping is None) or (a.damping is not None and
+                                                       not np.allclose(a.damping, b.damping, rtol=1e-6, atol=1e-12)):
+        return False
+    if a.has_shapes != b.has_shapes:
+        return False
+    return not a.has_shapes or np.allclose(a.shapes, b.shapes, rtol=1e-6, atol=1e-12 * np.abs(b.shapes).max())
+
+
+def _sibling_uncertainty(test, modes_path):
+    """Frequency uncertainty for a UFF 55 mode set, which cannot carry it: taken from the ``modes.json`` that
+    ``modalab identify`` wrote beside it (same name, ``.json``) when that file holds the same modes (frequencies,
+    damping, DOFs, shapes: the same identification); else nothing.
+
+    Returns ``(test, source)``: the mode set with ``freq_std_hz`` (and ``freq_cov``) of the JSON, and the JSON's
+    path; or ``(test, None)`` unchanged."""
+    if test is None or modes_path is None:
+        return test, None
+    p = Path(modes_path)
+    if p.suffix.lower() not in (".uff", ".unv") or test.freq_cov is not None or \
+            (test.indicators or {}).get("freq_std_hz") is not None:
+        return test, None
+    js = p.with_suffix(".json")
+    if not js.is_file():
+        return test, None
+    from modalab.core.modes import ModeSet
+
+    try:
+        other = ModeSet.from_json(js)
+    except ModalabError as e:        # a file beside the input, not named by the user: say so, and use none
+        log.warning("%s lies beside %s but is not a modes.json of modalab identify (%s): its frequency "
+                    "uncertainties are not used", js, p, str(e).splitlines()[0] if str(e) else type(e).__name__)
+        return test, None
+    std = (other.indicators or {}).get("freq_std_hz")
+    if other.freq_cov is None and std is None:
+        return test, None
+    if not _same_modes(test, other):
+        log.warning("%s lies beside %s but holds other modes (not the same identification): its frequency "
+                    "uncertainties are not used", js, p)
+        return test, None
+    test.indicators = dict(test.indicators or {})
+    if std is not None:
+        test.indicators["freq_std_hz"] = np.asarray(std, float)
+    if other.freq_cov is not None:
+        test.freq_cov = other.freq_cov
+    log.info("frequency uncertainties of %s from %s (the same identification)", p, js)
+    return test, js
 
 
 def _freq_sigma(value, test, modes_path):
@@ -141,7 +196,10 @@ def update(model_path, out_dir, opts: UpdateOptions = UpdateOptions(), *, modes_
                 raise PlanError(f"{modes_path} holds frequencies only (no mode shapes); method {method!r} needs "
                                 "shapes: use --method eigensensitivity")
             summary["note"] = "frequency-only test set: frequencies only, modes paired by frequency order"
+    test, unc_source = _sibling_uncertainty(test, modes_path)
     fsig = _freq_sigma(opts.freq_sigma, test, modes_path)
+    if test is not None and method == "eigensensitivity":
+        summary["frequency_weights"] = _weights_text(test, fsig, opts.freq_sigma, modes_path, unc_source)
     params = lo = hi = None
     if method not in DIRECT_METHODS:              # a bad parameter file fails before anything is written
         params, lo, hi = load_parameters(opts.parameters, model)
@@ -155,7 +213,7 @@ def update(model_path, out_dir, opts: UpdateOptions = UpdateOptions(), *, modes_
         pm = ParametricFEModel(model, params)
         up = _fit_parameters(pm, opts, lo, hi, test, frf_path, mapping.dofmap, fsig)
         if opts.method == "eigensensitivity":
-            summary["identifiability"] = _identifiability(up, pm, test, fsig)
+            summary["identifiability"] = _identifiability(up, pm, summary["frequency_weights"])
         p = np.asarray(up.p_, float)
         std = np.full(p.size, np.nan)
         if getattr(up, "std_", None) is not None and np.size(up.std_) == p.size:
@@ -191,21 +249,35 @@ def update(model_path, out_dir, opts: UpdateOptions = UpdateOptions(), *, modes_
     return StageResult(summary, tuple(files), short)
 
 
-def _identifiability(up, pm, test, fsig) -> dict:
+def _identifiability(up, pm, weights_text) -> dict:
     """Condition number, identifiability and unregularised standard deviations of an eigensensitivity fit."""
     names = [pm.parameter_names[i] for i in np.atleast_1d(up.params_)]
     return {"condition_number": float(up.condition_), "identifiable": bool(up.identifiable_),
             "std_unregularised": {n: (float(v) if np.isfinite(v) else None)
                                   for n, v in zip(names, np.atleast_1d(up.std_unregularised_))},
-            "frequency_weights": _weights_text(test, fsig)}
+            "frequency_weights": weights_text,
+            "residual_check": {g: {"chi2": float(v["chi2"]), "dof": float(v["dof"]), "n": int(v["n"]),
+                                   "chi2_95": float(v["chi2_95"]) if np.isfinite(v["chi2_95"]) else None,
+                                   "std_factor": float(np.sqrt(v["factor"]))}
+                               for g, v in (getattr(up, "residual_check_", None) or {}).items()}}
 
 
-def _weights_text(test, fsig) -> str:
+def _weights_text(test, fsig, given, modes_path, source) -> str:
+    """Where the frequency weights come from, said plainly (an assumed 1 % is called an assumption)."""
+    name = Path(modes_path).name if modes_path is not None else "the test modes"
+    src = f" of {Path(source).name} beside {name}, the same identification" if source is not None else \
+        f" stored with {name}"
+    if given is not None:
+        if np.ndim(fsig) and np.size(fsig) > 1:
+            return f"relative sigma per test mode {np.min(fsig):.3g}..{np.max(fsig):.3g} (--freq-sigma)"
+        return f"relative sigma {float(fsig):g} (--freq-sigma)"
     if fsig is None:
-        return "covariance of the test frequencies" if test.freq_cov is not None else "relative sigma 0.01"
+        if test.freq_cov is not None:
+            return "covariance of the test frequencies" + src
+        return (f"relative sigma 0.01 for every test mode: an assumption, not a measurement ({name} carries no "
+                "frequency uncertainty; the modes.json of modalab identify does, or give --freq-sigma)")
     if np.ndim(fsig) and np.size(fsig) > 1:
-        return (f"relative sigma per test mode {np.min(fsig):.3g}..{np.max(fsig):.3g} (standard deviations "
-                "stored with the modes, or given)")
+        return f"relative sigma per test mode {np.min(fsig):.3g}..{np.max(fsig):.3g} (freq_std_hz{src})"
     return f"relative sigma {float(fsig):g}"
 
 
