@@ -59,6 +59,8 @@ class NidaqmxBackend:
     ``use_teds`` reads sensor sensitivities from TEDS chips instead of the plan.
     """
 
+    kind = "nidaqmx"     #: recorded with the data (session.json, UFF ID lines)
+
     def __init__(self, *, task_factory: Callable | None = None, use_teds: bool = False):
         self._nidaqmx = _import_nidaqmx()
         self._task_factory = task_factory or self._nidaqmx.Task

@@ -91,6 +91,12 @@ def _dead_channels(rec: TimeRecord) -> list[int]:
 
 
 # ---------------------------------------------------------------------------- the session
+
+def backend_kind(backend) -> str:
+    """What a DAQ backend is, for the record: its ``kind`` ('sim' for the simulated lab, 'nidaqmx' for NI
+    hardware), else its class name (a test double or a third-party backend)."""
+    return str(getattr(backend, "kind", None) or type(backend).__name__)
+
 class AcquisitionSession(_Recovery):
     """Run a test plan on a backend into a session directory.
 
@@ -136,7 +142,10 @@ class AcquisitionSession(_Recovery):
         self.max_reconnects = int(max_reconnects)
         self.check_config = check_config
         self.reconnects = 0
-        self.store = HitStore(self.out_dir, plan=plan.raw, resume=resume)
+        #: which DAQ took the data: 'sim' (the simulated lab), 'nidaqmx' (NI hardware) or the backend's class name;
+        #: in session.json, in every hit's metadata and in the exported UFF's ID lines
+        self.backend_kind = backend_kind(backend)
+        self.store = HitStore(self.out_dir, plan=plan.raw, resume=resume, backend=self.backend_kind)
         self.resume_report: list[str] = []
         if resume:
             self._check_same_plan()
@@ -237,7 +246,7 @@ class AcquisitionSession(_Recovery):
     def _take_hit(self, k: int, point: str, rec: TimeRecord, avg):
         """Label and check a new hit, add it to the running average unless a flag rejects it, and show it.
         Returns (rejecting reasons, warnings, running band-limited FRF or None)."""
-        rec.metadata = {**(rec.metadata or {}), "point": point, "point_index": k}
+        rec.metadata = {**(rec.metadata or {}), "point": point, "point_index": k, "backend": self.backend_kind}
         rec.hit_id = self.store.next_hit_id            # the id the store will give it
         self._note_peaks(rec)
         report, reasons, warns = self._check(rec)

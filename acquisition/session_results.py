@@ -145,13 +145,16 @@ def export_session(store: HitStore, plan: TestPlan, path) -> Path:
             recs.append(TimeRecord(sample_rate_hz=r.sample_rate_hz, data=r.data, dofs=r.dofs, roles=r.roles,
                                    units=r.units, sensitivity=r.sensitivity, trigger_index=r.trigger_index,
                                    overload=r.overload, hit_id=r.hit_id,
-                                   metadata={"point": (r.metadata or {}).get("point")}))
+                                   metadata={k: (r.metadata or {}).get(k) for k in ("point", "backend")
+                                             if (r.metadata or {}).get(k) is not None}))
     if recs:
         uff.write_records(tmp, recs, append=not first)
         first = False
     frf = session_frf(store, plan)
     frf.metadata = {k: frf.metadata[k] for k in ("estimator", "n_averages", "sample_rate_hz")
                     if k in frf.metadata}     # beta travels as the typed field FRF.window_beta_per_s
+    if store.backend:
+        frf.metadata["backend"] = store.backend      # sim or nidaqmx, in the FRF datasets' ID lines
     uff.write_frf(tmp, frf, append=not first)
     tmp.replace(path)
     return path

@@ -15,6 +15,38 @@ from modalab.core.errors import DaqError, ModalabError, PlanError
 __all__: list[str] = []
 
 
+def _text(v) -> str:
+    """A plan value as the user wrote it in TOML (no Python reprs)."""
+    if v is None:
+        return "(not set)"
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return f'"{v}"'
+    if isinstance(v, list):
+        return "[" + ", ".join(_text(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k} = {_text(x)}" for k, x in v.items()) + "}"
+    return f"{v:g}" if isinstance(v, float) else str(v)
+
+
+def _changes(where: str, old, new) -> list[str]:
+    """The keys that differ between two plan values, one ``acquisition.averages 3 -> 4`` each."""
+    if isinstance(old, dict) and isinstance(new, dict):
+        out = []
+        for k in list(old) + [k for k in new if k not in old]:
+            if old.get(k) != new.get(k):
+                out += _changes(f"{where}.{k}", old.get(k), new.get(k))
+        return out
+    if isinstance(old, list) and isinstance(new, list) and len(old) == len(new) and \
+            all(isinstance(x, dict) for x in old + new):
+        out = []
+        for i, (x, y) in enumerate(zip(old, new)):
+            out += _changes(f"{where}[{i + 1}]", x, y)
+        return out
+    return [f"{where} {_text(old)} -> {_text(new)}"]
+
+
 class _Stop(Exception):
     """Leave the session cleanly (device gone for good)."""
 
@@ -32,9 +64,10 @@ class _Recovery:
         for key in self.RESUME_SECTIONS:
             now = json.loads(json.dumps(self.plan.raw.get(key), default=str))
             if stored.get(key) != now:
+                changes = "; ".join(_changes(key, stored.get(key), now))
                 raise PlanError(f"the plan's [{key}] differs from the one the session in {str(self.out_dir)!r} was "
-                                f"started with ({stored.get(key)!r} then, {now!r} now); resume with the original plan "
-                                "or start a new session directory")
+                                f"started with: {changes}; resume with the original plan or start a new session "
+                                "directory")
 
     def _point_finished(self, st) -> bool:
         """A point is finished when skipped, or done with all its averages (never when a hit was lost since)."""

@@ -108,7 +108,7 @@ class PointState:
 class HitStore:
     """Append-only, fsync-ed store of hits for one session directory."""
 
-    def __init__(self, directory, *, plan: dict | None = None, resume: bool = False):
+    def __init__(self, directory, *, plan: dict | None = None, resume: bool = False, backend: str | None = None):
         self.dir = Path(directory)
         self.hits_dir = self.dir / "hits"
         self.journal_path = self.dir / "journal.jsonl"
@@ -128,10 +128,11 @@ class HitStore:
             raise StoreError(f"cannot create the session folder {str(self.dir)!r}: {e.strerror}") from None
         self.discarded: list[str] = []
         self.plan: dict = {}
+        self.backend: str | None = backend     # 'sim', 'nidaqmx' or a backend's class name (session.json)
         self.events: list[dict] = []
         self._files: dict[int, tuple[str, str]] = {}
         if not exists:
-            header = {"version": 2, "created": time.time(), "plan": plan or {}}
+            header = {"version": 2, "created": time.time(), "backend": backend, "plan": plan or {}}
             _atomic_write(self.session_path, json.dumps(header, indent=1, default=str).encode())
             self.journal_path.touch()
             _fsync_dir(self.dir)
@@ -210,6 +211,7 @@ class HitStore:
             header = None
         if header is not None:
             self.plan = header.get("plan") or {}
+            self.backend = header.get("backend")
             return
         first = next((ev for ev in self.events if ev["event"] == "session"), None)
         state = "missing" if not self.session_path.exists() else "unreadable"
@@ -220,6 +222,7 @@ class HitStore:
         header = {k: v for k, v in first.items() if k != "event"}
         _atomic_write(self.session_path, json.dumps(header, indent=1, default=str).encode())
         self.plan = header.get("plan") or {}
+        self.backend = header.get("backend")
         self.discarded.append(f"session.json was {state}; rebuilt from the journal (the plan is checked against it)")
 
     def _lose(self, ev: dict, why: str) -> None:

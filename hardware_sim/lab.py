@@ -66,6 +66,8 @@ class SimulatedLab(_HitSynthesis):
         by default the simulation returns at once.
     """
 
+    kind = "sim"         #: recorded with the data (session.json, UFF ID lines): simulated, not measured
+
     def __init__(self, structure, channels: Sequence | None = None, setup=None, *, hammer: Hammer | None = None,
                  faults: FaultConfig | None = None, rng=None, oversample: int | None = None,
                  tail_tolerance: float = 1e-7, max_synthesis_s: float = 300.0, hit_interval_s: float = 0.0,

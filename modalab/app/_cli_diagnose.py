@@ -7,14 +7,34 @@ from modalab.app.stages import DiagnoseOptions
 from modalab.app.cli import _print
 from modalab.app.stages import diagnose
 from modalab.app.campaign import diagnose_many
-from modalab.core.errors import PlanError
+from modalab.core.errors import ModalabError, PlanError
 from updating.diagnosis.library import KINDS
+
+
+def parse_kinds(values) -> tuple | None:
+    """``--kinds`` as given (space- and/or comma-separated: ``added_mass,ground_spring`` or ``added_mass
+    ground_spring``) as a sorted tuple of kinds; every misspelt item is named with its closest kind."""
+    if not values:
+        return None
+    items = [k for v in values for k in str(v).replace(",", " ").split() if k]
+    bad = []
+    for k in items:
+        try:
+            validate_kinds([k])
+        except ModalabError:
+            import difflib
+
+            m = difflib.get_close_matches(k, KINDS, n=1, cutoff=0.5) or [c for c in KINDS if k.lower() in c]
+            bad.append(f"{k} (did you mean {m[0]}?)" if m else k)
+    if bad:
+        raise PlanError(f"--kinds: unknown kind{'s' if len(bad) > 1 else ''} of missing physics {', '.join(bad)}; "
+                        f"expected some of {', '.join(KINDS)} (separated by spaces or commas)")
+    return tuple(sorted(validate_kinds(items)))
 
 
 def _options(a):
 
-
-    kinds = tuple(sorted(validate_kinds(a.kinds))) if a.kinds else None   # a misspelt kind fails before any file is read
+    kinds = parse_kinds(a.kinds)   # a misspelt kind fails before any file is read
     return DiagnoseOptions(parameters=a.params, criterion=a.criterion, dofmap=getattr(a, "map", None), kinds=kinds)
 
 
@@ -71,5 +91,6 @@ def register(sub):
     s.add_argument("--dask", help="address of an existing Dask scheduler (tcp://host:port) for campaigns")
     s.add_argument("--workers", type=int, help="local processes for campaigns (default: the number of CPUs)")
     s.add_argument("--kinds", nargs="+", metavar="KIND",
-                   help="kinds of missing physics to consider, among " + ", ".join(KINDS) + " (default: all)")
+                   help="kinds of missing physics to consider, among " + ", ".join(KINDS) + " (separated by "
+                        "spaces or commas; default: all)")
     s.set_defaults(func=cmd_diagnose)

@@ -82,6 +82,15 @@ def run_with_progress(run, again: str, *, quiet: bool = False) -> int:
     d = res.summaries.get("diagnose")
     if d:
         print(f"diagnosis: {d.get('statement')}", flush=True)
+    summary = Path(res.report).with_name("summary.json")
+    if summary.is_file():
+        import json
+
+        s = json.loads(summary.read_text())
+        if s.get("simulated"):
+            print("data: simulated (backend sim: the simulated lab, not hardware)", flush=True)
+        if s.get("model_to_use"):
+            print(f"model to use: {Path(res.out_dir) / s['model_to_use']['file']}", flush=True)
     print(f"manifest: {Path(res.out_dir) / 'manifest.json'}", flush=True)
     if res.report.is_file():
         print(f"report: {res.report}", flush=True)

@@ -12,6 +12,28 @@ from modalab.app.stages import UPDATE_METHODS
 from modalab.app._cli_correlate import add_map_arguments
 
 
+def _digits(a: float, b: float, std) -> int:
+    """Significant digits that show the change from ``a`` to ``b`` and the standard deviation (5 at least)."""
+    import math
+
+    scale = max(abs(a), abs(b))
+    if scale == 0 or not math.isfinite(scale):
+        return 5
+    steps = [abs(b - a)] + ([abs(std)] if std else [])
+    steps = [x for x in steps if x > 0 and math.isfinite(x)]
+    if not steps:
+        return 5
+    return int(min(12, max(5, math.ceil(math.log10(scale / min(steps))) + 2)))
+
+
+def parameter_change(initial, updated, std=None) -> str:
+    """``1 -> 1.00003 (+0.003 %) ± 2.91e-05``: enough digits that a small change shows."""
+    n = _digits(float(initial), float(updated), std)
+    rel = "" if initial == 0 else f" ({100 * (updated - initial) / abs(initial):+.3g} %)"
+    sd = "" if std is None else f" ± {std:.3g}"
+    return f"{initial:.{n}g} -> {updated:.{n}g}{rel}{sd}"
+
+
 def cmd_update(a):
 
     opts = UpdateOptions(method=a.method, parameters=a.params, max_iter=a.max_iter,
@@ -27,10 +49,9 @@ def cmd_update(a):
         _print(f"frequency weights: {s['frequency_weights']}")
     idf = s.get("identifiability")
     for name, v in (s.get("parameters") or {}).items():
-        sd = "" if v["std"] is None else f" ± {v['std']:.3g}"
-        if v["std"] is None and idf and name in idf["std_unregularised"]:
-            sd = " ± inf (not determined by these data)"
-        _print(f"{name:>20}: {v['initial']:.4g} -> {v['updated']:.4g}{sd}")
+        sd = " ± inf (not determined by these data)" if (v["std"] is None and idf
+                                                          and name in idf["std_unregularised"]) else ""
+        _print(f"{name:>20}: {parameter_change(v['initial'], v['updated'], v['std'])}{sd}")
     if idf:
         for g, c in idf.get("residual_check", {}).items():
             if c["std_factor"] > 1:

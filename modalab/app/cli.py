@@ -22,11 +22,12 @@ from modalab.core.errors import ModalabError
 from modalab.app.stages import SimOptions, sim
 from modalab.app.stages import FRFOptions, frf
 from modalab.core import uff
-from modalab.app.pipeline import acquire
+from modalab.app.stages import acquire
 from modalab.app._cli_console import _ConsoleObserver, _CountProgress, _print, _TerminalPrompter  # noqa: F401
 from modalab.app._cli_run import run_with_progress
 from modalab.app.demo_project import run_demo
 from modalab.core._output import check_outputs
+from modalab.core.errors import OutputError
 from modalab.core._output import protect
 
 DESCRIPTION = """\
@@ -39,21 +40,32 @@ Step by step:              modalab sim -> frf -> identify -> correlate -> update
 A whole project:           modalab run project.toml -o out  (reruns only what changed)
 
 Every command has --help, e.g. modalab identify --help."""
+#: what ``modalab demo --quick`` changes (the same words in the README; the demo's plan_quick/project_quick files)
+QUICK_HELP = ("a faster demo on the same points: 2 accepted averages per point instead of 3 (at most 3 hits instead "
+              "of 4), identification up to order 24 instead of 40, at most 10 updating iterations instead of 20")
 UNITS_EPILOG = ("Units: SI throughout - frequencies in Hz, times in s, forces in N, accelerations in m/s^2, "
                 "stiffness in N/m (N*m/rad), masses in kg; DOFs as node+direction, e.g. 12+Z.")
 
 
 # ----------------------------------------------------------------------------- commands
+def first_hit_path(output) -> Path:
+    """The figure ``modalab sim`` writes next to its UFF: ``hits.uff`` -> ``hits_first_hit.png``."""
+    p = Path(output)
+    return p.with_name(p.stem + "_first_hit.png")
+
+
 def cmd_sim(a):
 
     opts = SimOptions(structure=a.structure, points=a.points, references=a.references, hits=a.hits, seed=a.seed,
                       force_n=a.force, double_hit_probability=a.double_hits, sample_rate_hz=a.sample_rate,
                       n_samples=a.samples)
     with _CountProgress("points") as bar:
-        r = sim(a.output, opts, plot_dir=None if a.no_plot else Path(a.output).parent,
+        r = sim(a.output, opts, plot_path=None if a.no_plot else first_hit_path(a.output),
                 export_model=a.export_model, progress=bar)
     recs = r.result
     _print(f"wrote {len(recs)} hits x {recs[0].n_channels} channels to {r.files[0]}")
+    if not a.no_plot:
+        _print(f"first hit (force and responses against time): {first_hit_path(a.output)}")
     if a.export_model:
         _print("FE model and updating parameters of the structure: "
                + ", ".join(str(p) for p in r.files if Path(p).suffix in (".bdf", ".toml")))
@@ -69,6 +81,8 @@ def cmd_frf(a):
     H = r.result
     _print(f"wrote {H.n_out} x {H.n_in} {H.metadata.get('estimator', a.estimator)} FRFs "
            f"({H.n_freq} lines, {H.freq_hz[0]:g}-{H.freq_hz[-1]:g} Hz) with coherence to {r.files[0]}")
+    if H.metadata.get("backend") == "sim":
+        _print("note: the hits are simulated (backend sim), not measured")
     if plot:
         _print(f"plot: {plot}")
     return 0
@@ -184,6 +198,8 @@ def cmd_acquire(a):
     obs = _ConsoleObserver(out, live_plot=live, quiet=a.quiet)
     prompter = None if a.auto else _TerminalPrompter()
     resume_cmd = (f"modalab acquire {a.plan} --backend {a.backend} {'--auto ' if a.auto else ''}--resume -o {out}")
+    _print("backend: " + ("sim - the simulated lab (hardware_sim): the data are SIMULATED, not measured; "
+                          "--backend nidaqmx for NI hardware" if a.backend == "sim" else f"{a.backend} (NI hardware)"))
     try:
         sess, summary, exported = acquire(a.plan, out, backend=a.backend, auto=a.auto, resume=a.resume,
                                           prompter=prompter, observer=obs, seed=a.seed)
@@ -224,7 +240,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("demo", help="simulate the demo structure's hammer test end to end (no hardware)")
     s.add_argument("-o", "--output", default="modalab-demo", help="output folder (default: modalab-demo)")
-    s.add_argument("--quick", action="store_true", help="fewer points and hits (a smoke test)")
+    s.add_argument("--quick", action="store_true", help=QUICK_HELP)
     s.set_defaults(func=cmd_demo)
 
     s = sub.add_parser("sim", help="simulate a roving-hammer test into a UFF of raw hits")
@@ -238,7 +254,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--sample-rate", type=float, help="sampling rate in Hz (default 2048)")
     s.add_argument("--samples", type=int, help="samples per record (default 8192)")
     s.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
-    s.add_argument("--no-plot", action="store_true", help="do not write the hit figure")
+    s.add_argument("--no-plot", action="store_true", help="do not write the figure of the first hit (by default "
+                                                          "OUTPUT_first_hit.png next to OUTPUT, e.g. hits_first_hit.png)")
     s.add_argument("--export-model", metavar="FOLDER",
                    help="also write the simulated structure's FE model (FOLDER/model.bdf, Nastran bulk data) and "
                         "updating parameters (FOLDER/params.toml) for correlate, update and diagnose")
@@ -266,7 +283,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("acquire", help="run a test plan (impact test) on NI hardware or the simulated lab")
     s.add_argument("plan", help="test plan (TOML; see the README)")
-    s.add_argument("--backend", default="sim", choices=["sim", "nidaqmx"], help="DAQ backend (default sim)")
+    s.add_argument("--backend", default="sim", choices=["sim", "nidaqmx"],
+                   help="DAQ backend (default sim: the simulated lab; the backend is printed and recorded in "
+                        "session.json and the UFF's ID lines)")
     s.add_argument("--auto", action="store_true", help="accept automatically: best N of M hits by coherence")
     s.add_argument("--resume", action="store_true", help="continue an interrupted session in OUTPUT")
     s.add_argument("-o", "--output", required=True, help="session folder")
@@ -342,11 +361,18 @@ _IO = {
     "diagnose": (("model", "measured", "modes", "params", "map"), ("json",), ("report",)),
     "run": (("project",), (), ("output",)),
     "demo": ((), (), ("output",)),
+    "acquire": (("plan",), (), ("output",)),
 }
+#: suffixes of the files modalab reads or writes: a folder output named like one is a mistake
+#: (``update -o updated.bdf`` would make a folder ``updated.bdf``)
+_FILE_SUFFIXES = (".bdf", ".dat", ".nas", ".blk", ".uff", ".unv", ".json", ".toml", ".png", ".html", ".htm", ".csv",
+                  ".npz", ".txt", ".pdf", ".svg", ".lvm", ".h5", ".hdf5", ".mat")
+#: the option naming each output folder, by argparse attribute
+_FOLDER_FLAGS = {"output": "-o", "plots": "--plots", "report": "--report", "export_model": "--export-model"}
 #: files a command writes into its output folder (checked against its inputs)
 _WRITES_INTO = {"update": ("output", ("updated.bdf", "update.json", "updated_matrices.npz", "mac_before.png",
                                       "mac_after.png", "frequencies_after.png", "convergence.png")),
-                "diagnose": ("report", ("diagnosis.json", "diagnosed.bdf", "mci_maps.png", "frf_overlay.png"))}
+                "diagnose": ("report", ("diagnosis.json", "diagnosed.bdf", "frf_overlay_models.png"))}
 #: commands whose output folder is a resumable session/run: kept on failure unless empty
 _KEEP_FOLDER = {"run", "demo", "acquire"}
 
@@ -368,15 +394,37 @@ def _io_plan(a):
     files, folders = _values(a, files), _values(a, folders)
     if a.command == "frf" and not a.no_plot and not a.plot:
         files.append(str(Path(a.output).with_suffix(".png")))
+    if a.command == "sim" and not a.no_plot:
+        files.append(str(first_hit_path(a.output)))
     if a.command == "identify" and len(a.inputs) > 1:      # a campaign: -o names a folder
         files.remove(a.output)
         folders.append(a.output)
+    if a.command == "sim" and getattr(a, "export_model", None):
+        folders.append(a.export_model)
     return inputs, files, folders
+
+
+def _check_folder_names(a) -> None:
+    """Refuse a folder output that does not exist yet and is named like a file (``-o updated.bdf``)."""
+    ins, _, folders = _IO.get(a.command, ((), (), ()))
+    attrs = list(folders) + (["export_model"] if a.command == "sim" else [])
+    if a.command == "identify" and len(getattr(a, "inputs", ())) > 1:
+        attrs.append("output")
+    for attr in attrs:
+        v = getattr(a, attr, None)
+        if not v or os.path.lexists(v) or str(v).endswith(("/", os.sep)):     # an existing path: check_outputs
+            continue
+        suf = Path(v).suffix.lower()
+        if suf in _FILE_SUFFIXES:
+            flag = _FOLDER_FLAGS.get(attr, "--" + attr.replace("_", "-"))
+            raise OutputError(f"{flag} '{v}' names the folder this command writes into, but looks like a {suf} "
+                              f"file; give a folder name, e.g. {flag} {Path(v).with_suffix('')}/")
 
 
 def _prepare_outputs(a):
     """Refuse unsafe outputs before any work; returns the outputs this run creates (removed on failure)."""
 
+    _check_folder_names(a)
     inputs, files, folders = _io_plan(a)
     into = {}
     if a.command in _WRITES_INTO:
@@ -433,12 +481,66 @@ def _decode_failure(a, exc) -> str:
 EXIT_BROKEN_PIPE = 141
 
 
+class _LogFormatter(logging.Formatter):
+    """Log records as the user reads them: ``warning: ...`` (the module path and level name only with -v)."""
+
+    def __init__(self, verbose: int = 0):
+        super().__init__()
+        self.verbose = verbose
+
+    def format(self, record):
+        msg = record.getMessage()
+        if record.exc_info and self.verbose:
+            msg += "\n" + self.formatException(record.exc_info)
+        if self.verbose:
+            return f"{record.levelname.lower()} [{record.name}]: {msg}"
+        return f"{record.levelname.lower()}: {msg}"
+
+
+def _closest_option(parser, arg: str) -> str | None:
+    """The option of ``parser`` closest to the unknown ``arg`` (``--exp_end`` -> ``--exp-end``), or None."""
+    import difflib
+
+    opts = [o for o in parser._option_string_actions if o.startswith("--")]
+    key = arg.split("=", 1)[0]
+    norm = {o.replace("_", "-").lower(): o for o in opts}
+    if key.replace("_", "-").lower() in norm:
+        return norm[key.replace("_", "-").lower()]
+    m = difflib.get_close_matches(key, opts, n=1, cutoff=0.6)
+    return m[0] if m else None
+
+
+def _parse(parser, args):
+    """``parse_args`` whose unknown options are one line naming the command, each unknown option and the closest
+    valid option of that command (exit code 2)."""
+    a, extra = parser.parse_known_args(args)
+    if not extra:
+        return parser.parse_args(args)          # the one parse (a wrapped parse_args sees it)
+    cmd = getattr(a, "command", None)
+    sp = parser._subparsers._group_actions[0].choices.get(cmd) if cmd and parser._subparsers else None
+    target = sp or parser
+    parts = []
+    for x in extra:
+        if x.startswith("-") and len(x) > 1:
+            best = _closest_option(target, x)
+            parts.append(f"{x} (did you mean {best}?)" if best else x)
+        else:
+            parts.append(x)
+    target.print_usage(sys.stderr)
+    hint = f"see 'modalab {cmd} --help'" if cmd else "see 'modalab --help'"
+    print(f"modalab{' ' + cmd if cmd else ''}: error: unrecognized argument(s): {', '.join(parts)}; {hint}",
+          file=sys.stderr)
+    raise SystemExit(2)
+
+
 def main(args=None) -> int:
     parser = build_parser()
-    a = parser.parse_args(args)
+    a = _parse(parser, args)
     level = logging.WARNING - 10 * min(a.verbose, 2)
     if not logging.getLogger().handlers:
-        logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
+        h = logging.StreamHandler()
+        h.setFormatter(_LogFormatter(verbose=a.verbose))
+        logging.basicConfig(level=level, handlers=[h])
     if not getattr(a, "func", None):
         parser.print_help()
         return 2

@@ -28,7 +28,7 @@ from modalab.core._output import write_bytes, write_text      # the one atomic w
 
 __all__ = ["write_text", "write_bytes", "write_json", "schema", "validate", "SCHEMAS"]
 
-#: the JSON products with a schema: name -> schema file in ``modalab/schemas``
+#: the JSON products with a schema: name -> schema file in ``modalab/app/schemas``
 SCHEMAS = {"modes": "modes.schema.json", "diagnosis": "diagnosis.schema.json", "summary": "summary.schema.json"}
 
 
@@ -68,6 +68,7 @@ def validate(doc, name: str) -> None:
 
     if isinstance(doc, (str, Path)):
         doc = json.loads(Path(doc).read_text())
-    registry = Registry().with_resources(
-        (f"modalab/{SCHEMAS[n]}", Resource.from_contents(schema(n))) for n in SCHEMAS)
+    # each schema's $id is its file name and its $refs name sibling files: the registry holds them by file name
+    # (a validator reading the folder from disk resolves the same references)
+    registry = Registry().with_resources((SCHEMAS[n], Resource.from_contents(schema(n))) for n in SCHEMAS)
     jsonschema.Draft202012Validator(schema(name), registry=registry).validate(doc)

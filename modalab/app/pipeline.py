@@ -1,7 +1,7 @@
-"""Acquisition glue and file helpers of the command line (the stages themselves are in :mod:`modalab.app.stages`).
+"""File helpers of the command line (the stages themselves, acquire included, are in :mod:`modalab.app.stages`).
 
-:func:`acquire` runs a test plan on the simulated lab or NI hardware, :func:`make_sim_backend` builds the
-simulated DAQ of a plan, :func:`file_info` says what a UFF holds, :func:`demo` runs the embedded demo project;
+:func:`file_info` says what a UFF holds, :func:`demo` runs the embedded demo project; ``acquire`` and
+``make_sim_backend`` are re-exported from :mod:`modalab.app.stages._acquire`;
 ``load_model``/``load_modes`` come from :mod:`modalab.app.stages`, ``load_params`` reads a parameter file.
 """
 from __future__ import annotations
@@ -11,14 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
-from modalab.core.errors import PlanError
 from modalab.app.stages import _sim_structure, load_model, load_modes  # noqa: F401 - re-exported
+# the acquire stage lives in modalab.app.stages._acquire (one implementation); its names stay importable here
+from modalab.app.stages._acquire import acquire, make_sim_backend, _nidaqmx_backend  # noqa: F401
 from modalab.core import uff
-from hardware_sim.bench import lab_from_sim
-from acquisition.nidaqmx_backend import NidaqmxBackend
-from modalab.core.errors import DaqNotFoundError
-from acquisition.plan import load_plan
-from acquisition.session import AcquisitionSession
 from modalab.app.demo_project import run_demo
 from updating.diagnosis.workflow import default_parameters
 from updating.fe.parameter_file import read_parameter_file
@@ -32,84 +28,6 @@ __all__ = ["file_info", "make_sim_backend", "acquire", "demo", "load_model", "lo
 def file_info(path) -> dict:
 
     return uff.info(path)
-
-
-# ------------------------------------------------------------------------- acquisition
-def make_sim_backend(plan, *, seed: int | None = None):
-    """A simulated DAQ (:class:`hardware_sim.lab.SimulatedLab`) for a test plan, from the plan's ``[sim]`` section.
-
-    The keys are read by :func:`hardware_sim.bench.lab_from_sim` (listed there); ``structure`` is 'demo' or
-    a bulk-data file, loaded here.  With a ``[hammer] url = "simhammer://NAME"`` the lab's hammer is
-    automatic and the simulated serial hammer fires it.
-    """
-
-    st, _ = _sim_structure(plan.sim.get("structure", "demo"))
-    automatic = str(plan.hammer.get("url", "")).startswith("simhammer://")
-    lab = lab_from_sim(plan.sim, st, channel_names=[c.name for c in plan.channels], automatic=automatic, seed=seed,
-                       source=plan.source, dofs=list(plan.points) + plan.fixed_dofs)
-    if automatic:
-        from hardware_sim import serial_devices
-
-        serial_devices.register()
-        serial_devices.device(plan.hammer["url"]).on_fire = lab.fire
-    return lab
-
-
-def _nidaqmx_backend():
-    """The NI backend, after checking that the driver is there (a clear DaqNotFoundError otherwise)."""
-
-
-    be = NidaqmxBackend()
-    try:
-        import nidaqmx.system
-
-        nidaqmx.system.System.local().driver_version
-    except Exception as e:  # noqa: BLE001 - every failure here means: no usable driver
-        be._task = None
-        raise DaqNotFoundError(
-            f"the NI-DAQmx driver is not available on this machine ({str(e).splitlines()[0] if str(e) else e}). "
-            "Install NI-DAQmx (https://www.ni.com/en/support/downloads/drivers/download.ni-daq-mx.html) "
-            "or run with --backend sim to use the simulated lab") from None
-    return be
-
-
-def acquire(plan_path, out_dir, *, backend: str = "sim", auto: bool = False, resume: bool = False,
-            prompter=None, observer=None, seed: int | None = None, **session_kw):
-    """Run ``modalab acquire``: returns (session, summary, exported UFF path or None).
-
-    ``backend`` is 'sim' (the plan's ``[sim]`` section, :func:`make_sim_backend`), 'nidaqmx' or a ready
-    backend object.  Interactive mode (``auto=False``) needs a ``prompter``.  The UFF is exported when
-    every point is finished.  Extra keywords go to :class:`acquisition.session.AcquisitionSession`.
-    """
-
-    plan = load_plan(plan_path)
-    if backend == "sim":
-        be = make_sim_backend(plan, seed=seed)
-    elif backend == "nidaqmx":
-        be = _nidaqmx_backend()
-    elif isinstance(backend, str):
-        raise PlanError(f"backend {backend!r}; expected 'sim' or 'nidaqmx'")
-    else:
-        be = backend
-    hammer = None
-    if plan.hammer.get("url"):
-        from acquisition.instruments import AutoHammer, LineTransport
-
-        if plan.hammer["url"].startswith("sim"):
-            from hardware_sim import serial_devices
-
-            serial_devices.register()
-        hammer = AutoHammer(LineTransport.from_url(plan.hammer["url"], timeout=2.0))
-    try:
-        sess = AcquisitionSession(plan, be, out_dir, mode="auto" if auto else "interactive", prompter=prompter,
-                                  hammer=hammer, observer=observer, resume=resume, **session_kw)
-        summary = sess.run()
-        exported = sess.export() if summary.complete and any(p.accepted for p in summary.points) else None
-    finally:
-        be.close()
-        if hammer is not None:
-            hammer.t.close()
-    return sess, summary, exported
 
 
 # ------------------------------------------------------------------------- the demo

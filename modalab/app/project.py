@@ -157,6 +157,19 @@ def _read_toml(path: Path, what: str) -> dict:
         raise PlanError(f"{what} {str(path)!r} is not valid TOML: {e}") from None
 
 
+def _unknown(what: str, bad: list, valid: list) -> str:
+    """``unknown key max_ordr (did you mean max_order?); expected one of band_hz, max_order, ...``: each unknown
+    name with its closest valid name (difflib), the valid names as plain text."""
+    import difflib
+
+    items = []
+    for b in bad:
+        m = difflib.get_close_matches(b, list(valid), n=1, cutoff=0.6)
+        items.append(f"{b} (did you mean {m[0]}?)" if m else b)
+    return (f"unknown {what}{'s' if len(bad) > 1 else ''} {', '.join(items)}; expected one of "
+            f"{', '.join(sorted(valid))}")
+
+
 def load_project(path) -> Project:
     """Read and validate a project file (see the module docstring); fills in every default."""
     path = Path(path).resolve()
@@ -164,7 +177,7 @@ def load_project(path) -> Project:
     src = str(path)
     unknown = set(raw) - set(STAGE_OPTIONS)
     if unknown:
-        raise PlanError(f"{src}: unknown section(s) {sorted(unknown)}; expected some of {sorted(STAGE_OPTIONS)}")
+        raise PlanError(f"{src}: {_unknown('section', [f'[{u}]' for u in sorted(unknown)], [f'[{k}]' for k in STAGE_OPTIONS])}")
     opts = {}
     for sec, spec in STAGE_OPTIONS.items():
         given = raw.get(sec, {})
@@ -172,7 +185,7 @@ def load_project(path) -> Project:
             raise PlanError(f"{src}: [{sec}] must be a table of keys")
         bad = set(given) - set(spec)
         if bad:
-            raise PlanError(f"{src}: [{sec}] unknown key(s) {sorted(bad)}; expected some of {sorted(spec)}")
+            raise PlanError(f"{src}: [{sec}] {_unknown('key', sorted(bad), sorted(spec))}")
         o = {}
         for key, (kind, default) in spec.items():
             o[key] = _check_type(src, sec, key, given[key], kind) if key in given else default

@@ -1,36 +1,23 @@
-"""The report of ``modalab run``: ONE self-contained HTML file plus a JSON summary.
+"""The figures the stages draw for the report of ``modalab run``.
 
-:func:`build_report` reads what the stages wrote into the run folder (``frf/``, ``identify/``,
-``correlate/``, ``update/``, ``diagnose/``) and writes ``report/report.html`` — every figure embedded as
-a base64 PNG ``data:`` URI, the style inline, no script, no external resource of any kind — and
-``report/summary.json`` (the numbers of every section).  Sections: test overview (geometry with the
-measured DOFs, coherence map, reciprocity), stabilisation diagram, mode table with indicators, MAC before
-and after updating, frequency 45° plots, FRF overlays at the chosen DOFs, MCI maps, parameter
-convergence, the diagnosis statement and its evidence.  A section whose stage did not run says so.
-
-The plotting helpers used by the stages live here too (:func:`plot_coherence_map`,
-:func:`plot_convergence`, :func:`plot_mci_maps`, :func:`plot_frf_overlays`); they write PNG files with
+The report itself (``report.html``, ``summary.json``) is the report stage, :mod:`modalab.app.stages._report`
+(:func:`build_report` is importable from here too).  The plotting helpers used by the stages live here (:func:`plot_coherence_map`,
+:func:`plot_convergence`, :func:`plot_frf_overlays`; the MCI maps are the diagnosis engine's,
+:mod:`updating.diagnosis.report`); they write PNG files with
 matplotlib's object API (no pyplot state, safe headless).
 """
 from __future__ import annotations
 
-import base64
-import datetime as _dt
-import html
-import json
 import logging
 from pathlib import Path
 
 import numpy as np
 
 from modalab.core.errors import ModalabValueError
-from modalab.app.outputs import write_json, write_text
-from modalab.core import uff
-from modalab.core.plots import plot_geometry
 
 log = logging.getLogger(__name__)
 
-__all__ = ["build_report", "plot_coherence_map", "plot_convergence", "plot_mci_maps", "plot_frf_overlays",
+__all__ = ["build_report", "plot_coherence_map", "plot_convergence", "plot_frf_overlays",
            "embed_png"]
 
 
@@ -89,31 +76,9 @@ def plot_convergence(history, names, path) -> Path:
     return _save(fig, path)
 
 
-def plot_mci_maps(maps: dict, path) -> Path:
-    """Condensed force residual |r| (MCI map) per measured DOF and line: after parameter updating and after
-    the diagnosis' augmentation, on the same colour scale."""
-    f = np.asarray(maps["freq_hz"], float)
-    resp = list(maps["responses"])
-    before = np.asarray(maps["before"], float)
-    after = np.asarray(maps.get("after", before), float)
-    vmax = float(np.nanmax(before)) if before.size else 1.0
-    fig = _figure(7.5, 1.5 + 0.2 * len(resp) * 2)
-    axes = fig.subplots(2, 1)
-    im = None
-    for ax, m, t in ((axes[0], before, "after parameter updating"), (axes[1], after, "with the diagnosed physics")):
-        im = ax.imshow(m, aspect="auto", origin="lower", cmap="magma", vmin=0.0, vmax=vmax,
-                       extent=(0, len(f), -0.5, len(resp) - 0.5), interpolation="nearest")
-        ax.set_yticks(range(len(resp)), resp, fontsize=6)
-        ticks = np.linspace(0, len(f) - 1, min(8, len(f))).astype(int)
-        ax.set_xticks(ticks + 0.5, [f"{f[i]:.1f}" for i in ticks], fontsize=7)
-        ax.set_title(f"MCI map {t}", fontsize=9)
-    axes[-1].set_xlabel("frequency line [Hz] (lines used by the diagnosis)")
-    fig.colorbar(im, ax=list(axes), label="|residual force| / σ", shrink=0.8)
-    return _save(fig, path)
-
-
-def plot_frf_overlays(curves: dict, path, *, responses, reference) -> Path:
-    """|H| of several FRF sets (name -> FRF) at the given responses and one reference, one panel each."""
+def plot_frf_overlays(curves: dict, path, *, responses, reference, beta: float = 0.0) -> Path:
+    """|H| of several FRF sets (name -> FRF) at the given responses and one reference, one panel each;
+    ``beta``: the exponential window's decay rate (1/s) the data and the model curves share (in the title)."""
     fig = _figure(7, 2.2 * len(responses) + 0.6)
     axes = fig.subplots(len(responses), 1, squeeze=False)[:, 0]
     styles = {"measured": dict(color="k", lw=1.2), "nominal": dict(color="tab:gray", ls=":", lw=1.2)}
@@ -128,237 +93,11 @@ def plot_frf_overlays(curves: dict, path, *, responses, reference) -> Path:
         ax.set_ylabel(f"|H| {r}/{reference}", fontsize=8)
         ax.grid(True, which="both", lw=0.3)
     axes[0].legend(fontsize=7)
-    axes[0].set_title("FRF overlays (accelerance, m/s²/N)")
+    axes[0].set_title("FRF overlays (accelerance, m/s²/N)" + (
+        f"; exponential window β = {beta:.3g} 1/s on data and models (s = iω + β)" if beta else ""), fontsize=9)
     axes[-1].set_xlabel("frequency [Hz]")
     return _save(fig, path)
 
 
-# ----------------------------------------------------------------------------- HTML
-def embed_png(path) -> str:
-    """An ``<img>`` whose source is the PNG itself (base64 data URI)."""
-    data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
-    alt = html.escape(Path(path).stem.replace("_", " "))
-    return f'<img src="data:image/png;base64,{data}" alt="{alt}">'
-
-
-_CSS = """
-body{font-family:system-ui,-apple-system,'Segoe UI',sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;
-color:#222;line-height:1.45}
-h1{font-size:1.6em;border-bottom:2px solid #345;padding-bottom:.2em}
-h2{font-size:1.25em;margin-top:2em;border-bottom:1px solid #bbb}
-table{border-collapse:collapse;font-size:.85em;margin:.6em 0}
-td,th{border:1px solid #ccc;padding:.2em .5em;text-align:right}
-th{background:#eef}
-td.l,th.l{text-align:left}
-img{max-width:100%;height:auto;display:block;margin:.5em 0}
-.statement{background:#f5f8ff;border-left:4px solid #36c;padding:.6em 1em}
-.muted{color:#777}
-figure{margin:0 0 1em 0}
-figcaption{font-size:.85em;color:#555}
-"""
-
-
-def _fig(path, caption: str) -> str:
-    p = Path(path)
-    if not p.is_file():
-        return f'<p class="muted">({html.escape(caption)}: not available)</p>'
-    return f"<figure>{embed_png(p)}<figcaption>{html.escape(caption)}</figcaption></figure>"
-
-
-def _table(rows: list, cols: list, fmt=None) -> str:
-    fmt = fmt or {}
-    h = "".join(f"<th>{html.escape(str(c))}</th>" for c in cols)
-    body = []
-    for r in rows:
-        cells = []
-        for c in cols:
-            v = r.get(c, "")
-            if v is None:                   # a value the stage could not give (JSON null): say so, never 0
-                v = "—"
-            elif isinstance(v, float):
-                v = fmt.get(c, "{:.4g}").format(v)
-            cells.append(f'<td class="{"l" if isinstance(v, str) and not v[:1].isdigit() else ""}">'
-                         f"{html.escape(str(v))}</td>")
-        body.append("<tr>" + "".join(cells) + "</tr>")
-    return f"<table><tr>{h}</tr>{''.join(body)}</table>"
-
-
-_FIT_LABELS = {"frf_error_train": "FRF error on the training DOFs", "frf_error_held_out": "on held-out DOFs",
-               "freq_error_max_pct": "largest frequency error [%]", "mac_min": "lowest MAC"}
-
-
-def _num(v, fmt: str) -> str:
-    """A number formatted, or "—" for a value the stage could not give (None)."""
-    return "—" if v is None else format(float(v), fmt)
-
-
-def _load(path):
-    p = Path(path)
-    if not p.is_file():
-        return None
-    try:
-        return json.loads(p.read_text())
-    except json.JSONDecodeError as e:         # a damaged output is not "the stage has not run"
-        raise ModalabValueError(f"'{p}' line {e.lineno}: not valid JSON ({e.msg}); it is a stage output that was "
-                                f"changed or cut: rerun that stage (modalab run ... --from {p.parent.name})") from None
-
-
-def _geometry_figure(run_dir: Path, report_dir: Path, project=None) -> Path | None:
-    """The FE model's wire frame (when the project is known) with the measured DOFs of the test."""
-
-    frf_path = run_dir / "frf" / "frf.uff"
-    if not frf_path.is_file():
-        return None
-    coords, lines = {}, []
-    try:
-        coords = dict(uff.read_geometry(frf_path))
-    except Exception:  # noqa: BLE001 - FRFs without geometry
-        coords = {}
-    if project is not None:
-        try:
-            from updating.fe.bulk import read_bdf
-            from updating.fe.bulk.build import build_model
-
-            m = build_model(read_bdf(project.bulk_path))
-            for nid, n in m.nodes.items():
-                coords.setdefault(nid, tuple(float(x) for x in n.xyz))
-            lines = [tuple(e.nodes[:2]) for e in m.elements.values() if len(getattr(e, "nodes", ())) >= 2]
-            lines += [(r.independent, d) for r in m.rbe2s.values() for d in r.dependents]
-        except Exception as e:  # noqa: BLE001 - the wire frame is a nicety
-            log.info("no wire frame in the geometry plot: %s", e)
-    if not coords:
-        return None
-    frf = uff.read_frf(frf_path)
-    dofs = list(dict.fromkeys(list(frf.responses) + list(frf.references)))
-    path = report_dir / "geometry.png"
-    fig = plot_geometry(coords, dofs=dofs, lines=lines, title="Test geometry: FE model and measured DOFs (arrows)")
-    fig.savefig(path, dpi=90, metadata={"Software": None})
-    return path
-
-
-def build_report(run_dir, report_dir=None, *, project=None, title: str | None = None) -> tuple[Path, Path]:
-    """Write ``report.html`` (self-contained) and ``summary.json`` into ``report_dir``; returns both paths."""
-    run_dir = Path(run_dir)
-    rd = Path(report_dir) if report_dir is not None else run_dir / "report"
-    rd.mkdir(parents=True, exist_ok=True)
-    name = title or (project.options["report"]["title"] if project and project.options["report"]["title"]
-                     else (project.name if project else run_dir.name))
-    frf_s = _load(run_dir / "frf" / "frf.json")
-    rec = _load(run_dir / "frf" / "reciprocity.json")
-    modes = (_load(run_dir / "identify" / "modes.json") or {}).get("table")
-    ident = _load(run_dir / "identify" / "identification.json")
-    corr = _load(run_dir / "correlate" / "correlation.json")
-    upd = _load(run_dir / "update" / "update.json")
-    diag = _load(run_dir / "diagnose" / "diagnosis.json")
-    manifest = _load(run_dir / "manifest.json") or {"stages": {}}
-    parts = [f"<h1>{html.escape(name)}</h1>",
-             f'<p class="muted">modalab run report, {_dt.datetime.now(_dt.timezone.utc):%Y-%m-%d %H:%M} UTC. '
-             "Every figure is embedded in this file.</p>"]
-    rows = [{"stage": s, "completed (UTC)": e.get("completed_utc", ""), "time [s]": float(e.get("elapsed_s", 0.0)),
-             "key": e.get("key", "")[:12]} for s, e in manifest.get("stages", {}).items()]
-    parts += ["<h2>Stages</h2>", _table(rows, ["stage", "completed (UTC)", "time [s]", "key"], {"time [s]": "{:.1f}"})]
-    # diagnosis first: it is what people came for
-    parts += _diagnosis_section(run_dir, diag)
-    parts += _test_section(run_dir, rd, project, frf_s, rec)
-    parts += _identification_section(run_dir, modes)
-    parts += _correlation_and_update_sections(run_dir, upd)
-    doc = ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
-           f"<title>{html.escape(name)}</title><style>{_CSS}</style></head><body>\n"
-           + "\n".join(parts) + "\n</body></html>\n")
-    out = rd / "report.html"
-    write_text(out, doc)
-    summary = {"title": name, "frf": frf_s, "reciprocity": {"max_rel_diff": (rec or {}).get("max_rel_diff")},
-               "modes": modes, "identification": {k: (ident or {}).get(k) for k in ("settings", "elapsed_s")},
-               "correlation_before": corr, "update": upd, "diagnosis": diag,
-               "stages": {s: {"key": e.get("key"), "elapsed_s": e.get("elapsed_s")}
-                          for s, e in manifest.get("stages", {}).items()}}
-    return out, write_json(rd / "summary.json", summary)
-
-
-def _diagnosis_section(run_dir, diag) -> list:
-    """The findings with their values and evidence, the error of each model, the candidate ranking, the
-    parameters and the diagnosis figures."""
-    parts = ["<h2>Diagnosis</h2>"]
-    if not diag:
-        return parts + ['<p class="muted">The diagnosis stage has not run.</p>']
-    parts.append(f'<p class="statement">{html.escape(diag.get("statement", ""))}</p>')
-    for f in diag.get("findings", []):
-        vals = "; ".join(f"{v['name']} = {_num(v['value'], '.4g')} ± {_num(v.get('std'), '.2g')} {v['unit']}"
-                         for v in f.get("values", []))
-        parts.append(f"<p><b>{html.escape(f.get('description', f.get('physics', '')))}</b> — {html.escape(vals)}"
-                     f"<br><i>Evidence:</i> {html.escape(f.get('evidence', ''))}</p>")
-    fit = diag.get("fit", {})
-    if fit:
-        # values may be null (no held-out DOFs; a modes-only diagnosis has no FRF error): shown as "—"
-        frows = [{"model": k, **{kk: None if vv is None else float(vv) for kk, vv in v.items()}}
-                 for k, v in fit.items()]
-        keys = [c for c in ("frf_error_train", "frf_error_held_out", "freq_error_max_pct", "mac_min")
-                if any(r.get(c) is not None for r in frows)]
-        if keys:
-            parts += ["<p>Error of each model (" + ", ".join(_FIT_LABELS[c] for c in keys) + "):</p>",
-                      _table(frows, ["model"] + keys)]
-    rk = diag.get("ranking", [])
-    if rk:
-        parts += ["<p>Candidate physics ranked by the share of the residual each explains alone:</p>",
-                  _table(rk[:8], ["candidate", "physics", "explained"])]
-    pars = diag.get("parameters", {})
-    if pars:
-        prow = [{"parameter": k, **{kk: v[kk] for kk in ("initial", "parameters_only", "updated", "std") if kk in v}}
-                for k, v in pars.items()]
-        parts += ["<p>Parameters in the diagnosis (parameter-only updating and jointly with the physics):</p>",
-                  _table(prow, ["parameter", "initial", "parameters_only", "updated", "std"])]
-    parts.append(_fig(run_dir / "diagnose" / "mci_maps.png",
-                      "MCI maps: condensed residual force per measured DOF and frequency line"))
-    figs = sorted((run_dir / "diagnose" / "figures").glob("*.png")) if (run_dir / "diagnose" / "figures").is_dir() else []
-    return parts + [_fig(p, p.stem.replace("_", " ")) for p in figs]
-
-
-def _test_section(run_dir, rd, project, frf_s, rec) -> list:
-    """Geometry, the FRF set, reciprocity and coherence."""
-    parts = ["<h2>Test overview</h2>"]
-    g = _geometry_figure(run_dir, rd, project)
-    if g:
-        parts.append(_fig(g, "Geometry and measured DOFs"))
-    if frf_s:
-        parts.append(f"<p>{frf_s['responses']} response DOFs × references {', '.join(frf_s['references'])}; "
-                     f"{frf_s['lines']} lines, {frf_s['band_hz'][0]:.3g}–{frf_s['band_hz'][1]:.4g} Hz; median "
-                     f"coherence {frf_s['median_coherence']:.3f}.</p>")
-    if rec and "max_rel_diff" in rec:
-        parts.append(f"<p>Reciprocity: largest relative difference between reciprocal FRFs "
-                     f"{100 * float(rec['max_rel_diff']):.1f} %.</p>")
-    return parts + [_fig(run_dir / "frf" / "coherence.png", "Coherence map")]
-
-
-def _identification_section(run_dir, modes) -> list:
-    """Stabilisation diagram, the modes table and the synthesis."""
-    parts = ["<h2>Identification</h2>", _fig(run_dir / "identify" / "stabilisation.png", "Stabilisation diagram")]
-    if modes:
-        cols = ["mode", "freq_hz", "damping_pct"] + [c for c in modes[0] if c not in ("mode", "freq_hz", "damping_pct")]
-        parts += ["<p>Identified modes with their indicators:</p>", _table(modes, cols, {"freq_hz": "{:.3f}"})]
-    return parts + [_fig(run_dir / "identify" / "synthesis.png", "Synthesised vs measured FRFs")]
-
-
-def _correlation_and_update_sections(run_dir, upd) -> list:
-    """MAC and frequency plots before and after updating, the updated parameters and the FRF overlays."""
-    parts = ["<h2>Correlation before and after updating</h2>",
-             _fig(run_dir / "correlate" / "mac_before.png", "MAC, nominal model"),
-             _fig(run_dir / "update" / "mac_after.png", "MAC, updated model"),
-             _fig(run_dir / "correlate" / "frequencies_before.png", "Frequencies, nominal model (45° plot)"),
-             _fig(run_dir / "update" / "frequencies_after.png", "Frequencies, updated model (45° plot)"),
-             "<h2>Model updating (inverse eigensensitivity)</h2>"]
-    if upd:
-        prow = [{"parameter": k, **{kk: v[kk] for kk in ("initial", "updated", "std")}} for k, v in upd["parameters"].items()]
-        parts.append(_table(prow, ["parameter", "initial", "updated", "std"]))
-        parts.append(f"<p>{'Converged' if upd.get('converged') else 'Not converged'} after {upd.get('iterations')} "
-                     "iterations.</p>")
-        if upd.get("frequency_weights"):
-            parts.append(f"<p>Frequency weights: {html.escape(str(upd['frequency_weights']))}.</p>")
-        for g, c in ((upd.get("identifiability") or {}).get("residual_check") or {}).items():
-            if c.get("std_factor", 1.0) > 1:
-                parts.append(f"<p>The {html.escape(g)} residuals are {c['std_factor']:.3g} times their stated standard "
-                             "deviations: the std above are raised by that factor. Either those deviations are too "
-                             "small, or the model leaves out physics that the parameters absorb (see the diagnosis); "
-                             "then no std bounds the parameters' bias.</p>")
-    parts.append(_fig(run_dir / "update" / "convergence.png", "Parameter convergence"))
-    parts.append("<h2>FRF overlays</h2>")
-    return parts + [_fig(run_dir / "diagnose" / "frf_overlay.png", "Measured and model FRFs at chosen DOFs")]
+# the report stage's one implementation (imported last: the stages import the figure helpers above)
+from modalab.app.stages._report import build_report, embed_png  # noqa: E402

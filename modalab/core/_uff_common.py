@@ -53,7 +53,7 @@ _LABEL_SI = {
 _SPEC_SI = {8: "m", 11: "m/s", 12: "m/s^2", 13: "N", 9: "N"}
 
 
-_META_KEYS = ("estimator", "n_averages", "exp_window_beta", "force_window")
+_META_KEYS = ("backend", "estimator", "n_averages", "exp_window_beta", "force_window")
 
 
 # ----------------------------------------------------------------------------- helpers

@@ -119,7 +119,7 @@ def test_cli_acquire_bad_input_is_one_line_exit_2(tmp_path, capsys, case):
     else:
         (tmp_path / "f").write_text("precious")
         out = tmp_path / "f" / "s"
-        expect = "cannot create the session folder"
+        expect = "is a file, not a folder"      # refused before the session starts, as for every verb
     code = main(["acquire", str(plan), "--backend", "sim", "--auto", "--quiet", "-o", str(out)])
     cap = capsys.readouterr()
     assert code == 2

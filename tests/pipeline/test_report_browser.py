@@ -18,8 +18,8 @@ import pytest
 
 from modalab.core import uff
 from modalab.core.frf import FRF
-from modalab.app.report import (build_report, plot_coherence_map, plot_convergence, plot_frf_overlays,
-                            plot_mci_maps)
+from modalab.app.report import build_report, plot_coherence_map, plot_convergence, plot_frf_overlays
+from updating.diagnosis.report import mci_maps_figure
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
 
@@ -71,10 +71,11 @@ def run_dir(tmp_path_factory):
     (d / "update" / "update.json").write_text(json.dumps({"parameters": {
         "E_wing": {"initial": 1.0, "updated": 1.04, "std": 0.01}, "t_fin": {"initial": 1.0, "updated": 0.97, "std": 0.02}},
         "converged": True, "iterations": 2}))
-    (d / "diagnose").mkdir()
-    plot_mci_maps({"freq_hz": frf.freq_hz[:50], "responses": frf.responses, "before": np.random.default_rng(1).random((4, 50)),
-                   "after": 0.1 * np.random.default_rng(2).random((4, 50))}, d / "diagnose" / "mci_maps.png")
-    plot_frf_overlays({"measured": frf, "nominal": frf}, d / "diagnose" / "frf_overlay.png",
+    (d / "diagnose" / "figures").mkdir(parents=True)
+    mci_maps_figure({"freq_hz": frf.freq_hz[:50], "responses": frf.responses,
+                     "before": np.random.default_rng(1).random((4, 50)),
+                     "after": 0.1 * np.random.default_rng(2).random((4, 50))}, d / "diagnose" / "figures" / "mci_maps.png")
+    plot_frf_overlays({"measured": frf, "nominal": frf}, d / "diagnose" / "frf_overlay_models.png",
                       responses=frf.responses[:2], reference=frf.references[0])
     (d / "diagnose" / "diagnosis.json").write_text(json.dumps({
         "statement": "The test article carries mass the model leaves out <at> node 4 & more.",

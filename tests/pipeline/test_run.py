@@ -83,8 +83,8 @@ def test_end_to_end_artifacts_and_manifest(demo):
     assert all(res.status[s] == "ran" for s in STAGES), res.status
     for rel in ("acquire/session.uff", "frf/frf.uff", "frf/coherence.png", "identify/modes.uff",
                 "identify/stabilisation.png", "correlate/mac_before.png", "update/updated.bdf", "update/mac_after.png",
-                "update/convergence.png", "diagnose/diagnosis.json", "diagnose/diagnosed.bdf", "diagnose/mci_maps.png",
-                "diagnose/frf_overlay.png", "report/report.html", "report/summary.json"):
+                "update/convergence.png", "diagnose/diagnosis.json", "diagnose/diagnosed.bdf", "diagnose/figures/mci_maps.png",
+                "diagnose/frf_overlay_models.png", "diagnose/selection.json", "report/report.html", "report/summary.json"):
         assert (out / rel).is_file(), rel
     man = json.loads((out / "manifest.json").read_text())
     assert list(man["stages"]) == list(STAGES)
@@ -167,6 +167,26 @@ def test_the_update_uses_the_identifications_uncertainties_and_the_report_says_s
     assert "The frequency residuals are" in html
 
 
+def test_report_says_simulated_which_model_and_the_selection(demo):
+    """Issue 14: simulated data are said so (session.json, UFF ID lines, summary.json, the report); the report
+    names the model to use; the selected term is shown with its rank; damping columns in %; each file has one
+    writer (the engine's figures in figures/, the stage's overlay under its own name)."""
+    out = demo["out"]
+    assert json.loads((out / "acquire" / "session" / "session.json").read_text())["backend"] == "sim"
+    assert b'"backend":"sim"' in (out / "acquire" / "session.uff").read_bytes()
+    assert b'"backend":"sim"' in (out / "frf" / "frf.uff").read_bytes()
+    s = json.loads((out / "report" / "summary.json").read_text())
+    assert s["backend"] == "sim" and s["simulated"] is True
+    assert s["model_to_use"]["file"] == "diagnose/diagnosed.bdf" and "parameters-only" in s["model_to_use"]["why"]
+    text = (out / "report" / "report.html").read_text(encoding="utf-8")
+    assert "<b>Simulated data.</b>" in text and "Model to use: diagnose/diagnosed.bdf" in text
+    sel = json.loads((out / "diagnose" / "selection.json").read_text())
+    assert any("218" in t["candidate"] for t in sel["selected"])
+    assert "Selected terms" in text and "point mass at node 218" in text.split("Selected terms")[1][:2000]
+    assert "σ ζ [%]" in text and "damping_std" not in text and "MPD [°]" in text and "χ² ratio" in text
+    assert not (out / "diagnose" / "mci_maps.png").exists() and not (out / "diagnose" / "frf_overlay.png").exists()
+
+
 def _conclusions(out: Path) -> dict:
     """What a run concludes: identified modes, pairs, updated parameters and findings (node, value)."""
     modes = json.loads((out / "identify" / "modes.json").read_text())
@@ -205,6 +225,8 @@ def test_run_command_prints_a_line_per_stage_and_the_report_last(demo, capsys):
     assert all("up to date" in ln for ln in lines[:len(STAGES) - 1])
     assert re.fullmatch(r"\[7/7\] report +done in \d+\.\d s", lines[len(STAGES) - 1])
     assert lines[-1] == f"report: {demo['out'] / 'report' / 'report.html'}"
+    assert "data: simulated (backend sim: the simulated lab, not hardware)" in lines
+    assert f"model to use: {demo['out'] / 'diagnose' / 'diagnosed.bdf'}" in lines
 
 
 def test_ctrl_c_during_run_says_how_to_continue(tmp_path):
@@ -278,7 +300,7 @@ def test_project_validation_names_the_problem(tmp_path):
     with pytest.raises(PlanError, match="missing.bdf"):
         load_project(d / "bad1.toml")
     (d / "bad2.toml").write_text(text.replace("[identify]", "[identify]\nbandwidth = 3"))
-    with pytest.raises(PlanError, match=r"\[identify\] unknown key\(s\) \['bandwidth'\]"):
+    with pytest.raises(PlanError, match=r"\[identify\] unknown key bandwidth \(did you mean band_hz\?\); expected one of band_hz, "):
         load_project(d / "bad2.toml")
     (d / "bad3.toml").write_text(text.replace("band_hz = [2.0, 80.0]", "band_hz = [80.0, 2.0]", 1))
     with pytest.raises(PlanError, match="low < high"):

@@ -249,10 +249,14 @@ def _io(system, responses, references):
     return resp, refs, Tr, Tf
 
 
-def frf_direct(system, freq_hz, responses=None, references=None, quantity: str = "accelerance") -> FRF:
-    """Exact FRFs by a sparse solve of ``(K + iD + iωC − ω²M) x = f`` per frequency line.
+def frf_direct(system, freq_hz, responses=None, references=None, quantity: str = "accelerance", *,
+               beta: float = 0.0) -> FRF:
+    """Exact FRFs by a sparse solve of ``(K + iD + sC + s²M) x = f`` per frequency line, ``s = iω + β``.
 
-    Response and reference DOFs may be any model DOF (dependent DOFs via the rigid links).
+    ``beta`` (1/s, default 0): the decay rate of an exponential window ``e^{−βt}`` applied to force and
+    response records; the windowed FRF is the transfer function at ``s = iω + β`` (the FRF's
+    ``window_beta_per_s``), so a model compared with windowed data is evaluated there.  Response and reference
+    DOFs may be any model DOF (dependent DOFs via the rigid links).
     """
     q = check_quantity(quantity)
     freq = np.atleast_1d(np.asarray(freq_hz, float))
@@ -270,19 +274,20 @@ def frf_direct(system, freq_hz, responses=None, references=None, quantity: str =
         C = None if C is None else sp.csc_matrix(C[keep][:, keep])
         F, Tr = F[keep], sp.csr_matrix(Tr[:, keep])
     H = np.empty((len(resp), len(refs), freq.size), complex)
+    beta = float(beta)
     for k, f in enumerate(freq):
-        w = 2 * np.pi * f
-        Z = K - w * w * M
+        sk = 1j * 2 * np.pi * f + beta
+        Z = K + sk * sk * M
         if C is not None:
-            Z = Z + 1j * w * C
+            Z = Z + sk * C
         try:
             X = spla.splu(sp.csc_matrix(Z), permc_spec="MMD_AT_PLUS_A").solve(F)
         except RuntimeError:
             raise ModalabValueError(f"the dynamic stiffness is singular at {f} Hz (an undamped resonance or a "
                                     "rigid-body mode at 0 Hz); avoid that line or add damping") from None
-        H[:, :, k] = (Tr @ X) * (1j * w) ** _ORDER[q]
+        H[:, :, k] = (Tr @ X) * sk ** _ORDER[q]
     return FRF(freq_hz=freq, H=H, responses=resp, references=refs, quantity=q, units=QUANTITY_UNITS[q],
-               metadata={"estimator": "exact", "source": "updating.fe.frf_direct"})
+               metadata={"estimator": "exact", "source": "updating.fe.frf_direct"}, window_beta_per_s=beta)
 
 
 def frf_modal(system, freq_hz, responses=None, references=None, *, n_modes: int | None = None,

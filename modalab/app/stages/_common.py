@@ -29,12 +29,58 @@ def _tuple(x):
 
 
 # ============================================================================ shared inputs
+_KIND_TEXT = {"toml": "a TOML file (a parameter, plan or project file)", "json": "a JSON file",
+              "uff": "a universal file (UFF: FRFs, modes or time records)",
+              "bulk": "Nastran bulk data (an FE model)"}
+
+
+def sniff_kind(path) -> str | None:
+    """What a text file holds, from its first lines: 'uff', 'json', 'toml', 'bulk', or None (cannot tell).
+
+    Used to say "this is a TOML file, expected bulk data" instead of a parser's complaint about its first line."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4096).decode("utf-8", errors="replace")
+    except OSError:
+        return None
+    lines = [ln.strip() for ln in head.splitlines() if ln.strip()]
+    if not lines:
+        return None
+    first = lines[0]
+    if first == "-1":
+        return "uff"
+    if first[0] in "{[" and not first.startswith("[[") and not (first.startswith("[") and first.endswith("]")
+                                                                  and "=" not in first and '"' not in first):
+        return "json"
+    import re
+
+    code = [ln for ln in lines if not ln.startswith(("#", "$"))]
+    cards = re.compile(r"^(GRID|CBAR|CBEAM|CROD|CQUAD4|CTRIA3|CHEXA|CTETRA|CELAS\d|CONM\d|PBAR|PBEAM|PBARL|PSHELL|"
+                       r"PSOLID|PROD|MAT\d|SPC\d?|RBE\d|CORD\d\w|PARAM|INCLUDE|BEGIN|ENDDATA|SOL|CEND|EIGRL|"
+                       r"CDAMP\d|PELAS|PDAMP|CMASS\d|PBUSH|CBUSH)\b[ ,*]?", re.I)
+    if any(cards.match(ln) for ln in code[:20]) or (lines[0].startswith("$") and not code):
+        return "bulk"
+    toml = re.compile(r"^(\[\[?[A-Za-z_][\w.\- ]*\]\]?\s*(#.*)?|[A-Za-z_][\w\-]*\s*=\s*.+)$")
+    if code and all(toml.match(ln) for ln in code[:10]):
+        return "toml"
+    return None
+
+
+def _expect(path, wanted: str, what: str, hint: str) -> None:
+    """Refuse ``path`` when it plainly holds something other than ``wanted`` (a kind of :func:`sniff_kind`)."""
+    kind = sniff_kind(path)
+    if kind is not None and kind != wanted:
+        raise PlanError(f"'{path}' is {_KIND_TEXT[kind]}, but {what} is expected here; {hint}")
+
+
 def load_model(path):
     """An FE model from Nastran bulk data (``.bdf``, ``.dat``, ``.nas``, ``.blk``)."""
 
     p = Path(path)
     if not p.is_file():
         raise PlanError(f"model file {str(p)!r} does not exist; give a Nastran bulk-data file (.bdf)")
+    _expect(p, "bulk", "Nastran bulk data (the FE model, e.g. model.bdf)",
+            "check the order of the arguments (the model comes first)")
     return build_model(read_bdf(p, whole_model=True))
 
 
@@ -44,6 +90,9 @@ def load_modes(path):
     p = Path(path)
     if p.suffix.lower() == ".json":
         return ModeSet.from_json(p)
+    if p.is_file():
+        _expect(p, "uff", "test modes (UFF dataset 55, or modes.json from 'modalab identify')",
+                "check the order of the arguments")
     return ModeSet.from_uff(p)
 
 
@@ -62,7 +111,14 @@ def load_parameters(path, model) -> tuple[list, np.ndarray, np.ndarray]:
 
 
 def _band(H, band):
+    """The lines of ``H`` in ``band`` (Hz); a band reaching beyond the data is clipped to the data with a warning
+    naming the data's range, a band without any line of the data is refused (by :meth:`FRF.band`)."""
     if band:
-        return H.band(float(band[0]), float(band[1]))
+        lo, hi = float(band[0]), float(band[1])
+        f = H.freq_hz
+        if lo < hi and (lo < f[0] or hi > f[-1]) and hi >= f[0] and lo <= f[-1]:
+            log.warning("band %g-%g Hz reaches beyond the data (%g-%g Hz); using %g-%g Hz", lo, hi, f[0], f[-1],
+                        max(lo, f[0]), min(hi, f[-1]))
+        return H.band(lo, hi)
     f = H.freq_hz
     return H.band(float(f[f > 0][0]), float(f[-1]))

@@ -13,10 +13,12 @@ from updating.diagnosis import diagnose as _diagnose
 from updating.diagnosis import diagnose_modes
 from updating.fe.bulk import to_bulk, write_bdf
 from updating.diagnosis.report import write_figures
-from modalab.app.report import plot_mci_maps
 from modalab.app.report import plot_frf_overlays
 
 log = logging.getLogger(__name__)
+
+#: the stage's own figure (the engine's figures go to ``figures/``, named by :mod:`updating.diagnosis.report`)
+OVERLAY_NAME = "frf_overlay_models.png"
 
 
 @dataclass(frozen=True)
@@ -48,8 +50,10 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
 
     From measured FRFs (``frf_path``; the identified ``modes_path`` then give the frequency and MAC columns of
     the fit), or from identified modes alone (a GVT). ``json_path``: ``diagnosis.json`` (schema
-    ``modalab/app/schemas/diagnosis.schema.json``). ``out_dir``: ``diagnosis.json`` there too, the MCI maps, the engine's figures (``figures/``), ``diagnosed.bdf`` (the augmented, updated model) and
-    ``frf_overlay.png`` (measured, nominal, diagnosed and, given ``updated_model``, the parameter-updated model).
+    ``modalab/app/schemas/diagnosis.schema.json``). ``out_dir``: ``diagnosis.json`` there too, the engine's figures (``figures/``: MCI maps, FRF overlays at the
+    located DOFs, frequencies), ``diagnosed.bdf`` (the augmented, updated model) and ``frf_overlay_models.png``
+    (measured, nominal, diagnosed and, given ``updated_model``, the parameter-updated model at the chosen DOFs;
+    models at ``s = iω + β`` of the measurement's window).
     """
 
     if frf_path is None and modes_path is None:
@@ -58,6 +62,8 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
         raise PlanError("--map applies to a modes-only diagnosis (--modes without MEASURED.uff); remove --map or the "
                         "measured FRFs")
     model = load_model(model_path)
+    decisions = _Decisions(progress)
+    progress = decisions
     params = load_parameters(opts.parameters, model)[0] if opts.parameters else None
     priors = None
     if opts.parameters:
@@ -76,9 +82,8 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
             test_modes = map_test_modes(test_modes, model, opts.dofmap)
         diag = diagnose_modes(model, test_modes, parameters=params, progress=progress, **kw)
     else:
-        from modalab.core import uff
-
-        H = _band(uff.read_frf(frf_path), opts.band_hz) if opts.band_hz else uff.read_frf(frf_path)
+        H = _read_measured(frf_path)
+        H = _band(H, opts.band_hz) if opts.band_hz else H
         kw = {k: getattr(opts, k) for k in ("max_lines", "max_findings", "max_nfev", "holdout")
               if getattr(opts, k) is not None}
         if opts.kinds:
@@ -94,7 +99,57 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
         files.append(write_json(jp, doc))
     if out_dir is not None:
         files += _diagnosis_files(diag, model, H, Path(out_dir), opts, updated_model)
+        files.append(write_json(Path(out_dir) / SELECTION_NAME, decisions.to_dict(doc)))
     return StageResult(diag, tuple(files), {"statement": diag.statement, "findings": len(diag.findings)})
+
+
+#: what the selection decided, candidate by candidate (the stage's record of the engine's progress messages)
+SELECTION_NAME = "selection.json"
+
+
+class _Decisions:
+    """The engine's progress messages passed on, and its selection decisions kept: ``found: LABEL (...)`` and
+    ``rejected: LABEL (WHY)`` (:class:`updating.diagnosis.workflow` says them; ``diagnosis.json`` keeps the
+    findings and the first screening's ranking, not the reasons a candidate was turned down)."""
+
+    _RE = __import__("re").compile(r"^\s*(found|rejected|ambiguous): (.+?)(?: \((.*)\))?$")
+
+    def __init__(self, progress):
+        self.progress = progress
+        self.items: list[dict] = []
+
+    def __call__(self, msg):
+        m = self._RE.match(str(msg))
+        if m:
+            self.items.append({"decision": m.group(1), "candidate": m.group(2), "reason": m.group(3) or ""})
+        if self.progress is not None:
+            self.progress(msg)
+
+    def to_dict(self, diagnosis: dict) -> dict:
+        ranked = [r["candidate"] for r in diagnosis.get("ranking", [])]
+        selected = [{"candidate": f.get("description", ""), "physics": f.get("physics"),
+                     "rank_in_first_screening": (ranked.index(f["description"]) + 1
+                                                 if f.get("description") in ranked else None),
+                     "evidence": f.get("evidence", "")} for f in diagnosis.get("findings", [])]
+        return {"selected": selected, "decisions": self.items,
+                "note": "ranking: the first screening (share of the residual each candidate explains alone); a "
+                        "selected term outside it was found by the exact FRF screening's picks. decisions: the "
+                        "engine's found/rejected messages in order, with its reason"}
+
+
+def _read_measured(frf_path):
+    """The measured FRFs; a file of identified modes given in their place is pointed to ``--modes``."""
+    from modalab.core import uff
+    from modalab.core.errors import UffError
+
+    try:
+        return uff.read_frf(frf_path)
+    except UffError:
+        if "55" in uff.info(frf_path).get("datasets", {}):
+            raise PlanError(f"'{frf_path}' holds identified modes (dataset 55), not measured FRFs (dataset 58); "
+                            f"for a diagnosis from modes alone give it with --modes: modalab diagnose MODEL.bdf "
+                            f"--modes {frf_path}") from None
+        raise
 
 
 def _diagnosis_files(diag, model, H, d: Path, opts: DiagnoseOptions, updated_model) -> list:
@@ -105,8 +160,6 @@ def _diagnosis_files(diag, model, H, d: Path, opts: DiagnoseOptions, updated_mod
         files += [Path(p) for p in write_figures(diag, d / "figures")]
     except Exception as e:  # noqa: BLE001 - the engine's own figures are extras; the diagnosis stands
         log.warning("diagnosis figures failed: %s", e)
-    if diag.maps:
-        files.append(plot_mci_maps(diag.maps, d / "mci_maps.png"))
     files.append(write_text(d / "diagnosed.bdf", write_bdf(to_bulk(diag.model))))
     if H is not None:
         files.append(_frf_overlays(H, model, diag, d, opts.overlay_dofs, updated_model))
@@ -114,12 +167,16 @@ def _diagnosis_files(diag, model, H, d: Path, opts: DiagnoseOptions, updated_mod
 
 
 def _frf_overlays(H, model, diag, d: Path, want, updated_model) -> Path:
-    """Measured, nominal, diagnosed (and parameter-updated) FRFs at the chosen DOFs, first reference."""
+    """Measured, nominal, diagnosed (and parameter-updated) FRFs at the chosen DOFs, first reference.
+
+    The measured FRFs keep their exponential window; every model FRF is evaluated where the window puts the
+    data, at ``s = iω + β`` (β: the FRF's ``window_beta_per_s``), as the diagnosis itself compares them."""
 
     resp = [r for r in H.responses if want is None or str(r) in {str(w) for w in want}][:4] or H.responses[:4]
     ref = H.references[0]
     lines = H.freq_hz[H.freq_hz > 0]
     f = lines[::max(1, len(lines) // 600)]
+    beta = float(H.window_beta_per_s)
     curves = {"measured": H.select(responses=resp, references=[ref]).band(f[0], f[-1])}
     models = {"nominal": model, "diagnosed + updated": diag.model}
     if updated_model is not None and Path(updated_model).is_file():
@@ -130,7 +187,7 @@ def _frf_overlays(H, model, diag, d: Path, want, updated_model) -> Path:
             mm = m.copy()
             if eta is not None and not mm.global_ge:
                 mm.global_ge = float(eta)
-            curves[name] = mm.frf(f, responses=resp, references=[ref])
+            curves[name] = mm.frf(f, responses=resp, references=[ref], beta=beta)
         except Exception as e:  # noqa: BLE001 - an overlay curve must not fail the stage
             log.warning("FRF of the %s model failed: %s", name, e)
-    return plot_frf_overlays(curves, d / "frf_overlay.png", responses=resp, reference=ref)
+    return plot_frf_overlays(curves, d / OVERLAY_NAME, responses=resp, reference=ref, beta=beta)

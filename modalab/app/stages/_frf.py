@@ -42,6 +42,9 @@ def frf(in_uff, out_uff, opts: FRFOptions = FRFOptions(), *, plot_path=None, det
     measured : ``in_uff`` holds FRFs already (a project's measured FRFs): they are copied, with the geometry.
     plot_path : the FRF figure (``exact``: an exact FRF drawn over it).
     details_dir : also write ``frf.json`` (summary), ``reciprocity.json`` and ``coherence.png`` there.
+
+    The FRFs (and ``frf.json``'s ``backend``) say which DAQ took the hits when the records say so: 'sim' (the
+    simulated lab, also ``modalab sim``), 'nidaqmx'; None when the file does not say.
     """
 
     out = Path(out_uff)
@@ -62,7 +65,7 @@ def frf(in_uff, out_uff, opts: FRFOptions = FRFOptions(), *, plot_path=None, det
                  title=f"{H.metadata.get('estimator', opts.estimator)} FRFs")
         files.append(Path(plot_path))
     coh = H.coherence
-    summary = {"responses": len(H.responses), "references": [str(r) for r in H.references], "lines": int(H.n_freq),
+    summary = {"backend": H.metadata.get("backend"), "responses": len(H.responses), "references": [str(r) for r in H.references], "lines": int(H.n_freq),
                "band_hz": [float(H.freq_hz[0]), float(H.freq_hz[-1])],
                "median_coherence": float(np.nanmedian(coh)) if coh is not None else None}
     if details_dir is not None:
@@ -92,6 +95,11 @@ def _estimate(in_uff, opts: FRFOptions):
     fw = ForceWindow(fraction=opts.force_fraction) if opts.force_fraction else None
     ew = exponential_window(opts.exp_beta, opts.exp_end_level)      # the one rule, as for a test plan
     H = estimate_frf_roving(recs, estimator=opts.estimator, force_window=fw, exp_window=ew)
+    kinds = {(r.metadata or {}).get("backend") for r in recs}
+    if len(kinds) == 1 and None not in kinds:          # every hit says which DAQ took it: the FRFs say so too
+        H.metadata["backend"] = kinds.pop()
+    elif len(kinds) > 1:
+        H.metadata["backend"] = "mixed: " + ", ".join(sorted(str(k) for k in kinds))
     H = H.band(0.0, opts.bandwidth_hz or recs[0].sample_rate_hz / 2.56)
     if opts.reciprocity and len(H.references) > len(H.responses):
         H = reorder_by_reciprocity(H)

@@ -93,11 +93,12 @@ def _export_model(folder: Path, model) -> list:
     return [bdf, toml]
 
 
-def sim(out_uff, opts: SimOptions = SimOptions(), *, plot_dir=None, export_model=None,
+def sim(out_uff, opts: SimOptions = SimOptions(), *, plot_path=None, export_model=None,
         progress: Callable | None = None) -> StageResult:
     """Simulate a roving-hammer test and write its raw hits (UFF 58 time records, one per channel per hit).
 
-    plot_dir : folder for ``first_hit.png`` (None: no figure).
+    plot_path : figure of the first hit (force and responses against time), e.g. ``hits_first_hit.png`` next
+        to the UFF (None: no figure).
     export_model : folder for ``model.bdf`` and ``params.toml`` of the simulated structure (the demo
         structure's FE model, :func:`demo_fe_model`, or the given bulk data), ready for correlate/update/diagnose.
     progress : callable ``(points done, points in all, point)``.
@@ -124,6 +125,7 @@ def sim(out_uff, opts: SimOptions = SimOptions(), *, plot_dir=None, export_model
             progress(k + 1, len(pts), pt)
     for i, r in enumerate(recs, start=1):
         r.hit_id = i
+        r.metadata = {**(r.metadata or {}), "backend": "sim"}     # simulated data say so in the UFF
     out = Path(out_uff)
     out.parent.mkdir(parents=True, exist_ok=True)
     if getattr(st, "coords", None):
@@ -132,11 +134,11 @@ def sim(out_uff, opts: SimOptions = SimOptions(), *, plot_dir=None, export_model
     else:
         uff.write_records(out, recs)
     files = [out]
-    if plot_dir is not None:
+    if plot_path is not None:
         from modalab.core.plots import plot_hit
 
-        plot_hit(recs[0], path=Path(plot_dir) / "first_hit.png", title=f"hit 1 at {recs[0].force_dofs[0]}")
-        files.append(Path(plot_dir) / "first_hit.png")
+        plot_hit(recs[0], path=Path(plot_path), title=f"hit 1 at {recs[0].force_dofs[0]}")
+        files.append(Path(plot_path))
     if export_model is not None:
         files += _export_model(Path(export_model), demo_fe_model() if model is None else model)
     return StageResult(recs, tuple(files), {"hits": len(recs) // max(len(pts), 1), "points": len(pts),
