@@ -221,3 +221,53 @@ def test_diagnoser_names_a_joint_from_independent_truth_data():
     assert c.physics == "joint_flexibility" and c.dofs == ("3+RZ",)
     assert d.findings_[0].value == pytest.approx(k, rel=0.3)
     assert not any(f.candidate.physics == "joint_flexibility" for f in d.findings_[1:])
+
+
+def test_release_visibility_separates_what_in_plane_sensors_cannot_see():
+    """The T frame lies in the x-y plane (tubes: in- and out-of-plane motion decouple).  Hit and measured only
+    in x and y, a released post end about x or y (out-of-plane bending) changes nothing the data hold: its
+    χ² is round-off; about z (in-plane bending) it is far above the noise.  With out-of-plane sensors and
+    hits the bending axes are visible; the post's own torsion (about y, its axis: a free tube turning about its
+    axis moves no translation on it) stays invisible to translational sensors."""
+    from updating.diagnosis.release import release_visibility
+    m = _t_frame(clamp=True)
+    st0 = m.structure()
+    f = np.linspace(5.0, 600.0, 60)
+    lib = build_library(m, kinds=["joint_flexibility", "boundary_flexibility"])
+    in_plane = _data(st0, ["2+X", "2+Y", "4+Y", "5+X", "6+X", "7+X", "8+Y"], ["2+Y", "7+X"], f)
+    vis = {c.dofs[0] if c.physics == "joint_flexibility" else c.label: x
+           for c, x in release_visibility(st0, m, lib, in_plane, loss_factor=m.global_ge)}
+    need = 10 * np.log(in_plane.H.size)
+    assert vis["3+RX"] < 1e-12 * need and vis["3+RY"] < 1e-12 * need
+    assert vis["3+RZ"] > 1e3 * need
+    everywhere = _data(st0, RESP, ["2+Z", "6+X"], f)
+    vis3 = {c.dofs[0]: x for c, x in release_visibility(st0, m, lib, everywhere, loss_factor=m.global_ge)
+            if c.physics == "joint_flexibility"}
+    assert min(vis3["3+RX"], vis3["3+RZ"]) > 1e3 * need
+    assert vis3["3+RY"] < need
+
+
+def test_unobservable_releases_are_listed_and_stated_not_screened():
+    """A diagnosis from in-plane data lists the out-of-plane joint releases as unobservable (diagnosis.json
+    and the statement), and never screens or names them."""
+    from updating.diagnosis import Diagnoser, DiagnoserConfig
+    from updating.diagnosis.workflow import statement
+    m = _t_frame(clamp=True)
+    f = np.linspace(5.0, 600.0, 120)
+    resp, refs = ["2+X", "2+Y", "4+Y", "5+X", "6+X", "7+X", "8+Y", "4+X"], ["2+Y", "7+X"]
+    X = m.structure().frf(f, resp, refs, quantity="receptance")
+    meas = FRF(freq_hz=f, H=X.H, responses=X.responses, references=X.references, coherence=np.ones(X.H.shape),
+               quantity="receptance")
+    d = Diagnoser(DiagnoserConfig(kinds=["joint_flexibility", "boundary_flexibility"]))
+    d._t0, d.timings = 0.0, {}
+    d.baseline(m, meas)
+    d.localise()
+    hidden = sorted(u["dofs"][0] for u in d.unobservable if u["physics"] == "joint_flexibility")
+    assert hidden == ["3+RX", "3+RY"]
+    assert all("3+R" not in c.dofs[0] or c.dofs[0] == "3+RZ" for c, _ in d._options(0)
+               if c.physics == "joint_flexibility")
+    text = statement([], {k: {"frf_error_held_out": 0.01} for k in ("nominal", "parameters_only", "with_physics")},
+                     "rows", (), d.unobservable)
+    assert "Not observable with these sensors and hits: " in text and "this conclusion does not cover it" in text
+    assert "joint flexibility about RX at node 3;" in text and "joint flexibility about RY at node 3" in text
+    assert "about RZ at node 3" not in text
