@@ -271,3 +271,55 @@ def test_unobservable_releases_are_listed_and_stated_not_screened():
     assert "Not observable with these sensors and hits: " in text and "this conclusion does not cover it" in text
     assert "joint flexibility about RX at node 3;" in text and "joint flexibility about RY at node 3" in text
     assert "about RZ at node 3" not in text
+
+
+def _portal(ge: float = 0.01) -> FEModel:
+    """A portal symmetric about x = 0.3: posts 1-2-3 and 9-8-7 (feet 1 and 9 clamped), a beam 3-4-5-6-7."""
+    m = FEModel("portal", global_ge=ge)
+    xy = {1: (0, 0), 2: (0, 0.2), 3: (0, 0.4), 4: (0.15, 0.4), 5: (0.3, 0.4), 6: (0.45, 0.4), 7: (0.6, 0.4),
+          8: (0.6, 0.2), 9: (0.6, 0.0)}
+    for n, (x, y) in xy.items():
+        m.add_node(n, (float(x), float(y), 0.0))
+    m.add_material(Material(1, E=70e9, rho=2700.0))
+    m.add_property(BeamProperty(1, 1, TubeSection(0.02, 0.017), name="post"))
+    m.add_property(BeamProperty(2, 1, TubeSection(0.016, 0.013), name="beam"))
+    for i, (a, b, p) in enumerate(((1, 2, 1), (2, 3, 1), (3, 4, 2), (4, 5, 2), (5, 6, 2), (6, 7, 2), (7, 8, 1),
+                                   (8, 9, 1))):
+        m.add_element(Beam3D(i + 1, a, b, p, orientation=(0.0, 0.0, 1.0)))
+    m.add_spc(1, "123456")
+    m.add_spc(9, "123456")
+    return m
+
+
+def test_a_release_and_its_mirror_image_are_fitted_alternatives():
+    """Data taken only on the portal's plane of symmetry (mid-span, vertical and out-of-plane) cannot tell a
+    flexible left corner from a flexible right one: the mirror-image models have the same FRFs there.  Fitted
+    with the parameters, the mirror-image release is an alternative of the concealed one, with its value;
+    a spring to ground, which fits worse, is not."""
+    from updating.diagnosis import Diagnoser, DiagnoserConfig
+    m = _portal()
+    lib = build_library(m, kinds=["joint_flexibility"])
+    left = next(c for c in lib if c.dofs == ("3+RZ",))
+    k = 0.05 * 4 * 70e9 * np.pi * (0.016 ** 4 - 0.013 ** 4) / 64 / 0.15
+    m_aug, pars, sc = _augment(m, [left])
+    st_true = ParametricFEModel(m_aug, pars).structure([k / sc[0]])
+    f = np.linspace(5.0, 900.0, 160)
+    X = st_true.frf(f, ["5+Y", "5+Z"], ["5+Y", "5+Z"], quantity="receptance")
+    rng = np.random.default_rng(3)
+    Hn = X.H * (1 + 0.005 * (rng.standard_normal(X.H.shape) + 1j * rng.standard_normal(X.H.shape)))
+    meas = FRF(freq_hz=f, H=Hn, responses=X.responses, references=X.references, coherence=np.ones(Hn.shape),
+               quantity="receptance")
+    d = Diagnoser(DiagnoserConfig(kinds=["joint_flexibility", "ground_spring"]))
+    d._t0, d.timings = 0.0, {}
+    d.baseline(m, meas)
+    d.localise()
+    d._options(0)
+    n = len(d.params)
+    m_a, cpar, scales = _augment(d.model0, [left])
+    pm_a = ParametricFEModel(m_a, d.params + cpar)
+    clo, chi = np.r_[d.lo, 0.0], np.r_[d.hi, np.inf]
+    fr = d._fit(pm_a, d.train, np.clip(np.r_[d.p_nomd[:n], k / scales[-1]], clo, chi), lower=clo, upper=chi,
+                max_nfev=30)
+    alts = d._fitted_alternatives(left, fr.error, 0, [], [], pm_a.model_at(fr.p), d.train.H.size * 2)
+    assert [o.dofs for o, _ in alts] == [("7+RZ",)]
+    assert alts[0][1] == pytest.approx(k, rel=0.1)

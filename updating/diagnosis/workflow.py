@@ -939,8 +939,8 @@ class Diagnoser:
             fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
                            max_nfev=max(8, cfg.max_nfev // 2))
             log.info("screening pick %s fitted on the FRFs: error %.4g (current %.4g)", c.label, fr.error, ref.error)
-            tried.append((fr.error, c, pm_aug, fr, clo, chi, k))
-        err, c, pm_aug, fr, clo, chi, k = min(tried, key=lambda t: t[0])
+            tried.append((fr.error, c, pm_aug, fr, clo, chi, k, scales[-1]))
+        err, c, pm_aug, fr, clo, chi, k, _ = min(tried, key=lambda t: t[0])
         n_eq = self.train.H.size * 2
         need = cfg.min_gain if not self.current else max(cfg.min_gain, cfg.min_extra_gain)
         if not (err < ref.error and n_eq * np.log(ref.error ** 2 / max(err ** 2, 1e-300)) > cfg.penalty * np.log(n_eq)):
@@ -980,7 +980,42 @@ class Diagnoser:
         m_now = pm_aug.model_at(fr.p)
         alts = [(o, v) for o, v, g in scr if o.key != c.key and o.key not in have
                 and (1 - g) ** 2 - e_c <= margin and _another_explanation(o, c, m_now)]
-        return c, alts
+        return c, alts + self._fitted_alternatives(c, err, k, tried, alts, m_now, n_eq)
+
+    def _fitted_alternatives(self, c, err_c: float, k: int, tried: list, alts: list, m_now, n_eq: int) -> list:
+        """Explanations elsewhere that fit the FRFs as well as the accepted pick ``c`` once the parameters are
+        re-fitted with them (training error within the information criterion's margin: ``n_eq`` ln(e_o²/e_c²)
+        ≤ ``penalty`` ln ``n_eq``): the other picks already fitted (``tried``), and the competitors of
+        ``c``'s screening whose single-term error (parameters fixed) is within four margins of ``c``'s, at most
+        :data:`FRF_PICKS` − 1 of them, fitted like the pick.  The screening alone cannot tell: parameters
+        re-fitted with a term absorb part of what separated it from its neighbours (the same release at the two
+        ends of a symmetric frame's rail differs by a fraction of a percent once the moduli are free).
+        Returns ``[(candidate, value)]``."""
+        cfg, n = self.config, len(self.params)
+        need = cfg.penalty * np.log(n_eq)
+        seen = {o.key for o, _ in alts} | {c.key} | {x.key for x in self.current}
+        out = []
+        for err, o, _, fr, *_, scale in tried:
+            if o.key not in seen and n_eq * np.log(max(err, 1e-300) ** 2 / max(err_c, 1e-300) ** 2) <= need \
+                    and _another_explanation(o, c, m_now):
+                out.append((o, float(fr.p[-1] * scale)))
+                seen.add(o.key)
+        scr, p_scr = self._screens[k]
+        g_c = next(g for o, _, g in scr if o.key == c.key)
+        close = [(o, v) for o, v, g in scr if o.key not in seen and _another_explanation(o, c, m_now)
+                 and n_eq * np.log(max(1 - g, 1e-300) ** 2 / max(1 - g_c, 1e-300) ** 2) <= 4 * need]
+        for o, v in close[:FRF_PICKS - 1]:
+            m_aug, cpar, scales = _augment(self.model0, self.current + [o])
+            pm_aug = ParametricFEModel(m_aug, self.params + cpar)
+            clo = np.concatenate([self.lo, np.zeros(len(cpar))])
+            chi = np.concatenate([self.hi, _upper(self.current + [o], scales)])
+            start = np.concatenate([p_scr[:n], self.p_cur[n:-1], [min(v, getattr(o, "upper", np.inf)) / scales[-1]]])
+            fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
+                           max_nfev=max(8, cfg.max_nfev // 2))
+            log.info("competitor %s of %s fitted on the FRFs: error %.4g (%.4g)", o.label, c.label, fr.error, err_c)
+            if n_eq * np.log(max(fr.error, 1e-300) ** 2 / max(err_c, 1e-300) ** 2) <= need:
+                out.append((o, float(fr.p[-1] * scales[-1])))
+        return out
 
     def _options(self, it: int) -> list:
         """[(candidate, start value or None)] to try: the best of the linear MCI ranking and of the exact FRF
