@@ -221,3 +221,105 @@ def test_diagnoser_names_a_joint_from_independent_truth_data():
     assert c.physics == "joint_flexibility" and c.dofs == ("3+RZ",)
     assert d.findings_[0].value == pytest.approx(k, rel=0.3)
     assert not any(f.candidate.physics == "joint_flexibility" for f in d.findings_[1:])
+
+
+def test_release_visibility_separates_what_in_plane_sensors_cannot_see():
+    """The T frame lies in the x-y plane (tubes: in- and out-of-plane motion decouple).  Hit and measured only
+    in x and y, a released post end about x or y (out-of-plane bending) changes nothing the data hold: its
+    χ² is round-off; about z (in-plane bending) it is far above the noise.  With out-of-plane sensors and
+    hits the bending axes are visible; the post's own torsion (about y, its axis: a free tube turning about its
+    axis moves no translation on it) stays invisible to translational sensors."""
+    from updating.diagnosis.release import release_visibility
+    m = _t_frame(clamp=True)
+    st0 = m.structure()
+    f = np.linspace(5.0, 600.0, 60)
+    lib = build_library(m, kinds=["joint_flexibility", "boundary_flexibility"])
+    in_plane = _data(st0, ["2+X", "2+Y", "4+Y", "5+X", "6+X", "7+X", "8+Y"], ["2+Y", "7+X"], f)
+    vis = {c.dofs[0] if c.physics == "joint_flexibility" else c.label: x
+           for c, x in release_visibility(st0, m, lib, in_plane, loss_factor=m.global_ge)}
+    need = 10 * np.log(in_plane.H.size)
+    assert vis["3+RX"] < 1e-12 * need and vis["3+RY"] < 1e-12 * need
+    assert vis["3+RZ"] > 1e3 * need
+    everywhere = _data(st0, RESP, ["2+Z", "6+X"], f)
+    vis3 = {c.dofs[0]: x for c, x in release_visibility(st0, m, lib, everywhere, loss_factor=m.global_ge)
+            if c.physics == "joint_flexibility"}
+    assert min(vis3["3+RX"], vis3["3+RZ"]) > 1e3 * need
+    assert vis3["3+RY"] < need
+
+
+def test_unobservable_releases_are_listed_and_stated_not_screened():
+    """A diagnosis from in-plane data lists the out-of-plane joint releases as unobservable (diagnosis.json
+    and the statement), and never screens or names them."""
+    from updating.diagnosis import Diagnoser, DiagnoserConfig
+    from updating.diagnosis.workflow import statement
+    m = _t_frame(clamp=True)
+    f = np.linspace(5.0, 600.0, 120)
+    resp, refs = ["2+X", "2+Y", "4+Y", "5+X", "6+X", "7+X", "8+Y", "4+X"], ["2+Y", "7+X"]
+    X = m.structure().frf(f, resp, refs, quantity="receptance")
+    meas = FRF(freq_hz=f, H=X.H, responses=X.responses, references=X.references, coherence=np.ones(X.H.shape),
+               quantity="receptance")
+    d = Diagnoser(DiagnoserConfig(kinds=["joint_flexibility", "boundary_flexibility"]))
+    d._t0, d.timings = 0.0, {}
+    d.baseline(m, meas)
+    d.localise()
+    hidden = sorted(u["dofs"][0] for u in d.unobservable if u["physics"] == "joint_flexibility")
+    assert hidden == ["3+RX", "3+RY"]
+    assert all("3+R" not in c.dofs[0] or c.dofs[0] == "3+RZ" for c, _ in d._options(0)
+               if c.physics == "joint_flexibility")
+    text = statement([], {k: {"frf_error_held_out": 0.01} for k in ("nominal", "parameters_only", "with_physics")},
+                     "rows", (), d.unobservable)
+    assert "Not observable with these sensors and hits: " in text and "this conclusion does not cover it" in text
+    assert "joint flexibility about RX at node 3;" in text and "joint flexibility about RY at node 3" in text
+    assert "about RZ at node 3" not in text
+
+
+def _portal(ge: float = 0.01) -> FEModel:
+    """A portal symmetric about x = 0.3: posts 1-2-3 and 9-8-7 (feet 1 and 9 clamped), a beam 3-4-5-6-7."""
+    m = FEModel("portal", global_ge=ge)
+    xy = {1: (0, 0), 2: (0, 0.2), 3: (0, 0.4), 4: (0.15, 0.4), 5: (0.3, 0.4), 6: (0.45, 0.4), 7: (0.6, 0.4),
+          8: (0.6, 0.2), 9: (0.6, 0.0)}
+    for n, (x, y) in xy.items():
+        m.add_node(n, (float(x), float(y), 0.0))
+    m.add_material(Material(1, E=70e9, rho=2700.0))
+    m.add_property(BeamProperty(1, 1, TubeSection(0.02, 0.017), name="post"))
+    m.add_property(BeamProperty(2, 1, TubeSection(0.016, 0.013), name="beam"))
+    for i, (a, b, p) in enumerate(((1, 2, 1), (2, 3, 1), (3, 4, 2), (4, 5, 2), (5, 6, 2), (6, 7, 2), (7, 8, 1),
+                                   (8, 9, 1))):
+        m.add_element(Beam3D(i + 1, a, b, p, orientation=(0.0, 0.0, 1.0)))
+    m.add_spc(1, "123456")
+    m.add_spc(9, "123456")
+    return m
+
+
+def test_a_release_and_its_mirror_image_are_fitted_alternatives():
+    """Data taken only on the portal's plane of symmetry (mid-span, vertical and out-of-plane) cannot tell a
+    flexible left corner from a flexible right one: the mirror-image models have the same FRFs there.  Fitted
+    with the parameters, the mirror-image release is an alternative of the concealed one, with its value;
+    a spring to ground, which fits worse, is not."""
+    from updating.diagnosis import Diagnoser, DiagnoserConfig
+    m = _portal()
+    lib = build_library(m, kinds=["joint_flexibility"])
+    left = next(c for c in lib if c.dofs == ("3+RZ",))
+    k = 0.05 * 4 * 70e9 * np.pi * (0.016 ** 4 - 0.013 ** 4) / 64 / 0.15
+    m_aug, pars, sc = _augment(m, [left])
+    st_true = ParametricFEModel(m_aug, pars).structure([k / sc[0]])
+    f = np.linspace(5.0, 900.0, 160)
+    X = st_true.frf(f, ["5+Y", "5+Z"], ["5+Y", "5+Z"], quantity="receptance")
+    rng = np.random.default_rng(3)
+    Hn = X.H * (1 + 0.005 * (rng.standard_normal(X.H.shape) + 1j * rng.standard_normal(X.H.shape)))
+    meas = FRF(freq_hz=f, H=Hn, responses=X.responses, references=X.references, coherence=np.ones(Hn.shape),
+               quantity="receptance")
+    d = Diagnoser(DiagnoserConfig(kinds=["joint_flexibility", "ground_spring"]))
+    d._t0, d.timings = 0.0, {}
+    d.baseline(m, meas)
+    d.localise()
+    d._options(0)
+    n = len(d.params)
+    m_a, cpar, scales = _augment(d.model0, [left])
+    pm_a = ParametricFEModel(m_a, d.params + cpar)
+    clo, chi = np.r_[d.lo, 0.0], np.r_[d.hi, np.inf]
+    fr = d._fit(pm_a, d.train, np.clip(np.r_[d.p_nomd[:n], k / scales[-1]], clo, chi), lower=clo, upper=chi,
+                max_nfev=30)
+    alts = d._fitted_alternatives(left, fr.error, 0, [], [], pm_a.model_at(fr.p), d.train.H.size * 2)
+    assert [o.dofs for o, _ in alts] == [("7+RZ",)]
+    assert alts[0][1] == pytest.approx(k, rel=0.1)

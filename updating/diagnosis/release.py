@@ -44,7 +44,7 @@ from updating.correlation.condensation import dynamic_stiffness
 from updating.diagnosis.fit import FRFData, _indices, frf_error
 
 log = logging.getLogger(__name__)
-__all__ = ["release_screen", "release_vectors", "released_receptance", "ReleaseVectors"]
+__all__ = ["release_screen", "release_vectors", "released_receptance", "release_visibility", "ReleaseVectors"]
 
 
 
@@ -317,3 +317,46 @@ def release_screen(structure, model, candidates, data: FRFData, *, loss_factor: 
     log.info("release screening of %d joint/support candidates (error %.4g now): best %s", len(work), e0,
              ", ".join(f"{c.label} ({100 * gn:.1f} %)" for c, _, gn in out[:3]))
     return out[:top] if top else out
+
+
+#: a release is tried "completely": its spring at this fraction of the released member's own stiffness
+FULL_RELEASE = 1e-4
+
+
+def release_visibility(structure, model, candidates, data: FRFData, *, loss_factor: float = 0.0) -> list:
+    """How much each release candidate, released completely, can change the measured FRFs: ``[(candidate,
+    chi2)]`` with ``chi2 = Σ |H_k − H|² / (den² σ²)`` over the data's values, in units of their noise
+    (:attr:`~updating.correlation.receptance.FRFData.sigma`, the scale of :func:`~updating.diagnosis.fit.frf_error`),
+    at ``k`` = :data:`FULL_RELEASE` × the released member's own stiffness (a hinge).
+
+    The receptance of a released model is exactly the nominal one plus the Woodbury term of the module
+    docstring; the change it makes at the measured × reference DOFs bounds what any data of this sensor and
+    hit layout can reveal of the release.  A joint rotation that neither the hits excite nor the sensors see
+    — the out-of-plane bending of a member of a planar frame tested in its plane: in- and out-of-plane motion
+    decouple, and the measured rows and excited columns of the change of receptance θ − α (thesis eqs.
+    3.62-3.64, the released against the nominal model) vanish — gives
+    ``chi2`` of the order of round-off: no amount of data from this layout can locate or refute it.  Candidates
+    that are not releases are skipped; one factorisation per line, a few ``r × r`` solves per candidate."""
+    red_dofs = model.reduction().dofs
+    if [(d.node, d.axis) for d in red_dofs] != [(d.node, d.axis) for d in structure.dofs]:
+        raise ModalabValueError("release visibility: the structure's DOFs are not the model's constrained DOFs")
+    cache: dict = {}
+    work = []
+    for c in candidates:
+        rv = release_vectors(model, c, _cache=cache)
+        if rv is not None and rv.stiffness > 0:
+            work.append((c, rv))
+    if not work:
+        return []
+    B = _Blocks(structure, data, [rv.rows for _, rv in work])
+    Wt = (data.quality / data.floor) ** 2 / data.den ** 2                # 1 / (den σ)²
+    g = 1 + 1j * loss_factor
+    out = []
+    for i, (c, rv) in enumerate(work):
+        Wf, Cf = rv.at(data.s)
+        Hm, Hr, Hs = _support_blocks(B.candidate(i, rv.rows), Wf)
+        A = Cf - Hs + FULL_RELEASE * rv.stiffness * g * np.eye(rv.rank)[None]
+        X = np.linalg.solve(A, Hr.transpose(2, 0, 1))                    # (n_s, r, n_r)
+        dH = np.einsum("mkf,fkq->mqf", Hm, X)
+        out.append((c, float(np.sum(Wt * np.abs(dH) ** 2))))
+    return out

@@ -50,7 +50,7 @@ from updating.fe import FEModel, Parameter, ParametricFEModel
 from updating.diagnosis.fit import RITZ_LIMIT, FRFData, Prior, fit_frf, frf_data, frf_error, model_frf, quick_frf_error
 from updating.diagnosis.frfscreen import frf_screen
 from updating.diagnosis.library import Candidate, _nodes_of, build_library, validate_kinds
-from updating.diagnosis.release import release_screen
+from updating.diagnosis.release import release_screen, release_visibility
 from updating.diagnosis.screen import mci_update, rank_candidates, residual_map, residual_system
 from modalab.core.dof import parse_dofs
 from updating.correlation.metrics import analysis_modes, correlate
@@ -115,6 +115,7 @@ class Diagnosis:
     frequencies: dict = field(default_factory=dict)
     pairing: dict = field(default_factory=dict)     # per fit block: pairs and the modes left out on purpose
     not_evaluated: list = field(default_factory=list)   # candidates whose augmented model could not be solved
+    unobservable: list = field(default_factory=list)    # releases the sensors and hits cannot see (not screened)
 
     def save(self, directory, *, figures: bool = True, bulk: bool = True):
         """Write ``diagnosis.json``, the figures (:mod:`~updating.diagnosis.report`) and the augmented,
@@ -145,6 +146,7 @@ class Diagnosis:
                             for c, _, g in self.ranking[:12]],
                 "pairing": self.pairing,
                 "not_evaluated": list(self.not_evaluated),
+                "unobservable": list(self.unobservable),
                 "timings_s": {k: round(v, 3) for k, v in self.timings.items()}}
 
 
@@ -775,7 +777,35 @@ class Diagnoser:
         self.pm_cur, self.lo_cur, self.hi_cur = self.pm, self.lo, self.hi
         self._frf_cur = (self.pm, self.upd)             # the current model fitted on the FRFs
         self._screens, self._route, self.not_evaluated = [], {}, []
+        self._observability()
         self.ranking, self.hot_nodes, self.n_lib = None, [], 0
+
+    def _observability(self):
+        """Joint and support releases that no data of this sensor and hit layout can reveal: released
+        completely, each changes the measured FRFs (all of them, training and held-out, at the nominal model
+        with its fitted damping) by a χ² (in units of the noise) below ``penalty`` × ln N — the least gain
+        any term must show (:func:`_term_holds`) — so neither a finding nor its absence says anything about
+        them (:func:`~updating.diagnosis.release.release_visibility`).  They are not screened, and the
+        diagnosis lists them (``unobservable``) and says so in its statement."""
+        lib = build_library(self.model0, kinds=self.config.kinds)
+        rel = [c for c in lib if c.release is not None]
+        self.unobservable, self._hidden = [], set()
+        if not rel:
+            return
+        m_nom = self.pm.model_at(self.p_nomd)
+        need = self.config.penalty * np.log(max(self.data.H.size, 2))
+        for c, chi2 in release_visibility(self.pm.structure(self.p_nomd), m_nom, rel, self.data,
+                                          loss_factor=float(m_nom.global_ge or 0.0)):
+            if chi2 < need:
+                self._hidden.add(c.key)
+                self.unobservable.append({"candidate": c.label, "physics": c.physics, "dofs": list(c.dofs),
+                                          "nodes": [int(n) for n in c.nodes], "chi2_full_release": chi2,
+                                          "reason": f"released completely it changes the measured FRFs by χ² "
+                                                    f"{chi2:.2g} (noise units), below {need:.3g}: the sensors and "
+                                                    "hits do not see it"})
+        if self.unobservable:
+            log.info("%d release candidate(s) unobservable with these sensors and hits: %s", len(self.unobservable),
+                     ", ".join(d["candidate"] for d in self.unobservable[:6]))
 
     # ------------------------------------------------------------------ step 4, one term
     def screen(self, it: int) -> bool:
@@ -909,8 +939,8 @@ class Diagnoser:
             fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
                            max_nfev=max(8, cfg.max_nfev // 2))
             log.info("screening pick %s fitted on the FRFs: error %.4g (current %.4g)", c.label, fr.error, ref.error)
-            tried.append((fr.error, c, pm_aug, fr, clo, chi, k))
-        err, c, pm_aug, fr, clo, chi, k = min(tried, key=lambda t: t[0])
+            tried.append((fr.error, c, pm_aug, fr, clo, chi, k, scales[-1]))
+        err, c, pm_aug, fr, clo, chi, k, _ = min(tried, key=lambda t: t[0])
         n_eq = self.train.H.size * 2
         need = cfg.min_gain if not self.current else max(cfg.min_gain, cfg.min_extra_gain)
         if not (err < ref.error and n_eq * np.log(ref.error ** 2 / max(err ** 2, 1e-300)) > cfg.penalty * np.log(n_eq)):
@@ -950,7 +980,42 @@ class Diagnoser:
         m_now = pm_aug.model_at(fr.p)
         alts = [(o, v) for o, v, g in scr if o.key != c.key and o.key not in have
                 and (1 - g) ** 2 - e_c <= margin and _another_explanation(o, c, m_now)]
-        return c, alts
+        return c, alts + self._fitted_alternatives(c, err, k, tried, alts, m_now, n_eq)
+
+    def _fitted_alternatives(self, c, err_c: float, k: int, tried: list, alts: list, m_now, n_eq: int) -> list:
+        """Explanations elsewhere that fit the FRFs as well as the accepted pick ``c`` once the parameters are
+        re-fitted with them (training error within the information criterion's margin: ``n_eq`` ln(e_o²/e_c²)
+        ≤ ``penalty`` ln ``n_eq``): the other picks already fitted (``tried``), and the competitors of
+        ``c``'s screening whose single-term error (parameters fixed) is within four margins of ``c``'s, at most
+        :data:`FRF_PICKS` − 1 of them, fitted like the pick.  The screening alone cannot tell: parameters
+        re-fitted with a term absorb part of what separated it from its neighbours (the same release at the two
+        ends of a symmetric frame's rail differs by a fraction of a percent once the moduli are free).
+        Returns ``[(candidate, value)]``."""
+        cfg, n = self.config, len(self.params)
+        need = cfg.penalty * np.log(n_eq)
+        seen = {o.key for o, _ in alts} | {c.key} | {x.key for x in self.current}
+        out = []
+        for err, o, _, fr, *_, scale in tried:
+            if o.key not in seen and n_eq * np.log(max(err, 1e-300) ** 2 / max(err_c, 1e-300) ** 2) <= need \
+                    and _another_explanation(o, c, m_now):
+                out.append((o, float(fr.p[-1] * scale)))
+                seen.add(o.key)
+        scr, p_scr = self._screens[k]
+        g_c = next(g for o, _, g in scr if o.key == c.key)
+        close = [(o, v) for o, v, g in scr if o.key not in seen and _another_explanation(o, c, m_now)
+                 and n_eq * np.log(max(1 - g, 1e-300) ** 2 / max(1 - g_c, 1e-300) ** 2) <= 4 * need]
+        for o, v in close[:FRF_PICKS - 1]:
+            m_aug, cpar, scales = _augment(self.model0, self.current + [o])
+            pm_aug = ParametricFEModel(m_aug, self.params + cpar)
+            clo = np.concatenate([self.lo, np.zeros(len(cpar))])
+            chi = np.concatenate([self.hi, _upper(self.current + [o], scales)])
+            start = np.concatenate([p_scr[:n], self.p_cur[n:-1], [min(v, getattr(o, "upper", np.inf)) / scales[-1]]])
+            fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
+                           max_nfev=max(8, cfg.max_nfev // 2))
+            log.info("competitor %s of %s fitted on the FRFs: error %.4g (%.4g)", o.label, c.label, fr.error, err_c)
+            if n_eq * np.log(max(fr.error, 1e-300) ** 2 / max(err_c, 1e-300) ** 2) <= need:
+                out.append((o, float(fr.p[-1] * scales[-1])))
+        return out
 
     def _options(self, it: int) -> list:
         """[(candidate, start value or None)] to try: the best of the linear MCI ranking and of the exact FRF
@@ -964,7 +1029,7 @@ class Diagnoser:
         # screening mis-ranks), around the nominal parameters first (parameter updating may have bent them
         # to hide the effect), then around the current model
         # joint and support releases are screened exactly too, at every place (updating.diagnosis.release)
-        releases = [c for c in lib if c.release is not None and c.key not in have]
+        releases = [c for c in lib if c.release is not None and c.key not in have and c.key not in self._hidden]
         screens = []
         self._screens = []
         for p_scr in ([self.p_nomd, self.upd.p] if it == 0 else [p_cur]):
@@ -1015,7 +1080,7 @@ class Diagnoser:
                     and near & set(c.nodes) and c.key not in have][:cfg.n_try]
         options += [(c, None) for c in lib if c.release is None and c.physics == "boundary_flexibility"
                     and c.key not in have]
-        return options
+        return [(c, th) for c, th in options if c.key not in self._hidden]
 
     def _start_value(self, c, pm_aug, p_par, prev) -> float:
         """A start value for a candidate without one: on the MCI, the best of six decades around the median
@@ -1220,8 +1285,10 @@ class Diagnoser:
             log.warning("FRF overlays/frequency table not prepared: %s", e)
             curves, freqs = {}, {}
         diag = Diagnosis(findings=findings, parameters=self._parameters(), fit=fit_blocks,
-                         statement=statement(findings, fit_blocks, self.held_desc, self.not_evaluated),
+                         statement=statement(findings, fit_blocks, self.held_desc, self.not_evaluated,
+                                             self.unobservable),
                          model=final_model, not_evaluated=list(self.not_evaluated),
+                         unobservable=list(self.unobservable),
                          parametric=self.best_pm, p=self.best_fit.p,
                          steps={"held_out": self.held_desc, "band_hz": self.band, "hot_nodes": self.hot_nodes,
                                 "n_candidates": self.n_lib, **steps_modes},
@@ -1328,10 +1395,20 @@ def _describe(f: Finding) -> str:
     return s
 
 
-def statement(findings, fit, held_desc: str, not_evaluated=()) -> str:
-    """The diagnosis in words; candidates that could not be evaluated are named (the conclusion does not cover
-    them)."""
+def statement(findings, fit, held_desc: str, not_evaluated=(), unobservable=()) -> str:
+    """The diagnosis in words; candidates that could not be evaluated and releases the sensors and hits
+    cannot see are named (the conclusion does not cover them)."""
     text = _statement(findings, fit, held_desc)
+    if unobservable:
+        where: dict = {}
+        for d in unobservable:
+            for dof in d["dofs"] or [str(n) for n in d["nodes"]]:
+                node, _, axis = dof.partition("+")
+                where.setdefault((d["physics"], axis), []).append(node)
+        parts = [f"{kind.replace('_', ' ')}{' about ' + axis if axis else ''} at node{'s' if len(ns) > 1 else ''} "
+                 f"{', '.join(dict.fromkeys(ns))}" for (kind, axis), ns in where.items()]
+        text += (f" Not observable with these sensors and hits: {'; '.join(parts)} (released completely, it would "
+                 "change the measured FRFs by less than their noise); this conclusion does not cover it.")
     if not_evaluated:
         names = ", ".join(d["candidate"] for d in not_evaluated[:3]) + (" and others" if len(not_evaluated) > 3 else "")
         text += (f" {len(not_evaluated)} candidate(s) could not be evaluated (the augmented model could not be solved: "
