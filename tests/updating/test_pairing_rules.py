@@ -88,6 +88,16 @@ class TestExclusions:
         p = pair_modes(r.mac, r.analysis.freq_hz, te.freq_hz, observability=None)
         assert (4, 1) in p.pairs
 
+    def test_table_lists_only_unpaired_model_modes_inside_the_test_band(self):
+        # FE modes at 3 Hz (below the lowest test mode, 10 Hz) and 30 Hz (inside) have no test partner
+        fa = [3.0, 10.0, 30.0, 50.0]
+        A = np.eye(4)
+        an = ModeSet(freq_hz=fa, shapes=A, dofs=["1+Z", "2+Z", "3+Z", "4+Z"])
+        te = ModeSet(freq_hz=[10.0, 50.0], shapes=A[:, [1, 3]], dofs=an.dofs)
+        r = correlate(an, te)
+        line = [ln for ln in r.table().splitlines() if "in the test band without a test partner" in ln][0]
+        assert "3 (30 Hz)" in line and "1 (3 Hz)" not in line
+
     def test_rigid_body_modes_excluded_or_paired_on_purpose(self):
         rb = np.ones((7, 1))
         _, B = beam(3, 10.0)

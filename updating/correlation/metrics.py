@@ -190,11 +190,14 @@ class CorrelationResult:
                              f"unpaired: {self.pairing.unpaired_reason.get(jx, '')}")
         if len(fx):
             excl = self.pairing.excluded_analysis
-            band = [i for i in self.pairing.unpaired_analysis if fa[i] <= fx.max() * 1.1 and i not in excl]
+            # the test band: from the lowest to the highest test mode, 10 % either side (the file does not say
+            # which band was identified; a model mode below the lowest test mode is not "in the band")
+            lo, hi = fx.min() / 1.1, fx.max() * 1.1
+            band = [i for i in self.pairing.unpaired_analysis if lo <= fa[i] <= hi and i not in excl]
             if band:
                 lines.append("analysis modes in the test band without a test partner: "
                              + ", ".join(f"{i + 1} ({fa[i]:.4g} Hz)" for i in band))
-            ex = [i for i in sorted(excl) if fa[i] <= fx.max() * 1.1]
+            ex = [i for i in sorted(excl) if fa[i] <= hi]
             if ex:
                 lines.append("analysis modes kept out of the pairing: "
                              + "; ".join(f"{i + 1} ({fa[i]:.4g} Hz) {excl[i]}" for i in ex))
