@@ -901,34 +901,12 @@ class Diagnoser:
         pm_ref, ref = self._frf_ref()
         tried = []
         for c, v, p_scr, k in picks[:FRF_PICKS]:
-            m_aug, cpar, scales = _augment(self.model0, self.current + [c])
-            pm_aug = ParametricFEModel(m_aug, self.params + cpar)
-            clo = np.concatenate([self.lo, np.zeros(len(cpar))])
-            chi = np.concatenate([self.hi, _upper(self.current + [c], scales)])
-            start = np.concatenate([p_scr, [min(v, getattr(c, "upper", np.inf)) / scales[-1]]])
-            fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
-                           max_nfev=max(8, cfg.max_nfev // 2))
+            pm_aug, fr, clo, chi = self._fit_pick(c, v, p_scr)
             log.info("screening pick %s fitted on the FRFs: error %.4g (current %.4g)", c.label, fr.error, ref.error)
             tried.append((fr.error, c, pm_aug, fr, clo, chi, k))
         err, c, pm_aug, fr, clo, chi, k = min(tried, key=lambda t: t[0])
         n_eq = self.train.H.size * 2
-        need = cfg.min_gain if not self.current else max(cfg.min_gain, cfg.min_extra_gain)
-        if not (err < ref.error and n_eq * np.log(ref.error ** 2 / max(err ** 2, 1e-300)) > cfg.penalty * np.log(n_eq)):
-            ok, why = False, "fails the information criterion on the FRFs"
-        elif err > ref.error * (1 - need):
-            ok, why = False, f"lowers the training FRF error by less than {100 * need:.0f} %"
-        else:
-            ok, why = _term_holds(pm_ref, ref.p, pm_aug, fr.p, self.train, self.held, cfg.penalty,
-                                  cfg.min_holdout_gain)
-            if ok:
-                # a pick the linearised criterion did not support must explain the residual, not only reduce it
-                st = pm_aug.structure(fr.p)
-                red = max(c1 / n1 for c1, n1 in (_chi2(st, self.train), _chi2(st, self.held)))
-                if red > PICK_MAX_REDUCED_CHI2:
-                    ok = False
-                    why += (f"; χ²/N {red:.3g} left, above {PICK_MAX_REDUCED_CHI2:g}: the term reduces a residual "
-                            "that stays far above the noise (model-form error it would absorb)")
-            ok, why = self._effect_ok(ok, why, pm_aug, fr.p, c)
+        ok, why = self._judge_pick(c, pm_aug, fr)
         log.info("screening pick %s on the FRFs: %s", c.label, why)
         if not ok:
             self._say(f"  rejected: {c.label} ({why})")
@@ -951,6 +929,40 @@ class Diagnoser:
         alts = [(o, v) for o, v, g in scr if o.key != c.key and o.key not in have
                 and (1 - g) ** 2 - e_c <= margin and _another_explanation(o, c, m_now)]
         return c, alts
+
+    def _fit_pick(self, c, v, p_scr):
+        """The current terms plus ``c`` fitted with the parameters on the training FRFs, from the parameters
+        ``p_scr`` and the value ``v`` (a screening's): ``(pm_aug, FitResult, lower, upper)``."""
+        m_aug, cpar, scales = _augment(self.model0, self.current + [c])
+        pm_aug = ParametricFEModel(m_aug, self.params + cpar)
+        clo = np.concatenate([self.lo, np.zeros(len(cpar))])
+        chi = np.concatenate([self.hi, _upper(self.current + [c], scales)])
+        start = np.concatenate([p_scr, [min(v, getattr(c, "upper", np.inf)) / scales[-1]]])
+        fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
+                       max_nfev=max(8, self.config.max_nfev // 2))
+        return pm_aug, fr, clo, chi
+
+    def _judge_pick(self, c, pm_aug, fr) -> tuple[bool, str]:
+        """The tests of :meth:`_judge` on the FRF criterion for a pick fitted by :meth:`_fit_pick`, against
+        the current model's FRF fit, and the reduced χ² it must leave (:data:`PICK_MAX_REDUCED_CHI2`)."""
+        cfg = self.config
+        pm_ref, ref = self._frf_ref()
+        err, n_eq = fr.error, self.train.H.size * 2
+        need = cfg.min_gain if not self.current else max(cfg.min_gain, cfg.min_extra_gain)
+        if not (err < ref.error and n_eq * np.log(ref.error ** 2 / max(err ** 2, 1e-300)) > cfg.penalty * np.log(n_eq)):
+            return False, "fails the information criterion on the FRFs"
+        if err > ref.error * (1 - need):
+            return False, f"lowers the training FRF error by less than {100 * need:.0f} %"
+        ok, why = _term_holds(pm_ref, ref.p, pm_aug, fr.p, self.train, self.held, cfg.penalty, cfg.min_holdout_gain)
+        if ok:
+            # a pick the linearised criterion did not support must explain the residual, not only reduce it
+            st = pm_aug.structure(fr.p)
+            red = max(c1 / n1 for c1, n1 in (_chi2(st, self.train), _chi2(st, self.held)))
+            if red > PICK_MAX_REDUCED_CHI2:
+                ok = False
+                why += (f"; χ²/N {red:.3g} left, above {PICK_MAX_REDUCED_CHI2:g}: the term reduces a residual "
+                        "that stays far above the noise (model-form error it would absorb)")
+        return self._effect_ok(ok, why, pm_aug, fr.p, c)
 
     def _options(self, it: int) -> list:
         """[(candidate, start value or None)] to try: the best of the linear MCI ranking and of the exact FRF
