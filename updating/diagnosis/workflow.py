@@ -322,6 +322,27 @@ PICK_MAX_REDUCED_CHI2 = 3.0
 MIN_DAMPING_EFFECT = 0.25
 
 
+#: damping on element groups is fitted at the best places of the exact screening, this many distinct ones
+DAMPING_PLACES = 3
+
+
+def _distinct_places(ranked: list, n: int) -> list:
+    """The first ``n`` entries of a ranking ``[(candidate, value, gain)]`` at distinct places: an entry sharing
+    a node with an earlier one is skipped.
+
+    For local damping the screening's order is the least reliable of all: it adds the term to a model whose
+    global loss factor was fitted without it, so the background already carries part of the local
+    dissipation (the two trade off against each other, and only a fit that re-fits both sees which place is
+    right); the runs of neighbouring element groups at the first place would otherwise fill every slot."""
+    out = []
+    for t in ranked:
+        if len(out) >= n:
+            break
+        if not any(set(t[0].nodes) & set(o[0].nodes) for o in out):
+            out.append(t)
+    return out
+
+
 def term_effect(pm, p, n_par: int, c: Candidate, band) -> tuple[float, float]:
     """The size of the last term of ``pm`` at ``p`` (its value at ``p[-1]``, the other values as they are):
     the largest relative change of an in-band elastic natural frequency between the model with the term and
@@ -543,6 +564,50 @@ PAIR_MAX_FREQ_ERROR = 0.25
 SUSPENSION_RATIO = 0.5
 
 
+#: a free-free test article hangs on a suspension whose modes lie below this fraction of its first elastic
+#: frequency (the usual design rule of a free-free test: suspension modes at most 10 % of the first elastic one)
+SUSPENSION_PEAK_RATIO = 0.1
+
+
+def suspension_band(structure, measured: FRF, band_hz=None) -> float | None:
+    """The frequency below which the lines are left out of the fits because the test article hung on a
+    suspension the free model leaves out, or None.
+
+    A free-free model is only an idealisation of a test article on soft cords: "free-free boundary conditions
+    are subject to suspension effects, yielding rigid body modes having eigenvalues not equal to zero"
+    (thesis, ch. 1; the thesis's test-bed hung with rigid-body modes at about 1 Hz, §5).  When the nominal model
+    has rigid-body modes and the measured FRFs resonate below :data:`SUSPENSION_PEAK_RATIO` × its first elastic
+    frequency f₁ (peaks of the summed receptance power, as :func:`peak_modes`), those lines and the
+    transition above them (up to :data:`SUSPENSION_RATIO` × f₁, where the pairing already leaves suspension
+    modes out) describe the suspension, not the structure: left in, their misfit dominates the error measure
+    and every screening (a 1/ω² mass line against a resonance).  A spring to ground that the model should
+    carry (a support at a tenth of f₁ or above) is not a suspension and keeps its lines."""
+    from scipy.signal import find_peaks
+    n = min(structure.n_dof, 24)
+    ana = analysis_modes(structure, n)
+    fa = np.asarray(ana.freq_hz, float)
+    rigid = _rigid_fraction(structure, np.asarray(ana.shapes)) > 0.9
+    elastic = fa[~rigid]
+    # free: rigid-body modes at zero frequency (not a support's or mounts' rigid-body modes, which it models)
+    if not elastic.size or not np.any(rigid & (fa < 1e-3 * float(elastic[0]))):
+        return None
+    f1 = float(elastic[0])
+    rec = measured if band_hz is None else measured.band(*band_hz)
+    rec = rec.to("receptance")
+    sel = (rec.freq_hz > 0) & (rec.freq_hz <= SUSPENSION_PEAK_RATIO * f1)
+    if np.count_nonzero(sel) < 5:
+        return None
+    P = np.sum(np.abs(rec.H[:, :, sel]) ** 2, axis=(0, 1))
+    lg = np.log10(P + 1e-300)
+    pk, _ = find_peaks(lg, prominence=max(0.05 * float(np.ptp(lg)), 0.3))
+    if pk.size == 0:
+        return None
+    log.info("the measured FRFs resonate at %s Hz, below %.0f %% of the free model's first elastic frequency "
+             "(%.4g Hz): a suspension", ", ".join(f"{x:.3g}" for x in rec.freq_hz[sel][pk]),
+             100 * SUSPENSION_PEAK_RATIO, f1)
+    return SUSPENSION_RATIO * f1
+
+
 def _rigid_fraction(structure, phi: np.ndarray) -> np.ndarray:
     """Share of each mode's kinetic energy (mass-weighted) in the span of the six rigid-body motions of the
     model's nodes (translations and small rotations about the centroid, from the node coordinates)."""
@@ -726,7 +791,14 @@ class Diagnoser:
         self.lo, self.hi = _bounds(params, self.p_nom)
         self.lo = np.maximum(self.lo, self.pmean - PRIOR_BOUND * self.psig)
         self.hi = np.minimum(self.hi, self.pmean + PRIOR_BOUND * self.psig)
-        self.data = frf_data(measured, max_lines=cfg.max_lines, band_hz=cfg.band_hz)
+        # a free model of a test article on a suspension: the suspension's lines are left out of the fits
+        self.suspension_hz = suspension_band(pm.structure(self.p_nom), measured, cfg.band_hz)
+        band = cfg.band_hz
+        if self.suspension_hz is not None:
+            self._say(f"  lines below {self.suspension_hz:.3g} Hz left out: the free model's test article hung on a "
+                      "suspension")
+            band = (max(self.suspension_hz, band[0] if band else 0.0), band[1] if band else None)
+        self.data = frf_data(measured, max_lines=cfg.max_lines, band_hz=band)
         self.train, self.held, self.held_desc = _split(self.data, cfg.holdout)
         self.band = (float(self.data.freq_hz.min()), float(self.data.freq_hz.max()))
         self._say("step 1/6: correlating the nominal model")
@@ -1015,7 +1087,8 @@ class Diagnoser:
                 by_kind.setdefault(c.matrix, []).append((c, v, g))
                 if c.release is not None:
                     by_kind.setdefault(c.physics, []).append((c, v, g))
-            for c, v, g in scr[:2 if self.use_mci else 3] + [lst[0] for lst in by_kind.values()]:
+            for c, v, g in scr[:2 if self.use_mci else 3] + [lst[0] for lst in by_kind.values()] + \
+                    _distinct_places(by_kind.get("D", []), DAMPING_PLACES)[1:]:
                 if c.key not in listed and c.key not in have and g > 0.05:
                     options.append((c, v))
                     listed.add(c.key)
@@ -1236,6 +1309,7 @@ class Diagnoser:
                          model=final_model, not_evaluated=list(self.not_evaluated),
                          parametric=self.best_pm, p=self.best_fit.p,
                          steps={"held_out": self.held_desc, "band_hz": self.band, "hot_nodes": self.hot_nodes,
+                                "suspension_below_hz": self.suspension_hz,
                                 "n_candidates": self.n_lib, **steps_modes},
                          maps=maps, timings=self.timings, ranking=self.ranking or [], curves=curves, frequencies=freqs,
                          pairing=pairing)
