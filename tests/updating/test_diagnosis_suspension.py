@@ -83,3 +83,17 @@ def test_damping_places_are_distinct():
     got = [c.key for c, _, _ in wf._distinct_places(ranked, 3)]
     assert got == ["a", "d", "f"]
     assert [c.key for c, _, _ in wf._distinct_places(ranked, 1)] == ["a"]
+
+
+def test_no_dashpot_to_ground_on_a_suspended_free_model():
+    nominal = _nominal()
+    f = np.linspace(0.25, 600, 1200)
+    out = {}
+    for name, truth in (("suspended", _suspended(nominal)), ("free", nominal)):
+        d = wf.Diagnoser(wf.DiagnoserConfig(max_lines=60, max_nfev=4, progress=lambda m: None))
+        d._t0, d.timings = time.perf_counter(), {}
+        d.baseline(nominal, _measured(truth, f))
+        lib = d._library(nominal)
+        out[name] = {c.matrix for c in lib if c.physics == "local_damping"}
+    assert out["free"] == {"C", "D"}            # a truly free test: dashpots to ground stay candidates
+    assert out["suspended"] == {"D"}             # on its suspension: the grounded dissipation is the suspension's

@@ -1036,12 +1036,23 @@ class Diagnoser:
                         "that stays far above the noise (model-form error it would absorb)")
         return self._effect_ok(ok, why, pm_aug, fr.p, c)
 
+    def _library(self, model: FEModel) -> list:
+        """The candidates of :func:`build_library` for ``model``; on a free model of a test article on a
+        suspension (:func:`suspension_band`), without dashpots to ground: a free-free test article dissipates
+        into the ground only through its suspension, whose lines are left out — above them a suspension's
+        dashpot acts on the elastic modes (f_s/f)² times less than on its own modes — so a grounded dashpot
+        fitted there would stand in for the per-section structural damping the background leaves out."""
+        lib = build_library(model, kinds=self.config.kinds)
+        if getattr(self, "suspension_hz", None) is not None:
+            lib = [c for c in lib if c.matrix != "C"]
+        return lib
+
     def _options(self, it: int) -> list:
         """[(candidate, start value or None)] to try: the best of the linear MCI ranking and of the exact FRF
         screening, joints near the located nodes and every support release."""
         cfg = self.config
         pm_cur, p_cur = self.pm_cur, self.p_cur
-        lib = build_library(pm_cur.model_at(p_cur), kinds=cfg.kinds)
+        lib = self._library(pm_cur.model_at(p_cur))
         self.n_lib = max(self.n_lib, len(lib))
         have = {c.key for c in self.current}
         # exact single-candidate FRF screening (non-linear in the value; strong effects that the linear MCI
