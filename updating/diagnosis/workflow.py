@@ -324,6 +324,27 @@ PICK_MAX_REDUCED_CHI2 = 3.0
 MIN_DAMPING_EFFECT = 0.25
 
 
+#: damping on element groups is fitted at the best places of the exact screening, this many distinct ones
+DAMPING_PLACES = 3
+
+
+def _distinct_places(ranked: list, n: int) -> list:
+    """The first ``n`` entries of a ranking ``[(candidate, value, gain)]`` at distinct places: an entry sharing
+    a node with an earlier one is skipped.
+
+    For local damping the screening's order is the least reliable of all: it adds the term to a model whose
+    global loss factor was fitted without it, so the background already carries part of the local
+    dissipation (the two trade off against each other, and only a fit that re-fits both sees which place is
+    right); the runs of neighbouring element groups at the first place would otherwise fill every slot."""
+    out = []
+    for t in ranked:
+        if len(out) >= n:
+            break
+        if not any(set(t[0].nodes) & set(o[0].nodes) for o in out):
+            out.append(t)
+    return out
+
+
 def term_effect(pm, p, n_par: int, c: Candidate, band) -> tuple[float, float]:
     """The size of the last term of ``pm`` at ``p`` (its value at ``p[-1]``, the other values as they are):
     the largest relative change of an in-band elastic natural frequency between the model with the term and
@@ -545,6 +566,50 @@ PAIR_MAX_FREQ_ERROR = 0.25
 SUSPENSION_RATIO = 0.5
 
 
+#: a free-free test article hangs on a suspension whose modes lie below this fraction of its first elastic
+#: frequency (the usual design rule of a free-free test: suspension modes at most 10 % of the first elastic one)
+SUSPENSION_PEAK_RATIO = 0.1
+
+
+def suspension_band(structure, measured: FRF, band_hz=None) -> float | None:
+    """The frequency below which the lines are left out of the fits because the test article hung on a
+    suspension the free model leaves out, or None.
+
+    A free-free model is only an idealisation of a test article on soft cords: "free-free boundary conditions
+    are subject to suspension effects, yielding rigid body modes having eigenvalues not equal to zero"
+    (thesis, ch. 1; the thesis's test-bed hung with rigid-body modes at about 1 Hz, §5).  When the nominal model
+    has rigid-body modes and the measured FRFs resonate below :data:`SUSPENSION_PEAK_RATIO` × its first elastic
+    frequency f₁ (peaks of the summed receptance power, as :func:`peak_modes`), those lines and the
+    transition above them (up to :data:`SUSPENSION_RATIO` × f₁, where the pairing already leaves suspension
+    modes out) describe the suspension, not the structure: left in, their misfit dominates the error measure
+    and every screening (a 1/ω² mass line against a resonance).  A spring to ground that the model should
+    carry (a support at a tenth of f₁ or above) is not a suspension and keeps its lines."""
+    from scipy.signal import find_peaks
+    n = min(structure.n_dof, 24)
+    ana = analysis_modes(structure, n)
+    fa = np.asarray(ana.freq_hz, float)
+    rigid = _rigid_fraction(structure, np.asarray(ana.shapes)) > 0.9
+    elastic = fa[~rigid]
+    # free: rigid-body modes at zero frequency (not a support's or mounts' rigid-body modes, which it models)
+    if not elastic.size or not np.any(rigid & (fa < 1e-3 * float(elastic[0]))):
+        return None
+    f1 = float(elastic[0])
+    rec = measured if band_hz is None else measured.band(*band_hz)
+    rec = rec.to("receptance")
+    sel = (rec.freq_hz > 0) & (rec.freq_hz <= SUSPENSION_PEAK_RATIO * f1)
+    if np.count_nonzero(sel) < 5:
+        return None
+    P = np.sum(np.abs(rec.H[:, :, sel]) ** 2, axis=(0, 1))
+    lg = np.log10(P + 1e-300)
+    pk, _ = find_peaks(lg, prominence=max(0.05 * float(np.ptp(lg)), 0.3))
+    if pk.size == 0:
+        return None
+    log.info("the measured FRFs resonate at %s Hz, below %.0f %% of the free model's first elastic frequency "
+             "(%.4g Hz): a suspension", ", ".join(f"{x:.3g}" for x in rec.freq_hz[sel][pk]),
+             100 * SUSPENSION_PEAK_RATIO, f1)
+    return SUSPENSION_RATIO * f1
+
+
 def _rigid_fraction(structure, phi: np.ndarray) -> np.ndarray:
     """Share of each mode's kinetic energy (mass-weighted) in the span of the six rigid-body motions of the
     model's nodes (translations and small rotations about the centroid, from the node coordinates)."""
@@ -728,7 +793,14 @@ class Diagnoser:
         self.lo, self.hi = _bounds(params, self.p_nom)
         self.lo = np.maximum(self.lo, self.pmean - PRIOR_BOUND * self.psig)
         self.hi = np.minimum(self.hi, self.pmean + PRIOR_BOUND * self.psig)
-        self.data = frf_data(measured, max_lines=cfg.max_lines, band_hz=cfg.band_hz)
+        # a free model of a test article on a suspension: the suspension's lines are left out of the fits
+        self.suspension_hz = suspension_band(pm.structure(self.p_nom), measured, cfg.band_hz)
+        band = cfg.band_hz
+        if self.suspension_hz is not None:
+            self._say(f"  lines below {self.suspension_hz:.3g} Hz left out: the free model's test article hung on a "
+                      "suspension")
+            band = (max(self.suspension_hz, band[0] if band else 0.0), band[1] if band else None)
+        self.data = frf_data(measured, max_lines=cfg.max_lines, band_hz=band)
         self.train, self.held, self.held_desc = _split(self.data, cfg.holdout)
         self.band = (float(self.data.freq_hz.min()), float(self.data.freq_hz.max()))
         self._say("step 1/6: correlating the nominal model")
@@ -931,34 +1003,12 @@ class Diagnoser:
         pm_ref, ref = self._frf_ref()
         tried = []
         for c, v, p_scr, k in picks[:FRF_PICKS]:
-            m_aug, cpar, scales = _augment(self.model0, self.current + [c])
-            pm_aug = ParametricFEModel(m_aug, self.params + cpar)
-            clo = np.concatenate([self.lo, np.zeros(len(cpar))])
-            chi = np.concatenate([self.hi, _upper(self.current + [c], scales)])
-            start = np.concatenate([p_scr, [min(v, getattr(c, "upper", np.inf)) / scales[-1]]])
-            fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
-                           max_nfev=max(8, cfg.max_nfev // 2))
+            pm_aug, fr, clo, chi = self._fit_pick(c, v, p_scr)
             log.info("screening pick %s fitted on the FRFs: error %.4g (current %.4g)", c.label, fr.error, ref.error)
             tried.append((fr.error, c, pm_aug, fr, clo, chi, k, scales[-1]))
         err, c, pm_aug, fr, clo, chi, k, _ = min(tried, key=lambda t: t[0])
         n_eq = self.train.H.size * 2
-        need = cfg.min_gain if not self.current else max(cfg.min_gain, cfg.min_extra_gain)
-        if not (err < ref.error and n_eq * np.log(ref.error ** 2 / max(err ** 2, 1e-300)) > cfg.penalty * np.log(n_eq)):
-            ok, why = False, "fails the information criterion on the FRFs"
-        elif err > ref.error * (1 - need):
-            ok, why = False, f"lowers the training FRF error by less than {100 * need:.0f} %"
-        else:
-            ok, why = _term_holds(pm_ref, ref.p, pm_aug, fr.p, self.train, self.held, cfg.penalty,
-                                  cfg.min_holdout_gain)
-            if ok:
-                # a pick the linearised criterion did not support must explain the residual, not only reduce it
-                st = pm_aug.structure(fr.p)
-                red = max(c1 / n1 for c1, n1 in (_chi2(st, self.train), _chi2(st, self.held)))
-                if red > PICK_MAX_REDUCED_CHI2:
-                    ok = False
-                    why += (f"; χ²/N {red:.3g} left, above {PICK_MAX_REDUCED_CHI2:g}: the term reduces a residual "
-                            "that stays far above the noise (model-form error it would absorb)")
-            ok, why = self._effect_ok(ok, why, pm_aug, fr.p, c)
+        ok, why = self._judge_pick(c, pm_aug, fr)
         log.info("screening pick %s on the FRFs: %s", c.label, why)
         if not ok:
             self._say(f"  rejected: {c.label} ({why})")
@@ -1017,12 +1067,57 @@ class Diagnoser:
                 out.append((o, float(fr.p[-1] * scales[-1])))
         return out
 
+    def _fit_pick(self, c, v, p_scr):
+        """The current terms plus ``c`` fitted with the parameters on the training FRFs, from the parameters
+        ``p_scr`` and the value ``v`` (a screening's): ``(pm_aug, FitResult, lower, upper)``."""
+        m_aug, cpar, scales = _augment(self.model0, self.current + [c])
+        pm_aug = ParametricFEModel(m_aug, self.params + cpar)
+        clo = np.concatenate([self.lo, np.zeros(len(cpar))])
+        chi = np.concatenate([self.hi, _upper(self.current + [c], scales)])
+        start = np.concatenate([p_scr, [min(v, getattr(c, "upper", np.inf)) / scales[-1]]])
+        fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
+                       max_nfev=max(8, self.config.max_nfev // 2))
+        return pm_aug, fr, clo, chi
+
+    def _judge_pick(self, c, pm_aug, fr) -> tuple[bool, str]:
+        """The tests of :meth:`_judge` on the FRF criterion for a pick fitted by :meth:`_fit_pick`, against
+        the current model's FRF fit, and the reduced χ² it must leave (:data:`PICK_MAX_REDUCED_CHI2`)."""
+        cfg = self.config
+        pm_ref, ref = self._frf_ref()
+        err, n_eq = fr.error, self.train.H.size * 2
+        need = cfg.min_gain if not self.current else max(cfg.min_gain, cfg.min_extra_gain)
+        if not (err < ref.error and n_eq * np.log(ref.error ** 2 / max(err ** 2, 1e-300)) > cfg.penalty * np.log(n_eq)):
+            return False, "fails the information criterion on the FRFs"
+        if err > ref.error * (1 - need):
+            return False, f"lowers the training FRF error by less than {100 * need:.0f} %"
+        ok, why = _term_holds(pm_ref, ref.p, pm_aug, fr.p, self.train, self.held, cfg.penalty, cfg.min_holdout_gain)
+        if ok:
+            # a pick the linearised criterion did not support must explain the residual, not only reduce it
+            st = pm_aug.structure(fr.p)
+            red = max(c1 / n1 for c1, n1 in (_chi2(st, self.train), _chi2(st, self.held)))
+            if red > PICK_MAX_REDUCED_CHI2:
+                ok = False
+                why += (f"; χ²/N {red:.3g} left, above {PICK_MAX_REDUCED_CHI2:g}: the term reduces a residual "
+                        "that stays far above the noise (model-form error it would absorb)")
+        return self._effect_ok(ok, why, pm_aug, fr.p, c)
+
+    def _library(self, model: FEModel) -> list:
+        """The candidates of :func:`build_library` for ``model``; on a free model of a test article on a
+        suspension (:func:`suspension_band`), without dashpots to ground: a free-free test article dissipates
+        into the ground only through its suspension, whose lines are left out — above them a suspension's
+        dashpot acts on the elastic modes (f_s/f)² times less than on its own modes — so a grounded dashpot
+        fitted there would stand in for the per-section structural damping the background leaves out."""
+        lib = build_library(model, kinds=self.config.kinds)
+        if getattr(self, "suspension_hz", None) is not None:
+            lib = [c for c in lib if c.matrix != "C"]
+        return lib
+
     def _options(self, it: int) -> list:
         """[(candidate, start value or None)] to try: the best of the linear MCI ranking and of the exact FRF
         screening, joints near the located nodes and every support release."""
         cfg = self.config
         pm_cur, p_cur = self.pm_cur, self.p_cur
-        lib = build_library(pm_cur.model_at(p_cur), kinds=cfg.kinds)
+        lib = self._library(pm_cur.model_at(p_cur))
         self.n_lib = max(self.n_lib, len(lib))
         have = {c.key for c in self.current}
         # exact single-candidate FRF screening (non-linear in the value; strong effects that the linear MCI
@@ -1068,7 +1163,8 @@ class Diagnoser:
                 by_kind.setdefault(c.matrix, []).append((c, v, g))
                 if c.release is not None:
                     by_kind.setdefault(c.physics, []).append((c, v, g))
-            for c, v, g in scr[:2 if self.use_mci else 3] + [lst[0] for lst in by_kind.values()]:
+            for c, v, g in scr[:2 if self.use_mci else 3] + [lst[0] for lst in by_kind.values()] + \
+                    _distinct_places(by_kind.get("D", []), DAMPING_PLACES)[1:]:
                 if c.key not in listed and c.key not in have and g > 0.05:
                     options.append((c, v))
                     listed.add(c.key)
@@ -1291,6 +1387,7 @@ class Diagnoser:
                          unobservable=list(self.unobservable),
                          parametric=self.best_pm, p=self.best_fit.p,
                          steps={"held_out": self.held_desc, "band_hz": self.band, "hot_nodes": self.hot_nodes,
+                                "suspension_below_hz": self.suspension_hz,
                                 "n_candidates": self.n_lib, **steps_modes},
                          maps=maps, timings=self.timings, ranking=self.ranking or [], curves=curves, frequencies=freqs,
                          pairing=pairing)
