@@ -1003,9 +1003,9 @@ class Diagnoser:
         pm_ref, ref = self._frf_ref()
         tried = []
         for c, v, p_scr, k in picks[:FRF_PICKS]:
-            pm_aug, fr, clo, chi = self._fit_pick(c, v, p_scr)
+            pm_aug, fr, clo, chi, scale = self._fit_pick(c, v, p_scr)
             log.info("screening pick %s fitted on the FRFs: error %.4g (current %.4g)", c.label, fr.error, ref.error)
-            tried.append((fr.error, c, pm_aug, fr, clo, chi, k, scales[-1]))
+            tried.append((fr.error, c, pm_aug, fr, clo, chi, k, scale))
         err, c, pm_aug, fr, clo, chi, k, _ = min(tried, key=lambda t: t[0])
         n_eq = self.train.H.size * 2
         ok, why = self._judge_pick(c, pm_aug, fr)
@@ -1069,7 +1069,8 @@ class Diagnoser:
 
     def _fit_pick(self, c, v, p_scr):
         """The current terms plus ``c`` fitted with the parameters on the training FRFs, from the parameters
-        ``p_scr`` and the value ``v`` (a screening's): ``(pm_aug, FitResult, lower, upper)``."""
+        ``p_scr`` and the value ``v`` (a screening's): ``(pm_aug, FitResult, lower, upper, scale)``, ``scale``
+        the factor from ``c``'s fitted parameter (the last) to its physical value."""
         m_aug, cpar, scales = _augment(self.model0, self.current + [c])
         pm_aug = ParametricFEModel(m_aug, self.params + cpar)
         clo = np.concatenate([self.lo, np.zeros(len(cpar))])
@@ -1077,7 +1078,7 @@ class Diagnoser:
         start = np.concatenate([p_scr, [min(v, getattr(c, "upper", np.inf)) / scales[-1]]])
         fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
                        max_nfev=max(8, self.config.max_nfev // 2))
-        return pm_aug, fr, clo, chi
+        return pm_aug, fr, clo, chi, scales[-1]
 
     def _judge_pick(self, c, pm_aug, fr) -> tuple[bool, str]:
         """The tests of :meth:`_judge` on the FRF criterion for a pick fitted by :meth:`_fit_pick`, against
