@@ -35,13 +35,15 @@ def test_mode_table_prints_damping_columns_in_percent_with_a_legend():
 
 
 def test_selection_shows_the_winner_and_why_others_were_turned_down():
-    sel = {"decisions": [{"decision": "rejected", "candidate": "spring to ground at 110+Z",
-                          "reason": "held-out error up"},
-                         {"decision": "found", "candidate": "point mass at node 218", "reason": ""}]}
-    html = "".join(_selection_html(_diag([MASS]), sel))
+    d = _diag([MASS])
+    d["decisions"] = [{"decision": "rejected", "candidate": "spring to ground at 110+Z", "physics": "ground_spring",
+                       "reason": "held-out error up"},
+                      {"decision": "found", "candidate": "point mass at node 218", "physics": "added_mass",
+                       "reason": ""}]
+    html = "".join(_selection_html(d))
     assert "Selected terms" in html and "point mass at node 218" in html and "not in its top 1" in html
     assert "turned down" in html and "held-out error up" in html
-    assert "selection.json is missing" in "".join(_selection_html(_diag([MASS]), None))
+    assert "not recorded" in "".join(_selection_html(_diag([MASS])))
 
 
 def test_report_of_simulated_data_says_so(tmp_path):

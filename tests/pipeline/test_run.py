@@ -84,7 +84,7 @@ def test_end_to_end_artifacts_and_manifest(demo):
     for rel in ("acquire/session.uff", "frf/frf.uff", "frf/coherence.png", "identify/modes.uff",
                 "identify/stabilisation.png", "correlate/mac_before.png", "update/updated.bdf", "update/mac_after.png",
                 "update/convergence.png", "diagnose/diagnosis.json", "diagnose/diagnosed.bdf", "diagnose/figures/mci_maps.png",
-                "diagnose/frf_overlay_models.png", "diagnose/selection.json", "report/report.html", "report/summary.json"):
+                "diagnose/frf_overlay_models.png", "report/report.html", "report/summary.json"):
         assert (out / rel).is_file(), rel
     man = json.loads((out / "manifest.json").read_text())
     assert list(man["stages"]) == list(STAGES)
@@ -180,8 +180,8 @@ def test_report_says_simulated_which_model_and_the_selection(demo):
     assert s["model_to_use"]["file"] == "diagnose/diagnosed.bdf" and "parameters-only" in s["model_to_use"]["why"]
     text = (out / "report" / "report.html").read_text(encoding="utf-8")
     assert "<b>Simulated data.</b>" in text and "Model to use: diagnose/diagnosed.bdf" in text
-    sel = json.loads((out / "diagnose" / "selection.json").read_text())
-    assert any("218" in t["candidate"] for t in sel["selected"])
+    dec = json.loads((out / "diagnose" / "diagnosis.json").read_text())["decisions"]
+    assert any("218" in t["candidate"] for t in dec if t["decision"] == "found")
     assert "Selected terms" in text and "point mass at node 218" in text.split("Selected terms")[1][:2000]
     assert "σ ζ [%]" in text and "damping_std" not in text and "MPD [°]" in text and "χ² ratio" in text
     assert not (out / "diagnose" / "mci_maps.png").exists() and not (out / "diagnose" / "frf_overlay.png").exists()

@@ -91,3 +91,11 @@ def test_candidates_not_evaluated_are_named_in_the_statement():
     s = wf.statement([], fit, "response DOFs 3+Z", ne)
     assert "1 candidate(s) could not be evaluated" in s and "spring to ground at 3+Z" in s
     assert "could not be evaluated" not in wf.statement([], fit, "response DOFs 3+Z")
+
+
+def test_a_turned_down_pick_is_kept_with_its_reason_for_diagnosis_json():
+    d, picked = _judge_picks(False)
+    assert picked is None
+    rej = [x for x in d.decisions if x["decision"] == "rejected"]
+    assert rej and all(x["reason"] and x["physics"] in wf.validate_kinds(None) for x in rej)
+    assert set(rej[0]) == {"decision", "candidate", "physics", "reason"}

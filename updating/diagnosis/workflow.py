@@ -116,6 +116,8 @@ class Diagnosis:
     pairing: dict = field(default_factory=dict)     # per fit block: pairs and the modes left out on purpose
     not_evaluated: list = field(default_factory=list)   # candidates whose augmented model could not be solved
     unobservable: list = field(default_factory=list)    # releases the sensors and hits cannot see (not screened)
+    decisions: list = field(default_factory=list)       # the selection's verdicts in order: found/ambiguous/
+    #                                                     rejected/dropped, each with the candidate and the reason
 
     def save(self, directory, *, figures: bool = True, bulk: bool = True):
         """Write ``diagnosis.json``, the figures (:mod:`~updating.diagnosis.report`) and the augmented,
@@ -147,6 +149,7 @@ class Diagnosis:
                 "pairing": self.pairing,
                 "not_evaluated": list(self.not_evaluated),
                 "unobservable": list(self.unobservable),
+                "decisions": list(self.decisions),
                 "timings_s": {k: round(v, 3) for k, v in self.timings.items()}}
 
 
@@ -758,6 +761,14 @@ class Diagnoser:
     def _say(self, msg):
         (self.config.progress or log.info)(msg)
 
+    def _decide(self, decision: str, cand, reason: str, *, sep: str = " (") -> None:
+        """One verdict of the selection, said as progress (``  found: LABEL (reason)``) and kept for
+        ``diagnosis.json`` (``decisions``: decision, candidate, physics, reason) — the one record of why a
+        candidate was taken, turned down, made ambiguous or dropped."""
+        self.decisions.append({"decision": decision, "candidate": cand.label, "physics": cand.physics,
+                               "reason": reason})
+        self._say(f"  {decision}: {cand.label}{sep}{reason}{')' if sep == ' (' else ''}")
+
     def fit(self, model: FEModel, measured: FRF) -> "Diagnoser":
         self._t0 = time.perf_counter()
         self.timings = {}
@@ -845,7 +856,7 @@ class Diagnoser:
             upd, nom = self.upd, self.nom
             self.p_cur, self.rss_cur = (upd.p, upd.error ** 2) if upd.error <= nom.error else (self.p_nomd,
                                                                                              nom.error ** 2)
-        self.current, self.alternatives = [], {}
+        self.current, self.alternatives, self.decisions = [], {}, []
         self.pm_cur, self.lo_cur, self.hi_cur = self.pm, self.lo, self.hi
         self._frf_cur = (self.pm, self.upd)             # the current model fitted on the FRFs
         self._screens, self._route, self.not_evaluated = [], {}, []
@@ -917,21 +928,22 @@ class Diagnoser:
             # the rescue of the first term only: a further term needs the criterion's support (model-form error
             # — a coarse mesh, per-element scatter — is what an exact single-term screening finds next)
             if best is not None:
-                self._say(f"  rejected: {best[0].label} ({why})")
+                self._decide("rejected", best[0], why)
             picked = self._judge_picks(it, n_eq)
             if picked is None:
                 return False
             c, alts = picked
         else:
             if best is not None:
-                self._say(f"  rejected: {best[0].label} ({why})")
+                self._decide("rejected", best[0], why)
             return False
         self.current.append(c)
         if alts:
             self.alternatives[c.key] = alts[:2]
-            self._say(f"  ambiguous: {c.label} or {' or '.join(o.label for o, _ in alts[:2])} explain it equally well")
-        self._say(f"  found: {c.label} ({'MCI residual' if self.use_mci else 'training FRF error'} down to "
-                  f"{self.rss_cur if self.use_mci else np.sqrt(self.rss_cur):.3g})")
+            self._decide("ambiguous", c, f"{' or '.join(o.label for o, _ in alts[:2])} explain it equally well",
+                         sep=" or ")
+        self._decide("found", c, f"{'MCI residual' if self.use_mci else 'training FRF error'} down to "
+                                 f"{self.rss_cur if self.use_mci else np.sqrt(self.rss_cur):.3g}")
         return True
 
     def _judge(self, best, n_eq: int) -> tuple[bool, str]:
@@ -1011,7 +1023,7 @@ class Diagnoser:
         ok, why = self._judge_pick(c, pm_aug, fr)
         log.info("screening pick %s on the FRFs: %s", c.label, why)
         if not ok:
-            self._say(f"  rejected: {c.label} ({why})")
+            self._decide("rejected", c, why)
             return None
         # the MCI state of the augmented model for the next term's criterion (minimised like every candidate's);
         # the screenings and fits start from the FRF fit
@@ -1323,8 +1335,8 @@ class Diagnoser:
                 refit = r2
         if refit.error > best_fit.error * (1 + cfg.min_term_gain):
             return False
-        log.info("dropping %s: without it the training FRF error is %.4g (with %.4g)", current[worst].label,
-                 refit.error, best_fit.error)
+        self._decide("dropped", current[worst], f"backward elimination: without it the training FRF error is "
+                                                f"{refit.error:.4g} (with it {best_fit.error:.4g})")
         self.current, self.best_pm, self.best_fit, self.best_scales = rest, pm_rest, refit, sc
         return True
 
@@ -1385,7 +1397,7 @@ class Diagnoser:
                          statement=statement(findings, fit_blocks, self.held_desc, self.not_evaluated,
                                              self.unobservable),
                          model=final_model, not_evaluated=list(self.not_evaluated),
-                         unobservable=list(self.unobservable),
+                         unobservable=list(self.unobservable), decisions=list(self.decisions),
                          parametric=self.best_pm, p=self.best_fit.p,
                          steps={"held_out": self.held_desc, "band_hz": self.band, "hot_nodes": self.hot_nodes,
                                 "suspension_below_hz": self.suspension_hz,

@@ -25,7 +25,7 @@ update         :func:`update` (:class:`UpdateOptions`)         ``updated.bdf`` (
                                                                ``convergence.png``
 diagnose       :func:`diagnose` (:class:`DiagnoseOptions`)     ``diagnosis.json``; with ``out_dir``: the engine's
                                                                ``figures/``, ``diagnosed.bdf``,
-                                                               ``frf_overlay_models.png``, ``selection.json``
+                                                               ``frf_overlay_models.png``
 report         :func:`report`                                  ``report.html``, ``summary.json``
 =============  ==============================================  ===================================================
 

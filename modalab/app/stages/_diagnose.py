@@ -62,8 +62,6 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
         raise PlanError("--map applies to a modes-only diagnosis (--modes without MEASURED.uff); remove --map or the "
                         "measured FRFs")
     model = load_model(model_path)
-    decisions = _Decisions(progress)
-    progress = decisions
     params = load_parameters(opts.parameters, model)[0] if opts.parameters else None
     priors = None
     if opts.parameters:
@@ -99,42 +97,7 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
         files.append(write_json(jp, doc))
     if out_dir is not None:
         files += _diagnosis_files(diag, model, H, Path(out_dir), opts, updated_model)
-        files.append(write_json(Path(out_dir) / SELECTION_NAME, decisions.to_dict(doc)))
     return StageResult(diag, tuple(files), {"statement": diag.statement, "findings": len(diag.findings)})
-
-
-#: what the selection decided, candidate by candidate (the stage's record of the engine's progress messages)
-SELECTION_NAME = "selection.json"
-
-
-class _Decisions:
-    """The engine's progress messages passed on, and its selection decisions kept: ``found: LABEL (...)`` and
-    ``rejected: LABEL (WHY)`` (:class:`updating.diagnosis.workflow` says them; ``diagnosis.json`` keeps the
-    findings and the first screening's ranking, not the reasons a candidate was turned down)."""
-
-    _RE = __import__("re").compile(r"^\s*(found|rejected|ambiguous): (.+?)(?: \((.*)\))?$")
-
-    def __init__(self, progress):
-        self.progress = progress
-        self.items: list[dict] = []
-
-    def __call__(self, msg):
-        m = self._RE.match(str(msg))
-        if m:
-            self.items.append({"decision": m.group(1), "candidate": m.group(2), "reason": m.group(3) or ""})
-        if self.progress is not None:
-            self.progress(msg)
-
-    def to_dict(self, diagnosis: dict) -> dict:
-        ranked = [r["candidate"] for r in diagnosis.get("ranking", [])]
-        selected = [{"candidate": f.get("description", ""), "physics": f.get("physics"),
-                     "rank_in_first_screening": (ranked.index(f["description"]) + 1
-                                                 if f.get("description") in ranked else None),
-                     "evidence": f.get("evidence", "")} for f in diagnosis.get("findings", [])]
-        return {"selected": selected, "decisions": self.items,
-                "note": "ranking: the first screening (share of the residual each candidate explains alone); a "
-                        "selected term outside it was found by the exact FRF screening's picks. decisions: the "
-                        "engine's found/rejected messages in order, with its reason"}
 
 
 def _read_measured(frf_path):

@@ -210,9 +210,10 @@ _ENGINE_FIGURES = {
     "frequencies.png": "Paired frequencies of the nominal, parameters-only and diagnosed models"}
 
 
-def _selection_html(diag: dict, sel: dict | None) -> list:
+def _selection_html(diag: dict) -> list:
     """The selected terms, the first screening's ranking (with the selected terms marked or said to be outside
-    it) and the candidates the selection turned down with the engine's reason."""
+    it) and the candidates the selection turned down with the engine's reason (``diagnosis.json``'s
+    ``decisions``)."""
     out = []
     ranked = [r.get("candidate") for r in diag.get("ranking", [])]
     chosen = [f.get("description", f.get("physics", "")) for f in diag.get("findings", [])]
@@ -228,13 +229,13 @@ def _selection_html(diag: dict, sel: dict | None) -> list:
         out += ["<p>First screening: candidates ranked by the share of the residual each explains alone "
                 "(a selected term outside this list was found by the exact FRF screening's picks):</p>",
                 _table(rk, ["candidate", "physics", "explained", "selected"])]
-    rej = [d for d in (sel or {}).get("decisions", []) if d.get("decision") == "rejected"]
+    rej = [d for d in diag.get("decisions") or [] if d.get("decision") in ("rejected", "dropped")]
     if rej:
-        out += ["<p>Candidates the selection tried and turned down, with the reason:</p>",
-                _table(rej[:10], ["candidate", "reason"])]
-    elif sel is None and ranked:
-        out.append('<p class="muted">(Why other candidates were turned down is not recorded for this run: '
-                   "diagnose/selection.json is missing.)</p>")
+        out += ["<p>Candidates the selection tried and turned down (or dropped later), with the reason:</p>",
+                _table(rej[:10], ["candidate", "decision", "reason"])]
+    elif "decisions" not in diag and ranked:
+        out.append('<p class="muted">(Why other candidates were turned down is not recorded in this '
+                   "diagnosis.json: it was written before decisions were kept.)</p>")
     return out
 
 
@@ -309,7 +310,7 @@ def _diagnosis_section(run_dir, diag) -> list:
         if keys:
             parts += ["<p>Error of each model (" + ", ".join(_FIT_LABELS[c] for c in keys) + "):</p>",
                       _table(frows, ["model"] + keys)]
-    parts += _selection_html(diag, _load(run_dir / "diagnose" / "selection.json"))
+    parts += _selection_html(diag)
     pars = diag.get("parameters", {})
     if pars:
         prow = [{"parameter": k, **{kk: v[kk] for kk in ("initial", "parameters_only", "updated", "std") if kk in v}}
