@@ -136,10 +136,32 @@ def run_case(case_dir: Path, out_dir: Path, timeout: float) -> dict:
     (out_dir / f"{case_dir.name}.log").write_text("modalab " + " ".join(args) + f"\nexit {rc}\n" + err)
     res = {"case": case_dir.name, "seed": truth["seed"], "topology": truth["topology"],
            "truth": "control" if truth["control"] else truth["concealed"][0]["physics"], "wall_s": wall,
-           "cpu_s": cpu, "error": None}
+           "cpu_s": cpu, "error": None, "effect_to_noise": _visibility(case_dir)}
     if rc != 0 or not js.exists():
         lines = [ln for ln in err.strip().splitlines() if ln.strip()]
         res["error"] = (lines[-1] if lines else f"exit code {rc}, no output")[:300]
+        return score_case(truth, None, res)
+    return score_case(truth, parse_diagnosis(json.loads(js.read_text())), res)
+
+
+def _visibility(case_dir: Path):
+    """The effect's size against the noise at the case's sensors (``visibility.py``), None when not computed."""
+    v = Path(case_dir) / "visibility.json"
+    return json.loads(v.read_text()).get("effect_to_noise") if v.exists() else None
+
+
+def rescore_case(case_dir: Path, out_dir: Path, previous: dict | None) -> dict:
+    """Score the ``diagnosis.json`` a previous run left in ``out_dir`` again (after a change to the scoring or
+    new ``visibility.json`` files), keeping that run's times and crash message; diagnose is not run."""
+    truth = json.loads((Path(case_dir) / "truth.json").read_text())
+    prev = previous or {}
+    res = {"case": case_dir.name, "seed": truth["seed"], "topology": truth["topology"],
+           "truth": "control" if truth["control"] else truth["concealed"][0]["physics"],
+           "wall_s": prev.get("wall_s", 0.0), "cpu_s": prev.get("cpu_s"), "error": prev.get("error"),
+           "effect_to_noise": _visibility(case_dir)}
+    js = out_dir / f"{case_dir.name}.diagnosis.json"
+    if res["error"] or not js.exists():
+        res["error"] = res["error"] or "no diagnosis.json from the previous run"
         return score_case(truth, None, res)
     return score_case(truth, parse_diagnosis(json.loads(js.read_text())), res)
 
@@ -234,9 +256,9 @@ def _fmt_err(v):
 
 
 def table(results) -> str:
-    head = ("| case | topology | truth | finding(s) | kind right | dist (nodes) | value err | held-out err nominal / "
-            "params / physics | wall / CPU (s) |")
-    lines = [head, "|" + "---|" * 9]
+    head = ("| case | topology | truth | effect / noise | finding(s) | kind right | dist (nodes) | value err | "
+            "held-out err nominal / params / physics | wall / CPU (s) |")
+    lines = [head, "|" + "---|" * 10]
     for r in results:
         h = r.get("heldout") or {}
         if r["error"]:
@@ -249,7 +271,8 @@ def table(results) -> str:
         ve = "-" if r["value_error"] is None else f"{100 * r['value_error']:+.0f} %"
         cpu = "-" if r.get("cpu_s") is None else f"{r['cpu_s']:.0f}"
         truth = r["truth"] + (f" at {r['truth_where']} = {_num(r['truth_value'])}" if r["truth"] != "control" else "")
-        lines.append(f"| {r['case']} | {r['topology']} | {truth} | {fnd} | {kr} | "
+        en = r.get("effect_to_noise")
+        lines.append(f"| {r['case']} | {r['topology']} | {truth} | {'-' if en is None else f'{en:.3g}'} | {fnd} | {kr} | "
                      f"{'-' if r['distance'] is None else r['distance']}{' (alt)' if r.get('via_alternative') else ''} | {ve} | {_fmt_err(h.get('nominal'))} / "
                      f"{_fmt_err(h.get('parameters_only'))} / {_fmt_err(h.get('with_physics'))} | {r['wall_s']:.0f} / "
                      f"{cpu} |")
@@ -310,6 +333,16 @@ def summary(results) -> tuple[str, dict]:
          f"<= 60 s: {pct(s['within_60_s'])} (target: all); CPU time (process and children) median "
          f"{s['cpu_median_s'] or 0:.0f} s, max {s['cpu_max_s'] or 0:.0f} s" if walls else "no case ran",
          "right by kind: " + ", ".join(f"{k} {a}/{b}" for k, (a, b) in sorted(by_kind.items()))]
+    vis = [r for r in eff if r.get("effect_to_noise") is not None]
+    if vis:
+        seen = [r for r in vis if r["effect_to_noise"] >= 1.0]
+        hidden = [r for r in vis if r["effect_to_noise"] < 1.0]
+        s["right_within_one_node_visible"] = sum(1 for r in seen if r["right"]) / len(seen) if seen else None
+        L.append(f"effects at least the noise at the sensors (visibility.py: effect / noise >= 1): right "
+                 f"{sum(1 for r in seen if r['right'])}/{len(seen)} = {pct(s['right_within_one_node_visible'])}; "
+                 f"below the noise: {len(hidden)} case(s)"
+                 + (f" ({', '.join(r['case'] for r in hidden)}), right {sum(1 for r in hidden if r['right'])}"
+                    if hidden else ""))
     return "\n".join(L), s
 
 
@@ -337,6 +370,8 @@ def main(argv=None) -> int:
     ap.add_argument("--follow", type=int, metavar="N", help="score cases as generate.py writes them, until N are "
                                                               "scored (one at a time, in seed order)")
     ap.add_argument("--out", help="folder for score.md, score.json and the per-case logs (default ROOT/score)")
+    ap.add_argument("--rescore", action="store_true", help="do not run diagnose: score the diagnosis.json files a "
+                                                           "previous run left in --out again (times kept)")
     a = ap.parse_args(argv)
     cases = select_cases(Path(a.root), a.seeds, a.cases)
     if not cases and not a.follow:
@@ -355,7 +390,12 @@ def main(argv=None) -> int:
         (out / "score.json").write_text(json.dumps({"results": partial, "summary": summary(partial)[1]},
                                                    indent=1, default=str))
 
-    if a.follow:
+    if a.rescore:
+        prev_file = out / "score.json"
+        prev = {r["case"]: r for r in json.loads(prev_file.read_text())["results"]} if prev_file.exists() else {}
+        for c in cases:
+            done(rescore_case(c, out, prev.get(c.name)))
+    elif a.follow:
         # score cases while generate.py is still writing them (truth.json is written last), in seed order
         seen = set()
         while len(seen) < a.follow:

@@ -171,3 +171,19 @@ def test_score_marks_a_match_through_an_ambiguous_findings_alternative():
     diag["findings"][0]["nodes"] = [2]          # the best-fitting explanation itself is right
     r = score.score_case(truth, score.parse_diagnosis(diag), {"error": None})
     assert r["right"] and not r["via_alternative"]
+
+
+def test_visibility_from_the_truth_alone_separates_an_unseen_effect():
+    from benchmarks.discovery.visibility import effect_to_noise
+    # seed 36: a Z spring on a planar frame measured and hit in its plane only; seed 0: a spring in the plane
+    assert effect_to_noise(36)["effect_to_noise"] < 1e-6
+    assert effect_to_noise(0)["effect_to_noise"] > 100
+
+
+def test_summary_reports_the_rate_on_visible_effects_beside_the_whole():
+    def r(right, en):
+        return {"case": f"c{en}", "truth": "added_mass", "right": right, "spurious": 0, "error": None, "wall_s": 1.0, "cpu_s": 1.0,
+                "heldout": {}, "effect_to_noise": en, "value_error": None}
+    text, s = score.summary([r(True, 50.0), r(False, 20.0), r(False, 0.0)])
+    assert "1/3" in text.splitlines()[1]
+    assert s["right_within_one_node_visible"] == 0.5 and "below the noise: 1 case" in text
