@@ -31,7 +31,7 @@ from updating.methods.mci_condensed import derivatives
 
 log = logging.getLogger(__name__)
 __all__ = ["FRFData", "frf_data", "leakage_bias", "model_frf", "frf_error", "fit_frf", "FitResult", "Prior",
-           "parameter_std"]
+           "parameter_std", "ar1_inflation"]
 
 
 def _indices(model_dofs, data: FRFData):
@@ -230,9 +230,37 @@ def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None
         p_cur = p
     std = np.zeros(npar)
     dof = max(sol.fun.size - free.sum(), 1)
-    std[free] = parameter_std(sol.jac, float(sol.fun @ sol.fun) / dof)
+    infl = ar1_inflation(sol.fun[:2 * data.H.size].reshape((2,) + data.H.shape))
+    std[free] = parameter_std(sol.jac, float(sol.fun @ sol.fun) / dof * infl)
     return FitResult(p, std, err, history, bool(sol.success), str(sol.message) + (
         f" ({total_nfev} evaluations in a Ritz basis)" if reduced else ""))
+
+
+def ar1_inflation(r: np.ndarray) -> float:
+    """Variance inflation for residuals correlated from one frequency line to the next: ``(1 + ρ)/(1 − ρ)``
+    with ρ the lag-one autocorrelation along the last axis (the lines), pooled over the other axes and
+    clipped to [0, 0.999].
+
+    The least-squares covariance ``s² (JᵀJ)⁻¹`` assumes independent residuals.  Measurement noise is nearly
+    independent from line to line (ρ ≈ 0: no change), but model-form error — a coarser mesh, another damping
+    model — leaves a residual that is smooth over frequency, as are the Jacobian's columns; for an AR(1)
+    residual and smooth regressors the variance of the estimate is larger by ``(1 + ρ)/(1 − ρ)`` (the
+    effective number of independent values is ``N (1 − ρ)/(1 + ρ)``; Bayley & Hammersley, J. R. Stat. Soc.
+    Suppl. 8 (1946) 184-197).  Without it the diagnosis stated ± 0.0008 on a density that was 0.016 off.
+    Coverage of ±1σ measured on a linear model with smooth regressors and AR(1) error
+    (``tests/updating/test_diagnosis_std_correlated.py``): 0.59-0.64 at ρ = 0.9 and 0.49-0.60 at ρ = 0.99
+    (0.06-0.16 without the inflation): closer to 68 %, still short, because ρ estimated from the fitted
+    residual is biased low.
+    """
+    r = np.asarray(r, float)
+    if r.shape[-1] < 3:
+        return 1.0
+    den = float(np.sum(r * r))
+    if den <= 0:
+        return 1.0
+    rho = float(np.sum(r[..., 1:] * r[..., :-1])) / den
+    rho = min(max(rho, 0.0), 0.999)
+    return (1 + rho) / (1 - rho)
 
 
 #: a direction of the parameters whose singular value (columns scaled to unit norm) is below this fraction of
