@@ -227,7 +227,7 @@ def test_cli_kinds_typo_is_an_error_suggesting_the_closest(capsys):
     from modalab.app.cli import main
     rc = main(["diagnose", str(CONTROL / "nominal.bdf"), str(CONTROL / "measured.uff"), "--kinds", "joint_flex"])
     err = capsys.readouterr().err
-    assert rc == 2 and "did you mean 'joint_flexibility'" in err and "Traceback" not in err
+    assert rc == 2 and "did you mean joint_flexibility?" in err and "Traceback" not in err
 
 
 def test_a_clamp_releases_its_rotations_together_into_one_stiffness():
