@@ -234,6 +234,24 @@ def _support_blocks(blocks, Wf):
     return Hm, Hr, Hs
 
 
+def _releases(model, structure, data, candidates, what: str):
+    """The releases among ``candidates`` with their vectors (:func:`release_vectors`, stiffness > 0) and the
+    receptance blocks at their rows: ``(work, blocks)``, ``([], None)`` when there are none.  ``structure``
+    must have the model's constrained DOFs (``what`` names the caller in the error)."""
+    red_dofs = model.reduction().dofs
+    if [(d.node, d.axis) for d in red_dofs] != [(d.node, d.axis) for d in structure.dofs]:
+        raise ModalabValueError(f"{what}: the structure's DOFs are not the model's constrained DOFs")
+    cache: dict = {}
+    work = []
+    for c in candidates:
+        rv = release_vectors(model, c, _cache=cache)
+        if rv is not None and rv.stiffness > 0:
+            work.append((c, rv))
+    if not work:
+        return [], None
+    return work, _Blocks(structure, data, [rv.rows for _, rv in work])
+
+
 def release_screen(structure, model, candidates, data: FRFData, *, loss_factor: float = 0.0,
                    n_values: int = 57, top: int | None = None) -> list:
     """Rank release candidates (joint and support flexibility; the others are skipped) by the training FRF
@@ -247,18 +265,9 @@ def release_screen(structure, model, candidates, data: FRFData, *, loss_factor: 
     lower it).  Raises :class:`~modalab.core.errors.ModalabValueError` when the model and the structure have
     different DOFs."""
     from scipy.optimize import minimize_scalar
-    red_dofs = model.reduction().dofs
-    if [(d.node, d.axis) for d in red_dofs] != [(d.node, d.axis) for d in structure.dofs]:
-        raise ModalabValueError("release screening: the structure's DOFs are not the model's constrained DOFs")
-    cache: dict = {}
-    work = []
-    for c in candidates:
-        rv = release_vectors(model, c, _cache=cache)
-        if rv is not None and rv.stiffness > 0:
-            work.append((c, rv))
+    work, B = _releases(model, structure, data, candidates, "release screening")
     if not work:
         return []
-    B = _Blocks(structure, data, [rv.rows for _, rv in work])
     H0 = B.H0()
     w = data.quality ** 2
     Wt = w / data.den ** 2
@@ -337,18 +346,9 @@ def release_visibility(structure, model, candidates, data: FRFData, *, loss_fact
     3.62-3.64, the released against the nominal model) vanish — gives
     ``chi2`` of the order of round-off: no amount of data from this layout can locate or refute it.  Candidates
     that are not releases are skipped; one factorisation per line, a few ``r × r`` solves per candidate."""
-    red_dofs = model.reduction().dofs
-    if [(d.node, d.axis) for d in red_dofs] != [(d.node, d.axis) for d in structure.dofs]:
-        raise ModalabValueError("release visibility: the structure's DOFs are not the model's constrained DOFs")
-    cache: dict = {}
-    work = []
-    for c in candidates:
-        rv = release_vectors(model, c, _cache=cache)
-        if rv is not None and rv.stiffness > 0:
-            work.append((c, rv))
+    work, B = _releases(model, structure, data, candidates, "release visibility")
     if not work:
         return []
-    B = _Blocks(structure, data, [rv.rows for _, rv in work])
     Wt = (data.quality / data.floor) ** 2 / data.den ** 2                # 1 / (den σ)²
     g = 1 + 1j * loss_factor
     out = []
