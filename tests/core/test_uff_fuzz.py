@@ -20,7 +20,10 @@ from modalab import FRF, ModeSet, TimeRecord
 from modalab.core.errors import UffError
 from modalab.core import uff
 
-FUZZ = dict(max_examples=int(os.environ.get('UFF_FUZZ_EXAMPLES', 120)), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+# derandomize: the same examples on every run (a fuzz test that fails one run in N is a flaky test); more
+# examples with UFF_FUZZ_EXAMPLES, another sample with UFF_FUZZ_RANDOM=1
+FUZZ = dict(max_examples=int(os.environ.get('UFF_FUZZ_EXAMPLES', 120)), deadline=None,
+            suppress_health_check=[HealthCheck.too_slow], derandomize=not os.environ.get('UFF_FUZZ_RANDOM'))
 
 READERS = {
     "read_frf": uff.read_frf,
@@ -188,7 +191,19 @@ def test_mislabelled_fields(name, reader, data):
     txt = str(new).encode()
     if data.draw(st.booleans()):
         txt = txt.rjust(width)[-max(width, len(txt)):]     # keep the field width when it fits
+    if _is_function_type(raw, m.start()):
+        return   # a 58's function type relabelled (coherence 6 -> time response 1) is another valid dataset
     _check(name, reader, raw[:m.start()] + txt + raw[m.end():], renumbered=_on_number_line(raw, m.start()))
+
+
+def _is_function_type(raw: bytes, k: int) -> bool:
+    """True when offset k lies in the function-type field (columns 1-5 of record 6) of a dataset 58/58b."""
+    start = raw.rfind(b"\n", 0, k) + 1
+    delim = raw.rfind(b"    -1\n", 0, start)
+    if delim < 0 or k - start >= 5:
+        return False
+    lines = raw[delim:start].split(b"\n")          # '-1', the dataset line, records 1.. up to this line
+    return len(lines) == 8 and lines[1].split()[:1] in ([b"58"], [b"58b"])
 
 
 def test_every_reader_on_every_valid_file():

@@ -93,9 +93,15 @@ def test_candidates_not_evaluated_are_named_in_the_statement():
     assert "could not be evaluated" not in wf.statement([], fit, "response DOFs 3+Z")
 
 
-def test_a_turned_down_pick_is_kept_with_its_reason_for_diagnosis_json():
-    d, picked = _judge_picks(False)
-    assert picked is None
-    rej = [x for x in d.decisions if x["decision"] == "rejected"]
-    assert rej and all(x["reason"] and x["physics"] in wf.validate_kinds(None) for x in rej)
-    assert set(rej[0]) == {"decision", "candidate", "physics", "reason"}
+def test_verdicts_are_said_and_kept_for_diagnosis_json():
+    said = []
+    d, picked = _judge_picks(True)
+    d.config = wf.DiagnoserConfig(max_lines=80, progress=said.append)
+    c, _ = picked
+    d._decide("rejected", c, "held-out error up")
+    assert d.decisions[-1] == {"decision": "rejected", "candidate": c.label, "physics": "ground_spring",
+                               "reason": "held-out error up"}
+    assert said[-1] == f"  rejected: {c.label} (held-out error up)"      # the progress line as before
+    doc = wf.Diagnosis(findings=[], parameters={}, fit={}, statement="", model=None,
+                       decisions=list(d.decisions)).to_dict()
+    assert doc["decisions"][-1]["reason"] == "held-out error up"
