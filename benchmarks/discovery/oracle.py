@@ -167,7 +167,7 @@ def oracle(case: Path, *, run_rest: bool = True) -> dict:
 
 
 def _scale(d, c) -> float:
-    from updating.diagnosis.workflow import _augment
+    from updating.diagnosis.terms import _augment
     return float(_augment(d.model0, [c])[2][-1])
 
 

@@ -16,7 +16,7 @@ from modalab.app.stages import _sim_structure, load_model, load_modes  # noqa: F
 from modalab.app.stages._acquire import acquire, make_sim_backend, _nidaqmx_backend  # noqa: F401
 from modalab.core import uff
 from modalab.app.demo_project import run_demo
-from updating.diagnosis.workflow import default_parameters
+from updating.diagnosis.priors import default_parameters
 from updating.fe.parameter_file import read_parameter_file
 
 log = logging.getLogger(__name__)

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from modalab.core.errors import ModalabValueError
-from updating.diagnosis.workflow import promote_measured
+from updating.diagnosis.terms import promote_measured
 from updating.fe.models.garteur import garteur_model
 
 

@@ -86,7 +86,7 @@ def test_a_sensor_on_a_rigid_link_node_is_used_and_the_mass_there_found():
 
 
 def test_a_sensor_on_both_ends_of_a_rigid_link_is_left_out_with_a_warning(caplog):
-    from updating.diagnosis.workflow import _on_model_dofs, promote_measured
+    from updating.diagnosis.terms import _on_model_dofs, promote_measured
     nominal = garteur_model(suspension=True)
     f = np.linspace(5.0, 50.0, 20)
     H = nominal.frf(f, ["304+Z", "217+Z", "110+Z"], ["110+Z"], quantity="receptance")

@@ -6,7 +6,7 @@ import numpy as np
 
 from modalab.core.modes import ModeSet
 from updating.correlation.metrics import analysis_modes
-from updating.diagnosis.workflow import _mode_metrics, _rigid_fraction, pair_test_modes
+from updating.diagnosis.testmodes import _mode_metrics, _rigid_fraction, pair_test_modes
 from updating.fe.models.garteur import garteur_model
 
 

@@ -9,7 +9,8 @@ from modalab.core.errors import ModalabValueError
 from modalab.core.frf import FRF
 from updating.diagnosis import build_library, fit_frf, frf_data
 from updating.diagnosis.fit import Prior
-from updating.diagnosis.workflow import Finding, _describe, parameter_priors
+from updating.diagnosis.priors import parameter_priors
+from updating.diagnosis.findings import Finding, _describe
 from updating.fe import Parameter, ParametricFEModel
 from updating.fe.models.beams import thesis_beam
 
@@ -100,7 +101,7 @@ def test_a_zero_nominal_value_has_no_relative_prior():
 def test_other_physics_at_the_same_node_is_another_explanation():
     """Two kinds at one node (a spring or an inertia there) are two explanations, reported as one ambiguous
     finding when both fit; the same kind one node over is a localisation spread, not a second explanation."""
-    from updating.diagnosis.workflow import _another_explanation
+    from updating.diagnosis.terms import _another_explanation
     m = thesis_beam("analytical", cord_stiffness=None)
     lib = build_library(m, kinds=["added_mass", "ground_spring"])
     mass7 = next(c for c in lib if c.physics == "added_mass" and c.nodes == (7,) and c.value_name == "m")

@@ -11,7 +11,7 @@ import pytest
 from modalab.core.errors import ModalabValueError
 from modalab.core.frf import FRF
 from updating.diagnosis import Diagnoser, DiagnoserConfig, diagnose, frf_data
-from updating.diagnosis.workflow import _split
+from updating.diagnosis.priors import _split
 from updating.fe.models.beams import thesis_beam, thesis_beam_parameters
 
 

@@ -11,7 +11,7 @@ from modalab.core.frf import FRF
 from updating.diagnosis.fit import frf_data, frf_error, model_frf
 from updating.diagnosis.library import _member_ends, _plausible_inertia, build_library
 from updating.diagnosis.release import release_screen, released_receptance
-from updating.diagnosis.workflow import _augment
+from updating.diagnosis.terms import _augment
 from updating.fe import Beam3D, BeamProperty, FEModel, Material, ParametricFEModel, TubeSection
 
 
@@ -251,7 +251,7 @@ def test_unobservable_releases_are_listed_and_stated_not_screened():
     """A diagnosis from in-plane data lists the out-of-plane joint releases as unobservable (diagnosis.json
     and the statement), and never screens or names them."""
     from updating.diagnosis import Diagnoser, DiagnoserConfig
-    from updating.diagnosis.workflow import statement
+    from updating.diagnosis.findings import statement
     m = _t_frame(clamp=True)
     f = np.linspace(5.0, 600.0, 120)
     resp, refs = ["2+X", "2+Y", "4+Y", "5+X", "6+X", "7+X", "8+Y", "4+X"], ["2+Y", "7+X"]

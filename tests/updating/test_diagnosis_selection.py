@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from modalab.core.frf import FRF
+from updating.diagnosis import findings
 from updating.diagnosis import workflow as wf
 from updating.diagnosis.frfscreen import _updated_errors
 from updating.fe import Spring
@@ -88,9 +89,9 @@ def test_the_rank_r_update_is_woodbury_and_infinite_where_singular():
 def test_candidates_not_evaluated_are_named_in_the_statement():
     fit = {k: {"frf_error_held_out": 0.1} for k in ("nominal", "parameters_only", "with_physics")}
     ne = [{"candidate": "spring to ground at 3+Z", "physics": "ground_spring", "reason": "Singular matrix"}]
-    s = wf.statement([], fit, "response DOFs 3+Z", ne)
+    s = findings.statement([], fit, "response DOFs 3+Z", ne)
     assert "1 candidate(s) could not be evaluated" in s and "spring to ground at 3+Z" in s
-    assert "could not be evaluated" not in wf.statement([], fit, "response DOFs 3+Z")
+    assert "could not be evaluated" not in findings.statement([], fit, "response DOFs 3+Z")
 
 
 def test_verdicts_are_said_and_kept_for_diagnosis_json():
@@ -102,6 +103,6 @@ def test_verdicts_are_said_and_kept_for_diagnosis_json():
     assert d.decisions[-1] == {"decision": "rejected", "candidate": c.label, "physics": "ground_spring",
                                "reason": "held-out error up"}
     assert said[-1] == f"  rejected: {c.label} (held-out error up)"      # the progress line as before
-    doc = wf.Diagnosis(findings=[], parameters={}, fit={}, statement="", model=None,
+    doc = findings.Diagnosis(findings=[], parameters={}, fit={}, statement="", model=None,
                        decisions=list(d.decisions)).to_dict()
     assert doc["decisions"][-1]["reason"] == "held-out error up"

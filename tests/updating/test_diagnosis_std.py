@@ -8,7 +8,7 @@ import scipy.sparse as sp
 from modalab.core.errors import ConvergenceError
 from updating.diagnosis.fit import parameter_std
 from updating.diagnosis.library import Candidate
-from updating.diagnosis.workflow import Finding
+from updating.diagnosis.findings import Finding
 
 
 def test_parameter_std_full_rank_matches_the_covariance():

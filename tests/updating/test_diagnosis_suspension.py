@@ -12,6 +12,8 @@ import numpy as np
 import pytest
 
 from modalab.core.frf import FRF
+from updating.correlation.metrics import analysis_modes
+from updating.diagnosis import terms, testmodes
 from updating.diagnosis import workflow as wf
 from updating.diagnosis.library import Candidate
 from updating.fe import Spring
@@ -43,14 +45,14 @@ def test_a_suspension_is_detected_and_its_lines_left_out():
     nominal = _nominal()
     f = np.linspace(0.25, 600, 1200)
     st = nominal.structure()
-    f1 = float(wf.analysis_modes(st, 8).freq_hz[2])          # two rigid-body modes in the plane, then bending
-    cut = wf.suspension_band(st, _measured(_suspended(nominal), f))
-    assert cut == pytest.approx(wf.SUSPENSION_RATIO * f1, rel=1e-6)
+    f1 = float(analysis_modes(st, 8).freq_hz[2])          # two rigid-body modes in the plane, then bending
+    cut = testmodes.suspension_band(st, _measured(_suspended(nominal), f))
+    assert cut == pytest.approx(testmodes.SUSPENSION_RATIO * f1, rel=1e-6)
     # the same free beam measured truly free: nothing to leave out
-    assert wf.suspension_band(st, _measured(nominal, f)) is None
+    assert testmodes.suspension_band(st, _measured(nominal, f)) is None
     # a clamped model carries its support: never a suspension, whatever the data
     clamped = beam_model(10, length=1.0, bc="cantilever")
-    assert wf.suspension_band(clamped.structure(), _measured(_suspended(nominal), f)) is None
+    assert testmodes.suspension_band(clamped.structure(), _measured(_suspended(nominal), f)) is None
     # the diagnosis fits only the lines above the suspension band and says so in its steps
     d = wf.Diagnoser(wf.DiagnoserConfig(max_lines=60, max_nfev=4, progress=lambda m: None))
     d._t0, d.timings = time.perf_counter(), {}
@@ -64,9 +66,9 @@ def test_a_stiff_support_is_not_a_suspension():
     f = np.linspace(0.25, 600, 1200)
     # 30 times stiffer: the support's modes at about a quarter of the first elastic frequency (not a suspension)
     st = nominal.structure()
-    f1 = float(wf.analysis_modes(st, 8).freq_hz[2])
+    f1 = float(analysis_modes(st, 8).freq_hz[2])
     meas = _measured(_suspended(nominal, k=1800.0), f)
-    assert wf.suspension_band(st, meas) is None
+    assert testmodes.suspension_band(st, meas) is None
     # ... whose resonance the data do show, between a tenth and a half of the first elastic frequency
     P = np.sum(np.abs(meas.H) ** 2, axis=(0, 1))
     band = (f > 0.1 * f1) & (f < 0.5 * f1)
@@ -80,9 +82,9 @@ def _cand(nodes, key):
 def test_damping_places_are_distinct():
     ranked = [(_cand((5, 6), "a"), 0.1, 0.3), (_cand((6, 7), "b"), 0.1, 0.25), (_cand((4, 5, 6), "c"), 0.1, 0.2),
               (_cand((9, 10), "d"), 0.1, 0.1), (_cand((10, 11), "e"), 0.1, 0.05), (_cand((1, 2), "f"), 0.1, 0.01)]
-    got = [c.key for c, _, _ in wf._distinct_places(ranked, 3)]
+    got = [c.key for c, _, _ in terms._distinct_places(ranked, 3)]
     assert got == ["a", "d", "f"]
-    assert [c.key for c, _, _ in wf._distinct_places(ranked, 1)] == ["a"]
+    assert [c.key for c, _, _ in terms._distinct_places(ranked, 1)] == ["a"]
 
 
 def test_no_dashpot_to_ground_on_a_suspended_free_model():

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from updating.diagnosis import build_library
 from updating.correlation.condensation import condensed_residual
-from updating.diagnosis.workflow import _augment
+from updating.diagnosis.terms import _augment
 from updating.fe import Beam2D, BeamProperty, FEModel, Material, ParametricFEModel, TubeSection
 
 
@@ -171,7 +171,7 @@ def test_diagnosis_json_schema(tmp_path):
 
 
 def test_finding_schema():
-    from updating.diagnosis.workflow import Finding
+    from updating.diagnosis.findings import Finding
     m = _small()
     c = next(c for c in build_library(m, kinds=["ground_spring"]) if c.dofs == ("2+Z",))
     f = Finding(c, 210.0, 16.0, "because").to_dict()

@@ -39,7 +39,10 @@ from updating.diagnosis.frfscreen import frf_screen
 from updating.diagnosis.ritz import RitzBasis
 from updating.diagnosis.library import Candidate, build_library
 from updating.diagnosis.screen import ScreenResult, residual_map, screen
-from updating.diagnosis.workflow import Diagnoser, DiagnoserConfig, Diagnosis, Finding, default_parameters, diagnose, peak_modes
+from updating.diagnosis.workflow import Diagnoser, DiagnoserConfig, diagnose
+from updating.diagnosis.priors import default_parameters
+from updating.diagnosis.testmodes import peak_modes
+from updating.diagnosis.findings import Diagnosis, Finding
 from updating.diagnosis.modes import diagnose_modes, fit_modes, modes_data
 
 __all__ = ["diagnose", "Diagnoser", "DiagnoserConfig", "diagnose_modes", "fit_modes", "modes_data", "peak_modes", "Diagnosis", "Finding", "default_parameters", "build_library", "Candidate", "screen",

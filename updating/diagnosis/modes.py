@@ -60,8 +60,9 @@ from updating.diagnosis.modal_residual import (fit_modes, modal_force_map,  # no
                                               mode_errors, paired_test_modes)
 from updating.diagnosis.fit import FitResult, FRFData, parameter_std
 from updating.diagnosis.library import build_library
-from updating.diagnosis.workflow import (Diagnosis, Finding, _augment, _bounds, _fmt, _upper, default_parameters,
-                       promote_measured, statement)
+from updating.diagnosis.priors import _bounds, default_parameters
+from updating.diagnosis.terms import _augment, _upper, promote_measured
+from updating.diagnosis.findings import Diagnosis, Finding, _fmt, statement
 from updating.diagnosis.modes_screen import MIN_OBSERVED_EFFECT, screen_modes  # noqa: F401 (re-exported)
 from updating.correlation.dofmap import as_dofmap
 from updating.diagnosis.library import _nodes_of

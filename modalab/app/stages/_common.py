@@ -100,7 +100,7 @@ def load_parameters(path, model) -> tuple[list, np.ndarray, np.ndarray]:
     """Updating parameters and their bounds: the TOML ``[[parameter]]`` file, or (``path`` None) the default
     E and density multipliers per property group without bounds."""
     if path is None:
-        from updating.diagnosis.workflow import default_parameters
+        from updating.diagnosis.priors import default_parameters
 
         params = default_parameters(model)
         return params, np.full(len(params), -np.inf), np.full(len(params), np.inf)

@@ -14,7 +14,7 @@ from hardware_sim import demo as hdemo
 from hardware_sim.demo import _demo_geometry
 from updating.fe import Beam3D, BeamProperty, FEModel, GeneralSection, Material, Spring
 from updating.fe.bulk import to_bulk, write_bdf
-from updating.diagnosis.workflow import default_parameters
+from updating.diagnosis.priors import default_parameters
 from hardware_sim.demo import DEMO_POINTS, DEMO_REFERENCES, demo_channels, demo_setup
 from hardware_sim.lab import SimulatedLab, simulate_roving_test
 from hardware_sim.setup import FaultConfig

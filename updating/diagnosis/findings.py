@@ -1,0 +1,183 @@
+"""What a diagnosis concludes: :class:`Finding` (one named piece of missing physics, with its alternatives when
+ambiguous), :class:`Diagnosis` (findings, parameters, fit blocks, decisions; ``diagnosis.json``) and the
+plain-language :func:`statement`.  Split out of :mod:`~updating.diagnosis.workflow`."""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from updating.fe import FEModel
+from updating.diagnosis.library import Candidate
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class Finding:
+    candidate: Candidate
+    value: float
+    std: float
+    evidence: str
+    gain_train: float = 0.0
+    parts: list = field(default_factory=list)          # [(Candidate, value, std)] refining this finding nearby
+    alternatives: list = field(default_factory=list)   # [(Candidate, value, ...)] explaining the data equally well
+
+    @property
+    def ambiguous(self) -> bool:
+        return bool(self.alternatives)
+
+    @property
+    def label(self) -> str:
+        c = self.candidate
+        s = c.label + "".join(f" with {_fmt(v, o.unit)} at {', '.join(o.dofs) or o.nodes}" for o, v, _ in self.parts)
+        if self.alternatives:
+            s += " or " + " or ".join(o.label for o, *_ in self.alternatives)
+        return s
+
+    def to_dict(self) -> dict:
+        c = self.candidate
+        return {"physics": c.physics, "nodes": [int(n) for n in c.nodes], "dofs": list(c.dofs),
+                "elements": [int(e) for e in c.elements], "description": self.label,
+                "values": [{"name": c.value_name, "value": float(self.value), "unit": c.unit,
+                            "std": float(self.std) if np.isfinite(self.std) else None}],    # inf: not determined
+                "parts": [{"physics": o.physics, "nodes": [int(n) for n in o.nodes], "dofs": list(o.dofs),
+                           "description": o.label, "value": float(v), "unit": o.unit,
+                           "std": float(sd) if np.isfinite(sd) else None}
+                          for o, v, sd in self.parts],
+                "ambiguous": self.ambiguous,
+                "alternatives": [{"physics": o.physics, "nodes": [int(n) for n in o.nodes], "dofs": list(o.dofs),
+                                  "elements": [int(e) for e in o.elements], "description": o.label,
+                                  "value": float(v), "unit": o.unit} for o, v, *_ in self.alternatives],
+                "evidence": self.evidence}
+
+
+@dataclass
+class Diagnosis:
+    findings: list
+    parameters: dict
+    fit: dict
+    statement: str
+    model: FEModel                      # the augmented, updated model
+    parametric: object = None
+    p: np.ndarray = None
+    steps: dict = field(default_factory=dict)
+    maps: dict = field(default_factory=dict)
+    timings: dict = field(default_factory=dict)
+    ranking: list = field(default_factory=list)
+    curves: dict = field(default_factory=dict)
+    frequencies: dict = field(default_factory=dict)
+    pairing: dict = field(default_factory=dict)     # per fit block: pairs and the modes left out on purpose
+    not_evaluated: list = field(default_factory=list)   # candidates whose augmented model could not be solved
+    unobservable: list = field(default_factory=list)    # releases the sensors and hits cannot see (not screened)
+    decisions: list = field(default_factory=list)       # the selection's verdicts in order: found/ambiguous/
+    #                                                     rejected/dropped, each with the candidate and the reason
+
+    def save(self, directory, *, figures: bool = True, bulk: bool = True):
+        """Write ``diagnosis.json``, the figures (:mod:`~updating.diagnosis.report`) and the augmented,
+        updated model as bulk data (``augmented.bdf``: CELAS/CONM2/CDAMP/split GRIDs/edited SPCs) into
+        ``directory``; returns the directory.  Models the bulk writer cannot export are skipped with a log
+        message."""
+        import json
+        from pathlib import Path
+        d = Path(directory)
+        d.mkdir(parents=True, exist_ok=True)
+        (d / "diagnosis.json").write_text(json.dumps(self.to_dict(), indent=1))
+        if figures:
+            from updating.diagnosis.report import write_figures
+            write_figures(self, d)
+        if bulk and self.model is not None:
+            from modalab.core.errors import ModalabError
+            try:
+                from updating.fe.bulk import write_bdf
+                write_bdf(self.model, d / "augmented.bdf")
+            except ModalabError as e:
+                log.warning("the augmented model was not written as bulk data: %s", e)
+        return d
+
+    def to_dict(self) -> dict:
+        return {"findings": [f.to_dict() for f in self.findings], "parameters": self.parameters,
+                "fit": self.fit, "statement": self.statement,
+                "ranking": [{"candidate": c.label, "physics": c.physics, "explained": round(g, 4)}
+                            for c, _, g in self.ranking[:12]],
+                "pairing": self.pairing,
+                "not_evaluated": list(self.not_evaluated),
+                "unobservable": list(self.unobservable),
+                "decisions": list(self.decisions),
+                "timings_s": {k: round(v, 3) for k, v in self.timings.items()}}
+
+
+_PHRASES = {
+    "ground_spring": ("The test article is held by something the model leaves out", "consistent with an elastic "
+                      "suspension or support"),
+    "added_mass": ("The test article carries mass the model leaves out", "consistent with sensors, cables or fixtures"),
+    "local_damping": ("The test article dissipates energy locally where the model does not",
+                      "consistent with a joint, a damping treatment or rubbing contact"),
+    "joint_flexibility": ("A joint of the test article is more flexible than the model's rigid connection",
+                          "consistent with a bolted or welded connection that is not fully rigid"),
+    "boundary_flexibility": ("A support of the test article is not as rigid as the model's constraint",
+                             "consistent with a flexible clamp or fixture"),
+}
+
+
+def _fmt(v: float, unit: str) -> str:
+    return f"{v:.3g} {unit}".replace(" -", "")
+
+
+class _Pct(float):
+    """A percentage that prints with one decimal below 10 (``0.4``) and none above (``38``)."""
+
+    def __format__(self, spec):
+        return format(float(self), ".1f" if abs(self) < 9.95 else ".0f")
+
+
+def _describe(f: Finding) -> str:
+    s = f"{f.candidate.label} of {_fmt(f.value, f.candidate.unit)}"
+    s += "".join(f" (with {_fmt(v, o.unit)} at {', '.join(o.dofs) or o.nodes})" for o, v, _ in f.parts)
+    if f.alternatives:
+        s = "either " + s + "".join(f" or {o.label} of {_fmt(v, o.unit)}" for o, v, *_ in f.alternatives) + \
+            " (the data cannot tell them apart)"
+    return s
+
+
+def statement(findings, fit, held_desc: str, not_evaluated=(), unobservable=()) -> str:
+    """The diagnosis in words; candidates that could not be evaluated and releases the sensors and hits
+    cannot see are named (the conclusion does not cover them)."""
+    text = _statement(findings, fit, held_desc)
+    if unobservable:
+        where: dict = {}
+        for d in unobservable:
+            for dof in d["dofs"] or [str(n) for n in d["nodes"]]:
+                node, _, axis = dof.partition("+")
+                where.setdefault((d["physics"], axis), []).append(node)
+        parts = [f"{kind.replace('_', ' ')}{' about ' + axis if axis else ''} at node{'s' if len(ns) > 1 else ''} "
+                 f"{', '.join(dict.fromkeys(ns))}" for (kind, axis), ns in where.items()]
+        text += (f" Not observable with these sensors and hits: {'; '.join(parts)} (released completely, it would "
+                 "change the measured FRFs by less than their noise); this conclusion does not cover it.")
+    if not_evaluated:
+        names = ", ".join(d["candidate"] for d in not_evaluated[:3]) + (" and others" if len(not_evaluated) > 3 else "")
+        text += (f" {len(not_evaluated)} candidate(s) could not be evaluated (the augmented model could not be solved: "
+                 f"{names}); this conclusion does not cover them.")
+    return text
+
+
+def _statement(findings, fit, held_desc: str) -> str:
+    e_par = _Pct(100 * fit["parameters_only"]["frf_error_held_out"])
+    e_phys = _Pct(100 * fit["with_physics"]["frf_error_held_out"])
+    e_nom = _Pct(100 * fit["nominal"]["frf_error_held_out"])
+    if not findings:
+        return (f"Nothing is missing beyond parameter error: updating the model's own parameters brings the held-out "
+                f"FRF error ({held_desc}) from {e_nom} % to {e_par} %, and no candidate physics improves it "
+                "further, so none is added.")
+    by_kind: dict[str, list] = {}
+    for f in findings:
+        by_kind.setdefault(f.candidate.physics, []).append(f)
+    parts = []
+    for kind, fs in by_kind.items():
+        head, tail = _PHRASES[kind]
+        items = " and ".join(_describe(f) for f in fs)
+        parts.append(f"{head}: {items}, {tail}.")
+    return (" ".join(parts) + f" Adding {'them' if len(findings) > 1 else 'it'} cuts the held-out FRF error "
+            f"({held_desc}) from {e_par} % to {e_phys} %; updating the model's own parameters reached "
+            f"{e_par} % (nominal {e_nom} %).")

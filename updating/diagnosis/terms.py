@@ -1,0 +1,267 @@
+"""A term of missing physics judged and modelled: the effect it has on in-band frequencies and damping
+(:func:`term_effect`), the χ² tests on training and held-out FRFs (:func:`_term_holds`), other explanations at
+the same place, measured DOFs promoted into the model, and the augmented model with the selected terms
+(:func:`_augment`).  Split out of :mod:`~updating.diagnosis.workflow`."""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from modalab.core.errors import ModalabValueError
+from modalab.core.frf import FRF
+
+from updating.fe import FEModel
+from updating.diagnosis.fit import FRFData, frf_error, model_frf
+from updating.diagnosis.library import Candidate, _nodes_of
+from modalab.core.dof import parse_dofs
+
+log = logging.getLogger(__name__)
+
+
+def _same_place(a: Candidate, b: Candidate, model: FEModel) -> bool:
+    """Whether two candidates act at the same or neighbouring nodes (sharing a node, or joined by one
+    element)."""
+    na, nb = set(a.nodes) | _element_nodes(a, model), set(b.nodes) | _element_nodes(b, model)
+    if na & nb:
+        return True
+    return any(na & set(ns) and nb & set(ns) for ns in (_nodes_of(e) for e in model.elements.values()))
+
+
+def _another_explanation(a: Candidate, b: Candidate, model: FEModel) -> bool:
+    """Whether ``a`` is a different explanation from ``b``: elsewhere, or the same place with other physics (a
+    joint's flexibility and a rotary inertia at one node are two explanations; the same kind one node over is a
+    localisation spread, not a second one)."""
+    return a.physics != b.physics or not _same_place(a, b, model)
+
+
+def _element_nodes(c: Candidate, model: FEModel) -> set:
+    return {n for e in c.elements if e in model.elements for n in _nodes_of(model.elements[e])}
+
+
+#: a stiffness or inertia term must move an in-band natural frequency by at least this much (relative): FRF
+#: errors near lightly damped resonances grow as Δf/(ζ f), so frequency shifts of the order of an FE model's own
+#: discretisation error (0.1-0.4 %) already give large FRF gains that a term would absorb
+MIN_FREQ_EFFECT = 0.004
+
+
+#: exact-screening picks fitted on the FRFs when the MCI's best option fails (:meth:`Diagnoser._judge_picks`)
+FRF_PICKS = 3
+
+
+#: ... and is accepted only if it leaves at most this reduced χ² (in units of the measurement noise) on the
+#: training and the held-out FRFs: a term the MCI did not support that leaves the residual several times the
+#: noise is reducing model-form error (a coarse mesh, per-element scatter), not explaining a missing effect
+PICK_MAX_REDUCED_CHI2 = 3.0
+
+
+#: a damping term must add at least this fraction of the background loss factor to some in-band mode
+MIN_DAMPING_EFFECT = 0.25
+
+
+#: damping on element groups is fitted at the best places of the exact screening, this many distinct ones
+DAMPING_PLACES = 3
+
+
+def _distinct_places(ranked: list, n: int) -> list:
+    """The first ``n`` entries of a ranking ``[(candidate, value, gain)]`` at distinct places: an entry sharing
+    a node with an earlier one is skipped.
+
+    For local damping the screening's order is the least reliable of all: it adds the term to a model whose
+    global loss factor was fitted without it, so the background already carries part of the local
+    dissipation (the two trade off against each other, and only a fit that re-fits both sees which place is
+    right); the runs of neighbouring element groups at the first place would otherwise fill every slot."""
+    out = []
+    for t in ranked:
+        if len(out) >= n:
+            break
+        if not any(set(t[0].nodes) & set(o[0].nodes) for o in out):
+            out.append(t)
+    return out
+
+
+def term_effect(pm, p, n_par: int, c: Candidate, band) -> tuple[float, float]:
+    """The size of the last term of ``pm`` at ``p`` (its value at ``p[-1]``, the other values as they are):
+    the largest relative change of an in-band elastic natural frequency between the model with the term and
+    without it (value 0; for a joint or support release, 10⁴ times stiffer: the rigid connection), and the
+    largest modal loss factor it adds to an in-band mode relative to the background loss factor (first order,
+    mass-normalised modes: ``φᵀΔDφ/ω² + φᵀΔCφ/ω``)."""
+    p = np.asarray(p, float)
+    p0 = p.copy()
+    p0[-1] = p[-1] * 1e4 if c.physics in ("joint_flexibility", "boundary_flexibility") else 0.0
+    with_, without = pm.structure(p), pm.structure(p0)
+
+    def elastic(st):
+        n = st.n_dof
+        k = min(n, 40)
+        while True:
+            w, phi = st.normal_modes(k)
+            f = np.atleast_1d(w) / (2 * np.pi)
+            if k >= n or f[-1] > 1.2 * band[1]:
+                return f, phi
+            k = min(n, 2 * k)
+
+    fa, phia = elastic(with_)
+    fb, _ = elastic(without)
+    m = min(fa.size, fb.size)
+    ok = (fb[:m] >= band[0]) & (fb[:m] <= band[1]) & (fb[:m] > 1e-6 * max(band[1], 1.0))
+    df = float(np.max(np.abs(fa[:m][ok] - fb[:m][ok]) / fb[:m][ok])) if ok.any() else 0.0
+    deta = 0.0
+    if c.matrix in ("C", "D"):
+        sel = np.flatnonzero((fa >= band[0]) & (fa <= band[1]) & (fa > 0))
+        om = 2 * np.pi * fa[sel]
+        ph = phia[:, sel]
+        add = np.zeros(sel.size)
+        for A, B, f in ((with_.D, without.D, lambda x: x / om ** 2), (with_.C, without.C, lambda x: x / om)):
+            if A is None:
+                continue
+            dA = A - B if B is not None else A
+            add += f(np.einsum("ij,ij->j", ph, dA @ ph))
+        eta_bg = max(float(with_.D.diagonal().sum() / max(with_.K.diagonal().sum(), 1e-300))
+                     if with_.D is not None else 0.0, 1e-3)
+        deta = float(np.max(np.abs(add))) / eta_bg if add.size else 0.0
+    return df, deta
+
+
+def _chi2(structure, data: FRFData) -> tuple[float, int]:
+    """χ² of ``structure`` against ``data`` in units of the data's noise (:attr:`FRFData.sigma`: coherence,
+    averages, leakage, 1 % floor) and the number of complex FRF values."""
+    e = frf_error(model_frf(structure, data), data)
+    q2 = float(np.sum(data.quality ** 2))
+    return e * e * q2 / data.floor ** 2, int(data.H.size)
+
+
+def _term_holds(pm_cur, p_cur, pm_new, p_new, train: FRFData, held: FRFData, penalty: float,
+                min_holdout_gain: float) -> tuple[bool, str]:
+    """Whether a term chosen on the training data earns its place on the FRFs: its χ² improvement must be
+    significant against the noise — more than ``penalty`` × ln N, scaled up by the reduced χ² left when
+    the residual is above the noise (an F-test: model-form error is not noise) — on the training FRFs
+    **and** on the held-out FRFs, where the error must also fall by ``min_holdout_gain``."""
+    parts = []
+    for name, d in (("training", train), ("held-out", held)):
+        c0, n = _chi2(pm_cur.structure(p_cur), d)
+        c1, _ = _chi2(pm_new.structure(p_new), d)
+        need = penalty * np.log(max(n, 2)) * max(1.0, c1 / n)
+        parts.append(f"{name} χ²/N {c0 / n:.3g} -> {c1 / n:.3g} (gain {c0 - c1:.3g}, needed {need:.3g})")
+        if not c0 - c1 > need:
+            return False, "; ".join(parts) + f": not significant on the {name} FRFs"
+        if name == "held-out" and not np.sqrt(c1 / c0) <= 1 - min_holdout_gain:
+            return False, "; ".join(parts) + f": the held-out FRF error falls by less than {100 * min_holdout_gain:.0f} %"
+    return True, "; ".join(parts)
+
+
+def promote_measured(model: FEModel, dofs) -> FEModel:
+    """The model with every measured DOF independent and in basic directions.  A measured grid with a
+    displacement system of its own (CD) is put in basic (same physics; refused with a clear error when it
+    carries constraints in that system).  A one-to-one rigid link (RBE2, all six components)
+    whose dependent node is measured and whose independent node is not is reversed — the same constraint,
+    written the other way round, so the measured node keeps its own DOFs.  Returns ``model`` itself when
+    nothing needs changing; measured DOFs that stay eliminated are reported by the caller's DOF lookup."""
+    measured = {d.node for d in parse_dofs(list(dofs))}
+    out = model
+    # measured directions are basic: a measured grid with its own displacement system is written in basic
+    # (the same physics) unless something is constrained in that system
+    spc_nodes = {sp_.node for sp_ in model.spcs}
+    partial = {n for link in model.rbe2s.values() if set(link.components) != {1, 2, 3, 4, 5, 6}
+               for n in (link.independent, *link.dependents)}
+    for n in sorted(measured):
+        node = model.nodes.get(n)
+        if node is None or node.cd is None or np.allclose(node.cd, np.eye(3)):
+            continue
+        if n in spc_nodes or n in partial:
+            raise ModalabValueError(f"measured grid {n} has its own displacement system (CD) and constraints in "
+                                    "it; give the measured directions in that system's node or remove the CD")
+        if out is model:
+            out = model.copy()
+        out.nodes[n] = type(node)(node.nid, node.xyz, None)
+        log.info("measured grid %d: its displacement system set to basic (measured directions are basic)", n)
+    if out is not model:
+        out._changed()
+    st_dofs = {(d.node, d.axis) for d in out.structure().dofs}
+    for link in list(model.rbe2s.values()):
+        if len(link.dependents) != 1 or set(link.components) != {1, 2, 3, 4, 5, 6}:
+            continue
+        dep = link.dependents[0]
+        if dep in measured and link.independent not in measured and \
+                not any((dep, a) in st_dofs for a in range(1, 7)):
+            if out is model:
+                out = model.copy()
+            del out.rbe2s[link.eid]
+            out.add_rbe2(link.eid, dep, (link.independent,), "123456")
+            log.info("rigid link %d reversed: measured node %d made independent (node %d follows it)",
+                     link.eid, dep, link.independent)
+    if out is not model:
+        out._changed()
+    return out
+
+
+def _on_model_dofs(model: FEModel, measured: FRF) -> FRF:
+    """``measured`` without the response rows whose DOF the model eliminates (both ends of a rigid link
+    measured, a constrained component measured), with a warning naming them; a reference the model
+    eliminates is an error that says what to do."""
+    have = {(d.node, d.axis) for d in model.structure().dofs}
+    refs_out = [str(r) for r in measured.references if (r.node, r.axis) not in have]
+    if refs_out:
+        raise ModalabValueError(f"reference DOF(s) {', '.join(refs_out)} are not independent DOFs of the model "
+                                "(constrained, or the dependent end of a rigid link whose other end is measured "
+                                "too); remove those columns or model the link with stiff springs")
+    keep = [str(d) for d in measured.responses if (d.node, d.axis) in have]
+    dropped = [str(d) for d in measured.responses if (d.node, d.axis) not in have]
+    if dropped:
+        log.warning("measured DOF(s) %s are eliminated in the model (constrained or rigidly linked to another "
+                    "measured node) and are left out of the diagnosis", ", ".join(dropped))
+        if len(keep) < 2:
+            raise ModalabValueError(f"only {len(keep)} measured response DOF(s) are independent DOFs of the model "
+                                    f"(left out: {', '.join(dropped)}); check the node numbering")
+        return measured.select(responses=keep)
+    return measured
+
+
+def _dof_stiffness(structure, c) -> float:
+    """The diagonal stiffness at a candidate's DOF (at its first node, or its partner across a rigid link;
+    else the median over DOFs of the same kind, translational or rotational)."""
+    d = parse_dofs(c.dofs)[0] if c.dofs else None
+    diag = np.abs(structure.K.diagonal())
+    if d is not None:
+        for n in (d.node,) + tuple(c.nodes):
+            for i, x in enumerate(structure.dofs):
+                if x.node == n and x.axis == d.axis and diag[i] > 0:
+                    return float(diag[i])
+        same = [diag[i] for i, x in enumerate(structure.dofs) if (x.axis >= 4) == (d.axis >= 4)]
+        if same:
+            return float(np.median(same)) or 1.0
+    return float(np.median(diag)) or 1.0
+
+
+def _upper(cands: list, scales: list) -> np.ndarray:
+    """Upper bounds of the candidates' parameters (their plausible values over the parameter scales)."""
+    return np.array([getattr(c, "upper", np.inf) / sc for c, sc in zip(cands, scales)], float)
+
+
+def _augment(model: FEModel, cands: list) -> tuple[FEModel, list, list]:
+    m = model
+    params, scales = [], []
+    eid = max(list(m.elements) + list(m.rbe2s) + [0]) + 1000
+    for c in cands:
+        m, par, scale = c.apply(m, eid)
+        eid += 10
+        params.append(par)
+        scales.append(scale)
+    return m, params, scales
+
+
+def _evidence(c: Candidate, gain: float, rank_same_place: list, band, use_mci: bool = True) -> str:
+    kind = {"K": "real and constant over frequency (a stiffness)", "M": "real and growing as −ω² (an inertia)",
+            "C": "imaginary and growing with ω (viscous damping)", "D": "imaginary and constant (hysteretic damping)"}[c.matrix]
+    where = ', '.join(c.dofs) or 'node ' + ','.join(map(str, c.nodes))
+    if use_mci:
+        alt = ", ".join(f"{o.physics.replace('_', ' ')} there explains {100 * g:.0f} %" for o, _, g in rank_same_place[:2])
+        s = (f"the dynamic-stiffness residual at {where} is {kind} between {band[0]:.3g} and {band[1]:.3g} Hz; this "
+             f"term alone explains {100 * gain:.0f} % of the residual left after parameter updating")
+    else:
+        alt = ", ".join(f"{o.label} {100 * g:.0f} %" for o, _, g in rank_same_place[:2])
+        s = (f"added alone at its best value, a dynamic stiffness at {where} that is {kind} removes "
+             f"{100 * gain:.0f} % of the FRF error between {band[0]:.3g} and {band[1]:.3g} Hz; with the parameters "
+             "re-fitted it gave the lowest training error of the candidates tried and passed the information "
+             "criterion")
+    return s + (f" (competing at the same place: {alt})" if alt else "")

@@ -1,0 +1,205 @@
+"""Test modes for the fit blocks: peaks of the measured FRFs (:func:`peak_modes`), the suspension band of a
+free model's test article (:func:`suspension_band`), and the pairing of test and model modes with
+rigid-body and suspension modes excluded on purpose (:func:`pair_test_modes`).  Split out of
+:mod:`~updating.diagnosis.workflow`."""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from modalab.core.errors import ModalabValueError
+from modalab.core.modes import ModeSet
+from modalab.core.frf import FRF
+
+from updating.correlation.metrics import analysis_modes, correlate
+
+log = logging.getLogger(__name__)
+
+
+def peak_modes(measured: FRF, *, band_hz=None, max_modes: int = 12, prominence: float = 0.05) -> ModeSet:
+    """Test modes by quadrature peak picking on the measured FRFs (used when no identified modes are given).
+
+    Natural frequencies are the peaks of the summed receptance power (``scipy.signal.find_peaks`` with a
+    prominence of ``prominence`` × the largest peak in log scale); each shape is the imaginary part of the
+    receptance column of the reference that responds most at the peak.  Adequate for well-separated,
+    lightly damped modes, which is what the frequency and MAC columns of the fit blocks need.
+    """
+    from scipy.signal import find_peaks
+    f = measured if band_hz is None else measured.band(*band_hz)
+    f = f.band(max(float(f.freq_hz[0]), 1e-9), None) if f.freq_hz[0] <= 0 else f
+    rec = f.to("receptance")
+    P = np.sum(np.abs(rec.H) ** 2, axis=(0, 1))
+    lg = np.log10(P + 1e-300)
+    pk, props = find_peaks(lg, prominence=prominence * max(float(np.ptp(lg)), 1e-12))
+    if pk.size == 0:
+        raise ModalabValueError("no resonance peaks in the measured FRFs; give identified test modes instead")
+    pk = pk[np.argsort(-props["prominences"])[:max_modes]]
+    pk.sort()
+    shapes = []
+    for i in pk:
+        col = int(np.argmax(np.sum(np.abs(rec.H[:, :, i]) ** 2, axis=0)))
+        shapes.append(rec.H[:, col, i].imag)
+    return ModeSet(freq_hz=rec.freq_hz[pk], shapes=np.array(shapes).T, dofs=list(rec.responses),
+                   metadata={"source": "quadrature peak picking"})
+
+
+#: pairing in the fit blocks: smallest MAC and largest relative frequency difference of an accepted pair
+PAIR_MAC_MIN = 0.6
+
+
+PAIR_MAX_FREQ_ERROR = 0.25
+
+
+#: modes below this fraction of the model's first elastic frequency are rigid-body or suspension modes
+SUSPENSION_RATIO = 0.5
+
+
+#: a free-free test article hangs on a suspension whose modes lie below this fraction of its first elastic
+#: frequency (the usual design rule of a free-free test: suspension modes at most 10 % of the first elastic one)
+SUSPENSION_PEAK_RATIO = 0.1
+
+
+def suspension_band(structure, measured: FRF, band_hz=None) -> float | None:
+    """The frequency below which the lines are left out of the fits because the test article hung on a
+    suspension the free model leaves out, or None.
+
+    A free-free model is only an idealisation of a test article on soft cords: "free-free boundary conditions
+    are subject to suspension effects, yielding rigid body modes having eigenvalues not equal to zero"
+    (thesis, ch. 1; the thesis's test-bed hung with rigid-body modes at about 1 Hz, §5).  When the nominal model
+    has rigid-body modes and the measured FRFs resonate below :data:`SUSPENSION_PEAK_RATIO` × its first elastic
+    frequency f₁ (peaks of the summed receptance power, as :func:`peak_modes`), those lines and the
+    transition above them (up to :data:`SUSPENSION_RATIO` × f₁, where the pairing already leaves suspension
+    modes out) describe the suspension, not the structure: left in, their misfit dominates the error measure
+    and every screening (a 1/ω² mass line against a resonance).  A spring to ground that the model should
+    carry (a support at a tenth of f₁ or above) is not a suspension and keeps its lines."""
+    from scipy.signal import find_peaks
+    n = min(structure.n_dof, 24)
+    ana = analysis_modes(structure, n)
+    fa = np.asarray(ana.freq_hz, float)
+    rigid = _rigid_fraction(structure, np.asarray(ana.shapes)) > 0.9
+    elastic = fa[~rigid]
+    # free: rigid-body modes at zero frequency (not a support's or mounts' rigid-body modes, which it models)
+    if not elastic.size or not np.any(rigid & (fa < 1e-3 * float(elastic[0]))):
+        return None
+    f1 = float(elastic[0])
+    rec = measured if band_hz is None else measured.band(*band_hz)
+    rec = rec.to("receptance")
+    sel = (rec.freq_hz > 0) & (rec.freq_hz <= SUSPENSION_PEAK_RATIO * f1)
+    if np.count_nonzero(sel) < 5:
+        return None
+    P = np.sum(np.abs(rec.H[:, :, sel]) ** 2, axis=(0, 1))
+    lg = np.log10(P + 1e-300)
+    pk, _ = find_peaks(lg, prominence=max(0.05 * float(np.ptp(lg)), 0.3))
+    if pk.size == 0:
+        return None
+    log.info("the measured FRFs resonate at %s Hz, below %.0f %% of the free model's first elastic frequency "
+             "(%.4g Hz): a suspension", ", ".join(f"{x:.3g}" for x in rec.freq_hz[sel][pk]),
+             100 * SUSPENSION_PEAK_RATIO, f1)
+    return SUSPENSION_RATIO * f1
+
+
+def _rigid_fraction(structure, phi: np.ndarray) -> np.ndarray:
+    """Share of each mode's kinetic energy (mass-weighted) in the span of the six rigid-body motions of the
+    model's nodes (translations and small rotations about the centroid, from the node coordinates)."""
+    coords = getattr(structure, "coords", None) or {}
+    if not coords:
+        return np.zeros(phi.shape[1])
+    x0 = np.mean(np.array(list(coords.values()), float), axis=0)
+    R = np.zeros((structure.n_dof, 6))
+    for i, d in enumerate(structure.dofs):
+        xyz = coords.get(d.node)
+        if xyz is None:
+            continue
+        r = np.asarray(xyz, float) - x0
+        a = d.axis - 1
+        if a < 3:
+            R[i, a] = 1.0                                  # translation along the axis
+            # rotation θ about axis b moves the node by θ e_b × r; component a of it
+            for b in range(3):
+                e = np.zeros(3)
+                e[b] = 1.0
+                R[i, 3 + b] = np.cross(e, r)[a]
+        else:
+            R[i, a] = 1.0
+        R[i] *= d.sign
+    M = structure.M
+    MR = M @ R
+    G = R.T @ MR
+    keep = np.flatnonzero(np.diag(G) > 1e-12 * max(np.diag(G).max(), 1e-300))
+    if keep.size == 0:
+        return np.zeros(phi.shape[1])
+    Rk, Gk = R[:, keep], G[np.ix_(keep, keep)]
+    c = np.linalg.lstsq(Gk, MR[:, keep].T @ phi, rcond=None)[0]       # M-orthogonal projection coefficients
+    proj = Rk @ c
+    num = np.einsum("ij,ij->j", proj, M @ proj)
+    den = np.einsum("ij,ij->j", phi, M @ phi)
+    return np.clip(num / np.maximum(den, 1e-300), 0.0, 1.0)
+
+
+def pair_test_modes(structure, test_modes: ModeSet) -> dict:
+    """THE pairing of the diagnosis (every fit block and frequency table goes through here).
+
+    Rigid-body and suspension modes are excluded on purpose: a model mode whose kinetic energy lies for more
+    than 90 % in the rigid-body motions and whose frequency is below :data:`SUSPENSION_RATIO` × the first
+    elastic model frequency, and a test mode below that frequency.  The rest are paired by MAC (optimal
+    assignment, :func:`updating.correlation.metrics.correlate`) with at least :data:`PAIR_MAC_MIN` and a relative
+    frequency difference of at most :data:`PAIR_MAX_FREQ_ERROR`; a mode without such a partner is unpaired.
+
+    Returns ``pairs`` [(model freq, test index)], ``freq_error_pct``, ``mac``, ``excluded_test_hz``,
+    ``excluded_model_hz``, ``unpaired_test_hz``, ``cutoff_hz``.
+    """
+    n = min(structure.n_dof, 2 * test_modes.n_modes + 12)
+    ana = analysis_modes(structure, n)
+    top = (1 + PAIR_MAX_FREQ_ERROR) * float(np.max(test_modes.freq_hz, initial=0.0))
+    while n < structure.n_dof and ana.freq_hz[-1] < top:          # every model mode a test mode could pair with
+        n = min(structure.n_dof, 2 * n)
+        ana = analysis_modes(structure, n)
+    rigid = _rigid_fraction(structure, np.asarray(ana.shapes)) > 0.9
+    fa = np.asarray(ana.freq_hz, float)
+    elastic = fa[~rigid]
+    cutoff = SUSPENSION_RATIO * float(elastic[0]) if elastic.size else 0.0
+    drop_a = rigid & (fa < cutoff)
+    fx = np.asarray(test_modes.freq_hz, float)
+    keep_x = np.flatnonzero(fx >= cutoff)
+    keep_a = np.flatnonzero(~drop_a)
+    out = {"pairs": [], "freq_error_pct": [], "mac": [], "cutoff_hz": cutoff,
+           "excluded_test_hz": [float(f) for f in fx[fx < cutoff]],
+           "excluded_model_hz": [float(f) for f in fa[drop_a]]}
+    if keep_x.size and keep_a.size:
+        c = correlate(ana.select_modes(keep_a), test_modes.select_modes(keep_x), mac_min=PAIR_MAC_MIN,
+                      max_freq_error=PAIR_MAX_FREQ_ERROR)
+        for (a, t), e in zip(c.pairs, c.freq_error_pct):
+            out["pairs"].append((float(fa[keep_a[a]]), int(keep_x[t])))
+            out["freq_error_pct"].append(float(e))
+            out["mac"].append(float(c.mac[a, t]))
+    paired = {t for _, t in out["pairs"]}
+    out["unpaired_test_hz"] = [float(fx[t]) for t in keep_x if t not in paired]
+    return out
+
+
+def _paired_frequencies(structure, test_modes, n_modes: int, band) -> list:
+    """Model frequencies (Hz) aligned with the test modes by :func:`pair_test_modes` (None where unpaired);
+    without test modes, the model's frequencies inside the band (rigid-body and mechanism modes left out)."""
+    if test_modes is not None:
+        out = [None] * test_modes.n_modes
+        for f, t in pair_test_modes(structure, test_modes)["pairs"]:
+            out[t] = f
+        return out
+    w, _ = structure.normal_modes(min(n_modes + 12, structure.n_dof))
+    fx = np.atleast_1d(w) / (2 * np.pi)
+    return [float(x) for x in fx if 0.5 * band[0] < x <= 1.1 * band[1]][:n_modes]
+
+
+def _mode_metrics(structure, test_modes) -> dict:
+    """``freq_error_max_pct`` and ``mac_min`` over the test modes paired by :func:`pair_test_modes`, with
+    the counts of pairs, unpaired test modes and the rigid-body/suspension modes left out on purpose."""
+    if test_modes is None:
+        return {"freq_error_max_pct": None, "mac_min": None}
+    p = pair_test_modes(structure, test_modes)
+    out = {"freq_error_max_pct": float(np.max(np.abs(p["freq_error_pct"]))) if p["pairs"] else None,
+           "mac_min": float(np.min(p["mac"])) if p["pairs"] else None, "n_pairs": len(p["pairs"]),
+           "n_unpaired_test": len(p["unpaired_test_hz"]),
+           "suspension_cutoff_hz": p["cutoff_hz"],
+           "n_excluded_test": len(p["excluded_test_hz"]), "n_excluded_model": len(p["excluded_model_hz"])}
+    return out
