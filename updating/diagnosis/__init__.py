@@ -6,7 +6,10 @@ candidate ranking), :func:`frf_screen` (exact single-candidate FRF screening by 
 :func:`fit_frf` (non-linear FRF fit; in a :class:`RitzBasis` for large models), :func:`peak_modes` (test modes by
 peak picking),
 :mod:`~updating.diagnosis.report` (figures).  ``Diagnosis.save(dir)`` writes ``diagnosis.json``, the
-figures and ``augmented.bdf``.
+figures and ``augmented.bdf``.  The FRF workflow's parts: :mod:`~updating.diagnosis.workflow` (the steps),
+:mod:`~updating.diagnosis.priors` (parameters and their priors), :mod:`~updating.diagnosis.terms` (a term's
+effect, its tests and the augmented model), :mod:`~updating.diagnosis.testmodes` (test modes and their
+pairing), :mod:`~updating.diagnosis.findings` (findings, ``Diagnosis``, the statement).
 
 ``diagnosis.json`` (``Diagnosis.to_dict()``)::
 
@@ -29,7 +32,9 @@ figures and ``augmented.bdf``.
      "pairing": {"nominal" | ...: {"pairs": [{"model_hz", "test_hz", "mac", "freq_error_pct"}],
                                    "unpaired_test_hz": [...], "excluded_test_hz": [...], "excluded_model_hz": [...],
                                    "cutoff_hz": 2.7}},
-     "statement": "...", "ranking": [...], "timings_s": {...}}
+     "statement": "...", "ranking": [...],
+     "decisions": [{"decision": "found" | "ambiguous" | "rejected" | "dropped", "candidate", "physics", "reason"}],
+     "unobservable": [...], "not_evaluated": [...], "timings_s": {...}}
 
 ``"findings": []`` means nothing is missing beyond parameter error.  Values are in SI units (``unit``);
 ``std`` is the linearised standard deviation of the final joint fit.
