@@ -44,7 +44,7 @@ from modalab.core.errors import ModalabValueError, NotFittedError, ShapeError
 from modalab.core.modes import ModeSet
 
 from updating.fe.sensitivity import StackedDerivatives
-from updating.methods.eigensensitivity import _param_indices
+from updating.fe.parametric import parameter_indices
 from updating.correlation.dofmap import observation_matrix
 from updating.correlation.metrics import mac, observability, pair_modes
 from updating.fe.sensitivity import solve_modes
@@ -175,7 +175,7 @@ class EigendynamicConstraint:
         mn = test_modes.scaling == "unit_modal_mass"
         if not mn:
             log.info("test modes are not mass-normalised: Eq. (3.37) is dropped")
-        idx = _param_indices(model, self.params)
+        idx = parameter_indices(model, self.params)
         p = np.array(model.p0, float)
         scale = np.where(p[idx] != 0, np.abs(p[idx]), 1.0)
         self.history_ = [p.copy()]
