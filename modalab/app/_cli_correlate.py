@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 from modalab.app.stages import CorrelateOptions
-from modalab.app.cli import _print
+from modalab.app._cli_console import _print
 from modalab.app.stages import correlate
 
 

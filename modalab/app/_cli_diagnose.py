@@ -1,10 +1,11 @@
 """``modalab diagnose``: locate what an FE model leaves out, name the physics, model it, prove it."""
 from __future__ import annotations
 
+import difflib
 from pathlib import Path
 from updating.diagnosis.library import validate_kinds
 from modalab.app.stages import DiagnoseOptions
-from modalab.app.cli import _print
+from modalab.app._cli_console import _print
 from modalab.app.stages import diagnose
 from modalab.app.campaign import diagnose_many
 from modalab.core.errors import ModalabError, PlanError
@@ -22,8 +23,6 @@ def parse_kinds(values) -> tuple | None:
         try:
             validate_kinds([k])
         except ModalabError:
-            import difflib
-
             m = difflib.get_close_matches(k, KINDS, n=1, cutoff=0.5) or [c for c in KINDS if k.lower() in c]
             bad.append(f"{k} (did you mean {m[0]}?)" if m else k)
     if bad:

@@ -4,9 +4,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 from modalab.app.stages import IdentifyOptions
-from modalab.app.cli import _print
+from modalab.app._cli_console import _print
 from modalab.app.stages import identify
 from modalab.app.campaign import identify_many
+from modalab.core.errors import PlanError
 
 
 def _options(a):
@@ -80,8 +81,6 @@ def _campaign(a, opts):
     """Several inputs: one folder per input under OUTPUT, in parallel (local processes or a Dask cluster)."""
 
     if a.json:
-        from modalab.core.errors import PlanError
-
         raise PlanError("--json names one file; with several inputs every OUTPUT/<input>/modes.json is written")
     res = identify_many(a.inputs, a.output, opts, plots=bool(a.plots), dask=a.dask, workers=a.workers)
     for r in res:

@@ -1,6 +1,7 @@
 """``modalab run PROJECT.toml``: the whole chain with per-stage progress (registered by :mod:`modalab.app.cli`)."""
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from modalab.app.project import STAGES
@@ -84,8 +85,6 @@ def run_with_progress(run, again: str, *, quiet: bool = False) -> int:
         print(f"diagnosis: {d.get('statement')}", flush=True)
     summary = Path(res.report).with_name("summary.json")
     if summary.is_file():
-        import json
-
         s = json.loads(summary.read_text())
         if s.get("simulated"):
             print("data: simulated (backend sim: the simulated lab, not hardware)", flush=True)

@@ -5,7 +5,10 @@ Methods: ``eigensensitivity`` (thesis 3.2.2, modes), ``eigendynamic`` (3.2.1, mo
 ``direct-lagrange``, ``direct-error-matrix``, ``direct-matrix``, ``direct-mixing``.
 """
 from __future__ import annotations
-from modalab.app.cli import _print
+
+import math
+
+from modalab.app._cli_console import _print
 from modalab.app._cli_correlate import correlate_options
 from modalab.app.stages import UpdateOptions, update
 from modalab.app.stages import UPDATE_METHODS
@@ -14,7 +17,6 @@ from modalab.app._cli_correlate import add_map_arguments
 
 def _digits(a: float, b: float, std) -> int:
     """Significant digits that show the change from ``a`` to ``b`` and the standard deviation (5 at least)."""
-    import math
 
     scale = max(abs(a), abs(b))
     if scale == 0 or not math.isfinite(scale):

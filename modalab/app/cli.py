@@ -12,9 +12,12 @@ gives one line ``modalab COMMAND: error: ...`` naming the file (and line) and ex
 from __future__ import annotations
 
 import argparse
+import contextlib
+import difflib
 import json
 import logging
 import os
+import shutil
 import sys
 from pathlib import Path
 
@@ -22,8 +25,10 @@ from modalab.core.errors import ModalabError
 from modalab.app.stages import SimOptions, sim
 from modalab.app.stages import FRFOptions, frf
 from modalab.core import uff
+from modalab.core.uff import assume_quantity
 from modalab.app.stages import acquire
 from modalab.app._cli_console import _ConsoleObserver, _CountProgress, _print, _TerminalPrompter  # noqa: F401
+from modalab.app import _cli_correlate, _cli_diagnose, _cli_identify, _cli_run, _cli_update
 from modalab.app._cli_run import run_with_progress
 from modalab.app.demo_project import run_demo
 from modalab.core._output import check_outputs
@@ -237,12 +242,25 @@ def build_parser() -> argparse.ArgumentParser:
                                 epilog=UNITS_EPILOG)
     p.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv for debug)")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
+    _add_demo(sub)
+    _add_sim(sub)
+    _add_frf(sub)
+    _add_info(sub)
+    _add_acquire(sub)
+    for m in (_cli_identify, _cli_correlate, _cli_update, _cli_diagnose, _cli_run):   # commands in their modules
+        m.register(sub)
+    _add_shared_options(sub)
+    return p
 
+
+def _add_demo(sub):
     s = sub.add_parser("demo", help="simulate the demo structure's hammer test end to end (no hardware)")
     s.add_argument("-o", "--output", default="modalab-demo", help="output folder (default: modalab-demo)")
     s.add_argument("--quick", action="store_true", help=QUICK_HELP)
     s.set_defaults(func=cmd_demo)
 
+
+def _add_sim(sub):
     s = sub.add_parser("sim", help="simulate a roving-hammer test into a UFF of raw hits")
     s.add_argument("-o", "--output", required=True, help="UFF file to write (raw hits, dataset 58 time records)")
     s.add_argument("--structure", default="demo", help="'demo' or a Nastran bulk-data file (default: demo)")
@@ -261,6 +279,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "updating parameters (FOLDER/params.toml) for correlate, update and diagnose")
     s.set_defaults(func=cmd_sim)
 
+
+def _add_frf(sub):
     s = sub.add_parser("frf", help="raw hits -> H1 FRFs and coherence")
     s.add_argument("input", help="UFF with raw hits (dataset 58 time records)")
     s.add_argument("-o", "--output", required=True, help="UFF to write (FRFs func type 4, coherence func type 6)")
@@ -276,11 +296,15 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-plot", action="store_true", help="no figure")
     s.set_defaults(func=cmd_frf)
 
+
+def _add_info(sub):
     s = sub.add_parser("info", help="what a UFF file holds: datasets, DOFs, units, frequency range")
     s.add_argument("file", help="a universal file (.uff/.unv)")
     s.add_argument("--json", action="store_true", help="print JSON")
     s.set_defaults(func=cmd_info)
 
+
+def _add_acquire(sub):
     s = sub.add_parser("acquire", help="run a test plan (impact test) on NI hardware or the simulated lab")
     s.add_argument("plan", help="test plan (TOML; see the README)")
     s.add_argument("--backend", default="sim", choices=["sim", "nidaqmx"],
@@ -295,7 +319,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="open a live plot window (only with a display; preview PNGs are always written)")
     s.set_defaults(func=cmd_acquire)
 
-    _add_later_stages(sub)
+
+def _add_shared_options(sub):
+    """Options several commands share: --force/--overwrite, --quantity, and the units note under every --help."""
     for name in ("sim", "frf", "identify", "correlate", "diagnose"):
         sp = sub.choices.get(name)
         if sp is None:
@@ -311,17 +337,6 @@ def build_parser() -> argparse.ArgumentParser:
                                  "a units label); an error when the file says otherwise")
     for sp in sub.choices.values():
         sp.epilog = (sp.epilog + "\n" if sp.epilog else "") + UNITS_EPILOG
-    return p
-
-
-def _add_later_stages(sub):
-    """Stages whose commands live in their own modules (registered when importable)."""
-    for mod in ("identify", "correlate", "update", "diagnose", "run"):
-        try:
-            m = __import__(f"modalab.app._cli_{mod}", fromlist=["register"])
-        except ImportError:
-            continue
-        m.register(sub)
 
 
 def blas_threads(n: int | None = None):
@@ -333,7 +348,6 @@ def blas_threads(n: int | None = None):
     fits), for which threaded BLAS costs more than it gains: the demo's diagnosis takes 22 s on one thread and
     42 s on two on a 2-core machine.  ``threadpoolctl`` (a dependency) does the limiting.
     """
-    import contextlib
 
     if n is None:
         try:
@@ -439,7 +453,6 @@ def _prepare_outputs(a):
 def _remove_created(a, created):
     """After a failure: remove the outputs this run created (a session/run folder, or a campaign's folder
     holding the results of the inputs that succeeded, only when empty)."""
-    import shutil
 
     keep = a.command in _KEEP_FOLDER or (a.command == "identify" and len(a.inputs) > 1)
     for p in created:
@@ -499,7 +512,6 @@ class _LogFormatter(logging.Formatter):
 
 def _closest_option(parser, arg: str) -> str | None:
     """The option of ``parser`` closest to the unknown ``arg`` (``--exp_end`` -> ``--exp-end``), or None."""
-    import difflib
 
     opts = [o for o in parser._option_string_actions if o.startswith("--")]
     key = arg.split("=", 1)[0]
@@ -549,7 +561,6 @@ def main(args=None) -> int:
     created = []
     try:
         inputs, created = _prepare_outputs(a)
-        from modalab.core.uff import assume_quantity
 
         with blas_threads(), protect(inputs), assume_quantity(getattr(a, "quantity", None)):
             return int(a.func(a) or 0)

@@ -46,6 +46,7 @@ from modalab.core.errors import PlanError
 from modalab.app.outputs import write_json, write_text
 from modalab.app.project import STAGES, Project, load_project
 from acquisition.plan import load_plan
+from acquisition.session import AcquisitionSession
 from hardware_sim.bench import lab_from_sim
 
 log = logging.getLogger(__name__)
@@ -198,13 +199,11 @@ def _plan_with(project: Project):
 
 
 def _sim_lab(ctx: _Context, plan):
-    """The simulated bench: the project's truth builder, else the plan's [sim] structure (modalab.app.pipeline)."""
+    """The simulated bench: the project's truth builder, else the plan's [sim] structure (:mod:`modalab.app.stages`)."""
     t = ctx.project.options["test"]
     seed = t["seed"] if t["seed"] is not None else plan.sim.get("seed", 1)
     if not t["truth"]:
-        from modalab.app.pipeline import make_sim_backend
-
-        return make_sim_backend(plan, seed=seed)
+        return stages.make_sim_backend(plan, seed=seed)
 
     return lab_from_sim(plan.sim, load_truth(t["truth"]), channel_names=[c.name for c in plan.channels], seed=seed,
                         source=plan.source)
@@ -242,8 +241,6 @@ def stage_acquire(ctx: _Context, resume: bool) -> tuple[list, dict]:
     plan = _plan_with(ctx.project)
     obs = _AcquireObserver(ctx)
     if ctx.backend == "sim" and ctx.project.options["test"]["truth"]:
-        from acquisition.session import AcquisitionSession
-
         be = _sim_lab(ctx, plan)
         sess = AcquisitionSession(plan, be, d / "session", mode="auto", observer=obs, resume=resume)
         try:
@@ -251,10 +248,8 @@ def stage_acquire(ctx: _Context, resume: bool) -> tuple[list, dict]:
         finally:
             be.close()
     else:
-        from modalab.app.pipeline import acquire
-
-        sess, summary, _ = acquire(ctx.project.plan_path, d / "session", backend=ctx.backend, auto=True,
-                                   resume=resume, observer=obs, seed=ctx.project.options["test"]["seed"])
+        sess, summary, _ = stages.acquire(ctx.project.plan_path, d / "session", backend=ctx.backend, auto=True,
+                                          resume=resume, observer=obs, seed=ctx.project.options["test"]["seed"])
     if not summary.complete:
         raise PlanError(f"the acquisition did not complete ({summary.table()}); run again to continue")
     out = sess.export(d / "session.uff")
@@ -416,19 +411,10 @@ def run_project(project, out_dir, *, backend: str | None = None, from_stage: str
     ctx = _Context(proj, out, be, progress)
     wanted = _wanted(proj)
     stop = STAGES.index(until_stage) if until_stage else len(STAGES) - 1
-    forced = set()
-    if from_stage:
-        forced = {from_stage}
-        for s in STAGES:                       # everything downstream of it (transitively)
-            if any(u in forced for u in DEPENDS[s]):
-                forced.add(s)
+    forced = _downstream_of(from_stage)
     result = RunResult(out_dir=out)
     ins = _project_inputs(proj)
-    for s in STAGES:
-        for p in ins:
-            if _inside(p, out / s) or _inside(p, out / "manifest.json"):
-                raise PlanError(f"input '{p}' lies in '{out / s}', which the run replaces; an output never "
-                                "overwrites an input. Move the input out of the output folder or choose another -o")
+    _check_inputs_outside(ins, out)
     with protect(ins):           # no writer may replace a project input, whatever stage calls it
         for s in STAGES:
             if s not in wanted:
@@ -437,13 +423,7 @@ def run_project(project, out_dir, *, backend: str | None = None, from_stage: str
             if STAGES.index(s) > stop:
                 result.status[s] = "not requested"
                 continue
-            ups = {u: {k: h for k, h in man.entry(u)["outputs"].items()
-                       if s == "report" or Path(k).name in PRODUCTS.get(u, ())}
-                   for u in DEPENDS[s] if u in wanted and man.entry(u)}
-            missing = [u for u in DEPENDS[s] if u in wanted and not man.entry(u)]
-            if missing:
-                raise PlanError(f"stage {s} needs {', '.join(missing)} first; run without --from/--until to complete "
-                                "them")
+            ups = _upstream_outputs(man, s, wanted)
             opts = _options(proj, s)
             inputs = _inputs(proj, s, be)
             key = stage_key(opts, inputs, ups)
@@ -453,40 +433,79 @@ def run_project(project, out_dir, *, backend: str | None = None, from_stage: str
                 if progress:
                     progress(s, "skip", "up to date")
                 continue
-            if progress:
-                progress(s, "start", "")
-            t0 = time.perf_counter()
-            man.forget(s)
-            pending = out / s / ".pending_key"
-            if s == "acquire":
-                resume = (pending.is_file() and pending.read_text().strip() == key
-                          and (out / s / "session" / "session.json").is_file())
-                if not resume and (out / s).exists():
-                    shutil.rmtree(out / s)
-                ctx.dir(s)
-                write_text(pending, key)
-                outputs, summary = stage_acquire(ctx, resume)
-            else:
-                if (out / s).exists():
-                    shutil.rmtree(out / s)
-                outputs, summary = _RUN[s](ctx)
-            elapsed = time.perf_counter() - t0
-            rel = {}
-            for p in outputs:
-                p = Path(p)
-                if p.is_file():
-                    rel[str(p.resolve().relative_to(out))] = content_hash(p)
-            man.record(s, {"key": key, "options": opts, "inputs": inputs, "depends": list(ups), "outputs": rel,
-                           "summary": summary, "elapsed_s": round(elapsed, 3),
-                           "completed_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")})
-            if pending.is_file():
-                pending.unlink()
-            result.status[s] = "ran"
-            result.summaries[s] = summary
-            result.elapsed_s[s] = elapsed
-            if progress:
-                progress(s, "done", f"{elapsed:.1f} s")
+            _run_stage(ctx, man, s, {"key": key, "options": opts, "inputs": inputs, "depends": list(ups)}, result)
     return result
+
+
+def _downstream_of(from_stage: str | None) -> set:
+    """``from_stage`` and every stage downstream of it (transitively): the stages ``--from`` reruns."""
+    forced = set()
+    if from_stage:
+        forced = {from_stage}
+        for s in STAGES:
+            if any(u in forced for u in DEPENDS[s]):
+                forced.add(s)
+    return forced
+
+
+def _check_inputs_outside(inputs: list, out: Path) -> None:
+    """An output never overwrites an input: no project input may lie in a stage folder or be the manifest."""
+    for s in STAGES:
+        for p in inputs:
+            if _inside(p, out / s) or _inside(p, out / "manifest.json"):
+                raise PlanError(f"input '{p}' lies in '{out / s}', which the run replaces; an output never "
+                                "overwrites an input. Move the input out of the output folder or choose another -o")
+
+
+def _upstream_outputs(man: Manifest, s: str, wanted: list) -> dict:
+    """The recorded output hashes of the stages ``s`` depends on (only their :data:`PRODUCTS`, except for the
+    report, which reads everything); an error when a wanted upstream stage has not completed."""
+    ups = {u: {k: h for k, h in man.entry(u)["outputs"].items()
+               if s == "report" or Path(k).name in PRODUCTS.get(u, ())}
+           for u in DEPENDS[s] if u in wanted and man.entry(u)}
+    missing = [u for u in DEPENDS[s] if u in wanted and not man.entry(u)]
+    if missing:
+        raise PlanError(f"stage {s} needs {', '.join(missing)} first; run without --from/--until to complete "
+                        "them")
+    return ups
+
+
+def _run_stage(ctx: _Context, man: Manifest, s: str, entry: dict, result: RunResult) -> None:
+    """Run stage ``s`` into a fresh ``OUT/<s>/`` (the acquisition resumes when its key is unchanged), then record
+    its manifest ``entry`` (key, options, inputs, depends) with the hashes of what it wrote."""
+    out, progress, key = ctx.out, ctx.progress, entry["key"]
+    if progress:
+        progress(s, "start", "")
+    t0 = time.perf_counter()
+    man.forget(s)
+    pending = out / s / ".pending_key"
+    if s == "acquire":
+        resume = (pending.is_file() and pending.read_text().strip() == key
+                  and (out / s / "session" / "session.json").is_file())
+        if not resume and (out / s).exists():
+            shutil.rmtree(out / s)
+        ctx.dir(s)
+        write_text(pending, key)
+        outputs, summary = stage_acquire(ctx, resume)
+    else:
+        if (out / s).exists():
+            shutil.rmtree(out / s)
+        outputs, summary = _RUN[s](ctx)
+    elapsed = time.perf_counter() - t0
+    rel = {}
+    for p in outputs:
+        p = Path(p)
+        if p.is_file():
+            rel[str(p.resolve().relative_to(out))] = content_hash(p)
+    man.record(s, {**entry, "outputs": rel, "summary": summary, "elapsed_s": round(elapsed, 3),
+                   "completed_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")})
+    if pending.is_file():
+        pending.unlink()
+    result.status[s] = "ran"
+    result.summaries[s] = summary
+    result.elapsed_s[s] = elapsed
+    if progress:
+        progress(s, "done", f"{elapsed:.1f} s")
 
 
 def _project_inputs(proj: Project) -> list:

@@ -17,6 +17,11 @@ from updating.fe.bulk import read_bdf, to_bulk, write_bdf
 from updating.fe import ParametricFEModel
 from modalab.app.report import plot_convergence
 from modalab.core.frf import FRF
+from modalab.core.modes import ModeSet
+from updating.correlation.expansion import kidder
+from updating.methods.eigendynamic import EigendynamicConstraint
+from updating.methods.eigensensitivity import InverseEigensensitivity
+from updating.methods.mci import MCIUpdater
 from updating.methods.rfm import ResponseFunctionMethod
 from updating.methods import direct as dm
 from updating.correlation.metrics import correlate as _correlate, shape_noise
@@ -106,8 +111,6 @@ def _sibling_uncertainty(test, modes_path):
     js = p.with_suffix(".json")
     if not js.is_file():
         return test, None
-    from modalab.core.modes import ModeSet
-
     try:
         other = ModeSet.from_json(js)
     except ModalabError as e:        # a file beside the input, not named by the user: say so, and use none
@@ -210,32 +213,9 @@ def update(model_path, out_dir, opts: UpdateOptions = UpdateOptions(), *, modes_
         after = _update_direct(model, test, method, co, mapping, out, summary)
         files.append(out / "updated_matrices.npz")
     else:
-        pm = ParametricFEModel(model, params)
-        up = _fit_parameters(pm, opts, lo, hi, test, frf_path, mapping.dofmap, fsig)
-        if opts.method == "eigensensitivity":
-            summary["identifiability"] = _identifiability(up, pm, summary["frequency_weights"])
-        p = np.asarray(up.p_, float)
-        std = np.full(p.size, np.nan)
-        if getattr(up, "std_", None) is not None and np.size(up.std_) == p.size:
-            std = np.asarray(up.std_, float)
-        elif getattr(up, "covariance_", None) is not None and np.size(up.covariance_):
-            idx = np.atleast_1d(getattr(up, "params_", np.arange(p.size)))
-            std[idx] = np.sqrt(np.clip(np.diag(np.atleast_2d(up.covariance_)), 0, None))
-        names = list(pm.parameter_names)
-        hist = [h for h in (getattr(up, "history_", None) or []) if "p" in h]
-        summary["parameters"] = {n: {"initial": float(pm.p0[k]), "updated": float(p[k]),
-                                     "std": float(std[k]) if np.isfinite(std[k]) else None,
-                                     "mode": params[k].mode} for k, n in enumerate(names)}
-        summary["converged"] = bool(getattr(up, "converged_", True))
-        summary["iterations"] = int(getattr(up, "n_iter_", 0) or 0)
-        summary["history"] = [{k: v for k, v in h.items() if k in ("iteration", "p", "cost", "freq_error_pct")}
-                              for h in hist]
-        rows = np.vstack([np.asarray(pm.p0, float)[None, :]] + [np.asarray(h["p"], float)[None, :] for h in hist])
-        files.append(plot_convergence(rows, names, out / "convergence.png"))
-        updated = pm.model_at(p)
-        files.append(write_text(out / "updated.bdf", write_bdf(to_bulk(updated, template=read_bdf(model_path)))))
-        summary["updated_model"] = str(out / "updated.bdf")
-        after = _correlation(updated, test, co, mapping) if test is not None else None
+        after, written = _update_parameters(model, model_path, opts, (params, lo, hi), test, frf_path, mapping, fsig,
+                                            out, summary)
+        files += written
     if before is not None:
         summary["correlation_before"] = before.to_dict()
         summary["correlation_after"] = after.to_dict()
@@ -247,6 +227,41 @@ def update(model_path, out_dir, opts: UpdateOptions = UpdateOptions(), *, modes_
     short = {"parameters": {n: round(v["updated"], 4) for n, v in summary.get("parameters", {}).items()},
              "mean_abs_freq_error_pct": _freq_err(after) if before is not None else None}
     return StageResult(summary, tuple(files), short)
+
+
+def _update_parameters(model, model_path, opts: UpdateOptions, declared, test, frf_path, mapping: DofMapping, fsig,
+                       out: Path, summary: dict):
+    """Fit the declared parameters (``declared``: parameters, lower and upper bounds) by ``opts.method``, write
+    ``convergence.png`` and ``updated.bdf`` (the user's deck with the updated values) and fill ``summary``;
+    returns the correlation of the updated model (None without test modes) and the files written."""
+    params, lo, hi = declared
+    pm = ParametricFEModel(model, params)
+    up = _fit_parameters(pm, opts, lo, hi, test, frf_path, mapping.dofmap, fsig)
+    if opts.method == "eigensensitivity":
+        summary["identifiability"] = _identifiability(up, pm, summary["frequency_weights"])
+    p = np.asarray(up.p_, float)
+    std = np.full(p.size, np.nan)
+    if getattr(up, "std_", None) is not None and np.size(up.std_) == p.size:
+        std = np.asarray(up.std_, float)
+    elif getattr(up, "covariance_", None) is not None and np.size(up.covariance_):
+        idx = np.atleast_1d(getattr(up, "params_", np.arange(p.size)))
+        std[idx] = np.sqrt(np.clip(np.diag(np.atleast_2d(up.covariance_)), 0, None))
+    names = list(pm.parameter_names)
+    hist = [h for h in (getattr(up, "history_", None) or []) if "p" in h]
+    summary["parameters"] = {n: {"initial": float(pm.p0[k]), "updated": float(p[k]),
+                                 "std": float(std[k]) if np.isfinite(std[k]) else None,
+                                 "mode": params[k].mode} for k, n in enumerate(names)}
+    summary["converged"] = bool(getattr(up, "converged_", True))
+    summary["iterations"] = int(getattr(up, "n_iter_", 0) or 0)
+    summary["history"] = [{k: v for k, v in h.items() if k in ("iteration", "p", "cost", "freq_error_pct")}
+                          for h in hist]
+    rows = np.vstack([np.asarray(pm.p0, float)[None, :]] + [np.asarray(h["p"], float)[None, :] for h in hist])
+    files = [plot_convergence(rows, names, out / "convergence.png")]
+    updated = pm.model_at(p)
+    files.append(write_text(out / "updated.bdf", write_bdf(to_bulk(updated, template=read_bdf(model_path)))))
+    summary["updated_model"] = str(out / "updated.bdf")
+    after = _correlation(updated, test, opts.correlation, mapping) if test is not None else None
+    return after, files
 
 
 def _identifiability(up, pm, weights_text) -> dict:
@@ -302,8 +317,6 @@ def _shape_sigma(shape_sigma, test):
 def _fit_parameters(pm, opts: UpdateOptions, lo, hi, test, frf_path, dofmap, fsig):
     pairing = {"max_freq_error": opts.correlation.freq_window}
     if opts.method == "eigensensitivity":
-        from updating.methods.eigensensitivity import InverseEigensensitivity
-
         kw = {} if fsig is None else {"freq_sigma": fsig, "freq_cov": None}
         est = InverseEigensensitivity(max_iter=opts.max_iter, regularisation=opts.regularisation,
                                       use_shapes=bool(opts.use_shapes and test.has_shapes),
@@ -312,15 +325,11 @@ def _fit_parameters(pm, opts: UpdateOptions, lo, hi, test, frf_path, dofmap, fsi
                                       pairing=pairing, **kw)
         return est.fit(pm, _on_model_dofs(test, pm.dofs, dofmap), dofmap=dofmap)
     if opts.method == "eigendynamic":
-        from updating.methods.eigendynamic import EigendynamicConstraint
-
         return EigendynamicConstraint(pairing=pairing).fit(pm, _on_model_dofs(test, pm.dofs, dofmap), dofmap=dofmap)
 
     measured = FRF.from_uff(frf_path)
     bands = [tuple(b) for b in opts.bands] if opts.bands else None
     if opts.method == "mci":
-        from updating.methods.mci import MCIUpdater
-
         return MCIUpdater(bands=bands, max_iter=opts.max_iter).fit(pm, measured)
 
     return ResponseFunctionMethod(bands=bands, max_iter=opts.max_iter).fit(pm, measured)
@@ -333,8 +342,6 @@ def _update_direct(model, test, method, co: CorrelateOptions, mapping: DofMappin
     if mapping.dofmap is None and all(any(d.same_axis(m) for m in test.dofs) for d in st.dofs):
         phi_x = test.select_dofs(st.dofs).real_shapes
     else:
-        from updating.correlation.expansion import kidder
-
         phi_x = kidder(st, _on_model_dofs(test, st.dofs, mapping.dofmap), dofmap=mapping.dofmap).real_shapes
     K, M = st.K.toarray(), st.M.toarray()
     w_x = test.omega
