@@ -6,6 +6,10 @@ import logging
 import os
 from pathlib import Path
 
+import numpy as np
+
+from modalab.core.plots import plot_frf, plot_hit
+
 log = logging.getLogger("modalab")
 
 __all__ = ["_print", "_CountProgress", "_TerminalPrompter", "_ConsoleObserver"]
@@ -106,8 +110,6 @@ class _ConsoleObserver:
             self._progress.update(self._task, completed=index, description=f"at {point}")
 
     def _live_update(self, point, rec, running):
-        import numpy as np
-
         try:
             import matplotlib.pyplot as plt
 
@@ -154,8 +156,6 @@ class _ConsoleObserver:
         if self._last is not None and not self.live:
             rec, running = self._last
             try:
-                from modalab.core.plots import plot_frf, plot_hit
-
                 prev = self.out_dir / "preview"
                 prev.mkdir(parents=True, exist_ok=True)
                 plot_hit(rec, path=prev / f"point_{index:03d}_hit.png", title=f"last hit at {point}")

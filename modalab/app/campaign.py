@@ -23,6 +23,7 @@ from __future__ import annotations
 import functools
 import logging
 import os
+import multiprocessing as mp
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Callable, Sequence
@@ -107,8 +108,6 @@ def run_many(func: Callable, inputs: Sequence, *, dask=None, workers: int | None
                 if progress:
                     progress(i + 1, n)
         else:
-            import multiprocessing as mp
-
             ctx = mp.get_context("spawn")     # no fork of a process holding BLAS threads or a GUI
             with ProcessPoolExecutor(max_workers=w, mp_context=ctx) as ex:
                 futs = [ex.submit(_call, func, x) for x in inputs]

@@ -12,7 +12,6 @@ gives one line ``modalab COMMAND: error: ...`` naming the file (and line) and ex
 from __future__ import annotations
 
 import argparse
-import contextlib
 import difflib
 import json
 import logging
@@ -20,6 +19,8 @@ import os
 import shutil
 import sys
 from pathlib import Path
+
+from threadpoolctl import threadpool_limits
 
 from modalab.core.errors import ModalabError
 from modalab.app.stages import SimOptions, sim
@@ -357,10 +358,6 @@ def blas_threads(n: int | None = None):
                                "positive integer (the number of BLAS threads)") from None
     for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(var, str(n))
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - a declared dependency; without it threads stay as they are
-        return contextlib.nullcontext()
     return threadpool_limits(limits=n)
 
 

@@ -24,6 +24,8 @@ import json
 from importlib import resources
 from pathlib import Path
 
+import numpy as np
+
 from modalab.core._output import write_bytes, write_text      # the one atomic writer (umask, never over an input)
 
 __all__ = ["write_text", "write_bytes", "write_json", "schema", "validate", "SCHEMAS"]
@@ -34,15 +36,10 @@ SCHEMAS = {"modes": "modes.schema.json", "diagnosis": "diagnosis.schema.json", "
 
 def _plain(obj):
     """JSON fallback for numpy scalars and arrays, paths and other objects."""
-    try:
-        import numpy as np
-
-        if isinstance(obj, np.generic):
-            return obj.item()
-        if isinstance(obj, np.ndarray):
-            return obj.tolist()
-    except ImportError:  # pragma: no cover
-        pass
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
     if isinstance(obj, (tuple, set)):
         return list(obj)
     return str(obj)

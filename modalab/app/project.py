@@ -56,6 +56,7 @@ A parameter file::
 """
 from __future__ import annotations
 
+import difflib
 import logging
 import tomllib
 from dataclasses import dataclass, field
@@ -160,7 +161,6 @@ def _read_toml(path: Path, what: str) -> dict:
 def _unknown(what: str, bad: list, valid: list) -> str:
     """``unknown key max_ordr (did you mean max_order?); expected one of band_hz, max_order, ...``: each unknown
     name with its closest valid name (difflib), the valid names as plain text."""
-    import difflib
 
     items = []
     for b in bad:

@@ -51,6 +51,7 @@ when omitted; ``#`` starts a comment; an optional header row is skipped)::
 from __future__ import annotations
 
 import csv
+import itertools
 import logging
 import tomllib
 from pathlib import Path
@@ -58,6 +59,7 @@ from typing import Mapping
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.spatial import cKDTree
 
 from modalab.core.dof import Dof, parse_dofs
 from modalab.core.errors import DofError, ModalabValueError, ShapeError
@@ -370,8 +372,6 @@ def _kabsch(P, Q):
 
 
 def _axis_rotations() -> list:
-    import itertools
-
     out = []
     for perm in itertools.permutations(range(3)):
         for signs in itertools.product((1.0, -1.0), repeat=3):
@@ -449,8 +449,6 @@ def _rigid_placement(nodes, P, Q, tol, ext, max_iter):
     distances and the nearest model node of each.  The identity when every node is within ``tol``; else
     iterated closest points (Kabsch) from the 24 axis-aligned rotations and the identity, the one rigid
     placement that fits (an error when none fits, or several that map differently)."""
-    from scipy.spatial import cKDTree
-
     tree = cKDTree(Q)
 
     def fit(R, t):

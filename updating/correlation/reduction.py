@@ -39,6 +39,7 @@ from modalab.core.errors import ConvergenceError, DofError, ModalabValueError, S
 from modalab.core.modes import ModeSet
 from modalab.core.structure import Structure
 from updating.fe.solvers import eigen_dense, eigen_sparse
+from updating.correlation.dofmap import as_dofmap
 
 __all__ = ["ReducedModel", "guyan", "irs", "serep", "reduce", "master_indices"]
 
@@ -422,8 +423,6 @@ def reduce(structure: Structure, masters, method: str = "guyan", *, dofmap=None,
     if dofmap is None:
         red = f(structure.K, structure.M, masters, dofs=structure.dofs, **kw)
     else:
-        from updating.correlation.dofmap import as_dofmap
-
         test_labels = parse_dofs(masters)
         idx, fac = as_dofmap(dofmap).selection(test_labels, structure.dofs)
         red = f(structure.K, structure.M, [int(i) for i in idx], dofs=structure.dofs, **kw)

@@ -51,6 +51,8 @@ from modalab.core.eigen import drop_mechanisms, eigsh, massless_dofs, massless_m
 from modalab.core.dense import use_dense
 from modalab.core.errors import ModalabValueError, ShapeError
 
+from updating.fe.solvers import _massless, eigen_dense, eigen_sparse
+
 log = logging.getLogger(__name__)
 
 __all__ = [
@@ -205,7 +207,6 @@ def solve_modes(model, p=None, n_modes: int | None = None, *, sigma: float | Non
     if use_dense(n, "eigen") or (n_modes is not None and n_modes >= n - 1):
         # massless DOFs (lumped mass without rotary inertia: Nastran's default without COUPMASS) and massless
         # mechanisms (the rigid torsion of a free-free lumped-mass beam) are handled by the FE solver
-        from updating.fe.solvers import _massless, eigen_dense
         n_finite = n - int(_massless(M).size)
         if n_modes is not None and n_modes > n_finite:
             raise ModalabValueError(f"n_modes={n_modes} but the model has only {n_finite} finite modes; "
@@ -213,7 +214,6 @@ def solve_modes(model, p=None, n_modes: int | None = None, *, sigma: float | Non
         w, phi = eigen_dense(K, M, n_modes)
         lam = w ** 2
     elif sigma is None or sigma < 0:
-        from updating.fe.solvers import eigen_sparse
         k = 10 if n_modes is None else int(n_modes)
         if sigma is None:
             scale = abs(K.diagonal()).max() / max(abs(M.diagonal()).max(), 1e-300)

@@ -38,6 +38,7 @@ import logging
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from modalab.core.dense import use_dense
 from modalab.core.errors import ModalabValueError, NotFittedError, ShapeError
@@ -79,8 +80,6 @@ def kidder_expand(K, M, omega, phi_measured, measured) -> np.ndarray:
         Ass = A[s][:, s].toarray() if use_dense(n, "eigen") else A[s][:, s]
         rhs = -(A[s][:, measured] @ P[:, r])
         if sp.issparse(Ass):
-            import scipy.sparse.linalg as spla
-
             out[s, r] = spla.spsolve(Ass.tocsc(), rhs)
         else:
             out[s, r] = sla.solve(Ass, rhs)

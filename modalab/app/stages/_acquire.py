@@ -14,6 +14,8 @@ from hardware_sim.bench import lab_from_sim
 from acquisition.nidaqmx_backend import NidaqmxBackend
 from acquisition.plan import load_plan
 from acquisition.session import AcquisitionSession
+from hardware_sim import serial_devices
+from acquisition.instruments import AutoHammer, LineTransport
 
 log = logging.getLogger(__name__)
 
@@ -31,8 +33,6 @@ def make_sim_backend(plan, *, seed: int | None = None):
     lab = lab_from_sim(plan.sim, st, channel_names=[c.name for c in plan.channels], automatic=automatic, seed=seed,
                        source=plan.source, dofs=list(plan.points) + plan.fixed_dofs)
     if automatic:
-        from hardware_sim import serial_devices
-
         serial_devices.register()
         serial_devices.device(plan.hammer["url"]).on_fire = lab.fire
     return lab
@@ -76,11 +76,7 @@ def acquire(plan_path, out_dir, *, backend: str = "sim", auto: bool = False, res
         be = backend
     hammer = None
     if plan.hammer.get("url"):
-        from acquisition.instruments import AutoHammer, LineTransport
-
         if plan.hammer["url"].startswith("sim"):
-            from hardware_sim import serial_devices
-
             serial_devices.register()
         hammer = AutoHammer(LineTransport.from_url(plan.hammer["url"], timeout=2.0))
     try:

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+import re
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +12,7 @@ from modalab.core.errors import PlanError
 from updating.fe.bulk import build_model, read_bdf
 from modalab.core.modes import ModeSet
 from modalab.app.project import load_parameters as _load
+from updating.diagnosis.priors import default_parameters
 
 log = logging.getLogger(__name__)
 
@@ -52,7 +54,6 @@ def sniff_kind(path) -> str | None:
     if first[0] in "{[" and not first.startswith("[[") and not (first.startswith("[") and first.endswith("]")
                                                                   and "=" not in first and '"' not in first):
         return "json"
-    import re
 
     code = [ln for ln in lines if not ln.startswith(("#", "$"))]
     cards = re.compile(r"^(GRID|CBAR|CBEAM|CROD|CQUAD4|CTRIA3|CHEXA|CTETRA|CELAS\d|CONM\d|PBAR|PBEAM|PBARL|PSHELL|"
@@ -100,8 +101,6 @@ def load_parameters(path, model) -> tuple[list, np.ndarray, np.ndarray]:
     """Updating parameters and their bounds: the TOML ``[[parameter]]`` file, or (``path`` None) the default
     E and density multipliers per property group without bounds."""
     if path is None:
-        from updating.diagnosis.priors import default_parameters
-
         params = default_parameters(model)
         return params, np.full(len(params), -np.inf), np.full(len(params), np.inf)
 

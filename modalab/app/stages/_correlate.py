@@ -19,6 +19,8 @@ from modalab.app.stages._common import StageResult, load_model, load_modes
 from updating.correlation.dofmap import geometry_map
 from updating.correlation.metrics import correlate as _correlate
 from updating.correlation.plots import plot_frequencies, plot_mac
+from modalab.core.uff import read_geometry
+from updating.correlation.plots import plot_comac
 
 
 @dataclass(frozen=True)
@@ -69,8 +71,6 @@ def resolve_dof_map(model, test, opts: CorrelateOptions = CorrelateOptions(), *,
     coords = dict(test.coordinates)
     src = f"{modes_path} (dataset 2411)"
     if opts.geometry:
-        from modalab.core.uff import read_geometry
-
         coords = read_geometry(opts.geometry)
         src = f"{opts.geometry} (dataset 2411)"
     if not coords:
@@ -147,8 +147,6 @@ def correlate(model_path, modes_path, opts: CorrelateOptions = CorrelateOptions(
     if json_path is not None:
         files.append(write_json(json_path, res.to_dict()))
     if plots_dir is not None:
-        from updating.correlation.plots import plot_comac
-
         files += _correlation_figures(res, Path(plots_dir), "before", "nominal model")
         if res.pairs and res.has_shapes:
             files.append(Path(plot_comac(res.comac, res.test.dofs, Path(plots_dir) / "comac.png")))

@@ -14,6 +14,10 @@ from updating.diagnosis import diagnose_modes
 from updating.fe.bulk import to_bulk, write_bdf
 from updating.diagnosis.report import write_figures
 from modalab.app.report import plot_frf_overlays
+from updating.fe.parameter_file import read_priors
+from updating.diagnosis.modes import map_test_modes
+from modalab.core import uff
+from modalab.core.errors import UffError
 
 log = logging.getLogger(__name__)
 
@@ -65,8 +69,6 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
     params = load_parameters(opts.parameters, model)[0] if opts.parameters else None
     priors = None
     if opts.parameters:
-        from updating.fe.parameter_file import read_priors
-
         priors = read_priors(opts.parameters) or None
     test_modes = load_modes(modes_path) if modes_path else None
     H = None
@@ -75,8 +77,6 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
         if opts.kinds:
             kw["kinds"] = list(opts.kinds)
         if opts.dofmap is not None:
-            from updating.diagnosis.modes import map_test_modes
-
             test_modes = map_test_modes(test_modes, model, opts.dofmap)
         diag = diagnose_modes(model, test_modes, parameters=params, progress=progress, **kw)
     else:
@@ -102,9 +102,6 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
 
 def _read_measured(frf_path):
     """The measured FRFs; a file of identified modes given in their place is pointed to ``--modes``."""
-    from modalab.core import uff
-    from modalab.core.errors import UffError
-
     try:
         return uff.read_frf(frf_path)
     except UffError:

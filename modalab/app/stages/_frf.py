@@ -10,10 +10,12 @@ from modalab.core.errors import ModalabValueError
 from modalab.app.outputs import write_json
 from modalab.app.stages._common import StageResult
 from modalab.core import uff
-from acquisition.reciprocity import reorder_by_reciprocity
+from acquisition.reciprocity import reciprocity_check, reorder_by_reciprocity
 from acquisition.spectral import estimate_frf_roving
 from acquisition.plan import exponential_window
 from acquisition.windows import ForceWindow
+from modalab.core.plots import plot_frf
+from modalab.app.report import plot_coherence_map
 
 
 @dataclass(frozen=True)
@@ -59,8 +61,6 @@ def frf(in_uff, out_uff, opts: FRFOptions = FRFOptions(), *, plot_path=None, det
     uff.write_frf(out, H, append=bool(geometry))
     files = [out]
     if plot_path is not None:
-        from modalab.core.plots import plot_frf
-
         plot_frf(H, path=plot_path, others={"exact": exact} if exact is not None else None,
                  title=f"{H.metadata.get('estimator', opts.estimator)} FRFs")
         files.append(Path(plot_path))
@@ -69,10 +69,6 @@ def frf(in_uff, out_uff, opts: FRFOptions = FRFOptions(), *, plot_path=None, det
                "band_hz": [float(H.freq_hz[0]), float(H.freq_hz[-1])],
                "median_coherence": float(np.nanmedian(coh)) if coh is not None else None}
     if details_dir is not None:
-        from acquisition.reciprocity import reciprocity_check
-
-        from modalab.app.report import plot_coherence_map
-
         d = Path(details_dir)
         try:
             rep = reciprocity_check(H)

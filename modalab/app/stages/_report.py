@@ -25,6 +25,8 @@ from modalab.app.outputs import write_json, write_text
 from modalab.app.stages._common import StageResult
 from modalab.core import uff
 from modalab.core.plots import plot_geometry
+from updating.fe.bulk import read_bdf
+from updating.fe.bulk.build import build_model
 
 log = logging.getLogger(__name__)
 
@@ -181,9 +183,6 @@ def _geometry_figure(run_dir: Path, report_dir: Path, project=None) -> Path | No
         coords = {}
     if project is not None:
         try:
-            from updating.fe.bulk import read_bdf
-            from updating.fe.bulk.build import build_model
-
             m = build_model(read_bdf(project.bulk_path))
             for nid, n in m.nodes.items():
                 coords.setdefault(nid, tuple(float(x) for x in n.xyz))

@@ -19,6 +19,7 @@ from hardware_sim.demo import DEMO_POINTS, DEMO_REFERENCES, demo_channels, demo_
 from hardware_sim.lab import SimulatedLab, simulate_roving_test
 from hardware_sim.setup import FaultConfig
 from modalab.core import uff
+from modalab.core.plots import plot_hit
 
 
 @dataclass(frozen=True)
@@ -135,8 +136,6 @@ def sim(out_uff, opts: SimOptions = SimOptions(), *, plot_path=None, export_mode
         uff.write_records(out, recs)
     files = [out]
     if plot_path is not None:
-        from modalab.core.plots import plot_hit
-
         plot_hit(recs[0], path=Path(plot_path), title=f"hit 1 at {recs[0].force_dofs[0]}")
         files.append(Path(plot_path))
     if export_model is not None:

@@ -39,6 +39,7 @@ from updating.fe import (Beam3D, BeamProperty, Damper, FEModel, LumpedMass, Mate
                          TubeSection)
 
 from updating.fe.bulk import cards as C
+from updating.fe.bulk.build import section_of
 from updating.fe.bulk.fields import Verbatim, card_lines, fits_exactly
 from updating.fe.bulk.geometry import resolve_coord
 from updating.fe.bulk.reader import BulkData, CaseControl
@@ -244,7 +245,6 @@ class _Exporter:
         tp = self.t.properties.get(prop.pid)
         nsm = float(np.real(prop.nsm)) / self.wt
         if tp is not None and getattr(tp, "mid", None) == mid:
-            from updating.fe.bulk.build import section_of
             try:
                 same = section_of(tp) == prop.section
             except BulkDataError:
