@@ -123,6 +123,13 @@ class TestDeckStructure:
         cc = read_bdf(deck).case_control
         assert cc.sol == "103" and cc.selection("METHOD") == 3 and cc.selection("SPC") == 2
 
+    def test_a_case_control_set_id_that_is_not_an_integer_is_an_error(self):
+        deck = "SOL 103\nCEND\nSPC = 1O\nBEGIN BULK\nGRID,1\nGRID,2\nSPC1,1,123,1\nSPC1,2,123,2\n"
+        cc = read_bdf(deck).case_control
+        with pytest.raises(BulkDataError, match=r"case control 'SPC = 1O': expected an integer set id"):
+            cc.selection("SPC")
+        assert cc.selection("METHOD") is None
+
     def test_thru_lists(self):
         b = read_bdf("GRID,1\nGRID,2\nGRID,3\nGRID,4\nSPC1,1,123,1,THRU,3\n")
         assert b.spcs[1][0].grid_ids == (1, 2, 3)

@@ -67,7 +67,8 @@ class CaseControl:
     case: list = field(default_factory=list)
 
     def selection(self, key: str):
-        """Integer set id chosen by ``key`` (SPC, METHOD, SDAMPING ...) in the first subcase or globally."""
+        """Integer set id chosen by ``key`` (SPC, METHOD, SDAMPING ...) in the first subcase or globally; None when
+        none is chosen, an error when the value is not an integer (a typo must not fall back to 'no selection')."""
         key = key.upper()
         for sc in sorted(self.commands, key=lambda s: (s == 0, s)):
             v = self.commands[sc].get(key)
@@ -75,7 +76,8 @@ class CaseControl:
                 try:
                     return int(v)
                 except ValueError:
-                    return None
+                    raise BulkDataError(f"case control '{key} = {v}'" + (f" (subcase {sc})" if sc else "")
+                                        + f": expected an integer set id, e.g. '{key} = 1'") from None
         return None
 
     @property
