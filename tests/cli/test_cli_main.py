@@ -116,8 +116,6 @@ def test_the_cli_limits_blas_threads(monkeypatch, tmp_path):
     """Commands run with BLAS limited to MODALAB_BLAS_THREADS threads (default 1); a bad value is named."""
     import contextlib
 
-    import threadpoolctl
-
     from modalab.app import cli
 
     limits, seen = [], []
@@ -125,7 +123,7 @@ def test_the_cli_limits_blas_threads(monkeypatch, tmp_path):
     def recorder(limits=None, user_api=None, _log=limits):
         _log.append(limits)
         return contextlib.nullcontext()
-    monkeypatch.setattr(threadpoolctl, "threadpool_limits", recorder)
+    monkeypatch.setattr(cli, "threadpool_limits", recorder)      # threadpoolctl's, imported by cli
 
     def fake(a):
         seen.append(len(limits))
