@@ -33,9 +33,9 @@ def _basis(s, q, lam, L, lower_residual, upper_residual):
 class _LocalProjection:
     """Variable-projection objective ``‖(I − P(x))Y‖²/‖Y‖²`` of one pole ``λ(ω_n, ζ)``, minimised by LM.
 
-    The local basis is ``A = [E, B, a(x)]``: ``E`` the quadratic residual terms — per reference and per
-    real/imaginary part the same three polynomials ``poly`` (lines × 3) on that reference's rows, so
-    ``(I − P_E)`` is the projection off one 3-column basis applied segment by segment (no QR of the
+    The local basis is ``A = [E, B, a(x)]``: ``E`` the polynomial residual terms (cubic) — per reference and per
+    real/imaginary part the same ``POLY_DEG + 1`` polynomials ``poly`` (lines × 4) on that reference's rows, so
+    ``(I − P_E)`` is the projection off one 4-column basis applied segment by segment (no QR of the
     6·n_in columns, which dominated with many references) —, ``B`` the other modes in the window
     (projected off ``E``); neither depends on the refined pole, ``a(x)`` are the two columns "Re ψ",
     "Im ψ" of the refined mode.  ``B = Q_B R_B`` is factored once; every evaluation projects ``a`` and ``Y``
@@ -53,7 +53,7 @@ class _LocalProjection:
         self.s, self.q, self.k_r = s, q, k_r
         self.l = np.asarray(L, complex)[:, k_r]
         self.sq = s ** q
-        self.Q0 = np.linalg.qr(np.asarray(poly, float))[0]                     # (lines, 3) orthonormal
+        self.Q0 = np.linalg.qr(np.asarray(poly, float))[0]                     # (lines, 4) orthonormal
         others = np.delete(np.arange(np.size(lam)), k_r)
         B = self._off_poly(_basis(s, q, np.asarray(lam, complex)[others], np.asarray(L, complex)[:, others],
                                   False, False))
@@ -171,6 +171,22 @@ class _LocalProjection:
 
 _MAX_NFEV = 20
 
+#: the local basis of pole r holds every other mode within NEIGHBOUR_REACH window half-widths of it (their
+#: poles and participations held at their estimates, their shapes fitted), not only those inside the window:
+#: a neighbour just outside the band edge has its peak's skirt inside the window, which no low-degree
+#: polynomial represents.  With the modes inside the window only (reach 1), the roving-plate poles with a
+#: neighbour 1-2 half-bandwidths beyond an edge were biased by up to 55 sigma in frequency and 140 sigma in
+#: damping (chi-square of the local fit up to 10^4); with reach 3 the biases are below 1 sigma and the
+#: chi-square about 1 (tests/identification/test_roving_uncertainty.py).  Modes farther away are smooth
+#: over the window: the polynomial takes them (as columns they would be nearly collinear with it).
+NEIGHBOUR_REACH = 3.0
+#: degree of the per-reference complex polynomial standing for the modes beyond the reach (the residual
+#: terms of the local band).  Cubic, not quadratic: near the band edge the window is one-sided and the
+#: modes beyond the band (not in the model at all) bend the FRF more than a quadratic follows (the
+#: roving plate's two top modes, 187 and 194 Hz, 8 Hz below a group of four above 200 Hz: frequency
+#: bias -3.6 sigma with a quadratic, -0.5 sigma with a cubic).
+POLY_DEG = 3
+
 
 def _minimise_lm(vp, x0, lo, hi, x_scale, *, xtol=1e-10, ftol=1e-12, max_nfev=_MAX_NFEV):
     """Box-constrained Levenberg–Marquardt on two variables (projected steps, scaled by ``x_scale``).
@@ -232,8 +248,9 @@ def refine_poles(frf: FRF, lam, participation, *, passes: int = 2, half_bandwidt
 
     For mode r, ``λ_r`` (2 real unknowns) minimises ``‖(I − P(λ)) H‖`` over the
     lines within ``f_r ± max(min(half_bandwidths·ζ_r, 0.1)·f_r, 4 lines)``, where ``P(λ)``
-    projects on the LSFD basis of the poles inside that window plus, per
-    reference, a complex quadratic in frequency for all modes outside it (shapes and
+    projects on the LSFD basis of the poles within ``NEIGHBOUR_REACH`` (3) times that half-width (so a
+    neighbour whose peak lies just beyond a window edge is modelled, not cut through) plus, per
+    reference, a complex cubic in frequency for all modes farther away (shapes and
     these local residuals eliminated linearly, Golub & Pereyra 1973).  Modes are swept ``passes`` times.  The
     frequency may move by at most half the distance to the neighbouring modes and
     the damping stays in ``(0, 0.5)``, so a pole never jumps to a neighbour.
@@ -296,14 +313,14 @@ def _local_problem(frf, f, q, df, Yall, lam, L, r, half_bandwidths):
     if not (wlo < wn < whi):
         return None
 
-    # local basis: the modes inside the window plus, per reference, a complex quadratic in
-    # frequency standing for every mode outside it (well conditioned on a short band)
-    inwin = np.flatnonzero(np.abs(np.abs(lam) / (2 * np.pi) - fr) <= hw)
+    # local basis: the modes inside the window and near its edges (NEIGHBOUR_REACH) plus, per reference, a
+    # complex cubic in frequency standing for every mode farther away (well conditioned on a short band)
+    inwin = np.flatnonzero(np.abs(np.abs(lam) / (2 * np.pi) - fr) <= NEIGHBOUR_REACH * hw)
     k_r = int(np.flatnonzero(inwin == r)[0])
     x_loc = (f[sel] - fr) / hw
     n_in = frf.n_in
-    # per reference a complex quadratic: real coefficients on the real rows and on the imaginary rows
-    poly = np.stack([np.ones_like(x_loc), x_loc, x_loc ** 2], axis=1)
+    # per reference a complex polynomial: real coefficients on the real rows and on the imaginary rows
+    poly = np.stack([x_loc ** k for k in range(POLY_DEG + 1)], axis=1)
     vp = _LocalProjection(s, q, lam[inwin], L[:, inwin], k_r, poly, Y, ynorm)
     return {"vp": vp, "wn": wn, "zr": zr, "wlo": wlo, "whi": whi, "sel": sel, "ynorm": ynorm,
-            "n_lin": 2 * inwin.size + 6 * n_in}
+            "n_lin": 2 * inwin.size + 2 * (POLY_DEG + 1) * n_in}

@@ -29,10 +29,16 @@ def frf_noise_variance(frf: FRF):
         ``frf.variance``, the variance across averages of each FRF line (real,
         ``>= 0``, same shape as ``H``).
     ``'coherence'``
-        From the ordinary coherence ``γ²`` and ``metadata['n_averages']`` = n >= 2: the random
-        error of the H1 estimate has ``var|Ĥ| ≈ |H|² var(arg Ĥ) ≈ (1−γ²)/(2nγ²)·|H|²``
-        (Bendat & Piersol, *Random Data*, eq. 9.73; circular, so each of Re, Im carries that and
-        ``E|Ĥ − H|² ≈ (1−γ²)/(nγ²)·|H|²``).
+        From the ordinary coherence ``γ̂²`` and ``metadata['n_averages']`` = n >= 2: the random
+        error of the H1 estimate has ``var|Ĥ| ≈ |H|² var(arg Ĥ) ≈ (1−γ²)/(2nγ²)·|H|²`` with the
+        *true* coherence γ² (Bendat & Piersol, *Random Data*, eq. 9.73; circular, so each of Re, Im
+        carries that and ``E|Ĥ − H|² ≈ (1−γ²)/(nγ²)·|H|²``).  The coherence in the file is itself
+        estimated from the same n averages and is biased high: ``1 − γ̂²`` is the output power left
+        after fitting one complex coefficient per line, ``Σ|Y − ĤX|²/Σ|Y|²``, whose mean holds n − 1
+        averages' worth of noise, so ``E[(1−γ̂²)/γ̂²] ≈ (n−1)/n · (1−γ²)/γ²`` and the unbiased
+        variance is ``E|Ĥ − H|² ≈ (1−γ̂²)/((n−1)γ̂²)·|Ĥ|²`` (with n = 5 averages the textbook form
+        read with γ̂² is 20 % low: measured 1.25 on the roving-plate generator,
+        ``tests/identification/test_pole_uncertainty.py``).
     ``'residual'``
         Neither is usable: returns ``None``; :func:`pole_uncertainty` then estimates the noise
         from the residual of the local fit (least reliable: model error counts as noise).
@@ -60,7 +66,7 @@ def frf_noise_variance(frf: FRF):
             log.info("one average (coherence is 1 by construction): FRF noise taken from the fit residual")
             return None, "residual"
         g2 = np.clip(np.nan_to_num(frf.coherence, nan=0.0), 1e-6, 1.0)
-        return (1.0 - g2) / (int(n) * g2) * np.abs(H) ** 2, "coherence"
+        return (1.0 - g2) / ((int(n) - 1) * g2) * np.abs(H) ** 2, "coherence"
     return None, "residual"
 
 
@@ -111,7 +117,7 @@ def pole_uncertainty(frf: FRF, lam, participation, *, half_bandwidths: float = 1
     Assumptions: first order (small noise: the std must be small against the damping bandwidth
     ``ζω_n``); noise uncorrelated across lines, references and outputs and circular (Re and Im
     independent, equal variance); the other poles of the window held at their estimates
-    (well-separated modes); the local model (modes in the window plus a quadratic per
+    (well-separated modes); the local model (modes in and near the window plus a cubic per
     reference) fits the noise-free FRF.  A pole on a bound of the refinement has no meaningful
     covariance.
 
@@ -119,7 +125,10 @@ def pole_uncertainty(frf: FRF, lam, participation, *, half_bandwidths: float = 1
     :func:`frf_noise_variance`; without either it is estimated per FRF from the residual of the
     local fit (``s² = ‖r_oi‖²/ν``, ν the degrees of freedom).  ``chi2_ratio`` is
     ``Σ r²/V / ν`` — about 1 when the given variances describe the scatter about the model
-    (NaN for the residual estimate, where it is 1 by construction).
+    (NaN for the residual estimate, where it is 1 by construction).  Variances from coherence
+    are themselves estimates with ``2(n−1)`` degrees of freedom per line, and ``E[1/V̂] =
+    (n−1)/(n−2) · 1/V`` (inverse chi-square): the ratio is divided by that factor (n >= 3), so that it
+    is about 1 there too (it read 1.33 with 5 averages on data the model fits).
 
     Returns a dict: ``freq_std_hz``, ``damping_std``, ``chi2_ratio`` (m,), ``cov`` (m, 2, 2) of
     ``(ω_n [rad/s], ζ)`` of the window-corrected poles (see :func:`window_corrected_covariance`),
@@ -145,6 +154,7 @@ def pole_uncertainty(frf: FRF, lam, participation, *, half_bandwidths: float = 1
     df = float(np.median(np.diff(f))) if f.size > 1 else 1.0
     Yall = frf.H.transpose(1, 2, 0)
     Vall = None if var is None else 0.5 * var.transpose(1, 2, 0)          # per real component
+    n_avg = int(frf.metadata.get("n_averages", 0)) if source == "coherence" else 0
     for r in range(m):
         loc = _local_problem(frf, f, q, df, Yall, lam, L, r, half_bandwidths)
         if loc is None:
@@ -165,6 +175,8 @@ def pole_uncertainty(frf: FRF, lam, participation, *, half_bandwidths: float = 1
             V = np.concatenate([V, V], axis=0)
             pos = V > 0
             chi2 = float(np.sum(res[pos] ** 2 / V[pos])) / nu if pos.any() else np.nan
+            if source == "coherence" and n_avg >= 3:
+                chi2 *= (n_avg - 2) / (n_avg - 1)               # E[1/V̂] of a variance with 2(n−1) dof
         else:
             # per FRF (reference i, output o): s² from the residual, corrected for the fitted unknowns
             r4 = res.reshape(2, frf.n_in, -1, n_out)
