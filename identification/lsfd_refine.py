@@ -85,13 +85,15 @@ class _LocalProjection:
         V = V - self.QB @ (self.QB.T @ V)
         return V - self.QB @ (self.QB.T @ V)
 
-    def _columns(self, lam):
+    def _columns(self, lam, l=None):
         """The two real columns ("Re ψ", "Im ψ") of one pole, rows (reference, line) real then imaginary,
-        and ``l g``, ``l̄ gc``, ``1/(s − λ)``, ``1/(s − λ̄)`` for the derivatives."""
+        and ``l g``, ``l̄ gc``, ``1/(s − λ)``, ``1/(s − λ̄)`` for the derivatives (``l`` the participation,
+        the current one by default)."""
+        l = self.l if l is None else l
         inv = 1.0 / (self.s - lam)
         invc = 1.0 / (self.s - lam.conjugate())
-        lg = self.l[:, None] * (self.sq * inv)[None, :]
-        lgc = self.l.conj()[:, None] * (self.sq * invc)[None, :]
+        lg = l[:, None] * (self.sq * inv)[None, :]
+        lgc = l.conj()[:, None] * (self.sq * invc)[None, :]
         cre, cim = (lg + lgc).ravel(), (1j * (lg - lgc)).ravel()
         a = np.stack([np.concatenate([cre.real, cre.imag]), np.concatenate([cim.real, cim.imag])], axis=1)
         return a, (lg, lgc, inv, invc)
@@ -115,6 +117,30 @@ class _LocalProjection:
         return {"x": np.array(x, float), "lam": lam, "q": qa, "r": ra, "QtY": QtY, "res": res,
                 "cost": float(np.sum(res * res)), "parts": parts}
 
+    def free_participation(self, x):
+        """The participation vector of the refined mode re-estimated at ``x``: its residues ``A_oi`` fitted
+        free per output and reference (the other modes and the polynomials projected off as in the
+        objective), then the best rank-one ``A ≈ ψ lᵀ`` (first singular pair); ``l`` scaled and phased like
+        the current one (only its direction matters)."""
+        lam = self.pole(x)
+        g = self.sq / (self.s - lam)
+        gc = self.sq / (self.s - lam.conjugate())
+        n_in, nf = self.l.size, self.s.size
+        cols = []
+        for i in range(n_in):
+            e = np.zeros((n_in, 1))
+            e[i] = 1.0
+            for v in ((e * (g + gc)[None, :]).ravel(), (1j * e * (g - gc)[None, :]).ravel()):
+                cols.append(np.concatenate([v.real, v.imag]))
+        C = self._off_B(np.stack(cols, axis=1))
+        c = np.linalg.lstsq(C, self.Yp, rcond=None)[0]                          # (2 n_in, n_out)
+        A = c[0::2] + 1j * c[1::2]                                              # (n_in, n_out)
+        u = np.linalg.svd(A, full_matrices=False)[0][:, 0]
+        p = np.vdot(u, self.l)
+        if not abs(p) > 0:
+            return self.l.copy()
+        return u * (p / abs(p)) * np.linalg.norm(self.l)
+
     def residual(self, x):
         """The residual vector (for checks; the solver uses :meth:`factor`)."""
         return self.factor(x)["res"].ravel()
@@ -127,20 +153,25 @@ class _LocalProjection:
             c = np.stack([(st["QtY"][0] - r12 * c1) / r11, c1])                # (2, n_out): R c = QᵀY
         else:
             c = np.linalg.lstsq(st["r"], st["QtY"], rcond=None)[0]
-        lg, lgc, inv, invc = st["parts"]
+        return self._column_derivatives(st["parts"], st["x"]), c
+
+    @staticmethod
+    def _column_derivatives(parts, x):
+        """``∂a/∂(ω_n, ζ)`` of the two columns from :meth:`_columns`' parts, (rows, 4): Re ψ then Im ψ."""
+        lg, lgc, inv, invc = parts
         g1 = lg * inv[None, :]                                   # l ∂g/∂λ = l s^q/(s − λ)², (n_in, nf)
         g2 = lgc * invc[None, :]                                               # l̄ ∂ḡ/∂λ̄
         # ∂/∂σ and ∂/∂ω_d of the columns l g + l̄ gc ("Re ψ") and i(l g − l̄ gc) ("Im ψ")
         re = lambda v: np.concatenate([v.real.ravel(), v.imag.ravel()])  # noqa: E731
         s_re, s_im = re(g1 + g2), re(1j * (g1 - g2))
         w_re, w_im = s_im, -s_re
-        w0, z0 = st["x"]
+        w0, z0 = x
         sq = np.sqrt(1 - z0 ** 2)
         dsig = (-z0, -w0)                                                       # ∂σ/∂(ω_n, ζ)
         dwd = (sq, -w0 * z0 / sq)                                               # ∂ω_d/∂(ω_n, ζ)
         D = np.stack([dsig[j] * s_re + dwd[j] * w_re for j in range(2)]
                      + [dsig[j] * s_im + dwd[j] * w_im for j in range(2)], axis=1)   # (rows, 4)
-        return D, c
+        return D
 
     def _project(self, st, V):
         V = self._off_B(V)
@@ -243,7 +274,7 @@ def _minimise_lm(vp, x0, lo, hi, x_scale, *, xtol=1e-10, ftol=1e-12, max_nfev=_M
 
 
 def refine_poles(frf: FRF, lam, participation, *, passes: int = 2, half_bandwidths: float = 12.0,
-                 lower_residual: bool = True, upper_residual: bool = True) -> np.ndarray:
+                 lower_residual: bool = True, upper_residual: bool = True, return_participation: bool = False):
     """Refine each pole by variable-projection least squares on the lines around it.
 
     For mode r, ``λ_r`` (2 real unknowns) minimises ``‖(I − P(λ)) H‖`` over the
@@ -260,12 +291,19 @@ def refine_poles(frf: FRF, lam, participation, *, passes: int = 2, half_bandwidt
     Each pole is minimised by :func:`_minimise_lm` (analytic Kaufman Jacobian, at most 20
     evaluations); a pole that uses them all is a noise pole creeping along a flat valley and is
     not swept again.
+
+    With ``return_participation`` (several references) each mode's participation vector is re-estimated
+    after its pole, from the same local problem (:meth:`_LocalProjection.free_participation`: residues
+    free per output and reference, best rank-one fit), and used by the next pass and by the caller;
+    returns ``(lam, participation)``.  The diagram's participation comes from one order's denominator
+    and carries its noise: on the roving plate the two modes below the band edge had damping biased by
+    1.3-1.4 sigma with it, 0.3 sigma re-estimated.
     """
     lam = np.array(np.atleast_1d(lam), complex)
-    L = np.asarray(participation, complex).reshape(frf.n_in, lam.size)
+    L = np.array(participation, complex).reshape(frf.n_in, lam.size)
     m = lam.size
     if m == 0:
-        return lam
+        return (lam, L) if return_participation else lam
     f = frf.freq_hz
     q = _Q[frf.quantity]
     df = float(np.median(np.diff(f))) if f.size > 1 else 1.0
@@ -285,6 +323,10 @@ def refine_poles(frf: FRF, lam, participation, *, passes: int = 2, half_bandwidt
             unsettled[r] = nfev >= _MAX_NFEV
             w0, z0 = x
             lam[r] = -z0 * w0 + 1j * w0 * np.sqrt(1 - z0 ** 2)
+            if return_participation and L.shape[0] > 1 and not unsettled[r]:
+                L[:, r] = vp.free_participation(x)
+    if return_participation:
+        return lam, L
     return lam
 
 
