@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import logging
 import numpy as np
+from scipy.stats import f as f_dist
+
 from acquisition.windows import correct_poles
 from modalab.core.errors import ModalabValueError, ShapeError, fmt_error
 from modalab.core.frf import FRF
@@ -130,7 +132,12 @@ def pole_uncertainty(frf: FRF, lam, participation, *, half_bandwidths: float = 1
     (n−1)/(n−2) · 1/V`` (inverse chi-square): the ratio is divided by that factor (n >= 3), so that it
     is about 1 there too (it read 1.33 with 5 averages on data the model fits).
 
-    Returns a dict: ``freq_std_hz``, ``damping_std``, ``chi2_ratio`` (m,), ``cov`` (m, 2, 2) of
+    With several references the residues of each mode are also tested for rank one
+    (:meth:`~identification.lsfd_refine._LocalProjection.rank_one_test`): ``rank2_F``, its p-value ``rank2_p``
+    under F(dof1, dof2) and ``rank2_fraction`` (energy beyond rank one / energy of the mode), NaN with one
+    reference.  A merged close pair fails the test (see :func:`~identification.polymax.may_be_pair`).
+
+    Returns a dict: ``freq_std_hz``, ``damping_std``, ``chi2_ratio``, ``rank2_*`` (m,), ``cov`` (m, 2, 2) of
     ``(ω_n [rad/s], ζ)`` of the window-corrected poles (see :func:`window_corrected_covariance`),
     ``source`` ('H_variance', 'coherence', 'residual' or 'given').  Modes whose window is too
     short for the refinement get NaN.
@@ -146,7 +153,8 @@ def pole_uncertainty(frf: FRF, lam, participation, *, half_bandwidths: float = 1
         if var.shape != frf.H.shape:
             raise ShapeError(f"noise_variance has shape {var.shape}; expected {frf.H.shape} like H")
     out = {"freq_std_hz": np.full(m, np.nan), "damping_std": np.full(m, np.nan), "chi2_ratio": np.full(m, np.nan),
-           "cov": np.full((m, 2, 2), np.nan), "source": source}
+           "cov": np.full((m, 2, 2), np.nan), "source": source, "rank2_F": np.full(m, np.nan),
+           "rank2_p": np.full(m, np.nan), "rank2_fraction": np.full(m, np.nan)}
     if m == 0:
         return out
     f = frf.freq_hz
@@ -161,6 +169,11 @@ def pole_uncertainty(frf: FRF, lam, participation, *, half_bandwidths: float = 1
             continue
         vp, ynorm, sel = loc["vp"], loc["ynorm"], loc["sel"]
         st = vp.factor(np.array([loc["wn"], loc["zr"]]))
+        if frf.n_in > 1:
+            F, d1, d2, frac = vp.rank_one_test(np.array([loc["wn"], loc["zr"]]))
+            if d2 > 0:
+                out["rank2_F"][r], out["rank2_fraction"][r] = F, frac
+                out["rank2_p"][r] = float(f_dist.sf(F, d1, d2))
         D, c = vp._derivatives(st)
         Dp = vp._project(st, D)                                                 # (rows, 4)
         # J[:, o, k] = −P⊥(d_re,k c_0o + d_im,k c_1o), back in the units of H
