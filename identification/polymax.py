@@ -111,11 +111,12 @@ def combined_std(unc: dict, selected, refined=None) -> dict:
       band, with the neighbours and the band's residual terms in the model, so the diagram's spread bounds
       its model error only loosely.  Where the local fit leaves no misfit beyond the noise (χ² ≈ 1), a
       model error much larger than ``σ_noise`` would show in the residual, hence the cap.  Measured on the
-      roving plate (tests/identification/roving_plate.py: analyser H1 and coherence from 5 hits, seeds
-      101-147 odd, 336 (mode, seed) pairs, never used to choose): ±1σ holds 60 % (frequency) / 57 %
-      (damping) of the truths with ``σ_noise`` alone, 76 % / 74 % with the uncapped ``s/√n`` (100 % at
+      roving plate (tests/identification/roving_plate.py: analyser H1 and coherence from 5 hits, 14 modes,
+      336 (mode, seed) pairs per set): on seeds 101-147 odd (used to choose the cap) ±1σ held 60 % (frequency)
+      / 57 % (damping) of the truths with ``σ_noise`` alone, 76 % / 74 % with the uncapped ``s/√n`` (100 % at
       the close pair and the two modes below the band edge, whose diagram poles wander over the orders
-      3-40 times more than the noise explains), 69 % / 68 % with the cap.
+      3-40 times more than the noise explains), 69 % / 68 % with the cap; on fresh seeds 201-247 odd,
+      measured once after the choice: 65 % / 63 % noise alone, 73.5 % / 71 % with the cap (±2σ: 97 % / 98 %).
 
     A mode without an order spread (fewer than two poles) keeps the noise term alone.  ``refined``
     (bool per mode) says which poles are refined; ``None``: all are.  The coverage is tested in

@@ -9,7 +9,7 @@ damping, H1 and coherence *estimated* from 5 hits as an analyser does, a 0.3 % c
 both band edges; it shares no code with ``identification``).  Before issue 16's fix 45 % (frequency) and
 36 % (damping) of the truths were inside ±1σ there: the local refinement cut through neighbours just beyond
 its band edges (biases up to 55σ).  The σ combination (:func:`identification.polymax.combined_std`) was
-chosen on seeds 0-11 and 101-147 (odd); seeds 201-247 (odd, 336 pairs) gave 73.5 % / 70.5 % inside ±1σ,
+chosen on seeds 0-11 and 101-147 (odd); seeds 201-247 (odd, 336 pairs) gave 73.5 % / 71.1 % inside ±1σ,
 96.7 % / 97.6 % inside ±2σ; the seeds here (301-323 odd) were not used for any choice.
 
 Second test: ``roving_lab`` (modal superposition with noise drawn from the *true* coherence, which an
