@@ -308,6 +308,10 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
             "freq_std_hz", "damping_std", "freq_std_noise_hz", "damping_std_noise", "freq_std_orders_hz",
             "damping_std_orders", "chi2_ratio")})
         report.modes["std_source"] = modes.metadata.get("pole_std_source")
+        if "may_be_pair" in modes.indicators:
+            # a mode whose residues are not of rank one: possibly a close pair merged into one pole
+            report.modes["may_be_pair"] = [bool(x) for x in modes.indicators["may_be_pair"]]
+            report.modes["rank2_fraction"] = _list(modes.indicators["rank2_fraction"])
     report.elapsed_s = time.perf_counter() - t0
     log.info("identified %d modes in %.2f s (mean FRF correlation %.4f)", modes.n_modes, report.elapsed_s,
              float(np.nanmean(report.frf_correlation)) if report.frf_correlation.size else float("nan"))

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import logging
 import numpy as np
+from scipy.stats import f as f_dist
+
 from acquisition.windows import correct_poles
 from modalab.core.errors import ModalabValueError, ShapeError, fmt_error
 from modalab.core.frf import FRF
@@ -29,10 +31,16 @@ def frf_noise_variance(frf: FRF):
         ``frf.variance``, the variance across averages of each FRF line (real,
         ``>= 0``, same shape as ``H``).
     ``'coherence'``
-        From the ordinary coherence ``γ²`` and ``metadata['n_averages']`` = n >= 2: the random
-        error of the H1 estimate has ``var|Ĥ| ≈ |H|² var(arg Ĥ) ≈ (1−γ²)/(2nγ²)·|H|²``
-        (Bendat & Piersol, *Random Data*, eq. 9.73; circular, so each of Re, Im carries that and
-        ``E|Ĥ − H|² ≈ (1−γ²)/(nγ²)·|H|²``).
+        From the ordinary coherence ``γ̂²`` and ``metadata['n_averages']`` = n >= 2: the random
+        error of the H1 estimate has ``var|Ĥ| ≈ |H|² var(arg Ĥ) ≈ (1−γ²)/(2nγ²)·|H|²`` with the
+        *true* coherence γ² (Bendat & Piersol, *Random Data*, eq. 9.73; circular, so each of Re, Im
+        carries that and ``E|Ĥ − H|² ≈ (1−γ²)/(nγ²)·|H|²``).  The coherence in the file is itself
+        estimated from the same n averages and is biased high: ``1 − γ̂²`` is the output power left
+        after fitting one complex coefficient per line, ``Σ|Y − ĤX|²/Σ|Y|²``, whose mean holds n − 1
+        averages' worth of noise, so ``E[(1−γ̂²)/γ̂²] ≈ (n−1)/n · (1−γ²)/γ²`` and the unbiased
+        variance is ``E|Ĥ − H|² ≈ (1−γ̂²)/((n−1)γ̂²)·|Ĥ|²`` (with n = 5 averages the textbook form
+        read with γ̂² is 20 % low: measured 1.25 on the roving-plate generator,
+        ``tests/identification/test_pole_uncertainty.py``).
     ``'residual'``
         Neither is usable: returns ``None``; :func:`pole_uncertainty` then estimates the noise
         from the residual of the local fit (least reliable: model error counts as noise).
@@ -60,7 +68,7 @@ def frf_noise_variance(frf: FRF):
             log.info("one average (coherence is 1 by construction): FRF noise taken from the fit residual")
             return None, "residual"
         g2 = np.clip(np.nan_to_num(frf.coherence, nan=0.0), 1e-6, 1.0)
-        return (1.0 - g2) / (int(n) * g2) * np.abs(H) ** 2, "coherence"
+        return (1.0 - g2) / ((int(n) - 1) * g2) * np.abs(H) ** 2, "coherence"
     return None, "residual"
 
 
@@ -111,7 +119,7 @@ def pole_uncertainty(frf: FRF, lam, participation, *, half_bandwidths: float = 1
     Assumptions: first order (small noise: the std must be small against the damping bandwidth
     ``ζω_n``); noise uncorrelated across lines, references and outputs and circular (Re and Im
     independent, equal variance); the other poles of the window held at their estimates
-    (well-separated modes); the local model (modes in the window plus a quadratic per
+    (well-separated modes); the local model (modes in and near the window plus a cubic per
     reference) fits the noise-free FRF.  A pole on a bound of the refinement has no meaningful
     covariance.
 
@@ -119,9 +127,17 @@ def pole_uncertainty(frf: FRF, lam, participation, *, half_bandwidths: float = 1
     :func:`frf_noise_variance`; without either it is estimated per FRF from the residual of the
     local fit (``s² = ‖r_oi‖²/ν``, ν the degrees of freedom).  ``chi2_ratio`` is
     ``Σ r²/V / ν`` — about 1 when the given variances describe the scatter about the model
-    (NaN for the residual estimate, where it is 1 by construction).
+    (NaN for the residual estimate, where it is 1 by construction).  Variances from coherence
+    are themselves estimates with ``2(n−1)`` degrees of freedom per line, and ``E[1/V̂] =
+    (n−1)/(n−2) · 1/V`` (inverse chi-square): the ratio is divided by that factor (n >= 3), so that it
+    is about 1 there too (it read 1.33 with 5 averages on data the model fits).
 
-    Returns a dict: ``freq_std_hz``, ``damping_std``, ``chi2_ratio`` (m,), ``cov`` (m, 2, 2) of
+    With several references the residues of each mode are also tested for rank one
+    (:meth:`~identification.lsfd_refine._LocalProjection.rank_one_test`): ``rank2_F``, its p-value ``rank2_p``
+    under F(dof1, dof2) and ``rank2_fraction`` (energy beyond rank one / energy of the mode), NaN with one
+    reference.  A merged close pair fails the test (see :func:`~identification.polymax.may_be_pair`).
+
+    Returns a dict: ``freq_std_hz``, ``damping_std``, ``chi2_ratio``, ``rank2_*`` (m,), ``cov`` (m, 2, 2) of
     ``(ω_n [rad/s], ζ)`` of the window-corrected poles (see :func:`window_corrected_covariance`),
     ``source`` ('H_variance', 'coherence', 'residual' or 'given').  Modes whose window is too
     short for the refinement get NaN.
@@ -137,7 +153,8 @@ def pole_uncertainty(frf: FRF, lam, participation, *, half_bandwidths: float = 1
         if var.shape != frf.H.shape:
             raise ShapeError(f"noise_variance has shape {var.shape}; expected {frf.H.shape} like H")
     out = {"freq_std_hz": np.full(m, np.nan), "damping_std": np.full(m, np.nan), "chi2_ratio": np.full(m, np.nan),
-           "cov": np.full((m, 2, 2), np.nan), "source": source}
+           "cov": np.full((m, 2, 2), np.nan), "source": source, "rank2_F": np.full(m, np.nan),
+           "rank2_p": np.full(m, np.nan), "rank2_fraction": np.full(m, np.nan)}
     if m == 0:
         return out
     f = frf.freq_hz
@@ -145,12 +162,18 @@ def pole_uncertainty(frf: FRF, lam, participation, *, half_bandwidths: float = 1
     df = float(np.median(np.diff(f))) if f.size > 1 else 1.0
     Yall = frf.H.transpose(1, 2, 0)
     Vall = None if var is None else 0.5 * var.transpose(1, 2, 0)          # per real component
+    n_avg = int(frf.metadata.get("n_averages", 0)) if source == "coherence" else 0
     for r in range(m):
         loc = _local_problem(frf, f, q, df, Yall, lam, L, r, half_bandwidths)
         if loc is None:
             continue
         vp, ynorm, sel = loc["vp"], loc["ynorm"], loc["sel"]
         st = vp.factor(np.array([loc["wn"], loc["zr"]]))
+        if frf.n_in > 1:
+            F, d1, d2, frac = vp.rank_one_test(np.array([loc["wn"], loc["zr"]]))
+            if d2 > 0:
+                out["rank2_F"][r], out["rank2_fraction"][r] = F, frac
+                out["rank2_p"][r] = float(f_dist.sf(F, d1, d2))
         D, c = vp._derivatives(st)
         Dp = vp._project(st, D)                                                 # (rows, 4)
         # J[:, o, k] = −P⊥(d_re,k c_0o + d_im,k c_1o), back in the units of H
@@ -165,6 +188,8 @@ def pole_uncertainty(frf: FRF, lam, participation, *, half_bandwidths: float = 1
             V = np.concatenate([V, V], axis=0)
             pos = V > 0
             chi2 = float(np.sum(res[pos] ** 2 / V[pos])) / nu if pos.any() else np.nan
+            if source == "coherence" and n_avg >= 3:
+                chi2 *= (n_avg - 2) / (n_avg - 1)               # E[1/V̂] of a variance with 2(n−1) dof
         else:
             # per FRF (reference i, output o): s² from the residual, corrected for the fitted unknowns
             r4 = res.reshape(2, frf.n_in, -1, n_out)
