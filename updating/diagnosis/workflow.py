@@ -47,7 +47,7 @@ from modalab.core.modes import ModeSet
 from modalab.core.frf import FRF
 
 from updating.fe import FEModel, ParametricFEModel
-from updating.diagnosis.fit import RITZ_LIMIT, Prior, fit_frf, frf_data, frf_error, model_frf, quick_frf_error
+from updating.diagnosis.fit import RITZ_LIMIT, Prior, chi2_per_value, fit_frf, frf_data, frf_error, model_frf, quick_frf_error
 from updating.diagnosis.frfscreen import frf_screen
 from updating.diagnosis.library import _nodes_of, build_library, validate_kinds
 from updating.diagnosis.release import release_screen, release_visibility
@@ -703,6 +703,8 @@ class Diagnoser:
             out = {"frf_error_held_out": frf_error(model_frf(st, self.held), self.held),
                    "frf_error_train": frf_error(model_frf(st, self.train), self.train)}
             out.update(_mode_metrics(st, test_modes))
+            out["chi2_per_value_held_out"] = chi2_per_value(out["frf_error_held_out"], self.held)
+            out["chi2_per_value_train"] = chi2_per_value(out["frf_error_train"], self.train)
             return out
 
         fit_blocks = {"nominal": metrics(self.pm, self.p_nomd), "parameters_only": metrics(self.pm, self.upd.p)}
