@@ -34,7 +34,7 @@ from updating.methods.mci_condensed import derivatives
 log = logging.getLogger(__name__)
 __all__ = ["FRFData", "frf_data", "decay_leakage", "leakage_bias", "model_frf", "frf_error", "chi2_per_value",
            "fit_frf", "FitResult", "Prior",
-           "parameter_std", "correlated_std", "reml_ar1"]
+           "parameter_std", "correlated_std", "reml_ar1", "fit_std"]
 
 
 def _indices(model_dofs, data: FRFData):
@@ -394,6 +394,24 @@ def correlated_std(fun: np.ndarray, jac: np.ndarray, shape: tuple, *, prior_scal
     meat = s2 * (jac[:nd].T @ RJ) + prior_scale ** 2 * (J_p.T @ J_p)
     log.debug("FRF fit σ: AR(1) error along the lines, ρ = %.3g, σ² = %.3g", rho, s2)
     return parameter_std(jac, 1.0, meat=meat)
+
+
+def fit_std(pmodel, data: FRFData, p, *, free=None, prior: Prior | None = None) -> np.ndarray:
+    """:func:`correlated_std` of the parameters ``p`` of ``pmodel`` against ``data`` (the exact receptance and
+    its Jacobian at ``p``; with a :class:`Prior`, its rows too), for a solution that did not come out of
+    :func:`fit_frf` (e.g. the MCI's): its stated uncertainty is that of the FRF data at that point, not 0."""
+    p = np.asarray(p, float)
+    free = np.ones(p.size, bool) if free is None else np.asarray(free, bool)
+    std = np.zeros(p.size)
+    if not free.any():
+        return std
+    r, ctx = _residual(pmodel, p, data)
+    J = _jacobian(pmodel, p, data, free, ctx)
+    if prior is not None:
+        pr, pj = prior.rows(p, free)
+        r, J = np.concatenate([r, pr]), np.vstack([J, pj])
+    std[free] = correlated_std(r, J, data.H.shape, prior_scale=prior.scale if prior is not None else 0.0)
+    return std
 
 
 #: a direction of the parameters whose singular value (columns scaled to unit norm) is below this fraction of
