@@ -35,3 +35,13 @@ def test_bound_at_a_mode_is_its_decay_over_the_record(beta):
 def test_synthesised_frfs_get_no_bound():
     frf, s, _ = _sdof(0.0, estimator=None)
     assert not decay_leakage(frf, s).any()
+
+
+def test_lines_without_a_finite_value_are_left_out_not_a_crash():
+    frf, s, lam = _sdof(0.0)
+    H = frf.H.copy()
+    H[..., np.argmin(np.abs(s.imag - lam.imag)) + 1] = np.nan       # inside the peak's window
+    bad = FRF(freq_hz=frf.freq_hz, H=H, responses=frf.responses, references=frf.references, quantity="receptance",
+              metadata={"estimator": "H1"})
+    b = decay_leakage(bad, s)
+    assert b[np.argmin(np.abs(s.imag - lam.imag))] == pytest.approx(np.exp(-0.3 * T), rel=0.05)

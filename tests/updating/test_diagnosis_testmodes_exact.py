@@ -75,3 +75,15 @@ def test_peaks_of_simulated_measurements_lie_within_a_fraction_of_a_line(structu
     assert m.n_modes >= 7
     assert np.max(np.abs(err)) < 0.03, err
     assert "refined" in m.metadata["source"]
+
+
+def test_a_line_without_a_value_next_to_a_peak_is_left_out(structure):
+    f = np.arange(1, 1601) * DF
+    s = 1j * 2 * np.pi * f
+    shell = FRFData(s=s, H=np.zeros((len(POINTS), len(REFS), f.size), complex),
+                    coherence=np.ones((len(POINTS), len(REFS), f.size)), responses=POINTS, references=REFS)
+    H = model_frf(structure, shell)
+    poles = _pole_hz(structure)
+    H[..., int(np.argmin(np.abs(f - poles[3]))) + 1] = np.nan
+    m = peak_modes(FRF(freq_hz=f, H=H, responses=POINTS, references=REFS, quantity="receptance"))
+    assert np.max(np.abs(_errors_in_lines(m, poles))) < 1e-3

@@ -91,6 +91,11 @@ def decay_leakage(frf, s: np.ndarray) -> np.ndarray:
     df = float(np.min(np.diff(f.freq_hz)))
     T, beta = 1.0 / df, float(frf.window_beta_per_s)
     rec = f.to("receptance")
+    ok = np.all(np.isfinite(rec.H), axis=(0, 1))               # lines frf_data leaves out leave no pole here
+    if np.count_nonzero(ok) < 8:
+        return out
+    if not ok.all():
+        rec = rec.lines(ok)
     P = np.sum(np.abs(rec.H) ** 2, axis=(0, 1))
     lg = np.log10(P + 1e-300)
     pk, _ = find_peaks(lg, prominence=0.05 * max(float(np.ptp(lg)), 1e-12))

@@ -31,6 +31,11 @@ def peak_modes(measured: FRF, *, band_hz=None, max_modes: int = 12, prominence: 
     f = measured if band_hz is None else measured.band(*band_hz)
     f = f.band(max(float(f.freq_hz[0]), 1e-9), None) if f.freq_hz[0] <= 0 else f
     rec = f.to("receptance")
+    ok = np.all(np.isfinite(rec.H), axis=(0, 1))            # lines without a value (as frf_data leaves them out)
+    if not ok.all():
+        if np.count_nonzero(ok) < 4:
+            raise ModalabValueError("fewer than 4 lines of the measured FRFs have finite values; no peaks to pick")
+        rec = rec.lines(ok)
     P = np.sum(np.abs(rec.H) ** 2, axis=(0, 1))
     lg = np.log10(P + 1e-300)
     pk, props = find_peaks(lg, prominence=prominence * max(float(np.ptp(lg)), 1e-12))
