@@ -45,3 +45,25 @@ def test_an_undetermined_value_is_written_as_null_not_infinity():
     assert d["values"][0]["std"] is None and d["parts"][0]["std"] is None
     json.dumps(d, allow_nan=False)                        # strict JSON: no Infinity
     assert Finding(c, 0.2, 0.01, "evidence").to_dict()["values"][0]["std"] == 0.01
+
+
+def test_a_solution_from_outside_the_frf_fit_gets_the_frf_data_std_not_zero():
+    """The workflow keeps the MCI solution when it fits the FRFs better than the joint FRF fit; its stated σ
+    is then ``fit_std`` at that point (it was 0, a printed uncertainty no data support).  At an FRF fit's own
+    solution ``fit_std`` gives that fit's σ back."""
+    from pathlib import Path
+    from modalab.core import uff
+    from updating.fe import ParametricFEModel
+    from updating.fe.bulk import build_model, read_bdf
+    from updating.diagnosis.fit import fit_frf, fit_std, frf_data
+    from updating.diagnosis.priors import default_parameters
+
+    case = Path(__file__).resolve().parents[2] / "examples" / "concealed" / "bar_control"
+    model = build_model(read_bdf(case / "nominal.bdf"))
+    pm = ParametricFEModel(model, default_parameters(model))
+    data = frf_data(uff.read_frf(case / "measured.uff"), max_lines=60)
+    p0 = np.asarray(pm.p0, float)
+    res = fit_frf(pm, data, p0, lower=0.5 * p0, upper=2 * p0, max_nfev=20)
+    std = fit_std(pm, data, res.p)
+    assert np.all(std > 0) and np.all(np.isfinite(std))
+    np.testing.assert_allclose(std, res.std, rtol=0.05)

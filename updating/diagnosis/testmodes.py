@@ -20,15 +20,22 @@ log = logging.getLogger(__name__)
 def peak_modes(measured: FRF, *, band_hz=None, max_modes: int = 12, prominence: float = 0.05) -> ModeSet:
     """Test modes by quadrature peak picking on the measured FRFs (used when no identified modes are given).
 
-    Natural frequencies are the peaks of the summed receptance power (``scipy.signal.find_peaks`` with a
-    prominence of ``prominence`` × the largest peak in log scale); each shape is the imaginary part of the
-    receptance column of the reference that responds most at the peak.  Adequate for well-separated,
-    lightly damped modes, which is what the frequency and MAC columns of the fit blocks need.
+    Peaks are found on the summed receptance power (``scipy.signal.find_peaks`` with a prominence of
+    ``prominence`` × the largest peak in log scale); each natural frequency is then refined between the lines
+    by a local single-pole fit of every FRF around the peak (:func:`refine_pole`, at the complex frequencies
+    ``s = iω + β`` of an exponential window), so it is not snapped to the line grid; each shape is the
+    imaginary part of the receptance column of the reference that responds most at the peak.  Adequate for
+    well-separated, lightly damped modes, which is what the frequency and MAC columns of the fit blocks need.
     """
     from scipy.signal import find_peaks
     f = measured if band_hz is None else measured.band(*band_hz)
     f = f.band(max(float(f.freq_hz[0]), 1e-9), None) if f.freq_hz[0] <= 0 else f
     rec = f.to("receptance")
+    ok = np.all(np.isfinite(rec.H), axis=(0, 1))            # lines without a value (as frf_data leaves them out)
+    if not ok.all():
+        if np.count_nonzero(ok) < 4:
+            raise ModalabValueError("fewer than 4 lines of the measured FRFs have finite values; no peaks to pick")
+        rec = rec.lines(ok)
     P = np.sum(np.abs(rec.H) ** 2, axis=(0, 1))
     lg = np.log10(P + 1e-300)
     pk, props = find_peaks(lg, prominence=prominence * max(float(np.ptp(lg)), 1e-12))
@@ -36,12 +43,95 @@ def peak_modes(measured: FRF, *, band_hz=None, max_modes: int = 12, prominence: 
         raise ModalabValueError("no resonance peaks in the measured FRFs; give identified test modes instead")
     pk = pk[np.argsort(-props["prominences"])[:max_modes]]
     pk.sort()
-    shapes = []
-    for i in pk:
+    s = 1j * 2 * np.pi * rec.freq_hz + float(measured.window_beta_per_s)
+    shapes, freqs, zetas = [], [], []
+    for k, i in enumerate(pk):
+        lo = int(pk[k - 1]) if k > 0 else 0                     # the window stops at the neighbouring peaks
+        hi = int(pk[k + 1]) if k + 1 < pk.size else P.size - 1
+        lam = refine_pole(s, rec.H, P, int(i), lo, hi)
+        freqs.append(abs(lam) / (2 * np.pi) if lam is not None else float(rec.freq_hz[i]))
+        zetas.append(-lam.real / abs(lam) if lam is not None else np.nan)
         col = int(np.argmax(np.sum(np.abs(rec.H[:, :, i]) ** 2, axis=0)))
         shapes.append(rec.H[:, col, i].imag)
-    return ModeSet(freq_hz=rec.freq_hz[pk], shapes=np.array(shapes).T, dofs=list(rec.responses),
-                   metadata={"source": "quadrature peak picking"})
+    n_on_grid = int(sum(1 for x in zetas if not np.isfinite(x)))
+    if n_on_grid:
+        log.info("peak picking: %d of %d peak frequencies left on the line grid (no single-pole fit around them)",
+                 n_on_grid, pk.size)
+    return ModeSet(freq_hz=np.array(freqs), shapes=np.array(shapes).T, dofs=list(rec.responses),
+                   metadata={"source": "quadrature peak picking, frequencies refined by a local single-pole fit"})
+
+
+#: lines each side of a peak used by :func:`refine_pole` at least, and at most (the half-power half-width between)
+POLE_FIT_MIN_HALF, POLE_FIT_MAX_HALF = 3, 40
+#: orders of the local rational fit tried in turn
+POLE_FIT_ORDERS = (1, 2, 3)
+#: a higher order is kept only when it lowers the fit's residual sum of squares below this fraction of the
+#: lower order's (a neighbouring mode, not the noise)
+POLE_FIT_GAIN = 0.25
+
+
+def refine_pole(s: np.ndarray, H: np.ndarray, P: np.ndarray, i: int, lo: int, hi: int):
+    """The pole λ (rad/s, ``Re λ < 0``) of the mode whose summed power ``P`` peaks at line ``i``, or None.
+
+    Every FRF ``H[m, r]`` on the lines around the peak is fitted by ``q`` poles common to all FRFs and a local
+    residual, ``H(s) = Σ_k A_mr,k/(s − λ_k) + a_mr + C_mr s``: written with a common denominator
+    ``d(s) H = n_mr(s)`` this is linear in the denominator's coefficients once each FRF's numerator is
+    projected out (the least-squares complex frequency-domain form of a local modal fit); the residues
+    follow by linear least squares.  The data's complex frequencies ``s = iω + β`` are used, so an exponential
+    window's decay β is removed exactly.  Orders :data:`POLE_FIT_ORDERS` are tried; a higher one is kept only
+    when it lowers the misfit below :data:`POLE_FIT_GAIN` × the lower one's (an unresolved close neighbour).
+    The pole returned is the admissible one (stable, lightly damped, inside the window) contributing most at
+    the peak line.  The lines used span the half-power points of ``P`` (at least :data:`POLE_FIT_MIN_HALF`, at
+    most :data:`POLE_FIT_MAX_HALF` each side) and never reach the neighbouring peaks ``lo``/``hi``.  None (the
+    caller keeps the line) when too few lines remain or no admissible pole is found."""
+    n = P.size
+    half = P[i] / 2
+    a = i
+    while a > lo and P[a] > half:
+        a -= 1
+    b = i
+    while b < hi and P[b] > half:
+        b += 1
+    w = int(np.clip(max(i - a, b - i), POLE_FIT_MIN_HALF, POLE_FIT_MAX_HALF))
+    j0, j1 = max(i - w, lo + 1 if lo < i else 0, 0), min(i + w, hi - 1 if hi > i else n - 1, n - 1)
+    sl = slice(j0, j1 + 1)
+    if j1 - j0 + 1 < 4:
+        return None
+    sv = s[sl]
+    Hw = H[:, :, sl].reshape(-1, sv.size)
+    w0 = abs(s[i])
+    z = sv / w0                                                # scaled: a well-conditioned basis
+    best, rss_best = None, np.inf
+    for q in POLE_FIT_ORDERS:
+        if sv.size < 2 * q + 3:
+            continue
+        # common denominator a(z) = z^q + Σ a_k z^k and numerators b_mr(z) of degree q + 1 (the q modes and a
+        # local residual a + C s): H a = b is linear in the a_k once each FRF's numerator is projected out
+        Bm = np.column_stack([z ** k for k in range(q + 2)])
+        Q, _ = np.linalg.qr(Bm)
+        proj = lambda X: X - (X @ Q.conj()) @ Q.T             # noqa: E731 - remove the numerator's span per row
+        A = np.column_stack([proj(Hw * z[None, :] ** k).ravel() for k in range(q)])
+        rhs = -proj(Hw * z[None, :] ** q).ravel()
+        coef = np.linalg.lstsq(A, rhs, rcond=None)[0]          # complex: only the window's poles, no mirror
+        roots = np.roots(np.concatenate([[1.0], coef[::-1]])) * w0
+        # the poles' residues and the local residual by linear least squares, and the misfit of the whole
+        G = np.column_stack([1.0 / (sv - r) for r in roots] + [np.ones_like(sv), sv])
+        R = np.linalg.lstsq(G, Hw.T, rcond=None)[0]            # (q + 2, n_frf)
+        rss = float(np.sum(np.abs(G @ R - Hw.T) ** 2))
+        # a higher order must explain markedly more (a neighbouring mode), not fit the noise
+        if best is not None and not rss < POLE_FIT_GAIN * rss_best:
+            continue
+        # the pole that makes the peak: the largest contribution at the peak line, among lightly damped poles
+        # inside the window
+        contrib = [float(np.sum(np.abs(R[k] / (s[i] - r)) ** 2)) for k, r in enumerate(roots)]
+        ok = [k for k, r in enumerate(roots) if r.real < 0 and -r.real < 0.5 * abs(r)
+              and sv[0].imag <= abs(r) <= sv[-1].imag]
+        if ok:
+            best, rss_best = roots[max(ok, key=lambda k: contrib[k])], rss
+    if best is None:
+        return None
+    lam = complex(best.real, abs(best.imag))
+    return lam
 
 
 #: pairing in the fit blocks: smallest MAC and largest relative frequency difference of an accepted pair

@@ -47,7 +47,7 @@ from modalab.core.modes import ModeSet
 from modalab.core.frf import FRF
 
 from updating.fe import FEModel, ParametricFEModel
-from updating.diagnosis.fit import RITZ_LIMIT, Prior, fit_frf, frf_data, frf_error, model_frf, quick_frf_error
+from updating.diagnosis.fit import RITZ_LIMIT, Prior, chi2_per_value, fit_frf, fit_std, frf_data, frf_error, model_frf, quick_frf_error
 from updating.diagnosis.frfscreen import frf_screen
 from updating.diagnosis.library import _nodes_of, build_library, validate_kinds
 from updating.diagnosis.release import release_screen, release_visibility
@@ -624,7 +624,8 @@ class Diagnoser:
                      polish.message)
             mci_err = frf_error(model_frf(pm_cur.structure(p_cur), self.train), self.train)
             self.best_fit = polish if polish.error <= mci_err else \
-                type(polish)(p_cur, np.zeros_like(p_cur), mci_err, [], True, "MCI solution")
+                type(polish)(p_cur, fit_std(pm_cur, self.train, p_cur, prior=self.prior), mci_err, [], True,
+                             "MCI solution")
             self.best_pm, self.best_scales = pm_cur, _augment(self.model0, current)[2]
         else:
             self.best_fit, self.best_pm, self.best_scales = self.upd, self.pm, []
@@ -703,6 +704,8 @@ class Diagnoser:
             out = {"frf_error_held_out": frf_error(model_frf(st, self.held), self.held),
                    "frf_error_train": frf_error(model_frf(st, self.train), self.train)}
             out.update(_mode_metrics(st, test_modes))
+            out["chi2_per_value_held_out"] = chi2_per_value(out["frf_error_held_out"], self.held)
+            out["chi2_per_value_train"] = chi2_per_value(out["frf_error_train"], self.train)
             return out
 
         fit_blocks = {"nominal": metrics(self.pm, self.p_nomd), "parameters_only": metrics(self.pm, self.upd.p)}
