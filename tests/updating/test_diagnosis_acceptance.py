@@ -105,3 +105,18 @@ def test_no_finding_and_no_rival_swap_on_data_from_the_nominal():
     assert d.current == []
     d.fit(d.model0, d.measured)
     assert d.findings_ == []
+
+
+def test_the_reduced_chi2_limit_guards_only_unsupported_picks(monkeypatch):
+    d = _diagnoser(True)
+    scr, p_scr = d._screens[1]
+    c, v, _ = next(t for t in scr if t[0].physics == "ground_spring" and t[0].dofs == ("4+Y",))
+    pm_aug, fr, clo, chi, _ = d._fit_pick(c, v, p_scr)
+    assert d._judge_pick(c, pm_aug, fr, clo, chi)[0]
+    # a limit no fit can meet: the rescue of a residual the MCI did not support fails on it, a pick competing
+    # with a term the MCI accepted is judged by the tests that term passed
+    monkeypatch.setattr(wf, "PICK_MAX_REDUCED_CHI2", 1e-9)
+    ok, why = d._judge_pick(c, pm_aug, fr, clo, chi)
+    assert not ok and "left, above" in why
+    ok, why = d._judge_pick(c, pm_aug, fr, clo, chi, supported=True)
+    assert ok and "cross-validated over" in why

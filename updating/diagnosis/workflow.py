@@ -368,7 +368,8 @@ class Diagnoser:
         ``rival``: the MCI's best option, accepted by :meth:`_judge` (``(candidate, criterion, pm, p, lower,
         upper)``).  It is fitted on the training FRFs too (kept as ``_rival_fit``), and a pick replaces it only
         when its training FRF error is lower by the information criterion (N ln(e_rival²/e_pick²) > ``penalty``
-        ln N, N = :func:`n_obs`) and it passes the pick's tests; else None (the rival stands)."""
+        ln N, N = :func:`n_obs`) and it passes the tests the rival passed (:meth:`_judge_pick` with ``supported``);
+        else None (the rival stands)."""
         cfg, n = self.config, len(self.params)
         have = {c.key for c in self.current}
         self._rival_fit = None
@@ -409,7 +410,7 @@ class Diagnoser:
                 log.info("screening pick %s (FRF error %.4g) does not beat the MCI's choice %s (%.4g)", c.label, err,
                          rival[0].label, e_r)
                 return None
-        ok, why = self._judge_pick(c, pm_aug, fr, clo, chi)
+        ok, why = self._judge_pick(c, pm_aug, fr, clo, chi, supported=rival is not None)
         log.info("screening pick %s on the FRFs: %s", c.label, why)
         if not ok:
             self._decide("rejected", c, why)
@@ -481,11 +482,14 @@ class Diagnoser:
                        max_nfev=max(8, self.config.max_nfev // 2))
         return pm_aug, fr, clo, chi, scales[-1]
 
-    def _judge_pick(self, c, pm_aug, fr, clo, chi) -> tuple[bool, str]:
+    def _judge_pick(self, c, pm_aug, fr, clo, chi, supported: bool = False) -> tuple[bool, str]:
         """The tests of :meth:`_judge` on the FRF criterion for a pick fitted by :meth:`_fit_pick` (bounds
         ``clo``, ``chi``), against the current model's FRF fit: the information criterion, :func:`_term_holds`,
         the reduced χ² the pick must leave (:data:`PICK_MAX_REDUCED_CHI2`), the effect, and the
-        cross-validation over folds (:meth:`_cross_validated`)."""
+        cross-validation over folds (:meth:`_cross_validated`).  ``supported``: the MCI accepted a term here
+        (the pick competes with it, :meth:`_judge_picks`), so the pick is not a rescue of an unsupported
+        residual and the reduced-χ² limit, which only guards such rescues, does not apply — the pick passes
+        the same tests as the MCI's term it replaces."""
         cfg = self.config
         pm_ref, ref = self._frf_ref()
         err, n_eq = fr.error, n_obs(self.train)
@@ -495,7 +499,7 @@ class Diagnoser:
             return False, (f"a further term lowering the training FRF error by less than "
                            f"{100 * cfg.min_extra_gain:.0f} % ({100 * (1 - err / ref.error):.2g} %)")
         ok, why = _term_holds(pm_ref, ref.p, pm_aug, fr.p, self.train, self.held, cfg.penalty, cfg.min_holdout_gain)
-        if ok:
+        if ok and not supported:
             # a pick the linearised criterion did not support must explain the residual, not only reduce it
             st = pm_aug.structure(fr.p)
             red = max(c1 / n1 for c1, n1 in (_chi2(st, self.train), _chi2(st, self.held)))
