@@ -291,7 +291,7 @@ class Diagnoser:
             # — a coarse mesh, per-element scatter — is what an exact single-term screening finds next)
             if best is not None:
                 self._decide("rejected", best[0], why)
-            picked = self._judge_picks(it, n_eq)
+            picked = self._judge_picks(it, n_eq, mci_best=best[0] if best is not None else None)
             if picked is None:
                 return False
             c, alts = picked
@@ -354,7 +354,7 @@ class Diagnoser:
             self._frf_cur = (self.pm_cur, fr)
         return self._frf_cur
 
-    def _judge_picks(self, it: int, n_eq_mci: int, rival=None):
+    def _judge_picks(self, it: int, n_eq_mci: int, rival=None, mci_best=None):
         """The exact FRF screening's picks judged on the FRFs (MCI criterion, when the MCI's best failed).
 
         The best pick of each screening (around the nominal and the updated parameters: updating may have
@@ -369,7 +369,9 @@ class Diagnoser:
         upper)``).  It is fitted on the training FRFs too (kept as ``_rival_fit``), and a pick replaces it only
         when its training FRF error is lower by the information criterion (N ln(e_rival²/e_pick²) > ``penalty``
         ln N, N = :func:`n_obs`) and it passes the tests the rival passed (:meth:`_judge_pick` with ``supported``);
-        else None (the rival stands)."""
+        else None (the rival stands).  ``mci_best``: the candidate the MCI ranked and fitted best, rejected by
+        :meth:`_judge` (its MCI-optimal value can be far from the FRFs'); the same candidate picked here is
+        supported by the MCI too, so it is judged like a supported pick."""
         cfg, n = self.config, len(self.params)
         have = {c.key for c in self.current}
         self._rival_fit = None
@@ -410,7 +412,8 @@ class Diagnoser:
                 log.info("screening pick %s (FRF error %.4g) does not beat the MCI's choice %s (%.4g)", c.label, err,
                          rival[0].label, e_r)
                 return None
-        ok, why = self._judge_pick(c, pm_aug, fr, clo, chi, supported=rival is not None)
+        supported = rival is not None or (mci_best is not None and c.key == mci_best.key)
+        ok, why = self._judge_pick(c, pm_aug, fr, clo, chi, supported=supported)
         log.info("screening pick %s on the FRFs: %s", c.label, why)
         if not ok:
             self._decide("rejected", c, why)
@@ -487,8 +490,8 @@ class Diagnoser:
         ``clo``, ``chi``), against the current model's FRF fit: the information criterion, :func:`_term_holds`,
         the reduced χ² the pick must leave (:data:`PICK_MAX_REDUCED_CHI2`), the effect, and the
         cross-validation over folds (:meth:`_cross_validated`).  ``supported``: the MCI accepted a term here
-        (the pick competes with it, :meth:`_judge_picks`), so the pick is not a rescue of an unsupported
-        residual and the reduced-χ² limit, which only guards such rescues, does not apply — the pick passes
+        (the pick competes with it, :meth:`_judge_picks`) or ranked the pick itself best, so the pick is not a
+        rescue of an unsupported residual and the reduced-χ² limit, which only guards such rescues, does not apply — the pick passes
         the same tests as the MCI's term it replaces."""
         cfg = self.config
         pm_ref, ref = self._frf_ref()
