@@ -146,8 +146,8 @@ def oracle(case: Path, *, run_rest: bool = True) -> dict:
                 starts.append(("true value", float(tv), d.upd.p))
             r["frf_route"] = []
             for name, v, p_scr in starts:
-                pm_aug, fr, *_ = d._fit_pick(c, v, p_scr)
-                ok, why = d._judge_pick(c, pm_aug, fr)
+                pm_aug, fr, clo, chi, _ = d._fit_pick(c, v, p_scr)
+                ok, why = d._judge_pick(c, pm_aug, fr, clo, chi)
                 r["frf_route"].append({"start": name, "start_value": float(v),
                                        "fitted_value": float(fr.p[-1]) * _scale(d, c),
                                        "train_error": float(fr.error), "held_out_error": held_err(pm_aug, fr.p),

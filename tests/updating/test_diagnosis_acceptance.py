@@ -1,0 +1,133 @@
+"""Acceptance of a term (issue 13): one significance test with one N (the real and imaginary parts of the
+FRF values) for the information criterion, the χ² tests and the cross-validation; the residual's correlation
+over lines counted; cross-validation folds that hold every held-out value out once and contain the
+diagnosis' own split; the MCI's choice and the FRF screening's picks compared on the training FRFs.
+
+The synthetic case is that of ``test_diagnosis_selection.py`` (own model, not a benchmark case).
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from updating.diagnosis import workflow as wf
+from updating.diagnosis.fit import frf_data
+from updating.diagnosis.priors import _split
+from updating.diagnosis.terms import _chi2, cv_folds, inflation, n_obs, significant_gain
+from test_diagnosis_selection import _case
+
+
+def test_one_n_for_every_test():
+    nominal, meas = _case(False)
+    data = frf_data(meas, max_lines=40)
+    assert n_obs(data) == 2 * data.H.size
+    c, n = _chi2(nominal.structure(), data)
+    assert n == n_obs(data) and c > 0
+
+
+def test_white_noise_does_not_inflate_and_a_smooth_residual_does():
+    rng = np.random.default_rng(0)
+    white = rng.standard_normal((4, 3, 400)) + 1j * rng.standard_normal((4, 3, 400))
+    assert inflation(white) < 1.1
+    smooth = np.cumsum(white, axis=-1) / 20.0          # a random walk over lines: ρ close to 1
+    assert inflation(smooth) > 20.0
+
+
+def test_significance_needs_more_of_a_correlated_or_poorly_fitting_residual():
+    n = 20000
+    # fitting to the noise (reduced χ² 1): a gain of 150 in χ² is significant at penalty 1 (ln 20000 ≈ 9.9)
+    ok, stat, need = significant_gain(n + 150.0, float(n), n, 1.0, 1.0)
+    assert ok and stat == pytest.approx(150.0) and need == pytest.approx(np.log(n))
+    # the same relative gain with the residual 100 times the noise (model-form error): not significant
+    ok2, stat2, _ = significant_gain(100 * n + 150.0, 100.0 * n, n, 1.0, 1.0)
+    assert not ok2 and stat2 == pytest.approx(1.5)
+    # a gain that passes on independent lines (150 > 10 ln 20000) fails when the residual is correlated
+    # over lines (inflation 19: 150/19 < 10 ln(20000/19))
+    assert significant_gain(n + 150.0, float(n), n, 1.0, 10.0)[0]
+    assert not significant_gain(n + 150.0, float(n), n, 19.0, 10.0)[0]
+    # a term that makes the fit worse never passes
+    assert not significant_gain(float(n), n + 1.0, n, 1.0, 0.0)[0]
+
+
+@pytest.mark.parametrize("holdout", [None, "columns", "lines"])
+def test_folds_hold_every_value_out_once_and_contain_the_split(holdout):
+    _, meas = _case(True)
+    data = frf_data(meas, max_lines=48)
+    folds = cv_folds(data, holdout)
+    assert len(folds) >= 2
+    _, held, _ = _split(data, holdout)
+    key = lambda d: ([str(x) for x in d.responses], [str(x) for x in d.references], d.H.shape)  # noqa: E731
+    assert key(held) in [key(h) for _, h, _ in folds]
+    seen = []
+    for tr, he, _ in folds:
+        if holdout is None:
+            rows = [str(x) for x in he.responses]
+            assert not set(rows) & {str(x) for x in tr.responses}
+            seen += rows
+        elif holdout == "columns":
+            seen += [str(x) for x in he.references]
+            assert not set(str(x) for x in he.references) & {str(x) for x in tr.references}
+        else:
+            assert he.H.shape[2] + tr.H.shape[2] == data.H.shape[2]
+            seen += list(np.round(he.freq_hz, 6))
+    assert len(seen) == len(set(seen))                  # held out once
+
+
+def _diagnoser(spring: bool):
+    nominal, meas = _case(spring)
+    d = wf.Diagnoser(wf.DiagnoserConfig(max_lines=80, progress=lambda m: None))
+    d._t0, d.timings = time.perf_counter(), {}
+    d.baseline(nominal, meas)
+    d.localise()
+    d._options(0)
+    return d
+
+
+def test_a_wrong_mci_choice_loses_to_the_pick_that_fits_the_frfs():
+    d = _diagnoser(True)
+    n = len(d.params)
+    lib = d._library(d.model0)
+    # a rival the MCI could have chosen: a point mass far from the spring, at a plausible value
+    mass = next(c for c in lib if c.physics == "added_mass" and 10 in c.nodes and c.value_name != "J")
+    r = d._try(mass, 0.05, 0)
+    assert r is not None
+    picked = d._judge_picks(0, 1, rival=r[:6])
+    assert picked is not None and picked[0].physics == "ground_spring" and picked[0].dofs == ("4+Y",)
+    assert d._rival_fit is not None and d._frf_cur[1].error < d._rival_fit.error
+    assert len(d.p_cur) == n + 1
+
+
+def test_no_finding_and_no_rival_swap_on_data_from_the_nominal():
+    d = _diagnoser(False)
+    assert d._judge_picks(0, 1) is None
+    assert d.current == []
+    d.fit(d.model0, d.measured)
+    assert d.findings_ == []
+
+
+def test_the_reduced_chi2_limit_guards_only_unsupported_picks(monkeypatch):
+    d = _diagnoser(True)
+    scr, p_scr = d._screens[1]
+    c, v, _ = next(t for t in scr if t[0].physics == "ground_spring" and t[0].dofs == ("4+Y",))
+    pm_aug, fr, clo, chi, _ = d._fit_pick(c, v, p_scr)
+    assert d._judge_pick(c, pm_aug, fr, clo, chi)[0]
+    # a limit no fit can meet: the rescue of a residual the MCI did not support fails on it, a pick competing
+    # with a term the MCI accepted is judged by the tests that term passed
+    monkeypatch.setattr(wf, "PICK_MAX_REDUCED_CHI2", 1e-9)
+    ok, why = d._judge_pick(c, pm_aug, fr, clo, chi)
+    assert not ok and "left, above" in why
+    ok, why = d._judge_pick(c, pm_aug, fr, clo, chi, supported=True)
+    assert ok and "cross-validated over" in why
+
+
+def test_a_pick_the_mci_ranked_best_is_a_supported_pick(monkeypatch):
+    d = _diagnoser(True)
+    spring = next(t[0] for t in d._screens[1][0] if t[0].physics == "ground_spring" and t[0].dofs == ("4+Y",))
+    other = next(t[0] for t in d._screens[1][0] if t[0].key != spring.key)
+    monkeypatch.setattr(wf, "PICK_MAX_REDUCED_CHI2", 1e-9)       # a limit no fit meets
+    assert d._judge_picks(0, 1, mci_best=other) is None           # a rescue of an unsupported residual
+    assert d.current == [] and "left, above" in d.decisions[-1]["reason"]
+    picked = d._judge_picks(0, 1, mci_best=spring)               # the MCI's own best candidate, FRF-fitted
+    assert picked is not None and picked[0].key == spring.key
