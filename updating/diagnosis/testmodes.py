@@ -230,9 +230,12 @@ def _rigid_fraction(structure, phi: np.ndarray) -> np.ndarray:
 def pair_test_modes(structure, test_modes: ModeSet) -> dict:
     """THE pairing of the diagnosis (every fit block and frequency table goes through here).
 
-    Rigid-body and suspension modes are excluded on purpose: a model mode whose kinetic energy lies for more
-    than 90 % in the rigid-body motions and whose frequency is below :data:`SUSPENSION_RATIO` × the first
-    elastic model frequency, and a test mode below that frequency.  The rest are paired by MAC (optimal
+    Rigid-body and suspension modes are excluded on purpose, and only on a model with free directions: a model
+    mode whose kinetic energy lies for more than 90 % in the rigid-body motions and whose frequency is below
+    :data:`SUSPENSION_PEAK_RATIO` × the first elastic model frequency (a free direction), and a test mode below
+    :data:`SUSPENSION_RATIO` × the lowest model mode kept (the suspension the free model leaves out).  A model
+    on modelled supports keeps every mode and every test mode: its rigid-like modes on the supports are modes
+    of the structure.  The rest are paired by MAC (optimal
     assignment, :func:`updating.correlation.metrics.correlate`) with at least :data:`PAIR_MAC_MIN` and a relative
     frequency difference of at most :data:`PAIR_MAX_FREQ_ERROR`; a mode without such a partner is unpaired.
 
@@ -248,8 +251,13 @@ def pair_test_modes(structure, test_modes: ModeSet) -> dict:
     rigid = _rigid_fraction(structure, np.asarray(ana.shapes)) > 0.9
     fa = np.asarray(ana.freq_hz, float)
     elastic = fa[~rigid]
-    cutoff = SUSPENSION_RATIO * float(elastic[0]) if elastic.size else 0.0
-    drop_a = rigid & (fa < cutoff)
+    # a rigid-like mode is a free direction of the model only when it lies far below the elastic modes (a free
+    # model's rigid-body modes sit at ~0 Hz, up to round-off); a modelled support's mode (a mass on springs,
+    # a frame on mounts) is a mode of the structure and is paired like any other
+    free = rigid & (fa < SUSPENSION_PEAK_RATIO * float(elastic[0])) if elastic.size else rigid
+    kept = fa[~free]
+    cutoff = SUSPENSION_RATIO * float(kept[0]) if free.any() and kept.size else 0.0
+    drop_a = free
     fx = np.asarray(test_modes.freq_hz, float)
     keep_x = np.flatnonzero(fx >= cutoff)
     keep_a = np.flatnonzero(~drop_a)
