@@ -12,7 +12,7 @@ from modalab.core.errors import ModalabValueError
 from modalab.core.frf import FRF
 
 from updating.fe import FEModel
-from updating.diagnosis.fit import FRFData, ar1_inflation, model_frf
+from updating.diagnosis.fit import FRFData, model_frf
 from updating.diagnosis.library import Candidate, _nodes_of
 from modalab.core.dof import parse_dofs
 
@@ -151,10 +151,19 @@ def _chi2(structure, data: FRFData) -> tuple[float, int]:
 def inflation(r: np.ndarray) -> float:
     """Variance inflation of a χ² sum whose terms are correlated from one line to the next (model-form error
     leaves a residual smooth over frequency; measurement noise does not): ``(1 + ρ)/(1 − ρ)`` with ρ the
-    lag-one autocorrelation of the residual along the lines (:func:`~updating.diagnosis.fit.ar1_inflation`,
-    real and imaginary parts pooled).  The effective number of independent observations is ``N`` / this."""
+    lag-one autocorrelation of the residual along the lines (the last axis; real and imaginary parts pooled),
+    clipped to [0, 0.999].  The effective number of independent observations is ``N`` / this (Bayley &
+    Hammersley, J. R. Stat. Soc. Suppl. 8 (1946) 184-197).  Used for the significance of a term only; the
+    parameters' standard deviations come from :func:`~updating.diagnosis.fit.correlated_std` (REML AR(1))."""
     r = np.asarray(r)
-    return ar1_inflation(np.stack([r.real, r.imag])) if np.iscomplexobj(r) else ar1_inflation(r)
+    r = np.stack([r.real, r.imag]) if np.iscomplexobj(r) else np.asarray(r, float)
+    if r.shape[-1] < 3:
+        return 1.0
+    den = float(np.sum(r * r))
+    if den <= 0:
+        return 1.0
+    rho = min(max(float(np.sum(r[..., 1:] * r[..., :-1])) / den, 0.0), 0.999)
+    return (1 + rho) / (1 - rho)
 
 
 def significant_gain(c0: float, c1: float, n: int, infl: float, penalty: float) -> tuple[bool, float, float]:
