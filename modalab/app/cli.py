@@ -19,6 +19,7 @@ import os
 import shutil
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 from threadpoolctl import threadpool_limits
 
@@ -35,6 +36,7 @@ from modalab.app.demo_project import run_demo
 from modalab.core._output import check_outputs
 from modalab.core.errors import OutputError
 from modalab.core._output import protect
+from identification.api import ROVING_RATIO, roving_hammer_layout
 
 DESCRIPTION = """\
 Modal testing from the bench to an updated FE model: impact tests on NI hardware or the simulated lab,
@@ -132,8 +134,10 @@ def info_table(info: dict) -> list[str]:
                           f"[{f['units']}], {'with' if f['coherence'] else 'without'} coherence"),
                  ("responses", _join(f["responses"])),
                  ("references", _join(f["references"]) + (
-                     "  (more references than responses: a roving-hammer export; by reciprocity the "
-                     "accelerometers can be the references)" if len(f["references"]) > len(f["responses"]) else "")),
+                     f"  (at least {ROVING_RATIO} x more references than responses: a roving-hammer export; "
+                     "identify transposes it by reciprocity so that the accelerometers are the references)"
+                     if roving_hammer_layout(SimpleNamespace(n_in=len(f["references"]), n_out=len(f["responses"])))
+                     else "")),
                  ("frequency", f"{_g(f['freq_range_hz'][0])} - {_g(f['freq_range_hz'][1])} Hz, {f['lines']} lines"
                                + (f", df {_g(f['df_hz'])} Hz" if f["df_hz"] else " (uneven)"))]
         meta = f.get("metadata") or {}
@@ -441,8 +445,10 @@ def _prepare_outputs(a):
     if a.command in _WRITES_INTO:
         attr, names = _WRITES_INTO[a.command]
         into = {getattr(a, attr, None): names}
+    # the option that replaces outputs, as this command spells it (sim's --force is the hammer's peak force)
+    option = None if not hasattr(a, "overwrite") else "--overwrite" if a.command == "sim" else "--force"
     check_outputs(inputs, files, folders, force=bool(getattr(a, "overwrite", False)),
-                  writes_into=into)
+                  writes_into=into, force_option=option)
     created = [Path(p) for p in files + folders if not os.path.lexists(p)]
     return inputs, created
 

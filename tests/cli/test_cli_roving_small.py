@@ -1,0 +1,93 @@
+"""Issue 14 (ux14 item 3): a roving-hammer file with 3 hit points x 1 accelerometer.
+
+``info`` and ``identify`` apply one rule (:func:`identification.api.roving_hammer_layout`): identify transposes
+such a file, so the shapes come out on the 3 hit points; identified without the transpose, the shapes rest on one
+DOF and ``correlate`` must say that its MAC cannot tell them apart.  The FRFs come from plain numpy (a 3-DOF
+spring-mass chain with stiffness-proportional damping, modal superposition written here), written with pyuff.
+"""
+import json
+
+import numpy as np
+import pytest
+import pyuff
+
+from modalab.app.cli import main
+
+M = np.array([1.0, 1.5, 0.8])
+K = np.array([4e4, 3e4, 2e4])
+BDF = """SOL 103
+CEND
+BEGIN BULK
+GRID           1              0.      0.      0.           12456
+GRID           2              .5      0.      0.           12456
+GRID           3             1.0      0.      0.           12456
+CONM2        101       1              1.
+CONM2        102       2             1.5
+CONM2        103       3              .8
+PELAS         11   4.+4
+PELAS         12   3.+4
+PELAS         13   2.+4
+CELAS1        21      11       1       3
+CELAS1        22      12       1       3       2       3
+CELAS1        23      13       2       3       3       3
+ENDDATA
+"""
+
+
+def _accelerance(f):
+    Km = np.array([[K[0] + K[1], -K[1], 0], [-K[1], K[1] + K[2], -K[2]], [0, -K[2], K[2]]])
+    C = 1e-4 * Km
+    w = 2 * np.pi * f
+    H = np.array([-(wi ** 2) * np.linalg.inv(Km - wi ** 2 * np.diag(M) + 1j * wi * C) for wi in w])
+    return H.transpose(1, 2, 0)
+
+
+@pytest.fixture(scope="module")
+def roving(tmp_path_factory):
+    d = tmp_path_factory.mktemp("rov")
+    f = np.arange(1, 2001) * 0.05
+    H = _accelerance(f)
+    u = pyuff.UFF(str(d / "roving.uff"))
+    u.write_sets({'type': 15, 'node_nums': [1, 2, 3], 'def_cs': [0] * 3, 'disp_cs': [0] * 3, 'color': [1] * 3,
+                  'x': [0., .5, 1.], 'y': [0.] * 3, 'z': [0.] * 3}, mode='add')
+    for i in (1, 2, 3):                      # one accelerometer at 3, the hammer roves over 1..3
+        u.write_sets({'type': 58, 'func_type': 4, 'rsp_node': 3, 'rsp_dir': 3, 'ref_node': i, 'ref_dir': 3,
+                      'data': H[2, i - 1], 'x': f, 'id1': f'H 3+Z/{i}+Z', 'rsp_ent_name': 'pt', 'ref_ent_name': 'pt',
+                      'abscissa_spacing': 1, 'abscissa_spec_data_type': 18, 'ordinate_spec_data_type': 12,
+                      'orddenom_spec_data_type': 13, 'abscissa_axis_units_lab': 'Hz',
+                      'ordinate_axis_units_lab': 'm/s^2', 'orddenom_axis_units_lab': 'N', 'load_case_id': 0},
+                     mode='add')
+    (d / "model.bdf").write_text(BDF)
+    return d
+
+
+def test_info_and_identify_agree_and_the_shapes_cover_the_hit_points(roving, capsys):
+    capsys.readouterr()
+    assert main(["info", str(roving / "roving.uff")]) == 0
+    assert "a roving-hammer export" in capsys.readouterr().out
+    assert main(["identify", str(roving / "roving.uff"), "--band", "5", "70", "-o", str(roving / "m.uff"),
+                 "--json", str(roving / "m.json")]) == 0
+    m = json.loads((roving / "m.json").read_text())
+    assert m["reciprocity"]["applied"] is True, m["reciprocity"]
+    assert len(m["table"]) == 3 and len(m["dofs"]) == 3
+
+
+def test_correlate_warns_when_the_mac_rests_on_fewer_dofs_than_pairs(roving, capsys):
+    assert main(["identify", str(roving / "roving.uff"), "--band", "5", "70", "--no-reciprocity", "-o",
+                 str(roving / "one.uff")]) == 0
+    capsys.readouterr()
+    assert main(["correlate", str(roving / "model.bdf"), str(roving / "one.uff"), "--json",
+                 str(roving / "c.json")]) == 0
+    out = capsys.readouterr().out
+    assert "WARNING: the MAC rests on 1 measured DOF for 3 paired modes" in out, out
+    s = json.loads((roving / "c.json").read_text())["summary"]
+    assert s["n_test_dofs"] == 1 and "1 measured DOF for 3 paired modes" in s["mac_warning"]
+
+
+def test_correlate_names_where_the_coordinates_of_a_json_come_from(roving, capsys):
+    assert main(["identify", str(roving / "roving.uff"), "--band", "5", "70", "--no-reciprocity", "-o",
+                 str(roving / "one2.uff"), "--json", str(roving / "one2.json")]) == 0
+    capsys.readouterr()
+    assert main(["correlate", str(roving / "model.bdf"), str(roving / "one2.json")]) == 0
+    out = capsys.readouterr().out
+    assert "one2.json (its coordinates): 1 test node on" in out and "dataset 2411" not in out, out
