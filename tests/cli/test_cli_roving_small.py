@@ -91,3 +91,18 @@ def test_correlate_names_where_the_coordinates_of_a_json_come_from(roving, capsy
     assert main(["correlate", str(roving / "model.bdf"), str(roving / "one2.json")]) == 0
     out = capsys.readouterr().out
     assert "one2.json (its coordinates): 1 test node on" in out and "dataset 2411" not in out, out
+
+
+def test_an_unsupported_structural_card_is_an_error_unless_ignored(roving, capsys):
+    deck = roving / "t6.bdf"
+    deck.write_text(BDF.replace("ENDDATA", "CTRIA6       901      99       1       2       3       4       4       4\n"
+                                           "ENDDATA"))
+    line = 1 + deck.read_text().splitlines().index(next(x for x in deck.read_text().splitlines()
+                                                        if x.startswith("CTRIA6")))
+    assert main(["identify", str(roving / "roving.uff"), "--band", "5", "70", "-o", str(roving / "m3.uff")]) == 0
+    capsys.readouterr()
+    assert main(["correlate", str(deck), str(roving / "m3.uff")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert f"'{deck}'" in err and f"line {line}" in err and "CTRIA6" in err and "--ignore-unsupported" in err, err
+    assert main(["correlate", str(deck), str(roving / "m3.uff"), "--ignore-unsupported"]) == 0

@@ -38,6 +38,7 @@ class CorrelateOptions:
     geometry: str | None = None
     same_ids: bool = False
     freq_window: float | None = 0.35
+    ignore_unsupported: bool = False     # build the model without structural cards it cannot model
 
     def __post_init__(self):
         given = [n for n, v in (("a DOF map", self.dofmap), ("a geometry file", self.geometry),
@@ -147,7 +148,7 @@ def _freq_err(res):
 def correlate(model_path, modes_path, opts: CorrelateOptions = CorrelateOptions(), *, json_path=None,
               plots_dir=None) -> StageResult:
     """Test modes against the FE model: MAC, pairing, frequency errors (``correlation.json``, MAC and 45° plots)."""
-    model, test = load_model(model_path), load_modes(modes_path)
+    model, test = load_model(model_path, opts.ignore_unsupported), load_modes(modes_path)
     mapping = resolve_dof_map(model, test, opts, modes_path=modes_path)
     res = _correlation(model, test, opts, mapping)
     files = []
