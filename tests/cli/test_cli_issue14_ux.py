@@ -5,6 +5,8 @@ from pathlib import Path
 import pytest
 
 from modalab.app.cli import main
+from modalab.app.stages import load_model, load_parameters
+from modalab.core.errors import PlanError
 
 ROOT = Path(__file__).resolve().parents[2]
 DEMO = ROOT / "examples" / "demo_project"
@@ -79,3 +81,56 @@ def test_frf_bandwidth_above_fs_over_2_56_is_refused(small_frf, tmp_path, capsys
     err = _one_line(capsys)
     assert str(hits) in err and f"--bandwidth {bw} Hz" in err and "fs/2.56 = 800 Hz" in err, err
     assert not (tmp_path / "f.uff").exists()
+
+
+def test_a_misspelt_command_is_one_line_with_the_closest(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["idnetify", "frf.uff", "-o", "x.uff"])
+    assert e.value.code == 2
+    err = _one_line(capsys)
+    assert "unknown command 'idnetify' (did you mean identify?)" in err, err
+
+
+def test_info_on_a_bulk_data_file_says_what_it_is_and_who_reads_it(capsys):
+    assert main(["info", str(DEMO / "nominal.bdf")]) == 2
+    err = _one_line(capsys)
+    assert "nominal.bdf is Nastran bulk data" in err and "modalab correlate" in err, err
+
+
+CHAIN = """SOL 103
+CEND
+BEGIN BULK
+GRID           1              0.      0.      0.           12456
+GRID           2              .5      0.      0.           12456
+CONM2        101       1              1.
+CONM2        102       2             1.5
+$ name: kground
+PELAS         11   4.+4
+PELAS         12   3.+4
+CELAS1        21      11       1       3
+CELAS1        22      12       1       3       2       3
+ENDDATA
+"""
+
+
+@pytest.mark.parametrize("deck, param, expect", [
+    ("chain", 'field = "k"\nproperties = ["kground"]', ["field = 'k' with elements = [21]"]),
+    ("demo", 'field = "Emod"\nproperties = ["PNAME"]', ["has no field 'Emod' (did you mean 'E'?)"]),
+    ("demo", 'field = "E"\nproperties = ["PTYPO"]', ["(did you mean 'PNAME'?)"]),
+])
+def test_parameter_file_errors_name_the_file_and_the_closest_choice(tmp_path, capsys, deck, param, expect):
+
+    if deck == "chain":
+        model = tmp_path / "chain.bdf"
+        model.write_text(CHAIN)
+    else:
+        model = DEMO / "nominal.bdf"
+        name = sorted({p.name for p in load_model(model).properties.values() if getattr(p, "name", "")})[0]
+        param = param.replace("PNAME", name).replace("PTYPO", name[:-1])
+        expect = [x.replace("PNAME", name) for x in expect]
+    params = tmp_path / "p.toml"
+    params.write_text(f'[[parameter]]\nname = "x"\n{param}\n')
+    with pytest.raises(PlanError) as e:                   # what update and diagnose call on --params
+        load_parameters(params, load_model(model))
+    err = str(e.value)
+    assert err.startswith(f"{params}:") and all(x in err for x in expect), err

@@ -8,8 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from modalab.core.errors import PlanError
+from modalab.core.errors import ModalabValueError, PlanError
 from updating.fe.bulk import build_model, read_bdf
+from updating.fe.parameters import ParametricFEModel
 from modalab.core.modes import ModeSet
 from modalab.app.project import load_parameters as _load
 from updating.diagnosis.priors import default_parameters
@@ -106,6 +107,10 @@ def load_parameters(path, model) -> tuple[list, np.ndarray, np.ndarray]:
         return params, np.full(len(params), -np.inf), np.full(len(params), np.inf)
 
     params, lo, hi = _load(path)
+    try:
+        ParametricFEModel(model, params)            # each parameter selects something of this model
+    except ModalabValueError as e:
+        raise PlanError(f"{path}: {e}") from None
     return (params, np.array([-np.inf if v is None else float(v) for v in lo]),
             np.array([np.inf if v is None else float(v) for v in hi]))
 
