@@ -29,7 +29,7 @@ from modalab.core import uff
 from modalab.core.uff import assume_quantity
 from modalab.app.stages import acquire
 from modalab.app._cli_console import _ConsoleObserver, _CountProgress, _print, _TerminalPrompter  # noqa: F401
-from modalab.app import _cli_correlate, _cli_diagnose, _cli_identify, _cli_run, _cli_update
+from modalab.app import _cli_correlate, _cli_diagnose, _cli_identify, _cli_report, _cli_run, _cli_update
 from modalab.app._cli_run import run_with_progress
 from modalab.app.demo_project import run_demo
 from modalab.core._output import check_outputs
@@ -260,7 +260,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_frf(sub)
     _add_info(sub)
     _add_acquire(sub)
-    for m in (_cli_identify, _cli_correlate, _cli_update, _cli_diagnose, _cli_run):   # commands in their modules
+    for m in (_cli_identify, _cli_correlate, _cli_update, _cli_diagnose, _cli_run, _cli_report):   # their modules
         m.register(sub)
     _add_shared_options(sub)
     return p
@@ -385,6 +385,7 @@ _IO = {
     "run": (("project",), (), ("output",)),
     "demo": ((), (), ("output",)),
     "acquire": (("plan",), (), ("output",)),
+    "report": ((), (), ("output",)),
 }
 #: suffixes of the files modalab reads or writes: a folder output named like one is a mistake
 #: (``update -o updated.bdf`` would make a folder ``updated.bdf``)

@@ -106,3 +106,33 @@ def test_an_unsupported_structural_card_is_an_error_unless_ignored(roving, capsy
     assert len(err.splitlines()) == 1, err
     assert f"'{deck}'" in err and f"line {line}" in err and "CTRIA6" in err and "--ignore-unsupported" in err, err
     assert main(["correlate", str(deck), str(roving / "m3.uff"), "--ignore-unsupported"]) == 0
+
+
+def test_report_builds_one_html_from_the_outputs_of_the_commands(roving, tmp_path, monkeypatch, capsys):
+    import shutil
+
+    for f in ("roving.uff", "model.bdf"):
+        shutil.copy(roving / f, tmp_path / f)
+    (tmp_path / "params.toml").write_text('[[parameter]]\nname = "k_12"\nfield = "k"\nelements = [22]\n'
+                                          'lower = 0.5\nupper = 2.0\n')
+    monkeypatch.chdir(tmp_path)
+    for argv in (["identify", "roving.uff", "--band", "5", "70", "-o", "m.uff", "--json", "modes.json",
+                  "--plots", "id_plots"],
+                 ["correlate", "model.bdf", "m.uff", "--plots", "corr", "--json", "corr.json"],
+                 ["update", "model.bdf", "--modes", "modes.json", "--params", "params.toml", "-o", "updated/"]):
+        assert main(argv) == 0, argv
+    capsys.readouterr()
+    assert main(["report", "."]) == 0
+    out = capsys.readouterr().out
+    assert "identify: modes.json" in out and "update: updated/update.json" in out and "wrote report/report.html" in out
+    html = (tmp_path / "report" / "report.html").read_text()
+    summary = json.loads((tmp_path / "report" / "summary.json").read_text())
+    assert len(summary["modes"]) == 3 and summary["update"]["parameters"]["k_12"]["updated"] > 0
+    assert "Stabilisation diagram: not available" not in html and "MAC, updated model: not available" not in html
+    # two different outputs of one stage: the report cannot choose, and says which
+    other = json.loads((tmp_path / "modes.json").read_text())
+    other["freq_hz"][0] *= 1.01
+    (tmp_path / "other.json").write_text(json.dumps(other))
+    assert main(["report", ".", "-o", "r2"]) == 2
+    err = capsys.readouterr().err
+    assert "two identify outputs" in err and "other.json" in err and len(err.strip().splitlines()) == 1
