@@ -30,7 +30,7 @@ log = logging.getLogger(__name__)
 __all__ = ["identify", "IdentificationReport", "default_max_order", "roving_hammer_layout", "resolve_window",
            "ROVING_RATIO"]
 
-#: an FRF with at least this many times more references than responses (and more than 3 references)
+#: an FRF with at least this many times more references than responses (and at least 2 references)
 #: is a roving-hammer export: fixed accelerometers as responses, the hammer points as references
 ROVING_RATIO = 2
 
@@ -107,9 +107,10 @@ def roving_hammer_layout(frf: FRF) -> bool:
     An analyser stores a roving-hammer test with the fixed accelerometers as responses and the hit
     points as references (e.g. 3 x 74).  Poly-reference identification wants the opposite: few
     references (the accelerometers) and many responses, which Maxwell–Betti reciprocity gives by
-    transposing (thesis section 5.3).  The test: ``n_in >= ROVING_RATIO · n_out`` and ``n_in > 3``.
+    transposing (thesis section 5.3).  The test: ``n_in >= ROVING_RATIO · n_out`` and ``n_in >= 2`` (3 hit
+    points x 1 accelerometer is a roving-hammer test too); ``modalab info`` applies the same rule.
     """
-    return frf.n_in >= ROVING_RATIO * frf.n_out and frf.n_in > 3
+    return frf.n_in >= ROVING_RATIO * frf.n_out and frf.n_in >= 2
 
 
 def resolve_window(frf: FRF, exp_beta: float | None = None, *, force: bool = False) -> tuple[float, str]:

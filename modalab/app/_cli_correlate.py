@@ -11,13 +11,20 @@ from pathlib import Path
 from modalab.app.stages import CorrelateOptions
 from modalab.app._cli_console import _print
 from modalab.app.stages import correlate
+from modalab.core.errors import PlanError
 
 
 def correlate_options(a, **kw):
     """The :class:`~modalab.app.stages.CorrelateOptions` of parsed ``correlate``/``update`` arguments."""
 
+    if not 0 < a.freq_window < 1:
+        raise PlanError(f"--freq-window {a.freq_window:g}: expected the largest relative frequency distance of a "
+                        "pair as a fraction between 0 and 1 (0.35 = ±35 %); give e.g. --freq-window "
+                        f"{a.freq_window / 100:g} for ±{a.freq_window:g} %" if a.freq_window >= 1 else
+                        f"--freq-window {a.freq_window:g}: expected a fraction between 0 and 1 (0.35 = ±35 %); "
+                        "give e.g. --freq-window 0.35")
     return CorrelateOptions(dofmap=a.map, geometry=a.geometry, same_ids=a.same_ids, freq_window=a.freq_window,
-                            **kw)
+                            ignore_unsupported=a.ignore_unsupported, **kw)
 
 
 def cmd_correlate(a):
@@ -40,6 +47,9 @@ def add_map_arguments(s):
                                       "test nodes are mapped onto the nearest model grids")
     s.add_argument("--same-ids", action="store_true",
                    help="test node n is model grid n (only when you know the numbering is shared)")
+    s.add_argument("--ignore-unsupported", action="store_true",
+                   help="build the model without the structural cards modalab does not model (e.g. CTRIA6); "
+                        "by default they are an error, since the model would be a different structure")
     s.add_argument("--freq-window", type=float, default=0.35,
                    help="largest relative frequency distance of a pair (default 0.35 = ±35 %%)")
 

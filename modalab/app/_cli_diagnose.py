@@ -34,7 +34,8 @@ def parse_kinds(values) -> tuple | None:
 def _options(a):
 
     kinds = parse_kinds(a.kinds)   # a misspelt kind fails before any file is read
-    return DiagnoseOptions(parameters=a.params, criterion=a.criterion, dofmap=getattr(a, "map", None), kinds=kinds)
+    return DiagnoseOptions(parameters=a.params, criterion=a.criterion, dofmap=getattr(a, "map", None), kinds=kinds,
+                           ignore_unsupported=a.ignore_unsupported)
 
 
 def cmd_diagnose(a):
@@ -77,6 +78,9 @@ def register(sub):
     s.add_argument("measured", nargs="*", help="measured FRFs with coherence (UFF 58); node ids and directions "
                                                "refer to the model's grids and basic system; several files = a "
                                                "campaign (needs --report)")
+    s.add_argument("--ignore-unsupported", action="store_true",
+                   help="build the model without the structural cards modalab does not model (e.g. CTRIA6); "
+                        "by default they are an error, since the model would be a different structure")
     s.add_argument("--modes", help="identified modes (UFF 55 or JSON); alone, a modes-only diagnosis")
     s.add_argument("--map", help="with --modes alone: DOF map file (TOML/CSV, as for correlate: test DOF -> model "
                                  "DOF with sign); default: test node ids are model grid ids")

@@ -15,10 +15,31 @@ def _options(a):
 
     sel = a.select
     if sel != "auto" and not Path(sel).exists():
-        sel = tuple(float(x) for x in sel.split(","))
+        sel = _frequencies(sel)
+    if a.band is not None and not 0 <= a.band[0] < a.band[1]:
+        raise PlanError(f"--band {a.band[0]:g} {a.band[1]:g}: expected 0 <= LO < HI in Hz; give e.g. --band 5 700")
+    if a.select_tol is not None and not 0 < a.select_tol < 1:
+        raise PlanError(f"--select-tol {a.select_tol:g}: expected a fraction of the frequency between 0 and 1 "
+                        "(0.05 = ±5 %); give e.g. --select-tol 0.05")
     return IdentifyOptions(band_hz=tuple(a.band) if a.band else None, max_order=a.max_order, select=sel,
                            references=a.references, weighting=a.weighting, reciprocity=a.reciprocity,
-                           exp_beta=a.exp_beta, force_window=a.force_window)
+                           exp_beta=a.exp_beta, force_window=a.force_window, select_tol=a.select_tol)
+
+
+def _frequencies(text: str) -> tuple:
+    """``--select 10,20.5,31``: frequencies in Hz (a number per comma-separated item), or a one-line error."""
+    out = []
+    for item in text.split(","):
+        try:
+            out.append(float(item))
+        except ValueError:
+            raise PlanError(f"--select {text!r}: {item.strip()!r} is not a frequency in Hz and {text!r} is not a "
+                            "file; expected 'auto', a selection file or numbers in Hz separated by commas, e.g. "
+                            "--select 10,20") from None
+        if not out[-1] > 0:
+            raise PlanError(f"--select {text!r}: {item.strip()!r} is not a positive frequency in Hz; give "
+                            "frequencies above 0 Hz, e.g. --select 10,20")
+    return tuple(out)
 
 
 def _window_line(wc) -> str:
@@ -103,6 +124,8 @@ def register(sub):
     s.add_argument("--references", nargs="+", help="use only these reference DOFs, e.g. 1+Z 12+Z")
     s.add_argument("--select", default="auto",
                    help="'auto', a selection file (JSON/TOML list of Hz) or comma-separated frequencies in Hz")
+    s.add_argument("--select-tol", type=float, metavar="FRACTION",
+                   help="with --select Hz: how far (relative) from each frequency a pole may be, default 0.02 (±2 %%)")
     s.add_argument("--weighting", choices=["coherence", "variance"], help="frequency weighting")
     s.add_argument("--reciprocity", action=argparse.BooleanOptionalAction, default=None,
                    help="transpose by Maxwell-Betti reciprocity (accelerometers become the references); "

@@ -12,13 +12,13 @@ gives one line ``modalab COMMAND: error: ...`` naming the file (and line) and ex
 from __future__ import annotations
 
 import argparse
-import difflib
 import json
 import logging
 import os
 import shutil
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 from threadpoolctl import threadpool_limits
 
@@ -29,12 +29,15 @@ from modalab.core import uff
 from modalab.core.uff import assume_quantity
 from modalab.app.stages import acquire
 from modalab.app._cli_console import _ConsoleObserver, _CountProgress, _print, _TerminalPrompter  # noqa: F401
-from modalab.app import _cli_correlate, _cli_diagnose, _cli_identify, _cli_run, _cli_update
+from modalab.app import _cli_correlate, _cli_diagnose, _cli_identify, _cli_report, _cli_run, _cli_update
 from modalab.app._cli_run import run_with_progress
 from modalab.app.demo_project import run_demo
 from modalab.core._output import check_outputs
-from modalab.core.errors import OutputError
+from modalab.core.errors import OutputError, PlanError
+from modalab.app.stages._common import sniff_kind
 from modalab.core._output import protect
+from modalab.app._cli_parse import parse_args as _parse
+from identification.api import ROVING_RATIO, roving_hammer_layout
 
 DESCRIPTION = """\
 Modal testing from the bench to an updated FE model: impact tests on NI hardware or the simulated lab,
@@ -132,8 +135,10 @@ def info_table(info: dict) -> list[str]:
                           f"[{f['units']}], {'with' if f['coherence'] else 'without'} coherence"),
                  ("responses", _join(f["responses"])),
                  ("references", _join(f["references"]) + (
-                     "  (more references than responses: a roving-hammer export; by reciprocity the "
-                     "accelerometers can be the references)" if len(f["references"]) > len(f["responses"]) else "")),
+                     f"  (at least {ROVING_RATIO} x more references than responses: a roving-hammer export; "
+                     "identify transposes it by reciprocity so that the accelerometers are the references)"
+                     if roving_hammer_layout(SimpleNamespace(n_in=len(f["references"]), n_out=len(f["responses"])))
+                     else "")),
                  ("frequency", f"{_g(f['freq_range_hz'][0])} - {_g(f['freq_range_hz'][1])} Hz, {f['lines']} lines"
                                + (f", df {_g(f['df_hz'])} Hz" if f["df_hz"] else " (uneven)"))]
         meta = f.get("metadata") or {}
@@ -188,6 +193,13 @@ def info_table(info: dict) -> list[str]:
 
 def cmd_info(a):
 
+    kind = sniff_kind(a.file) if Path(a.file).is_file() else None
+    if kind in ("bulk", "toml", "json"):
+        what = {"bulk": "Nastran bulk data (an FE model): correlate, update, diagnose and sim --structure read it, "
+                        f"e.g. modalab correlate {a.file} modes.uff",
+                "toml": "a TOML file (a plan, project or parameter file): acquire, run and --params read it",
+                "json": "a JSON file (e.g. modes.json: correlate and update read it)"}[kind]
+        raise PlanError(f"{a.file} is {what}; info reads universal files (UFF: raw hits, FRFs, modes)")
     info = uff.info(a.file, quantity=getattr(a, "quantity", None))
     if a.json:
         _print(json.dumps(info, indent=1, default=str))
@@ -248,7 +260,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_frf(sub)
     _add_info(sub)
     _add_acquire(sub)
-    for m in (_cli_identify, _cli_correlate, _cli_update, _cli_diagnose, _cli_run):   # commands in their modules
+    for m in (_cli_identify, _cli_correlate, _cli_update, _cli_diagnose, _cli_run, _cli_report):   # their modules
         m.register(sub)
     _add_shared_options(sub)
     return p
@@ -373,6 +385,7 @@ _IO = {
     "run": (("project",), (), ("output",)),
     "demo": ((), (), ("output",)),
     "acquire": (("plan",), (), ("output",)),
+    "report": ((), (), ("output",)),
 }
 #: suffixes of the files modalab reads or writes: a folder output named like one is a mistake
 #: (``update -o updated.bdf`` would make a folder ``updated.bdf``)
@@ -441,8 +454,10 @@ def _prepare_outputs(a):
     if a.command in _WRITES_INTO:
         attr, names = _WRITES_INTO[a.command]
         into = {getattr(a, attr, None): names}
+    # the option that replaces outputs, as this command spells it (sim's --force is the hammer's peak force)
+    option = None if not hasattr(a, "overwrite") else "--overwrite" if a.command == "sim" else "--force"
     check_outputs(inputs, files, folders, force=bool(getattr(a, "overwrite", False)),
-                  writes_into=into)
+                  writes_into=into, force_option=option)
     created = [Path(p) for p in files + folders if not os.path.lexists(p)]
     return inputs, created
 
@@ -505,41 +520,6 @@ class _LogFormatter(logging.Formatter):
         if self.verbose:
             return f"{record.levelname.lower()} [{record.name}]: {msg}"
         return f"{record.levelname.lower()}: {msg}"
-
-
-def _closest_option(parser, arg: str) -> str | None:
-    """The option of ``parser`` closest to the unknown ``arg`` (``--exp_end`` -> ``--exp-end``), or None."""
-
-    opts = [o for o in parser._option_string_actions if o.startswith("--")]
-    key = arg.split("=", 1)[0]
-    norm = {o.replace("_", "-").lower(): o for o in opts}
-    if key.replace("_", "-").lower() in norm:
-        return norm[key.replace("_", "-").lower()]
-    m = difflib.get_close_matches(key, opts, n=1, cutoff=0.6)
-    return m[0] if m else None
-
-
-def _parse(parser, args):
-    """``parse_args`` whose unknown options are one line naming the command, each unknown option and the closest
-    valid option of that command (exit code 2)."""
-    a, extra = parser.parse_known_args(args)
-    if not extra:
-        return parser.parse_args(args)          # the one parse (a wrapped parse_args sees it)
-    cmd = getattr(a, "command", None)
-    sp = parser._subparsers._group_actions[0].choices.get(cmd) if cmd and parser._subparsers else None
-    target = sp or parser
-    parts = []
-    for x in extra:
-        if x.startswith("-") and len(x) > 1:
-            best = _closest_option(target, x)
-            parts.append(f"{x} (did you mean {best}?)" if best else x)
-        else:
-            parts.append(x)
-    target.print_usage(sys.stderr)
-    hint = f"see 'modalab {cmd} --help'" if cmd else "see 'modalab --help'"
-    print(f"modalab{' ' + cmd if cmd else ''}: error: unrecognized argument(s): {', '.join(parts)}; {hint}",
-          file=sys.stderr)
-    raise SystemExit(2)
 
 
 def main(args=None) -> int:

@@ -93,8 +93,9 @@ def plot_frf_overlays(curves: dict, path, *, responses, reference, beta: float =
         ax.set_ylabel(f"|H| {r}/{reference}", fontsize=8)
         ax.grid(True, which="both", lw=0.3)
     axes[0].legend(fontsize=7)
+    # the window on its own line: on one line the title ran past the figure's edge ("(s = iω +", issue 14)
     axes[0].set_title("FRF overlays (accelerance, m/s²/N)" + (
-        f"; exponential window β = {beta:.3g} 1/s on data and models (s = iω + β)" if beta else ""), fontsize=9)
+        f"\nexponential window β = {beta:.3g} 1/s on data and models (s = iω + β)" if beta else ""), fontsize=9)
     axes[-1].set_xlabel("frequency [Hz]")
     return _save(fig, path)
 

@@ -75,19 +75,23 @@ def check_not_input(path) -> None:
                               "Choose another output name")
 
 
-def check_outputs(inputs=(), files=(), folders=(), *, force: bool = False, writes_into=None) -> None:
+def check_outputs(inputs=(), files=(), folders=(), *, force: bool = False, writes_into=None,
+                  force_option: str | None = "--force") -> None:
     """Refuse unsafe outputs before any work is done.
 
     ``inputs``: input files; ``files``: output files; ``folders``: output folders;
     ``writes_into``: ``{folder: [file names written into it]}`` to check those against the inputs too.
     An output that is an input is refused even with ``force``; an existing output file only without it.
+    ``force_option``: the command's option that sets ``force``, named in the messages (``sim``: ``--overwrite``,
+    its ``--force`` is the hammer's); None for a command without one.
     """
     ins = [Path(p) for p in inputs if p is not None]
     for out in (Path(p) for p in files if p is not None):
         for i in ins:
             if same_file(i, out):
+                even = f" (not even with {force_option})" if force_option else ""
                 raise OutputError(f"output '{out}' is also an input of this command; an output never overwrites "
-                                  "an input (not even with --force). Choose another output name")
+                                  f"an input{even}. Choose another output name")
         if out.is_dir():
             raise OutputError(f"output '{out}' is a folder; expected a file name (a file inside it, or another "
                               "name)")
@@ -97,7 +101,8 @@ def check_outputs(inputs=(), files=(), folders=(), *, force: bool = False, write
                     raise OutputError(f"cannot write '{out}': '{parent}' is a file, not a folder")
                 break
         if out.exists() and not force:
-            raise OutputError(f"output '{out}' exists; pass --force to replace it (inputs are never replaced)")
+            todo = f"pass {force_option} to replace it" if force_option else "remove it or choose another name"
+            raise OutputError(f"output '{out}' exists; {todo} (inputs are never replaced)")
     for d in (Path(p) for p in folders if p is not None):
         if d.exists() and not d.is_dir():
             raise OutputError(f"output folder '{d}' is a file; expected a folder (it is created when missing)")

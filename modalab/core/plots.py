@@ -33,8 +33,11 @@ def plot_frf(frf: FRF, pairs=None, *, path=None, max_curves: int = 8, others: di
 
     ``others`` maps a label to another FRF drawn dashed on the same pairs (e.g. the exact FRF or a synthesis).
     """
+    n_all = frf.n_out * frf.n_in
     if pairs is None:
         pairs = [(r, q) for q in frf.references for r in frf.responses][:max_curves]
+    if len(pairs) < n_all:                     # say that the figure shows a part of the set
+        title = (title + " — " if title else "") + f"{len(pairs)} of {n_all} FRFs shown"
     has_coh = frf.coherence is not None
     fig = _figure(8.0, 7.5 if has_coh else 6.0)
     axes = fig.subplots(3 if has_coh else 2, 1, sharex=True,
@@ -94,8 +97,8 @@ def plot_hit(rec: TimeRecord, *, path=None, title: str = ""):
     a2.set_xlabel("frequency [Hz]")
     a2.set_ylabel("force spectrum [dB]")
     for i in rec.response_channels:
-        a3.plot(t, rec.data[i], lw=0.6, label=f"{rec.dofs[i]}{' OVERLOAD' if rec.overload[i] else ''}")
-    a3.set_xlabel("time [s]")
+        a3.plot(t * 1e3, rec.data[i], lw=0.6, label=f"{rec.dofs[i]}{' OVERLOAD' if rec.overload[i] else ''}")
+    a3.set_xlabel("time [ms]")                 # one time unit for the force and the responses
     a3.set_ylabel(f"response [{rec.units[rec.response_channels[0]] if rec.response_channels else ''}]")
     a3.legend(fontsize=7, ncol=3)
     if title:

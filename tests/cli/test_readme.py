@@ -69,6 +69,9 @@ def test_commands_in_practice_run_as_written(tmp_path, monkeypatch, capsys):
     validate(tmp_path / "diagnosis.json", "diagnosis")
     validate(tmp_path / "diag" / "diagnosis.json", "diagnosis")
     validate(tmp_path / "out" / "report" / "summary.json", "summary")
+    validate(tmp_path / "report" / "summary.json", "summary")          # modalab report . (the step-by-step chain)
+    html = (tmp_path / "report" / "report.html").read_text()
+    assert "The diagnosis stage has not run" not in html and "stabilisation" in html
     for p in ("model.bdf", "params.toml", "corr.json", "updated/updated.bdf", "session/session.uff",
               "out/report/report.html"):
         assert (tmp_path / p).is_file(), p

@@ -132,7 +132,22 @@ class CorrelationResult:
                 "mean_abs_freq_error_pct": float(fe.mean()) if fe.size else None,
                 "max_abs_freq_error_pct": float(fe.max()) if fe.size else None,
                 "min_pair_mac": float(self.pairing.mac.min()) if shp else None,
-                "mean_pair_mac": float(self.pairing.mac.mean()) if shp else None}
+                "mean_pair_mac": float(self.pairing.mac.mean()) if shp else None,
+                "n_test_dofs": len(self.test.dofs) if self.has_shapes else 0,
+                "mac_warning": self.mac_warning()}
+
+    def mac_warning(self) -> str | None:
+        """A warning when the MAC rests on fewer measured DOFs than paired modes, else None.
+
+        With ``n`` DOFs at most ``n`` shapes are independent: more paired modes than DOFs cannot all be told
+        apart by their shapes (on one DOF every MAC is 1), so the MAC does not confirm those pairs."""
+        n_dof, n_pairs = len(self.test.dofs), len(self.pairs)
+        if not self.has_shapes or n_dof >= n_pairs:
+            return None
+        return (f"the MAC rests on {n_dof} measured DOF{'s' if n_dof != 1 else ''} for {n_pairs} paired modes: "
+                "so few DOFs cannot tell the shapes apart (on one DOF every MAC is 1), the pairs stand on "
+                "frequency alone; measure more DOFs (a roving-hammer file is transposed by identify so that the "
+                "hit points become the DOFs)")
 
     def to_dict(self) -> dict:
         """JSON-ready dict; mode numbers are 1-based."""
@@ -208,6 +223,8 @@ class CorrelationResult:
                          + (f", min MAC {s['min_pair_mac']:.3f}" if s["min_pair_mac"] is not None else ""))
         else:
             lines.append("no pairs: " + self.pairing.method)
+        if s["mac_warning"]:
+            lines.append("WARNING: " + s["mac_warning"])
         return "\n".join(lines)
 
 

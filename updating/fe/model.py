@@ -14,6 +14,7 @@ modal FRF synthesis, like TABDMP1 with SDAMPING.
 from __future__ import annotations
 
 import copy
+import difflib
 import logging
 from dataclasses import dataclass
 
@@ -181,7 +182,10 @@ class FEModel:
                 hits = [p.pid for p in self.properties.values() if getattr(p, "name", "") == it]
                 if not hits:
                     names = sorted({getattr(p, 'name', '') for p in self.properties.values()} - {""})
-                    raise ModalabValueError(f"no property is named {it!r}; known names: {names}")
+                    close = difflib.get_close_matches(it, names, n=1)
+                    raise ModalabValueError(f"no property is named {it!r}"
+                                            + (f" (did you mean {close[0]!r}?)" if close else "")
+                                            + f"; known names: {names}")
                 out.extend(hits)
             else:
                 self.prop(int(it))

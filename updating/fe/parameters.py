@@ -43,6 +43,7 @@ the :class:`updating.fe.parametric.ParametricModel` protocol on the constrained 
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import logging
 from dataclasses import dataclass
 
@@ -106,6 +107,15 @@ def _section_has(section, field):
     return field in {f.name for f in dataclasses.fields(section)}
 
 
+def _closest_field(name: str, valid) -> str | None:
+    """The valid field a misspelt ``name`` most likely means ('Emod' -> 'E', 'rh0' -> 'rho'), or None."""
+    close = difflib.get_close_matches(name, valid, n=1, cutoff=0.6)
+    if close:
+        return close[0]
+    starts = [v for v in valid if name.lower().startswith(v.lower())]
+    return max(starts, key=len) if starts else None
+
+
 def _targets(model: FEModel, par: Parameter):
     """List of (kind, key) that the parameter modifies, plus affected element list (None = all)."""
     f = par.field
@@ -120,7 +130,16 @@ def _targets(model: FEModel, par: Parameter):
         pids = [p.pid for p in model.properties.values() if p.mid in mids]
         return [("material", m) for m in mids], model.elements_with_property(pids)
     if par.properties:
-        pids = model.property_ids(par.properties)
+        try:
+            pids = model.property_ids(par.properties)
+        except ModalabValueError as e:
+            names = {getattr(p, "name", "") for p in model.properties.values()} - {""}
+            items = [par.properties] if isinstance(par.properties, str) else list(par.properties)
+            near = any(difflib.get_close_matches(str(it), names, n=1) for it in items)
+            springs = [] if near else sorted(k for k, el in model.elements.items() if isinstance(el, Spring))
+            hint = (f"; a spring (CELAS/PELAS) is no property group: update it as an element field, field = 'k' "
+                    f"with elements = [{springs[0]}] (the spring elements: {springs[:8]})") if springs else ""
+            raise ModalabValueError(f"parameter {par.name!r}: {e}{hint}") from None
         for pid in pids:
             prop = model.prop(pid)
             ok = f in MATERIAL_FIELDS or f == "nsm"
@@ -132,9 +151,11 @@ def _targets(model: FEModel, par: Parameter):
                 ok = ok or f == "t"
             if not ok:
                 sec = type(getattr(prop, "section", prop)).__name__
-                raise ModalabValueError(f"parameter {par.name!r}: property {pid} ({sec}) has no field {f!r}; use a "
-                                        f"material field {MATERIAL_FIELDS}, 'nsm', a dimension of its section, "
-                                        "or 't' for a shell")
+                near = _closest_field(f, MATERIAL_FIELDS + ("nsm", "t"))
+                raise ModalabValueError(f"parameter {par.name!r}: property {pid} ({sec}) has no field {f!r}"
+                                        + (f" (did you mean {near!r}?)" if near else "") +
+                                        f"; use a material field {MATERIAL_FIELDS}, 'nsm', a dimension of its "
+                                        "section, or 't' for a shell")
             if f in ("inertia", "k", "c", "mass"):
                 raise ModalabValueError(f"parameter {par.name!r}: {f!r} is an element field; select elements=")
         return [("property", p) for p in pids], model.elements_with_property(pids)

@@ -107,8 +107,10 @@ def posterior(S: np.ndarray, r: np.ndarray, rows: list, alpha: float = 0.0) -> d
             continue
         c2 = float(r[sel] @ r[sel])
         dof = float(sel.sum() - h[sel].sum())
-        q95 = float(_chi2.ppf(0.95, dof)) if dof >= 0.5 else np.inf
-        factor = c2 / dof if c2 > q95 else 1.0
+        # rows the fit absorbs (dof near 0) leave no residual at a least-squares solution: a χ² there is judged
+        # against one degree of freedom, not waved through (a χ² of 8e10 on dof 2e-9 kept σ 1e-6, issue 14)
+        q95 = float(_chi2.ppf(0.95, max(dof, 1.0)))
+        factor = c2 / max(dof, 1.0) if c2 > q95 else 1.0
         groups[g] = {"name": g, "n": int(sel.sum()), "chi2": c2, "dof": dof, "chi2_95": q95, "factor": factor}
         weights[sel] = 1.0 / np.sqrt(factor)
     Sw = S * weights[:, None]

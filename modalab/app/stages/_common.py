@@ -8,8 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from modalab.core.errors import PlanError
+from modalab.core.errors import ModalabValueError, PlanError
 from updating.fe.bulk import build_model, read_bdf
+from updating.fe.parameters import ParametricFEModel
 from modalab.core.modes import ModeSet
 from modalab.app.project import load_parameters as _load
 from updating.diagnosis.priors import default_parameters
@@ -74,15 +75,16 @@ def _expect(path, wanted: str, what: str, hint: str) -> None:
         raise PlanError(f"'{path}' is {_KIND_TEXT[kind]}, but {what} is expected here; {hint}")
 
 
-def load_model(path):
-    """An FE model from Nastran bulk data (``.bdf``, ``.dat``, ``.nas``, ``.blk``)."""
+def load_model(path, ignore_unsupported: bool = False):
+    """An FE model from Nastran bulk data (``.bdf``, ``.dat``, ``.nas``, ``.blk``); a structural card the
+    builder does not model is an error unless ``ignore_unsupported`` (``--ignore-unsupported``)."""
 
     p = Path(path)
     if not p.is_file():
         raise PlanError(f"model file {str(p)!r} does not exist; give a Nastran bulk-data file (.bdf)")
     _expect(p, "bulk", "Nastran bulk data (the FE model, e.g. model.bdf)",
             "check the order of the arguments (the model comes first)")
-    return build_model(read_bdf(p, whole_model=True))
+    return build_model(read_bdf(p, whole_model=True), ignore_unsupported=ignore_unsupported)
 
 
 def load_modes(path):
@@ -105,6 +107,10 @@ def load_parameters(path, model) -> tuple[list, np.ndarray, np.ndarray]:
         return params, np.full(len(params), -np.inf), np.full(len(params), np.inf)
 
     params, lo, hi = _load(path)
+    try:
+        ParametricFEModel(model, params)            # each parameter selects something of this model
+    except ModalabValueError as e:
+        raise PlanError(f"{path}: {e}") from None
     return (params, np.array([-np.inf if v is None else float(v) for v in lo]),
             np.array([np.inf if v is None else float(v) for v in hi]))
 

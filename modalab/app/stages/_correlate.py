@@ -38,6 +38,7 @@ class CorrelateOptions:
     geometry: str | None = None
     same_ids: bool = False
     freq_window: float | None = 0.35
+    ignore_unsupported: bool = False     # build the model without structural cards it cannot model
 
     def __post_init__(self):
         given = [n for n, v in (("a DOF map", self.dofmap), ("a geometry file", self.geometry),
@@ -58,6 +59,12 @@ class DofMapping:
     geometry: dict | None = None
 
 
+def _geometry_source(path) -> str:
+    """Where a file keeps its node coordinates, in words: a UFF's dataset 2411 (or 15), a modes.json's
+    ``coordinates``."""
+    return "its coordinates" if Path(str(path)).suffix.lower() == ".json" else "dataset 2411"
+
+
 def resolve_dof_map(model, test, opts: CorrelateOptions = CorrelateOptions(), *,
                     modes_path="the modes file", tol=None) -> DofMapping:
     """The test DOFs on ``model``'s DOFs; see the module docstring."""
@@ -69,10 +76,10 @@ def resolve_dof_map(model, test, opts: CorrelateOptions = CorrelateOptions(), *,
     if opts.same_ids:
         return DofMapping(None, "same node ids (--same-ids): test node n is model grid n", None)
     coords = dict(test.coordinates)
-    src = f"{modes_path} (dataset 2411)"
+    src = f"{modes_path} ({_geometry_source(modes_path)})"
     if opts.geometry:
         coords = read_geometry(opts.geometry)
-        src = f"{opts.geometry} (dataset 2411)"
+        src = f"{opts.geometry} ({_geometry_source(opts.geometry)})"
     if not coords:
         raise PlanError(f"{modes_path} carries no node coordinates, so its node numbers cannot be matched with the "
                         "model's grids. Give --geometry FILE (a UFF with the test geometry, dataset 2411: e.g. the "
@@ -82,7 +89,8 @@ def resolve_dof_map(model, test, opts: CorrelateOptions = CorrelateOptions(), *,
     model_xyz = {int(n): tuple(node.xyz) for n, node in model.nodes.items()}
     dm, rep = geometry_map(coords, model_xyz, nodes, tol=tol)
     moved = {k: v for k, v in rep["nodes"].items() if int(k) != v["model_node"]}
-    how = (f"by geometry from {src}: {len(nodes)} test nodes on their nearest model grid, max distance "
+    how = (f"by geometry from {src}: {len(nodes)} test node{'s' if len(nodes) != 1 else ''} on their nearest "
+           "model grid, max distance "
            f"{rep['max_distance_m']:.3g} m (tolerance {rep['tol_m']:.3g} m)")
     if rep["rotation"] != [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]] or any(rep["translation"]):
         how += f", after a rigid transform (translation {[round(v, 6) for v in rep['translation']]} m)"
@@ -140,7 +148,7 @@ def _freq_err(res):
 def correlate(model_path, modes_path, opts: CorrelateOptions = CorrelateOptions(), *, json_path=None,
               plots_dir=None) -> StageResult:
     """Test modes against the FE model: MAC, pairing, frequency errors (``correlation.json``, MAC and 45° plots)."""
-    model, test = load_model(model_path), load_modes(modes_path)
+    model, test = load_model(model_path, opts.ignore_unsupported), load_modes(modes_path)
     mapping = resolve_dof_map(model, test, opts, modes_path=modes_path)
     res = _correlation(model, test, opts, mapping)
     files = []

@@ -42,6 +42,7 @@ class DiagnoseOptions:
     criterion: str = "auto"
     overlay_dofs: tuple | None = None
     dofmap: str | None = None              # modes-only: DOF map file (test DOF -> model DOF), as for correlate
+    ignore_unsupported: bool = False       # build the model without structural cards it cannot model
 
     def __post_init__(self):
         for k in ("band_hz", "kinds", "overlay_dofs"):
@@ -65,7 +66,7 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
     if opts.dofmap is not None and frf_path is not None:
         raise PlanError("--map applies to a modes-only diagnosis (--modes without MEASURED.uff); remove --map or the "
                         "measured FRFs")
-    model = load_model(model_path)
+    model = load_model(model_path, opts.ignore_unsupported)
     params = load_parameters(opts.parameters, model)[0] if opts.parameters else None
     priors = None
     if opts.parameters:

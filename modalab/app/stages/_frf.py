@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from modalab.core.errors import ModalabValueError
+from modalab.core.errors import ModalabValueError, PlanError
 from modalab.app.outputs import write_json
 from modalab.app.stages._common import StageResult
 from modalab.core import uff
@@ -88,6 +88,13 @@ def _estimate(in_uff, opts: FRFOptions):
     if not recs:
         raise ModalabValueError(f"{in_uff}: no time records (dataset 58, function type 1) to turn into FRFs; "
                                 "run 'modalab info' to see what the file holds")
+    fs = recs[0].sample_rate_hz
+    bw = opts.bandwidth_hz
+    if bw is not None and not 0 < bw <= fs / 2.56 * (1 + 1e-9):
+        # the rule of a test plan (acquisition.plan): lines above fs/2.56 lie in the anti-alias filter's roll-off
+        raise PlanError(f"{in_uff}: --bandwidth {bw:g} Hz; expected above 0 and at most fs/2.56 = {fs / 2.56:g} Hz "
+                        f"(sample rate {fs:g} Hz: lines above it lie in the anti-alias roll-off); give --bandwidth "
+                        f"{fs / 2.56:g} or less, or leave it out")
     fw = ForceWindow(fraction=opts.force_fraction) if opts.force_fraction else None
     ew = exponential_window(opts.exp_beta, opts.exp_end_level)      # the one rule, as for a test plan
     H = estimate_frf_roving(recs, estimator=opts.estimator, force_window=fw, exp_window=ew)
@@ -96,7 +103,7 @@ def _estimate(in_uff, opts: FRFOptions):
         H.metadata["backend"] = kinds.pop()
     elif len(kinds) > 1:
         H.metadata["backend"] = "mixed: " + ", ".join(sorted(str(k) for k in kinds))
-    H = H.band(0.0, opts.bandwidth_hz or recs[0].sample_rate_hz / 2.56)
+    H = H.band(0.0, bw or fs / 2.56)
     if opts.reciprocity and len(H.references) > len(H.responses):
         H = reorder_by_reciprocity(H)
     return H

@@ -10,6 +10,7 @@ from modalab.core.errors import ModalabValueError
 from modalab.app.outputs import write_json
 from modalab.app.stages._common import StageResult, _band, _tuple
 from identification import identify as _identify
+from identification import SelectionOptions
 from modalab.core import uff
 
 
@@ -26,6 +27,7 @@ class IdentifyOptions:
     reciprocity: bool | None = None       # None: automatic for a roving-hammer export; False: as given
     exp_beta: float | None = None         # the exponential window's decay (1/s) when the file does not say
     force_window: bool = False            # use exp_beta even when the file carries another beta
+    select_tol: float | None = None       # relative window around each frequency of a manual selection
 
     def __post_init__(self):
         object.__setattr__(self, "band_hz", _tuple(self.band_hz))
@@ -66,10 +68,19 @@ def identify(frf_path, out_uff, opts: IdentifyOptions = IdentifyOptions(), *, js
 
     H = _band(uff.read_frf(frf_path), opts.band_hz)
     sel = list(opts.select) if isinstance(opts.select, tuple) else opts.select
-    modes, rep = _identify(H, max_order=opts.max_order, select=sel,
-                           references=list(opts.references) if opts.references else None,
-                           weighting=opts.weighting, plots_dir=plots_dir, reciprocity=opts.reciprocity,
-                           exp_beta=opts.exp_beta, force_window=opts.force_window)
+    selection = SelectionOptions() if opts.select_tol is None else SelectionOptions(manual_tol=opts.select_tol)
+    try:
+        modes, rep = _identify(H, max_order=opts.max_order, select=sel,
+                               references=list(opts.references) if opts.references else None,
+                               weighting=opts.weighting, plots_dir=plots_dir, reciprocity=opts.reciprocity,
+                               exp_beta=opts.exp_beta, force_window=opts.force_window, selection=selection)
+    except ModalabValueError as e:
+        if "SelectionOptions.manual_tol" not in str(e):
+            raise
+        # the library names its API setting; the command line user reaches it as --select-tol (select_tol)
+        raise ModalabValueError(f"{frf_path}: " + str(e).replace(
+            "widen SelectionOptions.manual_tol",
+            f"widen --select-tol (select_tol in a project; now {selection.manual_tol:g})")) from None
     if modes.n_modes == 0:
         raise ModalabValueError(f"{frf_path}: identification found no modes in "
                                 f"{H.freq_hz[0]:g}-{H.freq_hz[-1]:g} Hz; widen the band or raise the model order")

@@ -373,3 +373,82 @@ def _correlation_and_update_sections(run_dir, upd, diag=None) -> list:
     return parts + [_fig(run_dir / "diagnose" / "frf_overlay_models.png",
                          "Measured FRFs and the nominal, parameter-updated and diagnosed models at the chosen DOFs "
                          "(models evaluated at s = iω + β of the measurement's exponential window)")]
+
+
+# ----------------------------------------------------------------------------- step-by-step outputs
+#: where build_report looks for each figure (stage folder), by file name
+_FIGURE_STAGE = {"stabilisation.png": "identify", "synthesis.png": "identify", "coherence.png": "frf",
+                 "mac_before.png": "correlate", "frequencies_before.png": "correlate",
+                 "mac_after.png": "update", "frequencies_after.png": "update", "convergence.png": "update",
+                 "frf_overlay_models.png": "diagnose"}
+
+
+def _kind_of_json(path: Path) -> str | None:
+    """Which stage wrote a JSON output, from its keys: 'identify' (modes.json), 'correlate', 'update',
+    'diagnose', or None (another JSON)."""
+    try:
+        d = json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise ModalabValueError(f"'{path}': not valid JSON ({e}); it is a stage output that was changed or cut: "
+                                "rerun the command that wrote it, or move it out of the folder") from None
+    if not isinstance(d, dict):
+        return None
+    if "findings" in d and "statement" in d:
+        return "diagnose"
+    if "parameters" in d and "history" in d and "method" in d:
+        return "update"
+    if "pairs" in d and "test_dofs" in d:
+        return "correlate"
+    if "table" in d and "freq_hz" in d and "shapes" in d:
+        return "identify"
+    return None
+
+
+def collect_outputs(folder, staging) -> dict:
+    """Lay the outputs of commands run one by one in ``folder`` (``modalab frf/identify/correlate/update/
+    diagnose`` with any ``-o``/``--json``/``--plots``/``--report`` names, in the folder or one sub-folder down,
+    the diagnosis figures in ``<report>/figures``) out
+    as the run folder :func:`build_report` reads, by symbolic links in ``staging``; returns {stage: [sources]}.
+
+    A stage output is recognised by its content (the keys of its JSON), a figure by its name; two outputs of one
+    stage are an error naming both (the report would have to pick one)."""
+    folder, staging = Path(folder), Path(staging)
+    found: dict = {}
+    candidates = sorted(p for p in list(folder.glob("*")) + list(folder.glob("*/*")) + list(folder.glob("*/figures/*"))
+                        if p.is_file() and "report" not in p.relative_to(folder).parts[:-1])
+
+    def put(stage, name, src):
+        dst = staging / stage / name
+        if dst.exists() and dst.read_bytes() == src.read_bytes():
+            return                              # the same output twice (diagnose --json X --report D writes both)
+        if dst.exists():
+            raise ModalabValueError(f"{folder}: two {stage} outputs, '{dst.resolve()}' and '{src}'; keep one in the "
+                                    "folder (or give each run its own folder) and run modalab report again")
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        dst.symlink_to(src.resolve())
+        found.setdefault(stage, []).append(str(src))
+
+    names = {"identify": "modes.json", "correlate": "correlation.json", "update": "update.json",
+             "diagnose": "diagnosis.json"}
+    for p in candidates:
+        if p.suffix.lower() == ".json":
+            kind = _kind_of_json(p)
+            if kind:
+                put(kind, names[kind], p)
+    modes = staging / "identify" / "modes.json"
+    frf = Path(json.loads(modes.read_text()).get("input") or "") if modes.exists() else None
+    if frf is not None and not frf.is_absolute():
+        frf = folder / frf                      # identify ran in the folder (as written in the README)
+    if frf is not None and frf.suffix.lower() == ".uff" and frf.is_file():
+        put("frf", "frf.uff", frf)              # the FRFs the modes came from: the test geometry figure
+    for p in candidates:
+        if p.suffix.lower() != ".png":
+            continue
+        stage = _FIGURE_STAGE.get(p.name)
+        if p.parent.name == "figures" and (p.parent.parent / "diagnosis.json").is_file():
+            put("diagnose", f"figures/{p.name}", p)
+        elif stage == "correlate" and p.name == "mac_before.png" and (p.parent / "update.json").is_file():
+            continue                            # update's copy of the nominal MAC: the correlation's own is used
+        elif stage:
+            put(stage, p.name, p)
+    return found

@@ -182,7 +182,7 @@ def update(model_path, out_dir, opts: UpdateOptions = UpdateOptions(), *, modes_
 
     out = Path(out_dir)
     method = opts.method
-    model = load_model(model_path)
+    model = load_model(model_path, opts.correlation.ignore_unsupported)
     test = load_modes(modes_path) if modes_path else None
     if method in MODAL_METHODS + DIRECT_METHODS and test is None:
         raise PlanError(f"method {method!r} needs test modes: pass --modes MODES.uff")

@@ -60,6 +60,7 @@ from updating.fe import (Beam3D, BeamProperty, Damper, FEModel, GeneralSection, 
 
 from updating.fe.bulk import cards as C
 from updating.fe.bulk.geometry import resolve_coord
+from updating.fe.bulk.reader import STRUCTURAL_CARDS
 
 log = logging.getLogger(__name__)
 
@@ -168,13 +169,28 @@ def _pick_set(what, chosen, available, card_kind):
     return None
 
 
-def build_model(bulk, *, spc_id: int | None = None, sdamping: int | None = None, name: str | None = None
-                ) -> FEModel:
+def build_model(bulk, *, spc_id: int | None = None, sdamping: int | None = None, name: str | None = None,
+                ignore_unsupported: bool = False) -> FEModel:
     """FE model of a deck read by :func:`~updating.fe.bulk.read_bdf` (see the module docstring).
 
     spc_id : SPC/SPCADD set to apply (default: case control, else the only set).
     sdamping : TABDMP1 id for modal damping (default: case control SDAMPING, else the only table).
+    ignore_unsupported : build without the structural cards (:data:`STRUCTURAL_CARDS`) this package does not
+        model; by default such a card is an error naming the file, its line and the card, since the model built
+        without it is a different structure.
     """
+    skipped = [r for r in bulk.unsupported if r.name.upper() in STRUCTURAL_CARDS]
+    if skipped and not ignore_unsupported:
+        r = skipped[0]
+        more = sorted({x.name for x in skipped})
+        raise BulkDataError(f"{r.name} is a structural card build_model does not model ({len(skipped)} such "
+                            f"card(s): {', '.join(more)}): without it the model is a different structure; "
+                            "replace it by supported elements (e.g. CTRIA6 -> CTRIA3, CQUAD8 -> CQUAD4), or pass "
+                            "--ignore-unsupported to build the model without it", path=bulk.path, line=r.line,
+                            card=r.name)
+    if skipped:
+        log.warning("%s: building the model without %d structural card(s) it does not model (%s), as asked",
+                    bulk.path or "deck", len(skipped), ", ".join(sorted({x.name for x in skipped})))
     try:
         return _build(bulk, spc_id, sdamping, name)
     except BulkDataError:

@@ -508,17 +508,30 @@ def _check_complete(bulk: BulkData, path: str, has_enddata: bool, ends_with_newl
                             path=path, line=last_line)
 
 
+#: Nastran cards that add stiffness, mass, damping or constraints to the structure: when build_model does not model
+#: one, the model it builds is a different structure (an error unless the caller opts in to ignore them)
+STRUCTURAL_CARDS = frozenset({
+    "CBEAM", "CBEAM3", "CBEND", "CBUSH", "CBUSH1D", "CBUSH2D", "CGAP", "CHEXA", "CPENTA", "CPYRAM", "CTETRA",
+    "CQUAD", "CQUAD8", "CQUADR", "CQUADX", "CTRIA6", "CTRIAR", "CTRIAX", "CTRIAX6", "CSHEAR", "CTUBE", "CCONEAX",
+    "CWELD", "CFAST", "CSEAM", "CMASS1", "CMASS2", "CMASS3", "CMASS4", "CONM1", "CELAS3", "CELAS4", "CDAMP3",
+    "CDAMP4", "CDAMP5", "CVISC", "GENEL", "DMIG", "RBE1", "RROD", "RSPLINE", "RTRPLT", "MPC", "MPCADD"})
+
+
 def _report_unsupported(bulk: BulkData) -> None:
     """One logged warning listing the cards that are kept but not modelled, with their line numbers."""
     by_name: dict = {}
     for r in bulk.unsupported:
+        if r.name.upper() in STRUCTURAL_CARDS:          # build_model refuses them, or warns when told to ignore them
+            continue
         by_name.setdefault(r.name, []).append(r.line)
     parts = []
     for name in sorted(by_name):
         ls = [str(v) for v in by_name[name] if v is not None]
         shown = ", ".join(ls[:8]) + (f" ... ({len(ls)} in all)" if len(ls) > 8 else "")
         parts.append(f"{name} ({len(by_name[name])}: line{'s' if len(ls) > 1 else ''} {shown})")
-    msg = (f"{bulk.path or 'deck'}: {len(bulk.unsupported)} bulk-data card(s) of {len(by_name)} type(s) are not "
+    if not by_name:
+        return
+    msg = (f"{bulk.path or 'deck'}: {sum(len(v) for v in by_name.values())} bulk-data card(s) of {len(by_name)} type(s) are not "
            f"modelled by updating.fe.bulk and are ignored by build_model (kept in BulkData.unsupported and written "
            f"back): {'; '.join(parts)}")
     log.warning(msg)
