@@ -47,21 +47,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from modalab.core.errors import ModalabError, ModalabValueError
+from modalab.core.errors import ModalabValueError
 from modalab.core.modes import ModeSet
 from modalab.core.frf import FRF
-
 from updating.fe import FEModel, ParametricFEModel
-from updating.diagnosis.fit import RITZ_LIMIT, Prior, chi2_per_value, fit_frf, fit_std, frf_data, frf_error, model_frf, quick_frf_error
+from updating.diagnosis.fit import RITZ_LIMIT, Prior, fit_frf, fit_std, frf_data, frf_error, model_frf, quick_frf_error
 from updating.diagnosis.frfscreen import frf_screen
 from updating.diagnosis.library import _nodes_of, build_library, validate_kinds
 from updating.diagnosis.release import release_screen, release_visibility
-from updating.diagnosis.screen import mci_update, rank_candidates, residual_map, residual_system
-
-from updating.diagnosis.priors import default_parameters, AT_PRIOR_Z, PRIOR_BOUND, parameter_priors, _with_damping, _split, _bounds, _fit_continued
-from updating.diagnosis.terms import _same_place, _another_explanation, MIN_FREQ_EFFECT, FRF_PICKS, MIN_DAMPING_EFFECT, DAMPING_PLACES, _distinct_places, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, cv_folds, CV_NFEV, _residual, inflation, significant_gain, n_obs, promote_measured, _on_model_dofs, _dof_stiffness, _upper, _augment, _evidence
-from updating.diagnosis.testmodes import peak_modes, suspension_band, pair_test_modes, _paired_frequencies, _mode_metrics
-from updating.diagnosis.findings import Finding, Diagnosis, statement
+from updating.diagnosis.screen import mci_update, rank_candidates, residual_system
+from updating.diagnosis.priors import default_parameters, PRIOR_BOUND, parameter_priors, _with_damping, _split, _bounds, _fit_continued
+from updating.diagnosis.terms import _another_explanation, DAMPING_PLACES, _distinct_places, cv_folds, n_obs, promote_measured, _on_model_dofs, _dof_stiffness, _upper, _augment
+from updating.diagnosis.testmodes import suspension_band
+from updating.diagnosis.findings import Finding, Diagnosis
+from updating.diagnosis.acceptance import _Acceptance
+from updating.diagnosis.proof import _Proof
 
 log = logging.getLogger(__name__)
 __all__ = ["diagnose", "Diagnoser", "DiagnoserConfig", "Diagnosis", "Finding", "default_parameters"]
@@ -96,7 +96,7 @@ class DiagnoserConfig:
             raise ModalabValueError(f"holdout={self.holdout!r}: expected 'rows', 'columns', 'lines' or None")
 
 
-class Diagnoser:
+class Diagnoser(_Acceptance, _Proof):
     """Missing-physics diagnosis as an estimator: ``Diagnoser(config).fit(model, frf)`` runs the steps
     :meth:`baseline`, :meth:`localise`, :meth:`screen` (one term at a time), :meth:`model` and :meth:`prove`
     (module docstring) and exposes ``findings_`` (list of :class:`Finding`), ``fit_`` (the fit blocks),
@@ -307,260 +307,6 @@ class Diagnoser:
         self._decide("found", c, f"{'MCI residual' if self.use_mci else 'training FRF error'} down to "
                                  f"{self.rss_cur if self.use_mci else np.sqrt(self.rss_cur):.3g}")
         return True
-
-    def _judge(self, best, n_eq: int) -> tuple[bool, str]:
-        """Whether the criterion's best option earns its place: (a) the information criterion (``penalty`` ×
-        ln N per term, ten times BIC's by default, because neighbouring lines and DOFs are far from
-        independent) on the criterion, and on the FRF criterion for a further term a drop of the training FRF
-        error by ``min_extra_gain`` (model-form error — a finer truth mesh, per-element scatter — is what a
-        small second term would otherwise absorb); (b) :func:`_term_holds`; (c) the effect on the frequencies
-        or damping (:func:`term_effect`); (d) on the FRF criterion, the cross-validation over folds
-        (:meth:`_cross_validated`).  ``n_eq`` is the number of observations of the criterion (:func:`n_obs`
-        on the FRFs)."""
-        cfg, rss_cur = self.config, self.rss_cur
-        if best is None:
-            return False, "no candidate could be fitted"
-        if not (best[1] < rss_cur and n_eq * np.log(rss_cur / max(best[1], 1e-300)) > cfg.penalty * np.log(n_eq)):
-            return False, "fails the information criterion"
-        if not self.use_mci and self.current and np.sqrt(best[1]) > np.sqrt(rss_cur) * (1 - cfg.min_extra_gain):
-            return False, (f"a further term lowering the training FRF error by less than "
-                           f"{100 * cfg.min_extra_gain:.0f} % ({100 * (1 - np.sqrt(best[1] / rss_cur)):.2g} %)")
-        ok, why = _term_holds(self.pm_cur, self.p_cur, best[2], best[3], self.train, self.held, cfg.penalty,
-                              cfg.min_holdout_gain)
-        ok, why = self._effect_ok(ok, why, best[2], best[3], best[0])
-        if ok and not self.use_mci:
-            ok, cv = self._cross_validated((self.pm_cur, self.p_cur, self.lo_cur, self.hi_cur), best[2:6])
-            why += "; " + cv
-        return ok, why
-
-    def _effect_ok(self, ok: bool, why: str, pm_new, p_new, c) -> tuple[bool, str]:
-        """Test (c) of :meth:`_judge`: the term moves an in-band natural frequency by
-        :data:`MIN_FREQ_EFFECT` or adds :data:`MIN_DAMPING_EFFECT` of the background modal damping."""
-        if not ok:
-            return ok, why
-        df, deta = term_effect(pm_new, p_new, len(self.params), c, self.band)
-        why += f"; effect: frequencies {100 * df:.2g} %, damping {100 * deta:.2g} % of the background"
-        if df < MIN_FREQ_EFFECT and deta < MIN_DAMPING_EFFECT:
-            return False, why + (f": below {100 * MIN_FREQ_EFFECT:.1f} % in frequency and "
-                                 f"{100 * MIN_DAMPING_EFFECT:.0f} % in damping, the size of model-form error")
-        return True, why
-
-    def _frf_ref(self):
-        """The current model fitted on the training FRFs, ``(pm, FitResult)``: the parameter-only fit before
-        any term; after a term accepted on the MCI, its FRF fit from the MCI solution."""
-        if self._frf_cur is None:
-            fr = self._fit(self.pm_cur, self.train, self.p_cur, lower=self.lo_cur, upper=self.hi_cur,
-                           max_nfev=self.config.max_nfev)
-            self._frf_cur = (self.pm_cur, fr)
-        return self._frf_cur
-
-    def _judge_picks(self, it: int, n_eq_mci: int, rival=None, mci_best=None):
-        """The exact FRF screening's picks judged on the FRFs (MCI criterion, when the MCI's best failed).
-
-        The best pick of each screening (around the nominal and the updated parameters: updating may have
-        bent the parameters to hide the effect) and the best pick of another kind of physics — at most
-        :data:`FRF_PICKS` — are fitted with the parameters on the training FRFs from the screening's value;
-        the one with the lowest error is judged against the current model's FRF fit by the tests of
-        :meth:`_judge` on the FRF criterion.  Candidates of the same screening whose single-term error is
-        within the information criterion's margin, elsewhere, make the finding ambiguous.  Returns
-        ``(candidate, alternatives)`` with the state updated, or None.
-
-        ``rival``: the MCI's best option, accepted by :meth:`_judge` (``(candidate, criterion, pm, p, lower,
-        upper)``).  It is fitted on the training FRFs too (kept as ``_rival_fit``), and a pick replaces it only
-        when its training FRF error is lower by the information criterion (N ln(e_rival²/e_pick²) > ``penalty``
-        ln N, N = :func:`n_obs`) and it passes the tests the rival passed (:meth:`_judge_pick` with ``supported``);
-        else None (the rival stands).  ``mci_best``: the candidate the MCI ranked and fitted best, rejected by
-        :meth:`_judge` (its MCI-optimal value can be far from the FRFs'); the same candidate picked here is
-        supported by the MCI too, so it is judged like a supported pick."""
-        cfg, n = self.config, len(self.params)
-        have = {c.key for c in self.current}
-        self._rival_fit = None
-        if rival is not None:
-            have = have | {rival[0].key}
-            self._rival_fit = self._fit(rival[2], self.train, rival[3], lower=rival[4], upper=rival[5],
-                                        max_nfev=max(8, cfg.max_nfev // 2))
-            log.info("the MCI's choice %s fitted on the FRFs: error %.4g", rival[0].label, self._rival_fit.error)
-        picks, kinds = [], set()
-        # a screening gain g passes the information criterion of the FRF route when N ln(1/(1−g)²) exceeds
-        # penalty × ln N: the picks are the candidates whose single-term gain alone could pass it
-        n_f = n_obs(self.train)
-        g_min = 1.0 - np.exp(-cfg.penalty * np.log(n_f) / (2.0 * n_f))
-        for k, (scr, p_scr) in enumerate(self._screens):
-            top = [t for t in scr if t[0].key not in have and t[2] > g_min]
-            if top and top[0][0].key not in {c.key for c, *_ in picks}:
-                picks.append((top[0][0], top[0][1], p_scr, k))
-                kinds.add(top[0][0].physics)
-        other = sorted(((t, p_scr, k) for k, (scr, p_scr) in enumerate(self._screens) for t in scr
-                        if t[0].key not in have and t[2] > g_min and t[0].physics not in kinds),
-                       key=lambda x: -x[0][2])
-        if other:
-            (c, v, _), p_scr, k = other[0]
-            picks.append((c, v, p_scr, k))
-        if not picks:
-            return None
-        pm_ref, ref = self._frf_ref()
-        tried = []
-        for c, v, p_scr, k in picks[:FRF_PICKS]:
-            pm_aug, fr, clo, chi, scale = self._fit_pick(c, v, p_scr)
-            log.info("screening pick %s fitted on the FRFs: error %.4g (current %.4g)", c.label, fr.error, ref.error)
-            tried.append((fr.error, c, pm_aug, fr, clo, chi, k, scale))
-        err, c, pm_aug, fr, clo, chi, k, _ = min(tried, key=lambda t: t[0])
-        n_eq = n_obs(self.train)
-        if rival is not None:
-            e_r = self._rival_fit.error
-            if not (err < e_r and n_eq * np.log(e_r ** 2 / max(err ** 2, 1e-300)) > cfg.penalty * np.log(n_eq)):
-                log.info("screening pick %s (FRF error %.4g) does not beat the MCI's choice %s (%.4g)", c.label, err,
-                         rival[0].label, e_r)
-                return None
-        supported = rival is not None or (mci_best is not None and c.key == mci_best.key)
-        ok, why = self._judge_pick(c, pm_aug, fr, clo, chi, supported=supported)
-        log.info("screening pick %s on the FRFs: %s", c.label, why)
-        if not ok:
-            self._decide("rejected", c, why)
-            return None
-        # the MCI state of the augmented model for the next term's criterion (minimised like every candidate's);
-        # the screenings and fits start from the FRF fit
-        free = np.concatenate([self.free_mci, np.ones(len(self.current) + 1, bool)])
-        _, self.rss_cur, _ = mci_update(pm_aug, fr.p, self.train, clo, chi, weights=self.W,
-                                        iters=3 if self.large else 6, free=free)
-        self.pm_cur, self.p_cur, self.lo_cur, self.hi_cur = pm_aug, fr.p, clo, chi
-        self._frf_cur = (pm_aug, fr)
-        scr = self._screens[k][0]
-        g_c = next(g for o, _, g in scr if o.key == c.key)
-        self._route[c.key] = (g_c, False, [(o, v, g) for o, v, g in scr if set(o.nodes) & set(c.nodes)
-                                            and o.key != c.key])
-        # equally good single-term explanations elsewhere in the same screening (χ² within the margin)
-        e_c = (1 - g_c) ** 2
-        margin = e_c * cfg.penalty * np.log(n_eq) / n_eq
-        m_now = pm_aug.model_at(fr.p)
-        alts = [(o, v) for o, v, g in scr if o.key != c.key and o.key not in have
-                and (1 - g) ** 2 - e_c <= margin and _another_explanation(o, c, m_now)]
-        return c, alts + self._fitted_alternatives(c, err, k, tried, alts, m_now, n_eq)
-
-    def _fitted_alternatives(self, c, err_c: float, k: int, tried: list, alts: list, m_now, n_eq: int) -> list:
-        """Explanations elsewhere that fit the FRFs as well as the accepted pick ``c`` once the parameters are
-        re-fitted with them (training error within the information criterion's margin: ``n_eq`` ln(e_o²/e_c²)
-        ≤ ``penalty`` ln ``n_eq``): the other picks already fitted (``tried``), and the competitors of
-        ``c``'s screening whose single-term error (parameters fixed) is within four margins of ``c``'s, at most
-        :data:`FRF_PICKS` − 1 of them, fitted like the pick.  The screening alone cannot tell: parameters
-        re-fitted with a term absorb part of what separated it from its neighbours (the same release at the two
-        ends of a symmetric frame's rail differs by a fraction of a percent once the moduli are free).
-        Returns ``[(candidate, value)]``."""
-        cfg, n = self.config, len(self.params)
-        need = cfg.penalty * np.log(n_eq)
-        seen = {o.key for o, _ in alts} | {c.key} | {x.key for x in self.current}
-        out = []
-        for err, o, _, fr, *_, scale in tried:
-            if o.key not in seen and n_eq * np.log(max(err, 1e-300) ** 2 / max(err_c, 1e-300) ** 2) <= need \
-                    and _another_explanation(o, c, m_now):
-                out.append((o, float(fr.p[-1] * scale)))
-                seen.add(o.key)
-        scr, p_scr = self._screens[k]
-        g_c = next(g for o, _, g in scr if o.key == c.key)
-        close = [(o, v) for o, v, g in scr if o.key not in seen and _another_explanation(o, c, m_now)
-                 and n_eq * np.log(max(1 - g, 1e-300) ** 2 / max(1 - g_c, 1e-300) ** 2) <= 4 * need]
-        for o, v in close[:FRF_PICKS - 1]:
-            m_aug, cpar, scales = _augment(self.model0, self.current + [o])
-            pm_aug = ParametricFEModel(m_aug, self.params + cpar)
-            clo = np.concatenate([self.lo, np.zeros(len(cpar))])
-            chi = np.concatenate([self.hi, _upper(self.current + [o], scales)])
-            start = np.concatenate([p_scr[:n], self.p_cur[n:-1], [min(v, getattr(o, "upper", np.inf)) / scales[-1]]])
-            fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
-                           max_nfev=max(8, cfg.max_nfev // 2))
-            log.info("competitor %s of %s fitted on the FRFs: error %.4g (%.4g)", o.label, c.label, fr.error, err_c)
-            if n_eq * np.log(max(fr.error, 1e-300) ** 2 / max(err_c, 1e-300) ** 2) <= need:
-                out.append((o, float(fr.p[-1] * scales[-1])))
-        return out
-
-    def _fit_pick(self, c, v, p_scr):
-        """The current terms plus ``c`` fitted with the parameters on the training FRFs, from the parameters
-        ``p_scr`` and the value ``v`` (a screening's): ``(pm_aug, FitResult, lower, upper, scale)``, ``scale``
-        the factor from ``c``'s fitted parameter (the last) to its physical value."""
-        m_aug, cpar, scales = _augment(self.model0, self.current + [c])
-        pm_aug = ParametricFEModel(m_aug, self.params + cpar)
-        clo = np.concatenate([self.lo, np.zeros(len(cpar))])
-        chi = np.concatenate([self.hi, _upper(self.current + [c], scales)])
-        start = np.concatenate([p_scr, [min(v, getattr(c, "upper", np.inf)) / scales[-1]]])
-        fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
-                       max_nfev=max(8, self.config.max_nfev // 2))
-        return pm_aug, fr, clo, chi, scales[-1]
-
-    def _judge_pick(self, c, pm_aug, fr, clo, chi, supported: bool = False) -> tuple[bool, str]:
-        """The tests of :meth:`_judge` on the FRF criterion for a pick fitted by :meth:`_fit_pick` (bounds
-        ``clo``, ``chi``), against the current model's FRF fit: the information criterion, :func:`_term_holds`,
-        the reduced χ² the pick must leave (:data:`PICK_MAX_REDUCED_CHI2`), the effect, and the
-        cross-validation over folds (:meth:`_cross_validated`).  ``supported``: the MCI accepted a term here
-        (the pick competes with it, :meth:`_judge_picks`) or ranked the pick itself best, so the pick is not a
-        rescue of an unsupported residual and the reduced-χ² limit, which only guards such rescues, does not apply — the pick passes
-        the same tests as the MCI's term it replaces."""
-        cfg = self.config
-        pm_ref, ref = self._frf_ref()
-        err, n_eq = fr.error, n_obs(self.train)
-        if not (err < ref.error and n_eq * np.log(ref.error ** 2 / max(err ** 2, 1e-300)) > cfg.penalty * np.log(n_eq)):
-            return False, "fails the information criterion on the FRFs"
-        if self.current and err > ref.error * (1 - cfg.min_extra_gain):
-            return False, (f"a further term lowering the training FRF error by less than "
-                           f"{100 * cfg.min_extra_gain:.0f} % ({100 * (1 - err / ref.error):.2g} %)")
-        ok, why = _term_holds(pm_ref, ref.p, pm_aug, fr.p, self.train, self.held, cfg.penalty, cfg.min_holdout_gain)
-        if ok and not supported:
-            # a pick the linearised criterion did not support must explain the residual, not only reduce it
-            st = pm_aug.structure(fr.p)
-            red = max(c1 / n1 for c1, n1 in (_chi2(st, self.train), _chi2(st, self.held)))
-            if red > PICK_MAX_REDUCED_CHI2:
-                ok = False
-                why += (f"; χ²/N {red:.3g} left, above {PICK_MAX_REDUCED_CHI2:g}: the term reduces a residual "
-                        "that stays far above the noise (model-form error it would absorb)")
-        ok, why = self._effect_ok(ok, why, pm_aug, fr.p, c)
-        if ok:
-            lo_ref, hi_ref = (self.lo, self.hi) if pm_ref is self.pm else (self.lo_cur, self.hi_cur)
-            ok, cv = self._cross_validated((pm_ref, ref.p, lo_ref, hi_ref), (pm_aug, fr.p, clo, chi))
-            why += "; " + cv
-        return ok, why
-
-    def _fold_fits(self, pm, p, lo, hi) -> list:
-        """``pm`` fitted (from ``p``) on the training part of every cross-validation fold (:func:`cv_folds`),
-        its residual on the fold's held-out part (noise units): ``[residual]``, one per fold.  The fold of the
-        diagnosis' own split reuses ``p`` (fitted on that training part); the others start from ``p`` with
-        :data:`~updating.diagnosis.terms.CV_NFEV` evaluations.  Cached per model and parameters (the reference
-        is judged against several candidates)."""
-        key = (id(pm), np.asarray(p, float).tobytes())
-        cache = self.__dict__.setdefault("_cv_cache", {})
-        if key in cache:
-            return cache[key][1]
-        out = []
-        for tr, he, _ in self._folds:
-            if [str(d) for d in he.responses] == [str(d) for d in self.held.responses] and \
-                    [str(d) for d in he.references] == [str(d) for d in self.held.references] and \
-                    he.H.shape == self.held.H.shape:
-                pf = np.asarray(p, float)
-            else:
-                pf = self._fit(pm, tr, np.clip(p, lo, hi), lower=lo, upper=hi, max_nfev=CV_NFEV).p
-            out.append(_residual(pm.structure(pf), he))
-        cache[key] = (pm, out)                    # the model is kept alive with its key
-        return out
-
-    def _cross_validated(self, ref, new) -> tuple[bool, str]:
-        """The term of ``new`` against the model ``ref`` (each ``(pm, p, lower, upper)``, fitted on the
-        training FRFs) judged by :data:`~updating.diagnosis.terms.CV_FOLDS`-fold cross-validation: both are
-        re-fitted without each fold, and the χ² of their predictions of the held-out folds — every held-out
-        value predicted once, by a model that did not see it — must fall significantly
-        (:func:`significant_gain`, the test of :func:`_term_holds` with the same N).  This replaces one split's
-        luck and the former threshold on the training gain of a first term (``min_gain``, 5 %): a term that only
-        fits the noise or model-form error of the fitted rows does not predict the rows it did not see."""
-        r0 = self._fold_fits(*ref)
-        r1 = self._fold_fits(*new)
-        c0 = float(sum(np.sum(np.abs(r) ** 2) for r in r0))
-        c1 = float(sum(np.sum(np.abs(r) ** 2) for r in r1))
-        n = int(sum(2 * r.size for r in r1))
-        infl = float(np.average([inflation(r) for r in r1], weights=[max(np.sum(np.abs(r) ** 2), 1e-300)
-                                                                        for r in r1]))
-        ok, stat, need = significant_gain(c0, c1, n, infl, self.config.penalty)
-        worse = sum(float(np.sum(np.abs(b) ** 2)) > float(np.sum(np.abs(a) ** 2)) for a, b in zip(r0, r1))
-        why = (f"cross-validated over {len(r1)} folds: χ²/N {c0 / n:.3g} -> {c1 / n:.3g} (statistic {stat:.3g}, "
-               f"needed {need:.3g}; worse on {worse} fold(s))")
-        if not ok:
-            return False, why + ": not significant on data the fits did not see"
-        return True, why
 
     def _library(self, model: FEModel) -> list:
         """The candidates of :func:`build_library` for ``model``; on a free model of a test article on a
@@ -795,133 +541,6 @@ class Diagnoser:
         return True
 
     # ------------------------------------------------------------------ step 6
-    def prove(self) -> Diagnosis:
-        """Nominal, parameter-only and augmented models on the held-out FRFs and the test modes; the findings."""
-        cfg = self.config
-        self._say("step 6/6: comparing nominal, parameter-only and augmented models on held-out data")
-        t1 = time.perf_counter()
-        test_modes, modes_source = cfg.test_modes, "given test modes"
-        if test_modes is None:
-            try:
-                test_modes, modes_source = peak_modes(self.measured, band_hz=cfg.band_hz), "peaks of the measured FRFs"
-            except ModalabError as e:
-                log.info("no test modes: %s", e)
-                modes_source = None
-        self.test_modes = test_modes
-
-        def metrics(pmodel, p):
-            st = pmodel.structure(p)
-            out = {"frf_error_held_out": frf_error(model_frf(st, self.held), self.held),
-                   "frf_error_train": frf_error(model_frf(st, self.train), self.train)}
-            out.update(_mode_metrics(st, test_modes))
-            out["chi2_per_value_held_out"] = chi2_per_value(out["frf_error_held_out"], self.held)
-            out["chi2_per_value_train"] = chi2_per_value(out["frf_error_train"], self.train)
-            return out
-
-        fit_blocks = {"nominal": metrics(self.pm, self.p_nomd), "parameters_only": metrics(self.pm, self.upd.p)}
-        fit_blocks["with_physics"] = metrics(self.best_pm, self.best_fit.p) if self.current else \
-            dict(fit_blocks["parameters_only"])
-        pairing = {}
-        if test_modes is not None:
-            for key, (pmod, pv) in (("nominal", (self.pm, self.p_nomd)), ("parameters_only", (self.pm, self.upd.p)),
-                                    ("with_physics", (self.best_pm, self.best_fit.p))):
-                pr = pair_test_modes(pmod.structure(pv), test_modes)
-                pairing[key] = {"pairs": [{"model_hz": fm, "test_hz": float(test_modes.freq_hz[t]), "mac": mc,
-                                           "freq_error_pct": fe}
-                                          for (fm, t), mc, fe in zip(pr["pairs"], pr["mac"], pr["freq_error_pct"])],
-                                "unpaired_test_hz": pr["unpaired_test_hz"], "excluded_test_hz": pr["excluded_test_hz"],
-                                "excluded_model_hz": pr["excluded_model_hz"], "cutoff_hz": pr["cutoff_hz"]}
-        if self.current and fit_blocks["with_physics"]["frf_error_held_out"] > \
-                fit_blocks["parameters_only"]["frf_error_held_out"] * (1 - cfg.min_holdout_gain):
-            log.info("augmentation did not improve held-out data enough; reporting no missing physics")
-            self.current, self.best_fit, self.best_pm, self.best_scales = [], self.upd, self.pm, []
-            fit_blocks["with_physics"] = dict(fit_blocks["parameters_only"])
-        self.timings["6 proof"] = time.perf_counter() - t1
-        findings = self._findings()
-        steps_modes = {"test_modes": modes_source, "test_freq_hz": [float(x) for x in test_modes.freq_hz]} \
-            if modes_source else {}
-        st_upd, st_fin = self.pm.structure(self.upd.p), self.best_pm.structure(self.best_fit.p)
-        maps = {"freq_hz": self.train.freq_hz, "responses": [str(d) for d in self.train.responses],
-                "before": residual_map(st_upd, self.train), "after": residual_map(st_fin, self.train)}
-        final_model = self.best_pm.model_at(self.best_fit.p) if hasattr(self.best_pm, "model_at") else self.model0
-        try:
-            curves, freqs = self._overlays(findings)
-        except (ModalabError, np.linalg.LinAlgError) as e:  # pragma: no cover - figures are a by-product
-            log.warning("FRF overlays/frequency table not prepared: %s", e)
-            curves, freqs = {}, {}
-        diag = Diagnosis(findings=findings, parameters=self._parameters(), fit=fit_blocks,
-                         statement=statement(findings, fit_blocks, self.held_desc, self.not_evaluated,
-                                             self.unobservable),
-                         model=final_model, not_evaluated=list(self.not_evaluated),
-                         unobservable=list(self.unobservable), decisions=list(self.decisions),
-                         parametric=self.best_pm, p=self.best_fit.p,
-                         steps={"held_out": self.held_desc, "band_hz": self.band, "hot_nodes": self.hot_nodes,
-                                "suspension_below_hz": self.suspension_hz,
-                                "n_candidates": self.n_lib, **steps_modes},
-                         maps=maps, timings=self.timings, ranking=self.ranking or [], curves=curves, frequencies=freqs,
-                         pairing=pairing)
-        self.timings["total"] = time.perf_counter() - self._t0
-        return diag
-
-    def _findings(self) -> list:
-        n_par, findings, ranking = len(self.params), [], self.ranking or []
-        m_fin = self.best_pm.model_at(self.best_fit.p) if self.current else self.model0
-        for k, (c, scale) in enumerate(zip(self.current, self.best_scales)):
-            val = self.best_fit.p[n_par + k] * scale
-            std = self.best_fit.std[n_par + k] * scale
-            # a term of the same physics next to an earlier finding refines it (a mass between two nodes is
-            # lumped on both): one finding with two parts, not two findings
-            host = next((f for f in findings if f.candidate.physics == c.physics and
-                         _same_place(f.candidate, c, m_fin)), None)
-            if host is not None:
-                host.parts.append((c, float(val), float(std)))
-                continue
-            gain, by_mci, same = self._route.get(c.key, (0.0, self.use_mci, None))
-            if same is None:
-                same = [(o, t, g) for o, t, g in ranking if set(o.nodes) & set(c.nodes) and o.key != c.key]
-            findings.append(Finding(c, float(val), float(std), _evidence(c, gain, same, self.band, by_mci), gain,
-                                    alternatives=list(self.alternatives.get(c.key, []))))
-        return findings
-
-    def _parameters(self) -> dict:
-        pars, fit, upd = {}, self.best_fit, self.upd
-        z_fin, z_upd = self.prior.z(fit.p), self.prior.z(upd.p)
-        for k, par in enumerate(self.params):
-            pars[par.name] = {"initial": float(self.p_nomd[k]), "updated": float(fit.p[k]),
-                              "parameters_only": float(upd.p[k]),
-                              "std": float(fit.std[k]) if np.isfinite(fit.std[k]) else None, "mode": par.mode,
-                              "prior_std": float(self.psig[k]) if np.isfinite(self.psig[k]) else None,
-                              "prior_z": float(z_fin[k]), "at_prior": bool(abs(z_fin[k]) > AT_PRIOR_Z)}
-            if abs(z_fin[k]) > AT_PRIOR_Z or abs(z_upd[k]) > AT_PRIOR_Z:
-                log.warning("parameter %s runs into its prior (mean %.4g, std %.3g): %.4g in the final fit (%+.1f std), "
-                            "%.4g with parameters only (%+.1f std); the model may miss something the candidates do "
-                            "not cover", par.name, self.pmean[k], self.psig[k], fit.p[k], z_fin[k], upd.p[k], z_upd[k])
-        return pars
-
-    def _overlays(self, findings) -> tuple[dict, dict]:
-        """FRF overlays at the located DOFs (findings' measured DOFs, else the worst-fitting nodes) and the
-        paired frequencies of the three models, for the report's figures."""
-        data, test_modes = self.data, self.test_modes
-        st_nom, st_par = self.pm.structure(self.p_nomd), self.pm.structure(self.upd.p)
-        st_phys = self.best_pm.structure(self.best_fit.p)
-        want = [d for f in findings for d in f.candidate.dofs] + [f"{n}+Z" for n in self.hot_nodes]
-        labels = [str(r) for r in data.responses]
-        rows = []
-        for w in want:
-            hit = [i for i, lbl in enumerate(labels) if lbl == w or lbl.split("+")[0].split("-")[0] == w.split("+")[0]]
-            rows += [i for i in hit if i not in rows]
-        rows = rows[:3] or [0]
-        H = {"measured": data.H, "nominal": model_frf(st_nom, data), "parameters_only": model_frf(st_par, data),
-             "with_physics": model_frf(st_phys, data)}
-        curves = {"freq_hz": data.freq_hz, "pairs": [(f"{labels[i]} / {data.references[0]}",
-                                                      {k: v[i, 0] for k, v in H.items()}) for i in rows]}
-        nm = len(test_modes.freq_hz) + 2 if test_modes is not None else 8
-        freqs = {key: _paired_frequencies(stx, test_modes, nm, self.band)
-                 for key, stx in (("nominal", st_nom), ("parameters_only", st_par), ("with_physics", st_phys))}
-        freqs["test"] = [float(x) for x in test_modes.freq_hz] if test_modes is not None else []
-        return curves, freqs
-
-
 def diagnose(model: FEModel, measured: FRF, **kw) -> Diagnosis:
     """Locate what an FE model leaves out, name it, model it and prove it on held-out data (module docstring):
     ``Diagnoser(DiagnoserConfig(**kw)).fit(model, measured).diagnosis_``."""

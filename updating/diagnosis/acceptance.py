@@ -1,0 +1,282 @@
+"""The acceptance of a term in the diagnosis (step 3 of :mod:`~updating.diagnosis.workflow`): the tests a
+candidate must pass to become a finding — the information criterion and the significance of its gain on the
+training and held-out FRFs (:meth:`_Acceptance._judge`), its effect on natural frequencies or damping beyond
+model-form error (:meth:`_Acceptance._effect_ok`), the exact FRF screening's picks against the MCI's choice
+(:meth:`_Acceptance._judge_picks`), other explanations fitted as alternatives (ambiguity) and the
+cross-validation over folds (:meth:`_Acceptance._cross_validated`).  Split out of ``workflow.py`` as a mixin
+of :class:`~updating.diagnosis.workflow.Diagnoser`: the methods read and write the diagnoser's state."""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from updating.fe import ParametricFEModel
+from updating.diagnosis.screen import mci_update
+from updating.diagnosis.terms import _another_explanation, MIN_FREQ_EFFECT, FRF_PICKS, MIN_DAMPING_EFFECT, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, CV_NFEV, _residual, inflation, significant_gain, n_obs, _upper, _augment
+
+log = logging.getLogger(__name__)
+
+
+class _Acceptance:
+    """The acceptance tests of :class:`~updating.diagnosis.workflow.Diagnoser` (a mixin)."""
+
+    def _judge(self, best, n_eq: int) -> tuple[bool, str]:
+        """Whether the criterion's best option earns its place: (a) the information criterion (``penalty`` ×
+        ln N per term, ten times BIC's by default, because neighbouring lines and DOFs are far from
+        independent) on the criterion, and on the FRF criterion for a further term a drop of the training FRF
+        error by ``min_extra_gain`` (model-form error — a finer truth mesh, per-element scatter — is what a
+        small second term would otherwise absorb); (b) :func:`_term_holds`; (c) the effect on the frequencies
+        or damping (:func:`term_effect`); (d) on the FRF criterion, the cross-validation over folds
+        (:meth:`_cross_validated`).  ``n_eq`` is the number of observations of the criterion (:func:`n_obs`
+        on the FRFs)."""
+        cfg, rss_cur = self.config, self.rss_cur
+        if best is None:
+            return False, "no candidate could be fitted"
+        if not (best[1] < rss_cur and n_eq * np.log(rss_cur / max(best[1], 1e-300)) > cfg.penalty * np.log(n_eq)):
+            return False, "fails the information criterion"
+        if not self.use_mci and self.current and np.sqrt(best[1]) > np.sqrt(rss_cur) * (1 - cfg.min_extra_gain):
+            return False, (f"a further term lowering the training FRF error by less than "
+                           f"{100 * cfg.min_extra_gain:.0f} % ({100 * (1 - np.sqrt(best[1] / rss_cur)):.2g} %)")
+        ok, why = _term_holds(self.pm_cur, self.p_cur, best[2], best[3], self.train, self.held, cfg.penalty,
+                              cfg.min_holdout_gain)
+        ok, why = self._effect_ok(ok, why, best[2], best[3], best[0])
+        if ok and not self.use_mci:
+            ok, cv = self._cross_validated((self.pm_cur, self.p_cur, self.lo_cur, self.hi_cur), best[2:6])
+            why += "; " + cv
+        return ok, why
+
+    def _effect_ok(self, ok: bool, why: str, pm_new, p_new, c) -> tuple[bool, str]:
+        """Test (c) of :meth:`_judge`: the term moves an in-band natural frequency by
+        :data:`MIN_FREQ_EFFECT` or adds :data:`MIN_DAMPING_EFFECT` of the background modal damping."""
+        if not ok:
+            return ok, why
+        df, deta = term_effect(pm_new, p_new, len(self.params), c, self.band)
+        why += f"; effect: frequencies {100 * df:.2g} %, damping {100 * deta:.2g} % of the background"
+        if df < MIN_FREQ_EFFECT and deta < MIN_DAMPING_EFFECT:
+            return False, why + (f": below {100 * MIN_FREQ_EFFECT:.1f} % in frequency and "
+                                 f"{100 * MIN_DAMPING_EFFECT:.0f} % in damping, the size of model-form error")
+        return True, why
+
+    def _frf_ref(self):
+        """The current model fitted on the training FRFs, ``(pm, FitResult)``: the parameter-only fit before
+        any term; after a term accepted on the MCI, its FRF fit from the MCI solution."""
+        if self._frf_cur is None:
+            fr = self._fit(self.pm_cur, self.train, self.p_cur, lower=self.lo_cur, upper=self.hi_cur,
+                           max_nfev=self.config.max_nfev)
+            self._frf_cur = (self.pm_cur, fr)
+        return self._frf_cur
+
+    def _judge_picks(self, it: int, n_eq_mci: int, rival=None, mci_best=None):
+        """The exact FRF screening's picks judged on the FRFs (MCI criterion, when the MCI's best failed).
+
+        The best pick of each screening (around the nominal and the updated parameters: updating may have
+        bent the parameters to hide the effect) and the best pick of another kind of physics — at most
+        :data:`FRF_PICKS` — are fitted with the parameters on the training FRFs from the screening's value;
+        the one with the lowest error is judged against the current model's FRF fit by the tests of
+        :meth:`_judge` on the FRF criterion.  Candidates of the same screening whose single-term error is
+        within the information criterion's margin, elsewhere, make the finding ambiguous.  Returns
+        ``(candidate, alternatives)`` with the state updated, or None.
+
+        ``rival``: the MCI's best option, accepted by :meth:`_judge` (``(candidate, criterion, pm, p, lower,
+        upper)``).  It is fitted on the training FRFs too (kept as ``_rival_fit``), and a pick replaces it only
+        when its training FRF error is lower by the information criterion (N ln(e_rival²/e_pick²) > ``penalty``
+        ln N, N = :func:`n_obs`) and it passes the tests the rival passed (:meth:`_judge_pick` with ``supported``);
+        else None (the rival stands).  ``mci_best``: the candidate the MCI ranked and fitted best, rejected by
+        :meth:`_judge` (its MCI-optimal value can be far from the FRFs'); the same candidate picked here is
+        supported by the MCI too, so it is judged like a supported pick."""
+        cfg = self.config
+        have = {c.key for c in self.current}
+        self._rival_fit = None
+        if rival is not None:
+            have = have | {rival[0].key}
+            self._rival_fit = self._fit(rival[2], self.train, rival[3], lower=rival[4], upper=rival[5],
+                                        max_nfev=max(8, cfg.max_nfev // 2))
+            log.info("the MCI's choice %s fitted on the FRFs: error %.4g", rival[0].label, self._rival_fit.error)
+        picks = self._screening_picks(have)
+        if not picks:
+            return None
+        pm_ref, ref = self._frf_ref()
+        tried = []
+        for c, v, p_scr, k in picks[:FRF_PICKS]:
+            pm_aug, fr, clo, chi, scale = self._fit_pick(c, v, p_scr)
+            log.info("screening pick %s fitted on the FRFs: error %.4g (current %.4g)", c.label, fr.error, ref.error)
+            tried.append((fr.error, c, pm_aug, fr, clo, chi, k, scale))
+        err, c, pm_aug, fr, clo, chi, k, _ = min(tried, key=lambda t: t[0])
+        n_eq = n_obs(self.train)
+        if rival is not None:
+            e_r = self._rival_fit.error
+            if not (err < e_r and n_eq * np.log(e_r ** 2 / max(err ** 2, 1e-300)) > cfg.penalty * np.log(n_eq)):
+                log.info("screening pick %s (FRF error %.4g) does not beat the MCI's choice %s (%.4g)", c.label, err,
+                         rival[0].label, e_r)
+                return None
+        supported = rival is not None or (mci_best is not None and c.key == mci_best.key)
+        ok, why = self._judge_pick(c, pm_aug, fr, clo, chi, supported=supported)
+        log.info("screening pick %s on the FRFs: %s", c.label, why)
+        if not ok:
+            self._decide("rejected", c, why)
+            return None
+        # the MCI state of the augmented model for the next term's criterion (minimised like every candidate's);
+        # the screenings and fits start from the FRF fit
+        free = np.concatenate([self.free_mci, np.ones(len(self.current) + 1, bool)])
+        _, self.rss_cur, _ = mci_update(pm_aug, fr.p, self.train, clo, chi, weights=self.W,
+                                        iters=3 if self.large else 6, free=free)
+        self.pm_cur, self.p_cur, self.lo_cur, self.hi_cur = pm_aug, fr.p, clo, chi
+        self._frf_cur = (pm_aug, fr)
+        scr = self._screens[k][0]
+        g_c = next(g for o, _, g in scr if o.key == c.key)
+        self._route[c.key] = (g_c, False, [(o, v, g) for o, v, g in scr if set(o.nodes) & set(c.nodes)
+                                            and o.key != c.key])
+        # equally good single-term explanations elsewhere in the same screening (χ² within the margin)
+        e_c = (1 - g_c) ** 2
+        margin = e_c * cfg.penalty * np.log(n_eq) / n_eq
+        m_now = pm_aug.model_at(fr.p)
+        alts = [(o, v) for o, v, g in scr if o.key != c.key and o.key not in have
+                and (1 - g) ** 2 - e_c <= margin and _another_explanation(o, c, m_now)]
+        return c, alts + self._fitted_alternatives(c, err, k, tried, alts, m_now, n_eq)
+
+    def _screening_picks(self, have: set) -> list:
+        """``[(candidate, value, screening parameters, screening index)]``: the best candidate of each exact
+        FRF screening not in ``have``, then the best one of another kind of physics.  A screening gain g passes
+        the information criterion of the FRF route when N ln(1/(1−g)²) exceeds ``penalty`` × ln N: the picks
+        are the candidates whose single-term gain alone could pass it."""
+        picks, kinds = [], set()
+        n_f = n_obs(self.train)
+        g_min = 1.0 - np.exp(-self.config.penalty * np.log(n_f) / (2.0 * n_f))
+        for k, (scr, p_scr) in enumerate(self._screens):
+            top = [t for t in scr if t[0].key not in have and t[2] > g_min]
+            if top and top[0][0].key not in {c.key for c, *_ in picks}:
+                picks.append((top[0][0], top[0][1], p_scr, k))
+                kinds.add(top[0][0].physics)
+        other = sorted(((t, p_scr, k) for k, (scr, p_scr) in enumerate(self._screens) for t in scr
+                        if t[0].key not in have and t[2] > g_min and t[0].physics not in kinds),
+                       key=lambda x: -x[0][2])
+        if other:
+            (c, v, _), p_scr, k = other[0]
+            picks.append((c, v, p_scr, k))
+        return picks
+
+    def _fitted_alternatives(self, c, err_c: float, k: int, tried: list, alts: list, m_now, n_eq: int) -> list:
+        """Explanations elsewhere that fit the FRFs as well as the accepted pick ``c`` once the parameters are
+        re-fitted with them (training error within the information criterion's margin: ``n_eq`` ln(e_o²/e_c²)
+        ≤ ``penalty`` ln ``n_eq``): the other picks already fitted (``tried``), and the competitors of
+        ``c``'s screening whose single-term error (parameters fixed) is within four margins of ``c``'s, at most
+        :data:`FRF_PICKS` − 1 of them, fitted like the pick.  The screening alone cannot tell: parameters
+        re-fitted with a term absorb part of what separated it from its neighbours (the same release at the two
+        ends of a symmetric frame's rail differs by a fraction of a percent once the moduli are free).
+        Returns ``[(candidate, value)]``."""
+        cfg, n = self.config, len(self.params)
+        need = cfg.penalty * np.log(n_eq)
+        seen = {o.key for o, _ in alts} | {c.key} | {x.key for x in self.current}
+        out = []
+        for err, o, _, fr, *_, scale in tried:
+            if o.key not in seen and n_eq * np.log(max(err, 1e-300) ** 2 / max(err_c, 1e-300) ** 2) <= need \
+                    and _another_explanation(o, c, m_now):
+                out.append((o, float(fr.p[-1] * scale)))
+                seen.add(o.key)
+        scr, p_scr = self._screens[k]
+        g_c = next(g for o, _, g in scr if o.key == c.key)
+        close = [(o, v) for o, v, g in scr if o.key not in seen and _another_explanation(o, c, m_now)
+                 and n_eq * np.log(max(1 - g, 1e-300) ** 2 / max(1 - g_c, 1e-300) ** 2) <= 4 * need]
+        for o, v in close[:FRF_PICKS - 1]:
+            m_aug, cpar, scales = _augment(self.model0, self.current + [o])
+            pm_aug = ParametricFEModel(m_aug, self.params + cpar)
+            clo = np.concatenate([self.lo, np.zeros(len(cpar))])
+            chi = np.concatenate([self.hi, _upper(self.current + [o], scales)])
+            start = np.concatenate([p_scr[:n], self.p_cur[n:-1], [min(v, getattr(o, "upper", np.inf)) / scales[-1]]])
+            fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
+                           max_nfev=max(8, cfg.max_nfev // 2))
+            log.info("competitor %s of %s fitted on the FRFs: error %.4g (%.4g)", o.label, c.label, fr.error, err_c)
+            if n_eq * np.log(max(fr.error, 1e-300) ** 2 / max(err_c, 1e-300) ** 2) <= need:
+                out.append((o, float(fr.p[-1] * scales[-1])))
+        return out
+
+    def _fit_pick(self, c, v, p_scr):
+        """The current terms plus ``c`` fitted with the parameters on the training FRFs, from the parameters
+        ``p_scr`` and the value ``v`` (a screening's): ``(pm_aug, FitResult, lower, upper, scale)``, ``scale``
+        the factor from ``c``'s fitted parameter (the last) to its physical value."""
+        m_aug, cpar, scales = _augment(self.model0, self.current + [c])
+        pm_aug = ParametricFEModel(m_aug, self.params + cpar)
+        clo = np.concatenate([self.lo, np.zeros(len(cpar))])
+        chi = np.concatenate([self.hi, _upper(self.current + [c], scales)])
+        start = np.concatenate([p_scr, [min(v, getattr(c, "upper", np.inf)) / scales[-1]]])
+        fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
+                       max_nfev=max(8, self.config.max_nfev // 2))
+        return pm_aug, fr, clo, chi, scales[-1]
+
+    def _judge_pick(self, c, pm_aug, fr, clo, chi, supported: bool = False) -> tuple[bool, str]:
+        """The tests of :meth:`_judge` on the FRF criterion for a pick fitted by :meth:`_fit_pick` (bounds
+        ``clo``, ``chi``), against the current model's FRF fit: the information criterion, :func:`_term_holds`,
+        the reduced χ² the pick must leave (:data:`PICK_MAX_REDUCED_CHI2`), the effect, and the
+        cross-validation over folds (:meth:`_cross_validated`).  ``supported``: the MCI accepted a term here
+        (the pick competes with it, :meth:`_judge_picks`) or ranked the pick itself best, so the pick is not a
+        rescue of an unsupported residual and the reduced-χ² limit, which only guards such rescues, does not apply — the pick passes
+        the same tests as the MCI's term it replaces."""
+        cfg = self.config
+        pm_ref, ref = self._frf_ref()
+        err, n_eq = fr.error, n_obs(self.train)
+        if not (err < ref.error and n_eq * np.log(ref.error ** 2 / max(err ** 2, 1e-300)) > cfg.penalty * np.log(n_eq)):
+            return False, "fails the information criterion on the FRFs"
+        if self.current and err > ref.error * (1 - cfg.min_extra_gain):
+            return False, (f"a further term lowering the training FRF error by less than "
+                           f"{100 * cfg.min_extra_gain:.0f} % ({100 * (1 - err / ref.error):.2g} %)")
+        ok, why = _term_holds(pm_ref, ref.p, pm_aug, fr.p, self.train, self.held, cfg.penalty, cfg.min_holdout_gain)
+        if ok and not supported:
+            # a pick the linearised criterion did not support must explain the residual, not only reduce it
+            st = pm_aug.structure(fr.p)
+            red = max(c1 / n1 for c1, n1 in (_chi2(st, self.train), _chi2(st, self.held)))
+            if red > PICK_MAX_REDUCED_CHI2:
+                ok = False
+                why += (f"; χ²/N {red:.3g} left, above {PICK_MAX_REDUCED_CHI2:g}: the term reduces a residual "
+                        "that stays far above the noise (model-form error it would absorb)")
+        ok, why = self._effect_ok(ok, why, pm_aug, fr.p, c)
+        if ok:
+            lo_ref, hi_ref = (self.lo, self.hi) if pm_ref is self.pm else (self.lo_cur, self.hi_cur)
+            ok, cv = self._cross_validated((pm_ref, ref.p, lo_ref, hi_ref), (pm_aug, fr.p, clo, chi))
+            why += "; " + cv
+        return ok, why
+
+    def _fold_fits(self, pm, p, lo, hi) -> list:
+        """``pm`` fitted (from ``p``) on the training part of every cross-validation fold (:func:`cv_folds`),
+        its residual on the fold's held-out part (noise units): ``[residual]``, one per fold.  The fold of the
+        diagnosis' own split reuses ``p`` (fitted on that training part); the others start from ``p`` with
+        :data:`~updating.diagnosis.terms.CV_NFEV` evaluations.  Cached per model and parameters (the reference
+        is judged against several candidates)."""
+        key = (id(pm), np.asarray(p, float).tobytes())
+        cache = self.__dict__.setdefault("_cv_cache", {})
+        if key in cache:
+            return cache[key][1]
+        out = []
+        for tr, he, _ in self._folds:
+            if [str(d) for d in he.responses] == [str(d) for d in self.held.responses] and \
+                    [str(d) for d in he.references] == [str(d) for d in self.held.references] and \
+                    he.H.shape == self.held.H.shape:
+                pf = np.asarray(p, float)
+            else:
+                pf = self._fit(pm, tr, np.clip(p, lo, hi), lower=lo, upper=hi, max_nfev=CV_NFEV).p
+            out.append(_residual(pm.structure(pf), he))
+        cache[key] = (pm, out)                    # the model is kept alive with its key
+        return out
+
+    def _cross_validated(self, ref, new) -> tuple[bool, str]:
+        """The term of ``new`` against the model ``ref`` (each ``(pm, p, lower, upper)``, fitted on the
+        training FRFs) judged by :data:`~updating.diagnosis.terms.CV_FOLDS`-fold cross-validation: both are
+        re-fitted without each fold, and the χ² of their predictions of the held-out folds — every held-out
+        value predicted once, by a model that did not see it — must fall significantly
+        (:func:`significant_gain`, the test of :func:`_term_holds` with the same N).  This replaces one split's
+        luck and the former threshold on the training gain of a first term (``min_gain``, 5 %): a term that only
+        fits the noise or model-form error of the fitted rows does not predict the rows it did not see."""
+        r0 = self._fold_fits(*ref)
+        r1 = self._fold_fits(*new)
+        c0 = float(sum(np.sum(np.abs(r) ** 2) for r in r0))
+        c1 = float(sum(np.sum(np.abs(r) ** 2) for r in r1))
+        n = int(sum(2 * r.size for r in r1))
+        infl = float(np.average([inflation(r) for r in r1], weights=[max(np.sum(np.abs(r) ** 2), 1e-300)
+                                                                        for r in r1]))
+        ok, stat, need = significant_gain(c0, c1, n, infl, self.config.penalty)
+        worse = sum(float(np.sum(np.abs(b) ** 2)) > float(np.sum(np.abs(a) ** 2)) for a, b in zip(r0, r1))
+        why = (f"cross-validated over {len(r1)} folds: χ²/N {c0 / n:.3g} -> {c1 / n:.3g} (statistic {stat:.3g}, "
+               f"needed {need:.3g}; worse on {worse} fold(s))")
+        if not ok:
+            return False, why + ": not significant on data the fits did not see"
+        return True, why

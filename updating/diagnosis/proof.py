@@ -1,0 +1,150 @@
+"""The proof of a diagnosis (step 5 of :mod:`~updating.diagnosis.workflow`): nominal, parameter-only and
+augmented models compared on the held-out FRFs and the test modes, the findings with their values and
+standard deviations, the fitted parameters and the FRF overlays.  Split out of ``workflow.py`` as a mixin of
+:class:`~updating.diagnosis.workflow.Diagnoser`: the methods read the diagnoser's state."""
+from __future__ import annotations
+
+import logging
+import time
+
+import numpy as np
+
+from modalab.core.errors import ModalabError
+from updating.diagnosis.fit import chi2_per_value, frf_error, model_frf
+from updating.diagnosis.screen import residual_map
+from updating.diagnosis.priors import AT_PRIOR_Z
+from updating.diagnosis.terms import _same_place, _evidence
+from updating.diagnosis.findings import Finding, Diagnosis, statement
+from updating.diagnosis.testmodes import peak_modes, pair_test_modes, _paired_frequencies, _mode_metrics
+
+log = logging.getLogger(__name__)
+
+
+class _Proof:
+    """The proof step of :class:`~updating.diagnosis.workflow.Diagnoser` (a mixin)."""
+
+    def prove(self) -> Diagnosis:
+        """Nominal, parameter-only and augmented models on the held-out FRFs and the test modes; the findings."""
+        cfg = self.config
+        self._say("step 6/6: comparing nominal, parameter-only and augmented models on held-out data")
+        t1 = time.perf_counter()
+        test_modes, modes_source = cfg.test_modes, "given test modes"
+        if test_modes is None:
+            try:
+                test_modes, modes_source = peak_modes(self.measured, band_hz=cfg.band_hz), "peaks of the measured FRFs"
+            except ModalabError as e:
+                log.info("no test modes: %s", e)
+                modes_source = None
+        self.test_modes = test_modes
+
+        def metrics(pmodel, p):
+            st = pmodel.structure(p)
+            out = {"frf_error_held_out": frf_error(model_frf(st, self.held), self.held),
+                   "frf_error_train": frf_error(model_frf(st, self.train), self.train)}
+            out.update(_mode_metrics(st, test_modes))
+            out["chi2_per_value_held_out"] = chi2_per_value(out["frf_error_held_out"], self.held)
+            out["chi2_per_value_train"] = chi2_per_value(out["frf_error_train"], self.train)
+            return out
+
+        fit_blocks = {"nominal": metrics(self.pm, self.p_nomd), "parameters_only": metrics(self.pm, self.upd.p)}
+        fit_blocks["with_physics"] = metrics(self.best_pm, self.best_fit.p) if self.current else \
+            dict(fit_blocks["parameters_only"])
+        pairing = {}
+        if test_modes is not None:
+            for key, (pmod, pv) in (("nominal", (self.pm, self.p_nomd)), ("parameters_only", (self.pm, self.upd.p)),
+                                    ("with_physics", (self.best_pm, self.best_fit.p))):
+                pr = pair_test_modes(pmod.structure(pv), test_modes)
+                pairing[key] = {"pairs": [{"model_hz": fm, "test_hz": float(test_modes.freq_hz[t]), "mac": mc,
+                                           "freq_error_pct": fe}
+                                          for (fm, t), mc, fe in zip(pr["pairs"], pr["mac"], pr["freq_error_pct"])],
+                                "unpaired_test_hz": pr["unpaired_test_hz"], "excluded_test_hz": pr["excluded_test_hz"],
+                                "excluded_model_hz": pr["excluded_model_hz"], "cutoff_hz": pr["cutoff_hz"]}
+        if self.current and fit_blocks["with_physics"]["frf_error_held_out"] > \
+                fit_blocks["parameters_only"]["frf_error_held_out"] * (1 - cfg.min_holdout_gain):
+            log.info("augmentation did not improve held-out data enough; reporting no missing physics")
+            self.current, self.best_fit, self.best_pm, self.best_scales = [], self.upd, self.pm, []
+            fit_blocks["with_physics"] = dict(fit_blocks["parameters_only"])
+        self.timings["6 proof"] = time.perf_counter() - t1
+        findings = self._findings()
+        steps_modes = {"test_modes": modes_source, "test_freq_hz": [float(x) for x in test_modes.freq_hz]} \
+            if modes_source else {}
+        st_upd, st_fin = self.pm.structure(self.upd.p), self.best_pm.structure(self.best_fit.p)
+        maps = {"freq_hz": self.train.freq_hz, "responses": [str(d) for d in self.train.responses],
+                "before": residual_map(st_upd, self.train), "after": residual_map(st_fin, self.train)}
+        final_model = self.best_pm.model_at(self.best_fit.p) if hasattr(self.best_pm, "model_at") else self.model0
+        try:
+            curves, freqs = self._overlays(findings)
+        except (ModalabError, np.linalg.LinAlgError) as e:  # pragma: no cover - figures are a by-product
+            log.warning("FRF overlays/frequency table not prepared: %s", e)
+            curves, freqs = {}, {}
+        diag = Diagnosis(findings=findings, parameters=self._parameters(), fit=fit_blocks,
+                         statement=statement(findings, fit_blocks, self.held_desc, self.not_evaluated,
+                                             self.unobservable),
+                         model=final_model, not_evaluated=list(self.not_evaluated),
+                         unobservable=list(self.unobservable), decisions=list(self.decisions),
+                         parametric=self.best_pm, p=self.best_fit.p,
+                         steps={"held_out": self.held_desc, "band_hz": self.band, "hot_nodes": self.hot_nodes,
+                                "suspension_below_hz": self.suspension_hz,
+                                "n_candidates": self.n_lib, **steps_modes},
+                         maps=maps, timings=self.timings, ranking=self.ranking or [], curves=curves, frequencies=freqs,
+                         pairing=pairing)
+        self.timings["total"] = time.perf_counter() - self._t0
+        return diag
+
+    def _findings(self) -> list:
+        n_par, findings, ranking = len(self.params), [], self.ranking or []
+        m_fin = self.best_pm.model_at(self.best_fit.p) if self.current else self.model0
+        for k, (c, scale) in enumerate(zip(self.current, self.best_scales)):
+            val = self.best_fit.p[n_par + k] * scale
+            std = self.best_fit.std[n_par + k] * scale
+            # a term of the same physics next to an earlier finding refines it (a mass between two nodes is
+            # lumped on both): one finding with two parts, not two findings
+            host = next((f for f in findings if f.candidate.physics == c.physics and
+                         _same_place(f.candidate, c, m_fin)), None)
+            if host is not None:
+                host.parts.append((c, float(val), float(std)))
+                continue
+            gain, by_mci, same = self._route.get(c.key, (0.0, self.use_mci, None))
+            if same is None:
+                same = [(o, t, g) for o, t, g in ranking if set(o.nodes) & set(c.nodes) and o.key != c.key]
+            findings.append(Finding(c, float(val), float(std), _evidence(c, gain, same, self.band, by_mci), gain,
+                                    alternatives=list(self.alternatives.get(c.key, []))))
+        return findings
+
+    def _parameters(self) -> dict:
+        pars, fit, upd = {}, self.best_fit, self.upd
+        z_fin, z_upd = self.prior.z(fit.p), self.prior.z(upd.p)
+        for k, par in enumerate(self.params):
+            pars[par.name] = {"initial": float(self.p_nomd[k]), "updated": float(fit.p[k]),
+                              "parameters_only": float(upd.p[k]),
+                              "std": float(fit.std[k]) if np.isfinite(fit.std[k]) else None, "mode": par.mode,
+                              "prior_std": float(self.psig[k]) if np.isfinite(self.psig[k]) else None,
+                              "prior_z": float(z_fin[k]), "at_prior": bool(abs(z_fin[k]) > AT_PRIOR_Z)}
+            if abs(z_fin[k]) > AT_PRIOR_Z or abs(z_upd[k]) > AT_PRIOR_Z:
+                log.warning("parameter %s runs into its prior (mean %.4g, std %.3g): %.4g in the final fit (%+.1f std), "
+                            "%.4g with parameters only (%+.1f std); the model may miss something the candidates do "
+                            "not cover", par.name, self.pmean[k], self.psig[k], fit.p[k], z_fin[k], upd.p[k], z_upd[k])
+        return pars
+
+    def _overlays(self, findings) -> tuple[dict, dict]:
+        """FRF overlays at the located DOFs (findings' measured DOFs, else the worst-fitting nodes) and the
+        paired frequencies of the three models, for the report's figures."""
+        data, test_modes = self.data, self.test_modes
+        st_nom, st_par = self.pm.structure(self.p_nomd), self.pm.structure(self.upd.p)
+        st_phys = self.best_pm.structure(self.best_fit.p)
+        want = [d for f in findings for d in f.candidate.dofs] + [f"{n}+Z" for n in self.hot_nodes]
+        labels = [str(r) for r in data.responses]
+        rows = []
+        for w in want:
+            hit = [i for i, lbl in enumerate(labels) if lbl == w or lbl.split("+")[0].split("-")[0] == w.split("+")[0]]
+            rows += [i for i in hit if i not in rows]
+        rows = rows[:3] or [0]
+        H = {"measured": data.H, "nominal": model_frf(st_nom, data), "parameters_only": model_frf(st_par, data),
+             "with_physics": model_frf(st_phys, data)}
+        curves = {"freq_hz": data.freq_hz, "pairs": [(f"{labels[i]} / {data.references[0]}",
+                                                      {k: v[i, 0] for k, v in H.items()}) for i in rows]}
+        nm = len(test_modes.freq_hz) + 2 if test_modes is not None else 8
+        freqs = {key: _paired_frequencies(stx, test_modes, nm, self.band)
+                 for key, stx in (("nominal", st_nom), ("parameters_only", st_par), ("with_physics", st_phys))}
+        freqs["test"] = [float(x) for x in test_modes.freq_hz] if test_modes is not None else []
+        return curves, freqs
