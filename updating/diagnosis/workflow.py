@@ -50,6 +50,7 @@ from updating.fe import FEModel, ParametricFEModel
 from updating.diagnosis.fit import RITZ_LIMIT, Prior, fit_frf, frf_data, frf_error, model_frf, quick_frf_error
 from updating.diagnosis.frfscreen import frf_screen
 from updating.diagnosis.library import _nodes_of, build_library, validate_kinds
+from updating.diagnosis.mesh import mesh_error, shift_beyond_mesh
 from updating.diagnosis.release import release_screen, release_visibility
 from updating.diagnosis.screen import mci_update, rank_candidates, residual_map, residual_system
 
@@ -164,6 +165,7 @@ class Diagnoser:
         self.nom = fit_frf(pm, self.train, self.p_nom, lower=self.lo, upper=self.hi, free=self.free_d,
                            max_nfev=cfg.max_nfev)
         self.p_nomd = self.nom.p
+        self._mesh = None                              # the beam mesh's own error, when a term needs it
         # the parameters' priors (MAP fits from here on): one prior σ weighs as much as an average independent
         # observation of the nominal model's residual, with one independent value per 10 FRF values
         n_eff = max(self.train.H.size / 10.0, 1.0)
@@ -310,12 +312,18 @@ class Diagnoser:
 
     def _effect_ok(self, ok: bool, why: str, pm_new, p_new, c) -> tuple[bool, str]:
         """Test (c) of :meth:`_judge`: the term moves an in-band natural frequency by
-        :data:`MIN_FREQ_EFFECT` or adds :data:`MIN_DAMPING_EFFECT` of the background modal damping."""
+        :data:`MIN_FREQ_EFFECT` beyond the nominal beam mesh's own error of that mode
+        (:func:`~updating.diagnosis.mesh.shift_beyond_mesh`) or adds :data:`MIN_DAMPING_EFFECT` of the
+        background modal damping."""
         if not ok:
             return ok, why
         df, deta = term_effect(pm_new, p_new, len(self.params), c, self.band)
-        why += f"; effect: frequencies {100 * df:.2g} %, damping {100 * deta:.2g} % of the background"
-        if df < MIN_FREQ_EFFECT and deta < MIN_DAMPING_EFFECT:
+        if self._mesh is None:
+            self._mesh = mesh_error(self.pm.model, self.params, self.p_nomd, self.band)
+        dfx = shift_beyond_mesh(pm_new, p_new, c, self.band, self._mesh) if df >= MIN_FREQ_EFFECT else df
+        why += (f"; effect: frequencies {100 * df:.2g} % ({100 * dfx:.2g} % beyond the mesh's own error), damping "
+                f"{100 * deta:.2g} % of the background")
+        if dfx < MIN_FREQ_EFFECT and deta < MIN_DAMPING_EFFECT:
             return False, why + (f": below {100 * MIN_FREQ_EFFECT:.1f} % in frequency and "
                                  f"{100 * MIN_DAMPING_EFFECT:.0f} % in damping, the size of model-form error")
         return True, why
