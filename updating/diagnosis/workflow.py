@@ -17,9 +17,9 @@
    fitted with the parameters.  The best term is kept only if (a) it passes an information criterion
    (``penalty`` × ln N), (b) its χ² gain is significant against the noise on the training **and** on the held-out FRFs (scaled
    by the reduced χ² left when model-form error dominates: an F-test), the held-out error falling by
-   ``min_holdout_gain``, and (c) it changes an in-band natural frequency by :data:`MIN_FREQ_EFFECT` or the
-   modal damping by :data:`MIN_DAMPING_EFFECT` of the background (smaller effects are the size of model-form
-   error).  Candidates elsewhere that fit as well (within the criterion's margin) make the finding ambiguous.
+   ``min_holdout_gain``, and (c) it changes an in-band natural frequency by :data:`MIN_FREQ_EFFECT` beyond
+   the nominal beam mesh's own error of that mode (:mod:`~updating.diagnosis.mesh`) or the modal damping by
+   :data:`MIN_DAMPING_EFFECT` of the background (smaller effects are the size of model-form error).  Candidates elsewhere that fit as well (within the criterion's margin) make the finding ambiguous.
    On the MCI criterion, when its best option fails for the first term, the exact FRF screening's best picks
    are fitted on the FRFs and judged by the same tests, and must leave a reduced χ² of at most
    :data:`PICK_MAX_REDUCED_CHI2` (the linearised MCI is blind to e.g. a spring to ground that mainly moves a
