@@ -16,7 +16,6 @@ import pytest
 from modalab.core.frf import FRF
 from updating.diagnosis import workflow as wf
 from updating.diagnosis.priors import SectionLossFactor, _bounds, _with_damping, default_parameters
-from updating.fe import Parameter, Spring
 from updating.fe.models.beams import beam_model
 
 RESP = [f"{i}+Z" for i in (1, 3, 5, 6, 8, 11)] + [f"{i}+Y" for i in (1, 4, 9, 11)]
@@ -33,26 +32,19 @@ def _two_sections(ge_root=None, ge_tip=None, tip=(9, 10)):
     return m
 
 
-def test_one_loss_factor_per_section_free_and_not_negative():
+def test_one_loss_factor_per_further_section_free_and_relative_to_the_global_one():
     m = _two_sections(tip=(7, 8, 9, 10))
     params = default_parameters(m)
     extra, start = _with_damping(m, params)
-    assert [p.name for p in extra] == ["eta_root", "eta_tip"]
+    assert [p.name for p in extra] == ["eta_global", "eta_tip"]       # "root" (6 elements) carries G alone
     assert isinstance(extra[1], SectionLossFactor) and extra[1].properties == (2,)
-    assert start == [0.01, 0.01]
+    assert start == [0.01, 0.0]
     lo, hi = _bounds(params + extra, [1.0] * len(params) + start)
-    assert list(lo[-2:]) == [0.0, 0.0] and list(hi[-2:]) == [0.2, 0.2]
-    # the model's springs (mounts) have one of their own
-    m.add_element(Spring(500, a=(1, 3), b=None, k=1e4))
-    m.add_element(Spring(501, a=(11, 3), b=None, k=1e4))
-    extra, _ = _with_damping(m, params)
-    assert extra[-1].name == "eta_springs" and extra[-1].elements == (500, 501)
-    # declared damping is left alone: a declared ge keeps the one global loss factor, a declared PARAM G none
+    assert lo[-1] == -0.2 and hi[-1] == 0.2 and lo[-2] == 0.0
+    # declared damping is left alone: a declared ge leaves no per-section term
+    from updating.fe import Parameter
     extra2, _ = _with_damping(m, params + [Parameter("g_root", "ge", properties=("root",), mode="value")])
     assert [p.name for p in extra2] == ["eta_global"]
-    assert _with_damping(m, params + [Parameter("g", "global_ge", mode="value")]) == ([], [])
-    # one property group: the global loss factor, as before
-    assert [p.name for p in _with_damping(_two_sections(tip=()), params[:2])[0]] == ["eta_global"]
 
 
 def _measured(truth):
@@ -70,5 +62,5 @@ def test_sections_that_dissipate_differently_are_no_finding():
     d = wf.Diagnoser(wf.DiagnoserConfig(max_lines=80, progress=lambda m: None)).fit(nominal, _measured(truth))
     assert d.findings_ == [], [f.label for f in d.findings_]
     par = dict(zip(d.pm.parameter_names, d.upd.p))
-    assert par["eta_root"] == pytest.approx(0.003, rel=0.05)
-    assert par["eta_tip"] == pytest.approx(0.015, rel=0.1)
+    assert par["eta_global"] == pytest.approx(0.003, rel=0.05)
+    assert par["eta_global"] + par["eta_tip"] == pytest.approx(0.015, rel=0.1)

@@ -9,7 +9,7 @@ import numpy as np
 
 from modalab.core.errors import ModalabValueError
 
-from updating.fe import FEModel, Parameter, Spring
+from updating.fe import FEModel, Parameter
 from updating.diagnosis.fit import FRFData, fit_frf
 
 log = logging.getLogger(__name__)
@@ -79,8 +79,9 @@ def parameter_priors(params: list, p_nom, overrides: dict | None = None) -> tupl
 
 
 class SectionLossFactor(Parameter):
-    """The background loss factor of one property group (``ge`` of its properties) or of the model's springs
-    (see :func:`_with_damping`)."""
+    """The background loss factor of one property group relative to the model-wide one (``ge`` of the
+    group's properties, in addition to PARAM G): may be negative (see
+    :func:`_with_damping`)."""
 
 
 def _property_groups(model: FEModel) -> list:
@@ -98,51 +99,45 @@ def _property_groups(model: FEModel) -> list:
     return out
 
 
-def _loss_factor(model: FEModel, pid: int) -> float:
-    prop = model.prop(pid)
-    return float((prop.ge if prop.ge is not None else model.material(prop.mid).ge) or 0.0)
-
-
 def _with_damping(model: FEModel, params: list) -> tuple[list, list]:
-    """The background damping parameters, unless the user declared a ``global_ge`` parameter: one hysteretic
-    loss factor per property group (``eta_<group>``, ``ge`` of its properties) and
-    one for the model's springs (``eta_springs``, CELAS mounts), free (no prior), each in [0, 0.2], on top of
-    the deck's PARAM G, which stays as declared; a model with a single property group keeps one model-wide
-    loss factor (``eta_global``, PARAM G), as before, and so does a model whose parameters declare a ``ge``.
+    """The background damping parameters: the model-wide hysteretic loss factor (PARAM G, ``eta_global``)
+    unless declared, and one loss factor per further property group (``eta_<group>``, free, no prior)
+    unless a ``ge`` parameter is declared.
 
-    The hysteretic damping matrix is then ``D = G·K + Σ_s η_s K_s`` (the ``i[ΔD]`` part of the updating
-    matrix [Δ] of thesis eq. (3.60) in structural form).  Real frames have per-section loss factors (welds,
-    coatings, materials); with one global loss factor the difference between sections is left to the
-    candidates, and a local damping term on part of a section absorbs it — a false finding on a model that
-    misses no physics.  With a loss factor per section, local dissipation has to be local (a part of a
-    section) to be a finding; a local damping candidate (``library._add_group_damping``) gives its elements a
-    loss factor of their own in place of their section's.  A free mass-proportional term is not added: it
-    would let the baseline smother suspension modes instead of explaining them.
+    The hysteretic damping matrix is ``D = G·K + Σ_s ge_s K_s`` (the ``i[ΔD]`` part of the updating
+    matrix [Δ] of thesis eq. (3.60) in structural form): the group with the most elements carries G alone,
+    every other group s carries G + ge_s (ge_s may be negative: bounded at ±0.2, not at -G), so that each section has a
+    loss factor of its own without a redundant parameter.  Real frames have per-section loss factors
+    (welds, coatings, materials); with one global loss factor the difference between sections is left to
+    the candidates, and a local damping term on part of a section absorbs it — a false finding on a model
+    that misses no physics.  With a loss factor per section, local dissipation has to be local (a part of a
+    section) to be a finding.  A free mass-proportional term is not added: it would let the baseline
+    smother suspension modes instead of explaining them.  On a model with one property group this is the
+    global loss factor alone, as before.
     """
     fields = {p.field for p in params}
-    if "global_ge" in fields:
-        return [], []
+    extra = []
+    start = []
+    if "global_ge" not in fields:
+        extra.append(Parameter("eta_global", "global_ge", mode="value"))
+        start.append(max(float(model.global_ge or 0.0), 0.01))
     groups = _property_groups(model)
-    if len(groups) < 2 or "ge" in fields:
-        return [Parameter("eta_global", "global_ge", mode="value")], [max(float(model.global_ge or 0.0), 0.01)]
-    extra, start = [], []
+    if "ge" in fields or len(groups) < 2:
+        return extra, start
+    ref = max(range(len(groups)), key=lambda i: (groups[i][2], -i))      # most elements; the first on a tie
     names = {p.name for p in params}
-    floor = float(model.global_ge or 0.0)
-    for name, pids, _ in groups:
+    for i, (name, pids, _) in enumerate(groups):
         pname = f"eta_{name}"
-        vals = [_loss_factor(model, pid) for pid in pids]
-        if pname in names or not np.allclose(vals, vals[0], rtol=1e-12, atol=0):
-            log.info("no background loss factor for property group %s (a parameter of that name, or loss "
-                     "factors that differ: %s)", name, vals[:5])
+        if i == ref or pname in names:
+            continue
+        vals = [model.prop(pid).ge if model.prop(pid).ge is not None else model.material(model.prop(pid).mid).ge
+                for pid in pids]
+        if not np.allclose(vals, vals[0], rtol=1e-12, atol=0):
+            log.info("no background loss factor for property group %s: its properties' loss factors differ %s",
+                     name, vals[:5])
             continue
         extra.append(SectionLossFactor(pname, "ge", properties=pids, mode="value"))
-        start.append(max(vals[0], 0.01 - floor, 0.0))
-    springs = sorted(e.eid for e in model.elements.values() if isinstance(e, Spring))
-    if springs and "eta_springs" not in names:
-        vals = [float(model.elements[e].ge or 0.0) for e in springs]
-        if np.allclose(vals, vals[0], rtol=1e-12, atol=0):
-            extra.append(SectionLossFactor("eta_springs", "ge", elements=tuple(springs), mode="value"))
-            start.append(max(vals[0], 0.01 - floor, 0.0))
+        start.append(float(vals[0] or 0.0))
     return extra, start
 
 
@@ -187,7 +182,7 @@ def _bounds(params, p0):
             lo.append(0.0)
             hi.append(0.2)
         elif isinstance(p, SectionLossFactor):
-            lo.append(0.0)
+            lo.append(-0.2)
             hi.append(0.2)
         else:
             lo.append(0.0)
