@@ -8,8 +8,10 @@ peak picking),
 :mod:`~updating.diagnosis.report` (figures).  ``Diagnosis.save(dir)`` writes ``diagnosis.json``, the
 figures and ``augmented.bdf``.  The FRF workflow's parts: :mod:`~updating.diagnosis.workflow` (the steps),
 :mod:`~updating.diagnosis.acceptance` (the tests a term must pass), :mod:`~updating.diagnosis.proof` (the held-out
-comparison and the findings' record), :mod:`~updating.diagnosis.priors` (parameters and their priors), :mod:`~updating.diagnosis.terms` (a term's
-effect, its tests and the augmented model), :mod:`~updating.diagnosis.testmodes` (test modes and their
+comparison and the findings' record), :mod:`~updating.diagnosis.priors` (parameters, their priors and the background loss factors per property
+group), :mod:`~updating.diagnosis.terms` (a term's effect, its tests and the augmented model),
+:mod:`~updating.diagnosis.mesh` (the nominal beam mesh's own frequency error, which a term must exceed),
+:mod:`~updating.diagnosis.testmodes` (test modes and their
 pairing), :mod:`~updating.diagnosis.findings` (findings, ``Diagnosis``, the statement).
 
 ``diagnosis.json`` (``Diagnosis.to_dict()``)::

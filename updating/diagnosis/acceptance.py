@@ -12,6 +12,7 @@ import logging
 import numpy as np
 
 from updating.fe import ParametricFEModel
+from updating.diagnosis.mesh import mesh_error, shift_beyond_mesh
 from updating.diagnosis.screen import mci_update
 from updating.diagnosis.terms import _another_explanation, MIN_FREQ_EFFECT, FRF_PICKS, MIN_DAMPING_EFFECT, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, CV_NFEV, _residual, inflation, significant_gain, n_obs, _upper, _augment
 
@@ -48,12 +49,18 @@ class _Acceptance:
 
     def _effect_ok(self, ok: bool, why: str, pm_new, p_new, c) -> tuple[bool, str]:
         """Test (c) of :meth:`_judge`: the term moves an in-band natural frequency by
-        :data:`MIN_FREQ_EFFECT` or adds :data:`MIN_DAMPING_EFFECT` of the background modal damping."""
+        :data:`MIN_FREQ_EFFECT` beyond the nominal beam mesh's own error of that mode
+        (:func:`~updating.diagnosis.mesh.shift_beyond_mesh`) or adds :data:`MIN_DAMPING_EFFECT` of the
+        background modal damping."""
         if not ok:
             return ok, why
         df, deta = term_effect(pm_new, p_new, len(self.params), c, self.band)
-        why += f"; effect: frequencies {100 * df:.2g} %, damping {100 * deta:.2g} % of the background"
-        if df < MIN_FREQ_EFFECT and deta < MIN_DAMPING_EFFECT:
+        if self._mesh is None:
+            self._mesh = mesh_error(self.pm.model, self.params, self.p_nomd, self.band)
+        dfx = shift_beyond_mesh(pm_new, p_new, c, self.band, self._mesh) if df >= MIN_FREQ_EFFECT else df
+        why += (f"; effect: frequencies {100 * df:.2g} % ({100 * dfx:.2g} % beyond the mesh's own error), damping "
+                f"{100 * deta:.2g} % of the background")
+        if dfx < MIN_FREQ_EFFECT and deta < MIN_DAMPING_EFFECT:
             return False, why + (f": below {100 * MIN_FREQ_EFFECT:.1f} % in frequency and "
                                  f"{100 * MIN_DAMPING_EFFECT:.0f} % in damping, the size of model-form error")
         return True, why

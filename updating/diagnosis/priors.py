@@ -78,11 +78,42 @@ def parameter_priors(params: list, p_nom, overrides: dict | None = None) -> tupl
     return mean, sig
 
 
-def _with_damping(model: FEModel, params: list) -> tuple[list, list]:
-    """A background damping parameter (global hysteretic loss factor, PARAM G) unless declared.
+class SectionLossFactor(Parameter):
+    """The background loss factor of one property group relative to the model-wide one (``ge`` of the
+    group's properties, in addition to PARAM G): may be negative (see
+    :func:`_with_damping`)."""
 
-    One global loss factor is enough for the background: local dissipation is a candidate of its own, and a
-    free mass-proportional term would let the baseline smother suspension modes instead of explaining them.
+
+def _property_groups(model: FEModel) -> list:
+    """``[(name, pids, n_elements)]``: the property groups of :func:`default_parameters` (by name when named),
+    with the elements they hold; groups without an element are left out."""
+    groups: dict = {}
+    for pid, prop in sorted(model.properties.items()):
+        name = getattr(prop, "name", "") or f"p{pid}"
+        groups.setdefault(name, []).append(pid)
+    out = []
+    for name, pids in groups.items():
+        n_el = len(model.elements_with_property(pids))
+        if n_el:
+            out.append((name, tuple(pids), n_el))
+    return out
+
+
+def _with_damping(model: FEModel, params: list) -> tuple[list, list]:
+    """The background damping parameters: the model-wide hysteretic loss factor (PARAM G, ``eta_global``)
+    unless declared, and one loss factor per further property group (``eta_<group>``, free, no prior)
+    unless a ``ge`` parameter is declared.
+
+    The hysteretic damping matrix is ``D = G·K + Σ_s ge_s K_s`` (the ``i[ΔD]`` part of the updating
+    matrix [Δ] of thesis eq. (3.60) in structural form): the group with the most elements carries G alone,
+    every other group s carries G + ge_s (ge_s may be negative: bounded at ±0.2, not at -G), so that each section has a
+    loss factor of its own without a redundant parameter.  Real frames have per-section loss factors
+    (welds, coatings, materials); with one global loss factor the difference between sections is left to
+    the candidates, and a local damping term on part of a section absorbs it — a false finding on a model
+    that misses no physics.  With a loss factor per section, local dissipation has to be local (a part of a
+    section) to be a finding.  A free mass-proportional term is not added: it would let the baseline
+    smother suspension modes instead of explaining them.  On a model with one property group this is the
+    global loss factor alone, as before.
     """
     fields = {p.field for p in params}
     extra = []
@@ -90,6 +121,23 @@ def _with_damping(model: FEModel, params: list) -> tuple[list, list]:
     if "global_ge" not in fields:
         extra.append(Parameter("eta_global", "global_ge", mode="value"))
         start.append(max(float(model.global_ge or 0.0), 0.01))
+    groups = _property_groups(model)
+    if "ge" in fields or len(groups) < 2:
+        return extra, start
+    ref = max(range(len(groups)), key=lambda i: (groups[i][2], -i))      # most elements; the first on a tie
+    names = {p.name for p in params}
+    for i, (name, pids, _) in enumerate(groups):
+        pname = f"eta_{name}"
+        if i == ref or pname in names:
+            continue
+        vals = [model.prop(pid).ge if model.prop(pid).ge is not None else model.material(model.prop(pid).mid).ge
+                for pid in pids]
+        if not np.allclose(vals, vals[0], rtol=1e-12, atol=0):
+            log.info("no background loss factor for property group %s: its properties' loss factors differ %s",
+                     name, vals[:5])
+            continue
+        extra.append(SectionLossFactor(pname, "ge", properties=pids, mode="value"))
+        start.append(float(vals[0] or 0.0))
     return extra, start
 
 
@@ -132,6 +180,9 @@ def _bounds(params, p0):
             hi.append(4.0)
         elif p.field == "global_ge":
             lo.append(0.0)
+            hi.append(0.2)
+        elif isinstance(p, SectionLossFactor):
+            lo.append(-0.2)
             hi.append(0.2)
         else:
             lo.append(0.0)

@@ -19,9 +19,9 @@
    held-out FRFs (:func:`~updating.diagnosis.terms.significant_gain`: scaled by the reduced χ² left when
    model-form error dominates, an F-test, and by the residual's correlation over lines), the held-out error
    falling by
-   ``min_holdout_gain``, and (c) it changes an in-band natural frequency by :data:`MIN_FREQ_EFFECT` or the
-   modal damping by :data:`MIN_DAMPING_EFFECT` of the background (smaller effects are the size of model-form
-   error).  Candidates elsewhere that fit as well (within the criterion's margin) make the finding ambiguous.
+   ``min_holdout_gain``, and (c) it changes an in-band natural frequency by :data:`MIN_FREQ_EFFECT` beyond
+   the nominal beam mesh's own error of that mode (:mod:`~updating.diagnosis.mesh`) or the modal damping by
+   :data:`MIN_DAMPING_EFFECT` of the background (smaller effects are the size of model-form error).  Candidates elsewhere that fit as well (within the criterion's margin) make the finding ambiguous.
    On the MCI criterion, when its best option fails for the first term, the exact FRF screening's best picks
    are fitted on the FRFs and judged by the same tests, and must leave a reduced χ² of at most
    :data:`PICK_MAX_REDUCED_CHI2` (the linearised MCI is blind to e.g. a spring to ground that mainly moves a
@@ -169,6 +169,7 @@ class Diagnoser(_Acceptance, _Proof):
         self.nom = fit_frf(pm, self.train, self.p_nom, lower=self.lo, upper=self.hi, free=self.free_d,
                            max_nfev=cfg.max_nfev)
         self.p_nomd = self.nom.p
+        self._mesh = None                              # the beam mesh's own error, when a term needs it
         # the parameters' priors (MAP fits from here on): one prior σ weighs as much as an average independent
         # observation of the nominal model's residual, with one independent value per 10 FRF values
         n_eff = max(self.train.H.size / 10.0, 1.0)
