@@ -210,6 +210,7 @@ class Diagnoser(_Acceptance, _Proof):
         self._frf_cur = (self.pm, self.upd)             # the current model fitted on the FRFs
         self._screens, self._route, self.not_evaluated = [], {}, []
         self._rival_fit = None
+        self._displaced = None                          # the MCI's accepted choice a screening pick replaced
         self._observability()
         self.ranking, self.hot_nodes, self.n_lib = None, [], 0
 
@@ -273,9 +274,11 @@ class Diagnoser(_Acceptance, _Proof):
         if picked is not None:
             self._decide("rejected", best[0], f"passed on the MCI, but {picked[0].label} fits the training FRFs "
                                               "better by the information criterion")
+            self._displaced = best[0]
             c, alts = picked
         elif ok:
             c, self.rss_cur, self.pm_cur, self.p_cur, self.lo_cur, self.hi_cur = best
+            self._displaced = None
             if self._rival_fit is not None:
                 self._frf_cur = (self.pm_cur, self._rival_fit)
             else:
@@ -287,12 +290,16 @@ class Diagnoser(_Acceptance, _Proof):
                     and r - self.rss_cur <= margin]
             self._route[c.key] = (next((g for o, _, g in (self.ranking or []) if o.key == c.key), 0.0), self.use_mci,
                                   None)
-        elif self.use_mci and not self.current:
+        elif self.use_mci and (not self.current or self._displaced is not None):
             # the rescue of the first term only: a further term needs the criterion's support (model-form error
-            # — a coarse mesh, per-element scatter — is what an exact single-term screening finds next)
+            # — a coarse mesh, per-element scatter — is what an exact single-term screening finds next).  The
+            # one exception is the term after a pick that replaced the MCI's accepted choice: that choice kept
+            # the MCI's support (two cords of a beam: the MCI names one, the FRFs prefer the other first), so
+            # the picks are judged once more, with the replaced choice counted as supported
             if best is not None:
                 self._decide("rejected", best[0], why)
-            picked = self._judge_picks(it, n_eq, mci_best=best[0] if best is not None else None)
+            supported, self._displaced = self._displaced or (best[0] if best is not None else None), None
+            picked = self._judge_picks(it, n_eq, mci_best=supported)
             if picked is None:
                 return False
             c, alts = picked
