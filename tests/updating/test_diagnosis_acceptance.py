@@ -12,6 +12,7 @@ import time
 import numpy as np
 import pytest
 
+from updating.diagnosis import acceptance
 from updating.diagnosis import workflow as wf
 from updating.diagnosis.fit import frf_data
 from updating.diagnosis.priors import _split
@@ -115,7 +116,7 @@ def test_the_reduced_chi2_limit_guards_only_unsupported_picks(monkeypatch):
     assert d._judge_pick(c, pm_aug, fr, clo, chi)[0]
     # a limit no fit can meet: the rescue of a residual the MCI did not support fails on it, a pick competing
     # with a term the MCI accepted is judged by the tests that term passed
-    monkeypatch.setattr(wf, "PICK_MAX_REDUCED_CHI2", 1e-9)
+    monkeypatch.setattr(acceptance, "PICK_MAX_REDUCED_CHI2", 1e-9)
     ok, why = d._judge_pick(c, pm_aug, fr, clo, chi)
     assert not ok and "left, above" in why
     ok, why = d._judge_pick(c, pm_aug, fr, clo, chi, supported=True)
@@ -126,7 +127,7 @@ def test_a_pick_the_mci_ranked_best_is_a_supported_pick(monkeypatch):
     d = _diagnoser(True)
     spring = next(t[0] for t in d._screens[1][0] if t[0].physics == "ground_spring" and t[0].dofs == ("4+Y",))
     other = next(t[0] for t in d._screens[1][0] if t[0].key != spring.key)
-    monkeypatch.setattr(wf, "PICK_MAX_REDUCED_CHI2", 1e-9)       # a limit no fit meets
+    monkeypatch.setattr(acceptance, "PICK_MAX_REDUCED_CHI2", 1e-9)       # a limit no fit meets
     assert d._judge_picks(0, 1, mci_best=other) is None           # a rescue of an unsupported residual
     assert d.current == [] and "left, above" in d.decisions[-1]["reason"]
     picked = d._judge_picks(0, 1, mci_best=spring)               # the MCI's own best candidate, FRF-fitted
