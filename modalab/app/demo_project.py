@@ -25,7 +25,6 @@ from pathlib import Path
 import numpy as np
 
 from modalab.app.outputs import write_bytes, write_text
-from updating.fe.models.garteur import garteur_model
 from updating.fe import LumpedMass, ParametricFEModel
 from updating.fe.models.garteur import garteur_model, garteur_parameters
 from modalab.core.dof import Dof

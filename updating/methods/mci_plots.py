@@ -5,7 +5,12 @@ matplotlib is imported when a figure is drawn, as in :mod:`modalab.core.plots`, 
 updating methods does not load it."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:                                   # annotations only: mci imports this module's figures
+    from updating.methods.mci import MCIResult
 
 __all__ = ["plot_mci_map", "plot_mci_maxima", "plot_convergence"]
 
