@@ -167,6 +167,9 @@ class _LocalProjection:
         n_rows, n_out = self.Yp.shape
         dof1 = (2 * n_in - 2 - 2 * (n_in - 1) / n_out) * n_out        # free residues minus ψ (2 n_out) and l
         dof2 = n_rows * n_out - self.QB.shape[1] * n_out - 2 * n_in * n_out - self.Q0.shape[1] * 2 * n_in * n_out
+        if dof1 <= 0 or dof2 <= 0 or c2 <= 0:
+            # one response (or one reference): residues of rank one whatever the data; or no dof left: no test
+            return float("nan"), dof1, dof2, float("nan")
         frac = max(c1 - c2, 0.0) / max(float(np.sum(self.Yp ** 2)) - c1, 1e-300)
         return (max(c1 - c2, 0.0) / dof1) / (c2 / dof2), dof1, dof2, frac
 

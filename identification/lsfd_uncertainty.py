@@ -135,7 +135,7 @@ def pole_uncertainty(frf: FRF, lam, participation, *, half_bandwidths: float = 1
     With several references the residues of each mode are also tested for rank one
     (:meth:`~identification.lsfd_refine._LocalProjection.rank_one_test`): ``rank2_F``, its p-value ``rank2_p``
     under F(dof1, dof2) and ``rank2_fraction`` (energy beyond rank one / energy of the mode), NaN with one
-    reference.  A merged close pair fails the test (see :func:`~identification.polymax.may_be_pair`).
+    reference or one response (the residues are of rank one whatever the data).  A merged close pair fails the test (see :func:`~identification.polymax.may_be_pair`).
 
     Returns a dict: ``freq_std_hz``, ``damping_std``, ``chi2_ratio``, ``rank2_*`` (m,), ``cov`` (m, 2, 2) of
     ``(ω_n [rad/s], ζ)`` of the window-corrected poles (see :func:`window_corrected_covariance`),
@@ -171,7 +171,7 @@ def pole_uncertainty(frf: FRF, lam, participation, *, half_bandwidths: float = 1
         st = vp.factor(np.array([loc["wn"], loc["zr"]]))
         if frf.n_in > 1:
             F, d1, d2, frac = vp.rank_one_test(np.array([loc["wn"], loc["zr"]]))
-            if d2 > 0:
+            if d1 > 0 and d2 > 0 and np.isfinite(F):
                 out["rank2_F"][r], out["rank2_fraction"][r] = F, frac
                 out["rank2_p"][r] = float(f_dist.sf(F, d1, d2))
         D, c = vp._derivatives(st)
