@@ -19,6 +19,20 @@ def _figure(w=8.0, h=5.0):
     return Figure(figsize=(w, h), constrained_layout=True)
 
 
+def _line_edges(f: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Cell edges of the lines ``f`` on a true frequency axis, and whether that axis is logarithmic: the
+    diagnosis' lines are often log-spaced, so each cell spans the geometric midpoints of its neighbours (the
+    arithmetic ones when a line is at or below 0 Hz).  A single line gets a cell of ±1 %."""
+    if f.size == 1:
+        return np.array([0.99, 1.01]) * f[0] if f[0] > 0 else np.array([f[0] - 0.5, f[0] + 0.5]), f[0] > 0
+    if np.all(f > 0):
+        g = np.log(f)
+        mid = 0.5 * (g[1:] + g[:-1])
+        return np.exp(np.concatenate([[2 * g[0] - mid[0]], mid, [2 * g[-1] - mid[-1]]])), True
+    mid = 0.5 * (f[1:] + f[:-1])
+    return np.concatenate([[2 * f[0] - mid[0]], mid, [2 * f[-1] - mid[-1]]]), False
+
+
 def mci_maps_figure(maps: dict, path) -> Path:
     """Condensed force residual (MCI, thesis eq. 3.89) per measured DOF and line, after parameter updating
     (before) and with the added physics (after), on a common log colour scale."""
@@ -28,14 +42,16 @@ def mci_maps_figure(maps: dict, path) -> Path:
     vmax = max(float(np.max(before)), float(np.max(after)), 1e-300)
     vmin = max(vmax * 1e-4, min(float(np.min(before[before > 0], initial=vmax)),
                                 float(np.min(after[after > 0], initial=vmax))))
-    f = np.asarray(maps["freq_hz"])
+    f = np.asarray(maps["freq_hz"], float)
+    edges, log_axis = _line_edges(f)
     axes = fig.subplots(1, 2, sharey=True)
     for ax, data, title in ((axes[0], before, "parameters only"), (axes[1], after, "with physics")):
-        im = ax.pcolormesh(np.arange(f.size + 1) - 0.5, np.arange(len(maps["responses"]) + 1) - 0.5,
-                           np.clip(data, vmin, None), norm=LogNorm(vmin=vmin, vmax=vmax), shading="auto")
-        ticks = np.linspace(0, f.size - 1, 6).astype(int)
-        ax.set_xticks(ticks, [f"{f[i]:.3g}" for i in ticks])
-        ax.set_xlabel("line frequency (Hz)")
+        im = ax.pcolormesh(edges, np.arange(len(maps["responses"]) + 1) - 0.5,
+                           np.clip(data, vmin, None), norm=LogNorm(vmin=vmin, vmax=vmax), shading="flat")
+        if log_axis:
+            ax.set_xscale("log")
+        ax.set_xlim(edges[0], edges[-1])
+        ax.set_xlabel("frequency (Hz), log scale" if log_axis else "frequency (Hz)")
         ax.set_title(f"MCI, {title}")
     axes[0].set_yticks(np.arange(len(maps["responses"])), maps["responses"])
     axes[0].set_ylabel("measured DOF")
