@@ -6,6 +6,7 @@ DOF and ``correlate`` must say that its MAC cannot tell them apart.  The FRFs co
 spring-mass chain with stiffness-proportional damping, modal superposition written here), written with pyuff.
 """
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,23 +16,7 @@ from modalab.app.cli import main
 
 M = np.array([1.0, 1.5, 0.8])
 K = np.array([4e4, 3e4, 2e4])
-BDF = """SOL 103
-CEND
-BEGIN BULK
-GRID           1              0.      0.      0.           12456
-GRID           2              .5      0.      0.           12456
-GRID           3             1.0      0.      0.           12456
-CONM2        101       1              1.
-CONM2        102       2             1.5
-CONM2        103       3              .8
-PELAS         11   4.+4
-PELAS         12   3.+4
-PELAS         13   2.+4
-CELAS1        21      11       1       3
-CELAS1        22      12       1       3       2       3
-CELAS1        23      13       2       3       3       3
-ENDDATA
-"""
+BDF = (Path(__file__).resolve().parents[1] / "data" / "chain3.bdf").read_text()
 
 
 def _accelerance(f):

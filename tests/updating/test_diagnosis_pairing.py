@@ -2,6 +2,8 @@
 suspension modes are left out on purpose, a pair needs a MAC and a frequency window."""
 from __future__ import annotations
 
+import pathlib
+
 import numpy as np
 
 from modalab.core.modes import ModeSet
@@ -52,34 +54,16 @@ def test_fit_block_metrics_are_numbers():
     assert all(isinstance(v, (int, float)) for v in m.values()), m
 
 
-CHAIN = """SOL 103
-CEND
-BEGIN BULK
-GRID           1              0.      0.      0.           12456
-GRID           2              .5      0.      0.           12456
-GRID           3             1.0      0.      0.           12456
-CONM2        101       1              1.
-CONM2        102       2             1.5
-CONM2        103       3              .8
-PELAS         11   4.+4
-PELAS         12   3.+4
-PELAS         13   2.+4
-CELAS1        21      11       1       3
-CELAS1        22      12       1       3       2       3
-CELAS1        23      13       2       3       3       3
-ENDDATA
-"""
+CHAIN = pathlib.Path(__file__).resolve().parents[1] / "data" / "chain3.bdf"
 
 
-def test_a_mode_on_modelled_supports_is_paired_not_left_out(tmp_path):
+def test_a_mode_on_modelled_supports_is_paired_not_left_out():
     """A mass chain on a ground spring (fresh user, issue 14): its first mode (12.5 Hz) moves the chain almost
     rigidly, but on a spring the model has: it is a mode of the structure, paired like the others (it was left
     out as 'suspension' below a 15.6 Hz cutoff, and the fit metrics ignored it)."""
     from updating.fe.bulk import build_model, read_bdf
 
-    deck = tmp_path / "chain.bdf"
-    deck.write_text(CHAIN)
-    st = build_model(read_bdf(deck)).structure()
+    st = build_model(read_bdf(CHAIN)).structure()
     tm = analysis_modes(st, 3)
     assert 12.0 < tm.freq_hz[0] < 13.0 and _rigid_fraction(st, np.asarray(tm.shapes))[0] > 0.9
     p = pair_test_modes(st, tm)
