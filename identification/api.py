@@ -209,28 +209,12 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
     >>> modes, report = identify(frf, band_hz=(5, 200), plots_dir="out")   # doctest: +SKIP
     >>> modes.to_json("modes.json")                                         # doctest: +SKIP
     """
+    # long by its docstring (every keyword of the public entry point documented); the body is ~40 lines
     if not isinstance(frf, FRF):
         raise ModalabValueError(fmt_error("frf", type(frf).__name__, "a modalab.FRF",
                                           "Read one with FRF.from_uff(path)"))
     t0 = time.perf_counter()
-    if reciprocity not in (None, True, False):
-        raise ModalabValueError(fmt_error("reciprocity", reciprocity, "None (automatic), True or False",
-                                          "Leave it None: a roving-hammer layout is transposed"))
-    roving = roving_hammer_layout(frf)
-    transpose = roving if reciprocity is None else bool(reciprocity)
-    if transpose:
-        why = ("forced" if reciprocity else
-               f"{frf.n_out} responses x {frf.n_in} references looks like a roving-hammer export")
-        log.info("reciprocity: %s; transposed to %d responses x %d references (the accelerometers are the "
-                 "references)", why, frf.n_in, frf.n_out)
-        recip = {"applied": True, "reason": why, "measured_shape": [frf.n_out, frf.n_in]}
-        frf = reorder_by_reciprocity(frf)
-    else:
-        recip = {"applied": False, "measured_shape": [frf.n_out, frf.n_in],
-                 "reason": "refused (reciprocity=False)" if roving else "layout already has few references"}
-        if roving:
-            log.warning("%d responses x %d references identified as given (reciprocity refused): every "
-                        "reference adds poles to each order; expect a slow, poor fit", frf.n_out, frf.n_in)
+    frf, recip = _reciprocity(frf, reciprocity)
     beta, beta_source = resolve_window(frf, exp_beta, force=force_window)
     if not window_correction:
         beta_source = "not applied (window_correction=False)"
@@ -248,72 +232,123 @@ def identify(frf: FRF, *, band_hz=None, max_order: int | None = None, select="au
     pm = _fit(n_order)
     extended = None
     if isinstance(select, str) and select == "auto":
-        band = (float(pm.frf_.freq_hz[0]), float(pm.frf_.freq_hz[-1]))
-        unres = unresolved_modes(pm.stabilisation_, pm.selected_, selection, band_hz=band)
-        if unres.size and max_order is None:
-            # a close pair still being resolved at the top orders (a merged pole below, two above): once,
-            # with EXTEND_ORDER times the default order (only when the analyst left the order to us); the
-            # higher order is kept only if it resolves one of them into several modes
-            first = pm.selected_.freq_hz[unres]
-            p2 = int(math.ceil(EXTEND_ORDER * n_order))
-            log.info("mode(s) at %s Hz still resolving at order %d (a second pole appears beside them at the "
-                     "top orders): identifying again up to order %d",
-                     ", ".join(f"{x:.5g}" for x in first), n_order, p2)
-            pm2 = _fit(p2)
-            tol = 0.5 * (selection or SelectionOptions()).distance
-            split = [int(np.sum(np.abs(pm2.selected_.freq_hz - x) <= tol * x)) >= 2 for x in first]
-            extended = {"from": int(n_order), "to": p2, "modes_hz": [float(x) for x in first], "kept": any(split)}
-            if any(split):
-                pm, n_order = pm2, p2
-                unres = unresolved_modes(pm.stabilisation_, pm.selected_, selection, band_hz=band)
-            else:
-                log.info("order %d did not resolve them: the identification at order %d is kept", p2, n_order)
-        if unres.size:
-            log.warning("mode(s) at %s Hz may hide a close pair not resolved by order %d (a second pole keeps "
-                        "appearing beside them at the top orders); raise --max-order or pick them with --select",
-                        ", ".join(f"{x:.5g}" for x in pm.selected_.freq_hz[unres]), n_order)
+        pm, n_order, extended = _resolve_close_pairs(_fit, pm, n_order, selection, order_given=max_order is not None)
     modes: ModeSet = pm.modes_
     synth = pm.lsfd_.synthesise(pm.frf_)
     report = IdentificationReport(
         diagram=pm.stabilisation_, selected=pm.selected_, lsfd=pm.lsfd_, synthesis=synth,
         frf_correlation=pm.lsfd_.metadata["frf_correlation"], synthesis_error=pm.lsfd_.metadata["synthesis_error"],
-        settings={"band_hz": [float(pm.frf_.freq_hz[0]), float(pm.frf_.freq_hz[-1])], "max_order": int(n_order),
-                  "min_order": int(min_order), "order_step": int(order_step), "weighting": weighting or "none",
-                  "refine": bool(refine), "uncertainty": bool(uncertainty),
-                  "select": (str(select) if isinstance(select, (str, os.PathLike))
-                             else [float(x) for x in np.atleast_1d(select)]),
-                  "references": [str(r) for r in pm.frf_.references], "n_responses": pm.frf_.n_out,
-                  "n_lines": pm.frf_.n_freq, "quantity": pm.frf_.quantity,
-                  "window_correction": {"beta_per_s": float(beta) if window_correction else 0.0,
-                                        "source": beta_source},
-                  "reciprocity": recip, "max_order_extended": extended,
-                  "criteria": pm.stabilisation_.to_dict()["criteria"]})
+        settings=_settings(pm, n_order, select, min_order=min_order, order_step=order_step, weighting=weighting,
+                           refine=refine, uncertainty=uncertainty,
+                           window={"beta_per_s": float(beta) if window_correction else 0.0, "source": beta_source},
+                           reciprocity=recip, extended=extended))
     if plots_dir is not None:
-        from .plots import plot_automac, plot_stabilisation, plot_synthesis
-
-        out = Path(plots_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        report.figures["stabilisation"] = out / "stabilisation.png"
-        plot_stabilisation(pm.stabilisation_, pm.frf_, selected_hz=pm.selected_.freq_hz,
-                           path=report.figures["stabilisation"])
-        report.figures["synthesis"] = out / "synthesis.png"
-        plot_synthesis(pm.frf_, synth, path=report.figures["synthesis"])
-        report.figures["automac"] = out / "automac.png"
-        plot_automac(modes, path=report.figures["automac"])
-    def _list(v):
-        return [None if not np.isfinite(x) else float(x) for x in np.asarray(v, float)]
-
-    report.modes = {"freq_hz": _list(modes.freq_hz), "damping": _list(modes.damping)}
-    if uncertainty:
-        report.modes.update({k: _list(modes.indicators[k]) for k in (
-            "freq_std_hz", "damping_std", "freq_std_noise_hz", "damping_std_noise", "freq_std_orders_hz",
-            "damping_std_orders", "chi2_ratio")})
-        report.modes["std_source"] = modes.metadata.get("pole_std_source")
-        if "may_be_pair" in modes.indicators:
-            # a mode whose residues are not of rank one: possibly a close pair merged into one pole
-            report.modes["may_be_pair"] = [bool(x) for x in modes.indicators["may_be_pair"]]
-            report.modes["rank2_fraction"] = _list(modes.indicators["rank2_fraction"])
+        report.figures.update(_write_figures(pm, synth, modes, Path(plots_dir)))
+    report.modes = _modes_summary(modes, uncertainty)
     report.elapsed_s = time.perf_counter() - t0
     log.info("identified %d modes in %.2f s (mean FRF correlation %.4f)", modes.n_modes, report.elapsed_s,
              float(np.nanmean(report.frf_correlation)) if report.frf_correlation.size else float("nan"))
     return modes, report
+
+
+def _settings(pm, n_order: int, select, *, min_order, order_step, weighting, refine, uncertainty, window,
+              reciprocity, extended) -> dict:
+    """``report.settings``: the parameters the identification used, as JSON-ready values."""
+    return {"band_hz": [float(pm.frf_.freq_hz[0]), float(pm.frf_.freq_hz[-1])], "max_order": int(n_order),
+            "min_order": int(min_order), "order_step": int(order_step), "weighting": weighting or "none",
+            "refine": bool(refine), "uncertainty": bool(uncertainty),
+            "select": (str(select) if isinstance(select, (str, os.PathLike))
+                       else [float(x) for x in np.atleast_1d(select)]),
+            "references": [str(r) for r in pm.frf_.references], "n_responses": pm.frf_.n_out,
+            "n_lines": pm.frf_.n_freq, "quantity": pm.frf_.quantity, "window_correction": window,
+            "reciprocity": reciprocity, "max_order_extended": extended,
+            "criteria": pm.stabilisation_.to_dict()["criteria"]}
+
+
+def _reciprocity(frf: FRF, reciprocity):
+    """``(frf, record)``: a roving-hammer layout transposed by Maxwell–Betti reciprocity (or as forced or
+    refused by ``reciprocity``), and what was done (``settings['reciprocity']``)."""
+    if reciprocity not in (None, True, False):
+        raise ModalabValueError(fmt_error("reciprocity", reciprocity, "None (automatic), True or False",
+                                          "Leave it None: a roving-hammer layout is transposed"))
+    roving = roving_hammer_layout(frf)
+    transpose = roving if reciprocity is None else bool(reciprocity)
+    if transpose:
+        why = ("forced" if reciprocity else
+               f"{frf.n_out} responses x {frf.n_in} references looks like a roving-hammer export")
+        log.info("reciprocity: %s; transposed to %d responses x %d references (the accelerometers are the "
+                 "references)", why, frf.n_in, frf.n_out)
+        return reorder_by_reciprocity(frf), {"applied": True, "reason": why, "measured_shape": [frf.n_out, frf.n_in]}
+    recip = {"applied": False, "measured_shape": [frf.n_out, frf.n_in],
+             "reason": "refused (reciprocity=False)" if roving else "layout already has few references"}
+    if roving:
+        log.warning("%d responses x %d references identified as given (reciprocity refused): every "
+                    "reference adds poles to each order; expect a slow, poor fit", frf.n_out, frf.n_in)
+    return frf, recip
+
+
+def _resolve_close_pairs(fit, pm, n_order: int, selection, *, order_given: bool):
+    """``(pm, order, record)``: with automatic selection, a mode still resolving into a close pair at the top
+    orders (:func:`~identification.selection.unresolved_modes`) is identified once more up to
+    ``EXTEND_ORDER`` times the default order (only when the analyst left the order to us, ``order_given``
+    False), kept if it resolves one of them into several modes; ``record`` is
+    ``settings['max_order_extended']`` (None when not tried).  A mode still unresolved is a warning."""
+    extended = None
+    band = (float(pm.frf_.freq_hz[0]), float(pm.frf_.freq_hz[-1]))
+    unres = unresolved_modes(pm.stabilisation_, pm.selected_, selection, band_hz=band)
+    if unres.size and not order_given:
+        # a close pair still being resolved at the top orders (a merged pole below, two above): once,
+        # with EXTEND_ORDER times the default order (only when the analyst left the order to us); the
+        # higher order is kept only if it resolves one of them into several modes
+        first = pm.selected_.freq_hz[unres]
+        p2 = int(math.ceil(EXTEND_ORDER * n_order))
+        log.info("mode(s) at %s Hz still resolving at order %d (a second pole appears beside them at the "
+                 "top orders): identifying again up to order %d",
+                 ", ".join(f"{x:.5g}" for x in first), n_order, p2)
+        pm2 = fit(p2)
+        tol = 0.5 * (selection or SelectionOptions()).distance
+        split = [int(np.sum(np.abs(pm2.selected_.freq_hz - x) <= tol * x)) >= 2 for x in first]
+        extended = {"from": int(n_order), "to": p2, "modes_hz": [float(x) for x in first], "kept": any(split)}
+        if any(split):
+            pm, n_order = pm2, p2
+            unres = unresolved_modes(pm.stabilisation_, pm.selected_, selection, band_hz=band)
+        else:
+            log.info("order %d did not resolve them: the identification at order %d is kept", p2, n_order)
+    if unres.size:
+        log.warning("mode(s) at %s Hz may hide a close pair not resolved by order %d (a second pole keeps "
+                    "appearing beside them at the top orders); raise --max-order or pick them with --select",
+                    ", ".join(f"{x:.5g}" for x in pm.selected_.freq_hz[unres]), n_order)
+    return pm, n_order, extended
+
+
+def _write_figures(pm, synth: FRF, modes: ModeSet, out: Path) -> dict:
+    """``stabilisation.png``, ``synthesis.png``, ``automac.png`` in ``out``; name -> file."""
+    # matplotlib is imported only when figures are asked for (identification without plots needs none)
+    from .plots import plot_automac, plot_stabilisation, plot_synthesis
+
+    out.mkdir(parents=True, exist_ok=True)
+    figures = {"stabilisation": out / "stabilisation.png", "synthesis": out / "synthesis.png",
+               "automac": out / "automac.png"}
+    plot_stabilisation(pm.stabilisation_, pm.frf_, selected_hz=pm.selected_.freq_hz, path=figures["stabilisation"])
+    plot_synthesis(pm.frf_, synth, path=figures["synthesis"])
+    plot_automac(modes, path=figures["automac"])
+    return figures
+
+
+def _modes_summary(modes: ModeSet, uncertainty: bool) -> dict:
+    """``report.modes``: per-mode frequencies and damping ratios and, with ``uncertainty``, their standard
+    deviations and the close-pair test (NaN as None)."""
+    def _list(v):
+        return [None if not np.isfinite(x) else float(x) for x in np.asarray(v, float)]
+
+    out = {"freq_hz": _list(modes.freq_hz), "damping": _list(modes.damping)}
+    if uncertainty:
+        out.update({k: _list(modes.indicators[k]) for k in (
+            "freq_std_hz", "damping_std", "freq_std_noise_hz", "damping_std_noise", "freq_std_orders_hz",
+            "damping_std_orders", "chi2_ratio")})
+        out["std_source"] = modes.metadata.get("pole_std_source")
+        if "may_be_pair" in modes.indicators:
+            # a mode whose residues are not of rank one: possibly a close pair merged into one pole
+            out["may_be_pair"] = [bool(x) for x in modes.indicators["may_be_pair"]]
+            out["rank2_fraction"] = _list(modes.indicators["rank2_fraction"])
+    return out

@@ -45,6 +45,8 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.cluster.hierarchy import fcluster, linkage
+from scipy.spatial.distance import squareform
 
 from modalab.core.errors import ModalabValueError, fmt_error
 from .stabilisation import StabilisationDiagram, mac_vectors, pole_freq_damping
@@ -229,9 +231,6 @@ def _same_mode(orders_a, orders_b, la, lb, opts) -> bool:
 
 def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = None, *, band_hz=None) -> SelectedPoles:
     """Automatic selection by hierarchical clustering of the stable, physical poles (module docs)."""
-    from scipy.cluster.hierarchy import fcluster, linkage
-    from scipy.spatial.distance import squareform
-
     opts = options if options is not None else SelectionOptions()
     n_in = diag.participation.shape[0]
     idx = np.flatnonzero(diag.stable & _physical(diag, opts, band_hz))
@@ -241,14 +240,47 @@ def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = N
     o = np.argsort(diag.freq_hz[idx])
     idx = idx[o]
     f, z, L, od = diag.freq_hz[idx], diag.damping[idx], diag.participation[:, idx], diag.order[idx]
+    lab = _cluster_labels(f, z, L, opts)
+    groups, support = _modes_of_clusters(lab, f, z, od, opts)
+    sizes = np.array([g.size for g in groups])
+    support = np.array(support)
+    keep = (sizes >= opts.min_poles) & (support >= opts.min_fraction * diag.orders.size)
+    keep = _one_cluster_per_mode(groups, sizes, keep, f, od, L, opts)
+    lam, parts, orders, csize, spread = [], [], [], [], []
+    for g, ok in zip(groups, keep):
+        if not ok:
+            continue
+        # estimates converge with the order: represent the cluster by its upper third of orders
+        top = g[od[g] >= np.percentile(od[g], 67)]
+        fm, zm = np.median(f[top]), np.median(z[top])
+        score = np.abs(f[top] - fm) / fm + np.abs(z[top] - zm) / max(zm, 1e-12) * 0.01
+        best = top[np.argmin(score)]
+        # the representative pole: median frequency and damping, participation of the closest pole
+        lam.append(complex(-zm * 2 * np.pi * fm, 2 * np.pi * fm * np.sqrt(max(1 - zm ** 2, 0.0))))
+        parts.append(L[:, best])
+        orders.append(od[best])
+        csize.append(g.size)
+        spread.append(order_spread(f[top], z[top]))
+    log.info("automatic selection: %d stable poles in %d clusters, %d kept", idx.size, len(groups), len(lam))
+    if not lam:
+        return _empty(n_in, "auto")
+    sp_ = np.array(spread, float).reshape(-1, 3)
+    return SelectedPoles(np.array(lam), np.array(parts).T, np.array(orders), np.array(csize), "auto",
+                         sp_[:, 0], sp_[:, 1], sp_[:, 2].astype(int))._sorted()
+
+
+def _cluster_labels(f, z, L, opts: SelectionOptions) -> np.ndarray:
+    """Cluster label of each pole (frequency-sorted ``f``, ``z``, participations ``L``): average linkage on
+    the distance of the module docs, cut at ``distance``, block by block."""
+    n_in = L.shape[0]
     # d_ij >= |Δf|/f, so poles separated by a frequency gap wider than the cut never share a cluster:
     # cluster each gap-separated block on its own (memory and time stay per mode, not per diagram)
     rel_gap = np.diff(f) / f[1:]
     blocks = []
-    for blk in np.split(np.arange(idx.size), np.flatnonzero(rel_gap > opts.distance) + 1):
+    for blk in np.split(np.arange(f.size), np.flatnonzero(rel_gap > opts.distance) + 1):
         # a block crowded with noise poles (very high orders) is split at finer gaps to bound memory
         blocks.extend(_split_block(blk, rel_gap, opts.distance / 2, opts.max_block))
-    lab = np.zeros(idx.size, int)
+    lab = np.zeros(f.size, int)
     next_label = 1
     for blk in blocks:
         if blk.size == 1:
@@ -273,6 +305,13 @@ def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = N
         sub = fcluster(linkage(dvec, method="average"), t=opts.distance, criterion="distance")
         lab[blk] = sub + next_label
         next_label += sub.max() + 1
+    return lab
+
+
+def _modes_of_clusters(lab, f, z, od, opts: SelectionOptions):
+    """``(groups, support)``: the pole indices of each mode the clusters hold (a cluster resolved at its upper
+    orders or split by Ward linkage when it holds several poles per order, else itself) and the number of
+    stable poles behind each."""
     # clusters as runs of one label: members[starts[c]:starts[c]+counts[c]]
     by_lab = np.argsort(lab, kind="stable")
     labels, starts, counts = np.unique(lab[by_lab], return_index=True, return_counts=True)
@@ -309,12 +348,16 @@ def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = N
         else:
             groups.append(members)
             support.append(members.size)
-    sizes = np.array([g.size for g in groups])
-    support = np.array(support)
-    keep = (sizes >= opts.min_poles) & (support >= opts.min_fraction * diag.orders.size)
+    return groups, support
+
+
+def _one_cluster_per_mode(groups, sizes, keep, f, od, L, opts: SelectionOptions) -> np.ndarray:
+    """``keep`` with, of kept clusters nearer than ``distance/2`` that are one mode's wandering estimates
+    (:func:`_same_mode`), only the largest left."""
     # one physical mode split into several clusters: keep the largest — but only when the two clusters are
     # one mode's wandering estimates: they rarely hold a pole at the same order (two modes coexist order by
     # order) and, with several references, their participation vectors agree (MAC >= same_mode_mac)
+    keep = keep.copy()
     cat = np.concatenate(groups)
     gid = np.repeat(np.arange(len(groups)), sizes)
     o = np.lexsort((f[cat], gid))
@@ -335,27 +378,7 @@ def auto_select(diag: StabilisationDiagram, options: SelectionOptions | None = N
                 log.info("automatic selection: %.4g and %.4g Hz kept as two modes (they coexist at %d orders; "
                          "participation MAC %.2f)", centre[a], centre[b], len(orders_of[a] & orders_of[b]),
                          float(mac_vectors(Lmean[a][:, None], Lmean[b][:, None])[0, 0]))
-    lam, parts, orders, csize, spread = [], [], [], [], []
-    for g, ok in zip(groups, keep):
-        if not ok:
-            continue
-        # estimates converge with the order: represent the cluster by its upper third of orders
-        top = g[od[g] >= np.percentile(od[g], 67)]
-        fm, zm = np.median(f[top]), np.median(z[top])
-        score = np.abs(f[top] - fm) / fm + np.abs(z[top] - zm) / max(zm, 1e-12) * 0.01
-        best = top[np.argmin(score)]
-        # the representative pole: median frequency and damping, participation of the closest pole
-        lam.append(complex(-zm * 2 * np.pi * fm, 2 * np.pi * fm * np.sqrt(max(1 - zm ** 2, 0.0))))
-        parts.append(L[:, best])
-        orders.append(od[best])
-        csize.append(g.size)
-        spread.append(order_spread(f[top], z[top]))
-    log.info("automatic selection: %d stable poles in %d clusters, %d kept", idx.size, len(groups), len(lam))
-    if not lam:
-        return _empty(n_in, "auto")
-    sp_ = np.array(spread, float).reshape(-1, 3)
-    return SelectedPoles(np.array(lam), np.array(parts).T, np.array(orders), np.array(csize), "auto",
-                         sp_[:, 0], sp_[:, 1], sp_[:, 2].astype(int))._sorted()
+    return keep
 
 
 def unresolved_modes(diag: StabilisationDiagram, selected: SelectedPoles,

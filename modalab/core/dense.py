@@ -36,7 +36,7 @@ by operation because the work does:
 :func:`use_dense` is the test every module applies.
 
 Not dense-versus-sparse choices, and so not here: where diagnosis replaces the exact model by a reduced
-one (:data:`updating.diagnosis.fit.RITZ_LIMIT`, :data:`updating.diagnosis.modes.SUBSPACE_ABOVE`) — those
+one (:data:`updating.diagnosis.fit.RITZ_LIMIT`, :data:`updating.diagnosis.modal_fit.SUBSPACE_ABOVE`) — those
 change the answer (within a checked tolerance), not only the time.
 """
 from __future__ import annotations

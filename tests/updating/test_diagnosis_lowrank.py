@@ -1,5 +1,5 @@
 """The candidate library's low-rank storage (issue 16 #8): each candidate's unit matrix as indices and a small
-block (:class:`~updating.diagnosis.library.LocalMatrix`), equal to the explicit n × n matrices it replaced, and
+block (:class:`~updating.diagnosis.local_matrix.LocalMatrix`), equal to the explicit n × n matrices it replaced, and
 the modes-only screening giving the same numbers from either."""
 from __future__ import annotations
 

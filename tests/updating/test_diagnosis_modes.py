@@ -116,7 +116,7 @@ def _gvt_modes(masses=(), n_modes=7, noise=0.01):
 
 @pytest.mark.parametrize("path", ["exact", "subspace"])
 def test_lumped_deck_without_spc_finds_a_concealed_mass(tmp_path, monkeypatch, path):
-    import updating.diagnosis.modes as MD
+    import updating.diagnosis.modal_fit as MD
     if path == "subspace":          # the Ritz-subspace screening and fits of large models, on this small one
         monkeypatch.setattr(MD, "SUBSPACE_ABOVE", 50)
     model = _gvt_deck(tmp_path / "gvt.bdf")
@@ -136,7 +136,7 @@ def test_lumped_deck_without_spc_finds_a_concealed_mass(tmp_path, monkeypatch, p
 
 @pytest.mark.parametrize("path", ["exact", "subspace"])
 def test_lumped_deck_nominal_modes_leave_everything_at_nominal(tmp_path, monkeypatch, path):
-    import updating.diagnosis.modes as MD
+    import updating.diagnosis.modal_fit as MD
     if path == "subspace":
         monkeypatch.setattr(MD, "SUBSPACE_ABOVE", 50)
     model = _gvt_deck(tmp_path / "gvt.bdf")

@@ -148,6 +148,81 @@ class _Receptance:
         return np.matmul(QL.T[None], np.matmul(self.G, QL[None])).transpose(1, 2, 0)
 
 
+class _Misfit:
+    """The current model's misfit on the data, which every candidate's Woodbury update is scored against:
+    the receptance ``H0`` between measured rows and references, the weights and the current error ``e0``."""
+
+    def __init__(self, R: _Receptance, data: FRFData):
+        self.R, self.data = R, data
+        self.H0 = R.meas_refs()                                           # (n_m, n_r, n_s)
+        self.w = data.quality ** 2
+        self.den2 = data.den ** 2
+        self.wsum = max(float(np.sum(self.w)), 1e-300)
+        self.e0 = frf_error(self.H0 * R.sign, data)
+        self.E0 = self.H0 * R.sign - data.H                               # current misfit
+        self.Wt = self.w / self.den2
+        self.c0 = float(np.sum(self.Wt * np.abs(self.E0) ** 2))
+
+    def errors(self, Hm, Hr, Hll, fac):
+        """``errors(thetas)``: the weighted FRF error of the model with the candidate (blocks ``Hm``, ``Hr``,
+        ``Hll`` of the receptance at its DOFs, frequency factor ``fac``) added at each value."""
+        R, c0, wsum = self.R, self.c0, self.wsum
+        if Hll.shape[0] == 1:
+            # rank one: dH = u / d(θ) with u = H[m, j] H[j, r] fixed, so the weighted error is a sum over lines
+            # c0 − 2 Re Σ_f P_f / d_f + Σ_f S_f / |d_f|²  (O(n_s) per value)
+            u = Hm[:, 0, None, :] * Hr[None, 0, :, :] * R.sign
+            P = np.sum(self.Wt * np.conj(self.E0) * u, axis=(0, 1))
+            S = np.sum(self.Wt * np.abs(u) ** 2, axis=(0, 1))
+
+        def errors(thetas):
+            # a value at which the modified model resonates without damping exactly on a line makes the r × r
+            # system singular there: its FRF is unbounded at that line, so the error of that value is infinite
+            # (an explicit answer, not a skipped candidate)
+            inv = 1.0 / (thetas[:, None] * fac[None, :])                            # (n_t, n_s)
+            if Hll.shape[0] == 1:
+                d = inv + Hll[0, 0][None, :]
+                bad = ~(np.abs(d) > 0)
+                d = np.where(bad, 1.0, d)
+                tot = c0 - 2 * np.sum((P[None] / d).real, axis=1) + np.sum(S[None] / np.abs(d) ** 2, axis=1)
+                out = np.sqrt(np.clip(tot, 0, None) / wsum)
+                return np.where(bad.any(axis=1), np.inf, out)
+            return _updated_errors(inv, Hll, Hm, Hr, self.H0, R.sign, self.data.H, self.w, self.den2, wsum)
+
+        return errors
+
+
+def _refined(errors, grid):
+    """``(values, errors)``: the grid, refined twice between the neighbours of the best value."""
+    t = grid
+    err = errors(t)
+    for _ in range(2):
+        k = int(np.argmin(err))
+        lo_t = t[max(k - 1, 0)]
+        hi_t = t[min(k + 1, t.size - 1)]
+        if hi_t <= lo_t:
+            break
+        t2 = np.geomspace(lo_t, hi_t, 7)
+        e2 = errors(t2)
+        t, err = np.concatenate([t, t2]), np.concatenate([err, e2])
+        o = np.argsort(t)
+        t, err = t[o], err[o]
+        keep = np.r_[True, np.diff(t) > 1e-9 * t[1:]]                  # drop repeated values
+        t, err = t[keep], err[keep]
+    return t, err
+
+
+def _polished(errors, t, err):
+    """``(values, errors)`` with the best value polished by Brent's method in log θ (when that lowers it)."""
+    k = int(np.argmin(err))
+    a, b = np.log(t[max(k - 1, 0)]), np.log(t[min(k + 1, t.size - 1)])
+    if b > a:
+        sol = minimize_scalar(lambda x: float(errors(np.array([np.exp(x)]))[0]), bounds=(a, b),
+                              method="bounded", options={"xatol": 1e-4})
+        if sol.fun < err[k]:
+            t, err = np.append(t, np.exp(sol.x)), np.append(err, sol.fun)
+    return t, err
+
+
 def frf_screen(structure, candidates, data: FRFData, *, loss_factor: float = 0.0, top: int | None = None) -> list:
     """Rank shared candidates by the training FRF error each alone leaves when added to ``structure`` at its
     best value on a plausible grid.  Returns ``[(candidate, value, gain)]`` best first, ``gain`` the
@@ -167,15 +242,8 @@ def frf_screen(structure, candidates, data: FRFData, *, loss_factor: float = 0.0
         return []
     R = _Receptance(structure, data)
     K, M = sp.csr_matrix(structure.K), sp.csr_matrix(structure.M)
-    mi, ri, s = R.mi, R.ri, data.s
-    H0 = R.meas_refs()                                                    # (n_m, n_r, n_s)
-    w = data.quality ** 2
-    den2 = data.den ** 2
-    wsum = max(float(np.sum(w)), 1e-300)
-    e0 = frf_error(H0 * R.sign, data)
-    E0 = H0 * R.sign - data.H                                             # current misfit
-    Wt = w / den2
-    c0 = float(np.sum(Wt * np.abs(E0) ** 2))
+    fit = _Misfit(R, data)
+    e0 = fit.e0
     out = []
     for c, (rows, L) in work:
         # rank one costs O(n_s) per value: a fine grid (resonances crossing lines make the error rough in
@@ -186,54 +254,12 @@ def frf_screen(structure, candidates, data: FRFData, *, loss_factor: float = 0.0
         Hm = R.meas_cols(L, rows)                                         # (n_m, r, n_s)
         Hr = R.rows_refs(L, rows)                                         # (r, n_r, n_s)
         Hll = R.rows_rows(L, rows)                                        # (r, r, n_s)
-        fac = _FACTOR[c.matrix](s) * ((1 + 1j * loss_factor) if c.matrix == "K" else 1.0)
-
-        if Hll.shape[0] == 1:
-            # rank one: dH = u / d(θ) with u = H[m, j] H[j, r] fixed, so the weighted error is a sum over lines
-            # c0 − 2 Re Σ_f P_f / d_f + Σ_f S_f / |d_f|²  (O(n_s) per value)
-            u = Hm[:, 0, None, :] * Hr[None, 0, :, :] * R.sign
-            P = np.sum(Wt * np.conj(E0) * u, axis=(0, 1))
-            S = np.sum(Wt * np.abs(u) ** 2, axis=(0, 1))
-
-        def errors(thetas):
-            # a value at which the modified model resonates without damping exactly on a line makes the r × r
-            # system singular there: its FRF is unbounded at that line, so the error of that value is infinite
-            # (an explicit answer, not a skipped candidate)
-            inv = 1.0 / (thetas[:, None] * fac[None, :])                            # (n_t, n_s)
-            if Hll.shape[0] == 1:
-                d = inv + Hll[0, 0][None, :]
-                bad = ~(np.abs(d) > 0)
-                d = np.where(bad, 1.0, d)
-                tot = c0 - 2 * np.sum((P[None] / d).real, axis=1) + np.sum(S[None] / np.abs(d) ** 2, axis=1)
-                out = np.sqrt(np.clip(tot, 0, None) / wsum)
-                return np.where(bad.any(axis=1), np.inf, out)
-            return _updated_errors(inv, Hll, Hm, Hr, H0, R.sign, data.H, w, den2, wsum)
-
-        t = grid
-        err = errors(t)
-        for _ in range(2):             # refine twice between the neighbours of the best value
-            k = int(np.argmin(err))
-            lo_t = t[max(k - 1, 0)]
-            hi_t = t[min(k + 1, t.size - 1)]
-            if hi_t <= lo_t:
-                break
-            t2 = np.geomspace(lo_t, hi_t, 7)
-            e2 = errors(t2)
-            t, err = np.concatenate([t, t2]), np.concatenate([err, e2])
-            o = np.argsort(t)
-            t, err = t[o], err[o]
-            keep = np.r_[True, np.diff(t) > 1e-9 * t[1:]]                  # drop repeated values
-            t, err = t[keep], err[keep]
-        if Hll.shape[0] == 1 and len(work) > 400 and err.min() > 0.9 * e0:
-            pass                       # many candidates and this one barely helps: no polishing
-        elif Hll.shape[0] == 1:          # cheap: polish the best value by Brent's method in log θ
-            k = int(np.argmin(err))
-            a, b = np.log(t[max(k - 1, 0)]), np.log(t[min(k + 1, t.size - 1)])
-            if b > a:
-                sol = minimize_scalar(lambda x: float(errors(np.array([np.exp(x)]))[0]), bounds=(a, b),
-                                      method="bounded", options={"xatol": 1e-4})
-                if sol.fun < err[k]:
-                    t, err = np.append(t, np.exp(sol.x)), np.append(err, sol.fun)
+        fac = _FACTOR[c.matrix](data.s) * ((1 + 1j * loss_factor) if c.matrix == "K" else 1.0)
+        errors = fit.errors(Hm, Hr, Hll, fac)
+        t, err = _refined(errors, grid)
+        # rank one is cheap to polish, unless there are many candidates and this one barely helps
+        if Hll.shape[0] == 1 and not (len(work) > 400 and err.min() > 0.9 * e0):
+            t, err = _polished(errors, t, err)
         k = int(np.argmin(err))
         if err[k] < e0:
             out.append((c, float(t[k]), 1.0 - float(err[k]) / e0))

@@ -1,6 +1,6 @@
 """Single-candidate screening of the modes-only diagnosis (:func:`screen_modes`, issue 16 #8).
 
-Each shared stiffness or mass candidate ``θ G = θ E L Lᵀ Eᵀ`` (:class:`~updating.diagnosis.library.LocalMatrix`:
+Each shared stiffness or mass candidate ``θ G = θ E L Lᵀ Eᵀ`` (:class:`~updating.diagnosis.local_matrix.LocalMatrix`:
 a few DOF indices and a small block) is judged on the modal residual of
 :class:`~updating.diagnosis.modes.ModalResidual` in two stages:
 

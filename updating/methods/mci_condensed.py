@@ -36,7 +36,7 @@ def _factor(matrix: str, s: np.ndarray) -> np.ndarray:
 
 def _column(T, x_full, A, factor, w):
     """−Tᵀ (A·factor) x, weighted, stacked real/imag, for a sparse A (or a diagnosis library's
-    :class:`~updating.diagnosis.library.LocalMatrix`: its block, without an n × n matrix)."""
+    :class:`~updating.diagnosis.local_matrix.LocalMatrix`: its block, without an n × n matrix)."""
     n, nq, ns = x_full.shape
     if hasattr(A, "block") and hasattr(A, "rows"):
         rows = A.rows

@@ -5,12 +5,7 @@ matplotlib is imported when a figure is drawn, as in :mod:`modalab.core.plots`, 
 updating methods does not load it."""
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
-
-if TYPE_CHECKING:                                   # annotations only: mci imports this module's figures
-    from updating.methods.mci import MCIResult
 
 __all__ = ["plot_mci_map", "plot_mci_maxima", "plot_convergence"]
 
@@ -21,8 +16,10 @@ def _figure(figsize):
     return Figure(figsize=figsize, constrained_layout=True)
 
 
-def plot_mci_map(result: MCIResult, path, *, reference: int = 0, title: str = "MCI map"):
-    """|MCI| as an image, DOF (rows) × frequency (columns), log colour scale; saved to ``path``."""
+def plot_mci_map(result, path, *, reference: int = 0, title: str = "MCI map"):
+    """|MCI| of ``result`` (an :class:`~updating.methods.mci.MCIResult`, not imported here:
+    :mod:`~updating.methods.mci` imports these figures) as an image, DOF (rows) × frequency (columns), log
+    colour scale; saved to ``path``."""
     from matplotlib.colors import LogNorm
 
     fig = _figure((8, 4))
@@ -44,7 +41,8 @@ def plot_mci_map(result: MCIResult, path, *, reference: int = 0, title: str = "M
 
 
 def plot_mci_maxima(results, path, *, labels=None, title: str = "absolute maxima of MCI per DOF"):
-    """Bar chart of the per-DOF maxima of one or several :class:`MCIResult` (e.g. initial and final)."""
+    """Bar chart of the per-DOF maxima of one or several :class:`~updating.methods.mci.MCIResult` (e.g. initial
+    and final)."""
     if hasattr(results, "max_per_dof"):                  # one MCIResult
         results = [results]
     labels = labels or [f"set {k + 1}" for k in range(len(results))]
