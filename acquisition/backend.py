@@ -22,6 +22,8 @@ from modalab.core.dof import Dof
 from modalab.core.errors import PlanError
 from modalab.core.records import TimeRecord
 
+from .nidaqmx_backend import NidaqmxBackend
+
 __all__ = ["DaqBackend", "open_backend", "BACKENDS"]
 
 BACKENDS = ("sim", "nidaqmx")
@@ -57,8 +59,6 @@ class DaqBackend(Protocol):
 def open_backend(name: str, **kw) -> DaqBackend:
     """Open a backend by name: ``'nidaqmx'`` (kw: device options) or ``'sim'`` (kw: ``lab=SimulatedLab``...)."""
     if name == "nidaqmx":
-        from .nidaqmx_backend import NidaqmxBackend
-
         return NidaqmxBackend(**kw)
     if name == "sim":
         raise PlanError("the 'sim' backend is built by the caller from hardware_sim (acquisition may not import "

@@ -36,6 +36,8 @@ from __future__ import annotations
 
 import logging
 
+import serial
+
 from modalab.core.errors import ModalabValueError, SerialProtocolError
 
 log = logging.getLogger(__name__)
@@ -43,9 +45,7 @@ __all__ = ["LineTransport", "IEPEConditioner", "AutoHammer", "open_serial"]
 
 
 def open_serial(url: str, *, baudrate: int = 115200, timeout: float = 1.0):
-    """Open a pyserial port from a URL with ``serial.serial_for_url`` (imports pyserial lazily)."""
-    import serial
-
+    """Open a pyserial port from a URL with ``serial.serial_for_url``."""
     try:
         return serial.serial_for_url(url, baudrate=baudrate, timeout=timeout)
     except (serial.SerialException, ValueError) as e:

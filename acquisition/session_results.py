@@ -16,6 +16,7 @@ from modalab.core.frf import FRF, concat
 from modalab.core.records import TimeRecord
 
 from .plan import TestPlan
+from .reciprocity import reorder_by_reciprocity
 from .store import HitStore
 from .windows import ForceWindow
 from .spectral import SpectralAverager
@@ -116,8 +117,6 @@ def session_frf(store: HitStore, plan: TestPlan, *, reciprocity: bool = True) ->
     if plan.pattern == "hammer":
         frf = concat(parts, axis="references") if len(parts) > 1 else parts[0]
         if reciprocity:
-            from .reciprocity import reorder_by_reciprocity
-
             frf = reorder_by_reciprocity(frf)
     else:
         frf = concat(parts, axis="responses") if len(parts) > 1 else parts[0]

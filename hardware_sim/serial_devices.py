@@ -15,6 +15,10 @@ import threading
 from typing import Callable
 from urllib.parse import urlsplit
 
+import serial
+from serial.serialutil import SerialException
+from serial.urlhandler import protocol_loop
+
 __all__ = ["register", "device", "reset_devices", "SimConditioner", "SimAutoHammer"]
 
 _DEVICES: dict[str, object] = {}
@@ -163,17 +167,12 @@ def reset_devices() -> None:
 
 def register() -> None:
     """Make ``serial.serial_for_url`` find the ``simcond://`` and ``simhammer://`` handlers."""
-    import serial
-
     if "hardware_sim" not in serial.protocol_handler_packages:
         serial.protocol_handler_packages.append("hardware_sim")
 
 
 def make_serial_class(kind: str):
     """A pyserial ``Serial`` class for ``kind`` (used by the protocol_* modules)."""
-    from serial.serialutil import SerialException
-    from serial.urlhandler import protocol_loop
-
     class Serial(protocol_loop.Serial):
         def from_url(self, url):
             parts = urlsplit(url)

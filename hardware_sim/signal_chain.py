@@ -22,6 +22,7 @@ synthesis_taper         the analog bandwidth of the simulation: a raised-cosine 
 from __future__ import annotations
 
 import numpy as np
+from scipy import signal
 
 from modalab.core.errors import ModalabValueError
 
@@ -101,8 +102,6 @@ def antialias_response(freq_hz, sample_rate_hz: float, kind: str = "delta-sigma"
         x = np.clip((fa - fp) / (fst - fp), 0.0, 1.0)
         att_db = stop_db * x ** 3 * (10 - 15 * x + 6 * x * x)      # C² 'smootherstep' in dB
         return (10 ** (-att_db / 20)).astype(complex)
-    from scipy import signal
-
     if int(order) < 1:
         raise ModalabValueError(f"Butterworth order {order!r} must be >= 1")
     wc = 2 * np.pi * cutoff * fs

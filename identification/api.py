@@ -21,6 +21,7 @@ from modalab.core.errors import ModalabValueError, fmt_error
 from modalab.core.frf import FRF
 from modalab.core.modes import ModeSet
 from .lsfd import LSFDResult
+from .plots import plot_automac, plot_stabilisation, plot_synthesis
 from .polymax import PolyMAX
 from .selection import SelectedPoles, SelectionOptions, unresolved_modes
 from .stabilisation import StabilisationCriteria, StabilisationDiagram
@@ -323,9 +324,6 @@ def _resolve_close_pairs(fit, pm, n_order: int, selection, *, order_given: bool)
 
 def _write_figures(pm, synth: FRF, modes: ModeSet, out: Path) -> dict:
     """``stabilisation.png``, ``synthesis.png``, ``automac.png`` in ``out``; name -> file."""
-    # matplotlib is imported only when figures are asked for (identification without plots needs none)
-    from .plots import plot_automac, plot_stabilisation, plot_synthesis
-
     out.mkdir(parents=True, exist_ok=True)
     figures = {"stabilisation": out / "stabilisation.png", "synthesis": out / "synthesis.png",
                "automac": out / "automac.png"}

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import logging
 import numpy as np
+from scipy.linalg import solve_triangular
 from modalab.core.errors import ModalabValueError
 
 log = logging.getLogger(__name__)
@@ -297,8 +298,6 @@ def _denominator(M: np.ndarray, order: int, n_in: int, chol=None) -> np.ndarray:
                                 "Build M for at least this order")
     k = n * n_in
     if chol is not None and chol.shape[0] >= c:
-        from scipy.linalg import solve_triangular
-
         return -solve_triangular(chol[:k, :k], chol[k:c, :k].T, trans="T", lower=True, check_finite=False)
     Mn = M[:c, :c]
     A11, A12 = Mn[:k, :k], Mn[:k, k:c]

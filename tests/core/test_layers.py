@@ -83,3 +83,12 @@ def test_the_loop_finder_sees_a_loop():
             return self.edges[m]
 
     assert _cycles(G()) == [["a", "b", "c"]]
+
+
+
+def test_each_stage_of_the_chain_has_one_file_that_the_readme_layout_names():
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    layout = readme[readme.index("## Layout"):readme.index("\n## ", readme.index("## Layout") + 3)]
+    for stage in ("acquire", "frf", "identify", "correlate", "update", "diagnose", "report"):
+        assert (ROOT / "modalab" / "app" / "stages" / f"_{stage}.py").is_file(), stage
+        assert f"_{stage}" in layout, stage

@@ -156,7 +156,7 @@ def receptance_data(frf: FRF, *, references=None, bands=None) -> FRFData:
     sub = frf.lines(keep)
     rec = _receptance(sub)
     coh = sub.coherence if sub.coherence is not None else np.ones(sub.shape)
-    return FRFData(s=1j * 2 * np.pi * rec.freq_hz + float(frf.window_beta_per_s), H=rec.H,
+    return FRFData(s=rec.s, H=rec.H,
                    coherence=np.clip(coh, 0, 1), responses=list(rec.responses), references=list(rec.references),
                    n_averages=int(frf.metadata.get("n_averages") or 1), bias=leakage_bias(frf, rec.freq_hz))
 
@@ -169,7 +169,6 @@ def frf_data(frf: FRF, *, max_lines: int = 200, band_hz=None, min_coherence: flo
     """
     f = frf if band_hz is None else frf.band(*band_hz)
     f = f.band(max(f.freq_hz[0], 1e-9), None) if f.freq_hz[0] <= 0 else f
-    beta = float(frf.window_beta_per_s)
     rec = _receptance(f)
     coh = f.coherence if f.coherence is not None else np.ones(f.shape)
     ok = np.nanmean(coh, axis=(0, 1)) >= min_coherence
@@ -186,7 +185,7 @@ def frf_data(frf: FRF, *, max_lines: int = 200, band_hz=None, min_coherence: flo
         logt = np.geomspace(fr[0], fr[-1], max_lines - max_lines // 2)
         lg = np.clip(np.searchsorted(fr, logt), 0, idx.size - 1)
         idx = idx[np.unique(np.concatenate([uni, lg]))]
-    s = 1j * 2 * np.pi * rec.freq_hz[idx] + beta
+    s = rec.s[idx]
     return FRFData(s=s, H=rec.H[..., idx], coherence=np.clip(coh[..., idx], 0, 1),
                    responses=list(rec.responses), references=list(rec.references),
                    n_averages=int(frf.metadata.get("n_averages") or 1), bias=leakage_bias(frf, rec.freq_hz[idx]))

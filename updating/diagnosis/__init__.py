@@ -5,8 +5,8 @@ identified modes only), :func:`build_library` (candidate augmentations), :func:`
 candidate ranking), :func:`frf_screen` (exact single-candidate FRF screening by low-rank updates),
 :func:`fit_frf` (non-linear FRF fit; in a :class:`RitzBasis` for large models), :func:`peak_modes` (test modes by
 peak picking),
-:mod:`~updating.diagnosis.report` (figures).  ``Diagnosis.save(dir)`` writes ``diagnosis.json``, the
-figures and ``augmented.bdf``.  The FRF workflow's parts: :mod:`~updating.diagnosis.workflow` (the steps),
+:mod:`~updating.diagnosis.report` (figures).  ``Diagnosis.to_dict()`` is the content of ``diagnosis.json``,
+which the diagnose stage (:func:`modalab.app.stages.diagnose`) writes, alone, with the figures and ``diagnosed.bdf``.  The FRF workflow's parts: :mod:`~updating.diagnosis.workflow` (the steps),
 :mod:`~updating.diagnosis.acceptance` (the tests a term must pass), :mod:`~updating.diagnosis.proof` (the held-out
 comparison and the findings' record), :mod:`~updating.diagnosis.priors` (parameters, their priors and the background loss factors per property
 group), :mod:`~updating.diagnosis.terms` (a term's effect, its tests and the augmented model),

@@ -21,6 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.optimize as so
+from scipy.linalg import solve_banded
+from scipy.signal import find_peaks
 
 from modalab.core.dof import locate
 from modalab.core.errors import ConvergenceError
@@ -29,6 +31,7 @@ from updating.correlation.condensation import solve_columns
 from updating.correlation.receptance import LOCAL_BAND, FRFData, leakage_bias  # noqa: F401 (re-exported)
 from updating.correlation.receptance import frf_data as _frf_data
 from updating.diagnosis.ritz import RitzBasis
+from updating.diagnosis.testmodes import refine_pole
 from updating.methods.mci_condensed import derivatives
 
 log = logging.getLogger(__name__)
@@ -81,8 +84,6 @@ def decay_leakage(frf, s: np.ndarray) -> np.ndarray:
     errors of the modes weighted by their shares ``|1/(s − λ_r)| / Σ_k |1/(s − λ_k)|``.  The rigid-body tail
     (a mode that never decays, below the first line) is :func:`leakage_bias`.  Data whose metadata name no
     spectral estimator (synthesised FRFs) get none, as for :func:`leakage_bias`."""
-    from scipy.signal import find_peaks
-    from updating.diagnosis.testmodes import refine_pole
     s = np.asarray(s, complex)
     out = np.zeros(s.shape)
     if not frf.metadata.get("estimator") or frf.freq_hz.size < 8:
@@ -99,7 +100,7 @@ def decay_leakage(frf, s: np.ndarray) -> np.ndarray:
     P = np.sum(np.abs(rec.H) ** 2, axis=(0, 1))
     lg = np.log10(P + 1e-300)
     pk, _ = find_peaks(lg, prominence=0.05 * max(float(np.ptp(lg)), 1e-12))
-    sl = 1j * 2 * np.pi * rec.freq_hz + beta
+    sl = rec.s
     poles = []
     for k, i in enumerate(pk):
         lam = refine_pole(sl, rec.H, P, int(i), int(pk[k - 1]) if k else 0,
@@ -312,7 +313,6 @@ def _ar1_inv(x: np.ndarray, rho: float) -> np.ndarray:
 
 def _ar1_apply(x: np.ndarray, rho: float) -> np.ndarray:
     """``R x`` along the last axis (a banded solve with :func:`_ar1_inv`'s matrix)."""
-    from scipy.linalg import solve_banded
     n = x.shape[-1]
     ab = np.zeros((3, n))
     ab[0, 1:] = ab[2, :-1] = -rho
@@ -338,7 +338,6 @@ def reml_ar1(r: np.ndarray, J: np.ndarray) -> tuple[float, float]:
     with the GLS residual's form ``Q(ρ) = rᵀR⁻¹r − bᵀ(JᵀR⁻¹J)⁻¹b`` (``b = JᵀR⁻¹r``, independent of which
     fit gave ``r``), ``ρ̂`` minimises ``(N − p) ln Q + m (n − 1) ln(1 − ρ²) + ln|JᵀR⁻¹J|`` (σ² profiled
     out) and ``σ̂² = Q/(N − p)``."""
-    import scipy.optimize as _so
     r = np.asarray(r, float)
     J = np.asarray(J, float)
     n, p = r.shape[-1], J.shape[-1]
@@ -359,7 +358,7 @@ def reml_ar1(r: np.ndarray, J: np.ndarray) -> tuple[float, float]:
 
     if n < 3 or N <= p:
         return float(np.sum(r * r)) / max(N - p, 1), 0.0
-    rho = float(_so.minimize_scalar(objective, bounds=RHO_RANGE, method="bounded",
+    rho = float(so.minimize_scalar(objective, bounds=RHO_RANGE, method="bounded",
                                     options={"xatol": 1e-6}).x)
     return parts(rho)[0] / (N - p), rho
 

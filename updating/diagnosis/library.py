@@ -38,6 +38,7 @@ the augmented model is differentiated exactly like any other.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import logging
 from dataclasses import dataclass, field
 from typing import Callable
@@ -193,7 +194,6 @@ KINDS = ("ground_spring", "added_mass", "local_damping", "joint_flexibility", "b
 def validate_kinds(kinds) -> frozenset:
     """``kinds`` as a set of :data:`KINDS` (None or empty: all of them).  A name that is not a kind is an
     error naming it and suggesting the closest kind; a misspelt kind never silently yields zero candidates."""
-    import difflib
     if kinds is None:
         return frozenset(KINDS)
     if isinstance(kinds, str):

@@ -91,7 +91,6 @@ class ModalResidual:
 
     def rows(self, structure):
         if self._loc is None or self._loc[0] is not structure.dofs:
-            from modalab.core.dof import locate
             if self.dofs:
                 mi, ms = locate(structure.dofs, self.dofs, "test-mode DOF")
             else:

@@ -3,6 +3,7 @@ density ±3 %, sections ±5 %, damping free; overridable), bounds, the fitted lo
 fit.  Split out of :mod:`~updating.diagnosis.workflow`."""
 from __future__ import annotations
 
+import difflib
 import logging
 
 import numpy as np
@@ -53,7 +54,6 @@ def parameter_priors(params: list, p_nom, overrides: dict | None = None) -> tupl
     > 0) or ``None``/``"free"`` (no prior); for ``mode='value'`` parameters the relative value multiplies
     the nominal value.  An override naming no parameter is an error suggesting the closest name.
     """
-    import difflib
     overrides = dict(overrides or {})
     names = [p.name for p in params]
     for k in overrides:

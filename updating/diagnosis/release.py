@@ -35,6 +35,8 @@ import logging
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
+from scipy.optimize import minimize_scalar
+from scipy.sparse.linalg import splu
 
 from modalab.core.errors import ModalabValueError
 
@@ -149,7 +151,6 @@ def _solves(structure, s, cols):
             for k in range(ss.size):
                 yield a + k, X[k]
         return
-    from scipy.sparse.linalg import splu
     for f, sf in enumerate(s):
         # a symmetric pattern: minimum degree on Aᵀ + A keeps the factors of a beam frame banded
         lu = splu(sp.csc_matrix(dynamic_stiffness(K, M, C, D, sf)), permc_spec="MMD_AT_PLUS_A")
@@ -264,7 +265,6 @@ def release_screen(structure, model, candidates, data: FRFData, *, loss_factor: 
     best first, ``gain`` the relative drop of :func:`~updating.diagnosis.fit.frf_error` (only candidates that
     lower it).  Raises :class:`~modalab.core.errors.ModalabValueError` when the model and the structure have
     different DOFs."""
-    from scipy.optimize import minimize_scalar
     work, B = _releases(model, structure, data, candidates, "release screening")
     if not work:
         return []

@@ -7,6 +7,7 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+from scipy.signal import find_peaks
 
 from modalab.core.errors import ModalabValueError
 from modalab.core.modes import ModeSet
@@ -27,7 +28,6 @@ def peak_modes(measured: FRF, *, band_hz=None, max_modes: int = 12, prominence: 
     imaginary part of the receptance column of the reference that responds most at the peak.  Adequate for
     well-separated, lightly damped modes, which is what the frequency and MAC columns of the fit blocks need.
     """
-    from scipy.signal import find_peaks
     f = measured if band_hz is None else measured.band(*band_hz)
     f = f.band(max(float(f.freq_hz[0]), 1e-9), None) if f.freq_hz[0] <= 0 else f
     rec = f.to("receptance")
@@ -43,7 +43,7 @@ def peak_modes(measured: FRF, *, band_hz=None, max_modes: int = 12, prominence: 
         raise ModalabValueError("no resonance peaks in the measured FRFs; give identified test modes instead")
     pk = pk[np.argsort(-props["prominences"])[:max_modes]]
     pk.sort()
-    s = 1j * 2 * np.pi * rec.freq_hz + float(measured.window_beta_per_s)
+    s = rec.s
     shapes, freqs, zetas = [], [], []
     for k, i in enumerate(pk):
         lo = int(pk[k - 1]) if k > 0 else 0                     # the window stops at the neighbouring peaks
@@ -163,7 +163,6 @@ def suspension_band(structure, measured: FRF, band_hz=None) -> float | None:
     modes out) describe the suspension, not the structure: left in, their misfit dominates the error measure
     and every screening (a 1/ω² mass line against a resonance).  A spring to ground that the model should
     carry (a support at a tenth of f₁ or above) is not a suspension and keeps its lines."""
-    from scipy.signal import find_peaks
     n = min(structure.n_dof, 24)
     ana = analysis_modes(structure, n)
     fa = np.asarray(ana.freq_hz, float)
