@@ -4,8 +4,8 @@ The subpackages follow the flow, bottom up (an import-linter contract keeps the 
 
 The FE model — :mod:`updating.fe`
     Elements (beams, rods, springs, masses, dampers, shells), sparse assembly, constraints (SPC, RBE2),
-    damping, eigen-solvers (dense below :data:`updating.fe.solvers.DENSE_MAX_DOFS` DOFs, shift-invert Lanczos
-    above), parameters and their derivatives (:mod:`~updating.fe.parametric`, :mod:`~updating.fe.parameters`),
+    damping, eigen-solvers (dense below :data:`modalab.core.dense.EIGEN_LIMIT` DOFs, shift-invert Lanczos
+    above: the one dense/sparse rule is :mod:`modalab.core.dense`), parameters and their derivatives (:mod:`~updating.fe.parametric`, :mod:`~updating.fe.parameters`),
     eigen-sensitivities (:mod:`~updating.fe.sensitivity`); Nastran bulk data in and out
     (:mod:`updating.fe.bulk`: ``read_bulk``, ``build_model``, ``write_bulk``); reference models
     (:mod:`updating.fe.models`: beams, a GARTEUR-like frame).
