@@ -75,61 +75,6 @@ class Diagnosis:
     #                                                     rejected/dropped, each with the candidate and the reason
 
     def to_dict(self) -> dict:
-        c = self.candidate
-        return {"physics": c.physics, "nodes": [int(n) for n in c.nodes], "dofs": list(c.dofs),
-                "elements": [int(e) for e in c.elements], "description": self.label,
-                "values": [{"name": c.value_name, "value": float(self.value), "unit": c.unit,
-                            "std": float(self.std) if np.isfinite(self.std) else None}],    # inf: not determined
-                "parts": [{"physics": o.physics, "nodes": [int(n) for n in o.nodes], "dofs": list(o.dofs),
-                           "description": o.label, "value": float(v), "unit": o.unit,
-                           "std": float(sd) if np.isfinite(sd) else None}
-                          for o, v, sd in self.parts],
-                "ambiguous": self.ambiguous,
-                "alternatives": [{"physics": o.physics, "nodes": [int(n) for n in o.nodes], "dofs": list(o.dofs),
-                                  "elements": [int(e) for e in o.elements], "description": o.label,
-                                  "value": float(v), "unit": o.unit} for o, v, *_ in self.alternatives],
-                "evidence": self.evidence}
-
-
-@dataclass
-class Diagnosis:
-    findings: list
-    parameters: dict
-    fit: dict
-    statement: str
-    model: FEModel                      # the augmented, updated model
-    parametric: object = None
-    p: np.ndarray = None
-    steps: dict = field(default_factory=dict)
-    maps: dict = field(default_factory=dict)
-    timings: dict = field(default_factory=dict)
-    ranking: list = field(default_factory=list)
-    curves: dict = field(default_factory=dict)
-    frequencies: dict = field(default_factory=dict)
-    pairing: dict = field(default_factory=dict)     # per fit block: pairs and the modes left out on purpose
-    not_evaluated: list = field(default_factory=list)   # candidates whose augmented model could not be solved
-    unobservable: list = field(default_factory=list)    # releases the sensors and hits cannot see (not screened)
-    decisions: list = field(default_factory=list)       # the selection's verdicts in order: found/ambiguous/
-    #                                                     rejected/dropped, each with the candidate and the reason
-
-    def save(self, directory, *, figures: bool = True, bulk: bool = True):
-        """Write ``diagnosis.json``, the figures (:mod:`~updating.diagnosis.report`) and the augmented,
-        updated model as bulk data (``augmented.bdf``: CELAS/CONM2/CDAMP/split GRIDs/edited SPCs) into
-        ``directory``; returns the directory.  Models the bulk writer cannot export are skipped with a log
-        message."""
-        d = Path(directory)
-        d.mkdir(parents=True, exist_ok=True)
-        (d / "diagnosis.json").write_text(json.dumps(self.to_dict(), indent=1))
-        if figures:
-            write_figures(self, d)
-        if bulk and self.model is not None:
-            try:
-                write_bdf(self.model, d / "augmented.bdf")
-            except ModalabError as e:
-                log.warning("the augmented model was not written as bulk data: %s", e)
-        return d
-
-    def to_dict(self) -> dict:
         return {"findings": [f.to_dict() for f in self.findings], "parameters": self.parameters,
                 "fit": self.fit, "statement": self.statement,
                 "ranking": [{"candidate": c.label, "physics": c.physics, "explained": round(g, 4)}
