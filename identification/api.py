@@ -6,7 +6,6 @@ selection, LSFD) and writes the figures.
 """
 from __future__ import annotations
 
-import json
 import logging
 import math
 import os
@@ -77,7 +76,8 @@ class IdentificationReport:
     modes: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        """JSON-ready summary (the diagram is summarised per order, not pole by pole)."""
+        """JSON-ready summary (the diagram is summarised per order, not pole by pole): the content of
+        ``identification.json``, which the identify stage (:func:`modalab.app.stages.identify`) writes."""
         d = self.diagram
         per_order = {int(n): {"poles": int(np.sum(d.order == n)), "stable": int(np.sum(d.stable & (d.order == n)))}
                      for n in d.orders}
@@ -96,10 +96,6 @@ class IdentificationReport:
             "modes": self.modes,
             "figures": {k: str(v) for k, v in self.figures.items()},
         }
-
-    def to_json(self, path) -> None:
-        with open(path, "w") as fh:
-            json.dump(self.to_dict(), fh, indent=1)
 
 
 def roving_hammer_layout(frf: FRF) -> bool:
