@@ -229,6 +229,9 @@ class HitStore:
         """Journal a lost hit (file then journal order does not matter here: both steps are idempotent)."""
         h, k = int(ev["hit"]), int(ev.get("point", -1))
         was = ev.get("status")
+        picks = [e for e in self.events if e["event"] == "select" and int(e.get("point", -2)) == k]
+        if was == "candidate" and picks and h in picks[-1].get("accepted", ()):
+            was = "accepted"              # an --auto candidate that the point's selection kept
         self._append({"event": "hit_lost", "hit": h, "point": k, "reason": f"raw file {ev['file']} {why}"})
         src = self.hits_dir / ev["file"]
         kept = ""

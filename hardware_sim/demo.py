@@ -27,7 +27,8 @@ Damping
 (bungees) and ζ_r = 0.5 % + 1 % · f_r / 1 kHz (capped at 2 %) on the elastic
 modes: 0.52 % at the first, 1.2 % at 700 Hz.  ``damping='hysteretic'``:
 structural damping ``D = η K_beam + η_s K_springs`` with η = 1 % (ζ ≈ 0.5 %)
-for the aluminium and η_s = 6 % for the bungees.
+for the aluminium and η_s = 6 % for the bungees: the damping that bulk data state exactly (PARAM G, the
+springs' GE), which ``modalab sim`` and ``acquire --backend sim`` simulate for ``structure = "demo"``.
 
 Natural frequencies (Hz): suspension 2.70, 3.31, 4.07; elastic 18.97, 67.45,
 70.95, 118.4, 203.4, 216.5, 224.9, 268.9, 285.7, 437.2, 443.4, 582.2, ...
@@ -59,7 +60,7 @@ from .lab import SimulatedLab
 from .setup import AcquisitionSetup, ChannelSetup, FaultConfig
 
 __all__ = ["BeamSection", "grillage", "demo_structure", "demo_channels", "demo_setup", "demo_lab",
-           "DEMO_HAMMER", "DEMO_POINTS", "DEMO_REFERENCES", "ALUMINIUM"]
+           "DEMO_HAMMER", "DEMO_POINTS", "DEMO_REFERENCES", "ALUMINIUM", "ETA_BEAM", "ETA_BUNGEE"]
 
 _DIRS = (3, 4, 5)          # Z, RX, RY
 
@@ -94,6 +95,9 @@ class BeamSection:
 
 
 ALUMINIUM = dict(E=70e9, G=26.3e9, rho=2700.0)
+#: loss factors of ``damping='hysteretic'``: the aluminium members and the bungees (D = η K_beam + η_s K_springs)
+ETA_BEAM = 0.01
+ETA_BUNGEE = 0.06
 
 
 def _element(sec: BeamSection, p1, p2):
@@ -194,7 +198,7 @@ def demo_structure(damping: str = "viscous") -> Structure:
         return Structure(M=M, K=K, C=(C + C.T) / 2, dofs=dofs, coords=coords,
                          name="modalab demo aeroplane (viscous)")
     if damping == "hysteretic":
-        return Structure(M=M, K=K, D=(0.01 * Kb + 0.06 * Ks).tocsr(), dofs=dofs, coords=coords,
+        return Structure(M=M, K=K, D=(ETA_BEAM * Kb + ETA_BUNGEE * Ks).tocsr(), dofs=dofs, coords=coords,
                          name="modalab demo aeroplane (hysteretic)")
     raise ModalabValueError(f"damping {damping!r}; expected 'viscous' or 'hysteretic'")
 

@@ -70,8 +70,24 @@ def test_commands_in_practice_run_as_written(tmp_path, monkeypatch, capsys):
     validate(tmp_path / "diag" / "diagnosis.json", "diagnosis")
     validate(tmp_path / "out" / "report" / "summary.json", "summary")
     validate(tmp_path / "report" / "summary.json", "summary")          # modalab report . (the step-by-step chain)
+    _exact_model_stays_exact(json.loads((tmp_path / "diagnosis.json").read_text()))
     html = (tmp_path / "report" / "report.html").read_text()
     assert "The diagnosis stage has not run" not in html and "stabilisation" in html
     for p in ("model.bdf", "params.toml", "corr.json", "updated/updated.bdf", "session/session.uff",
               "out/report/report.html"):
         assert (tmp_path / p).is_file(), p
+
+
+def _exact_model_stays_exact(d):
+    """The chain's data are simulated from the exported model.bdf itself: the diagnosis reads χ²/N about 1 in
+    units of the data's noise, finds nothing, leaves the parameters at nominal, and its test frequencies (FRF
+    peaks, no --modes) are refined between the 0.25 Hz lines.  With the viscous demo (ζ rising with frequency,
+    which PARAM G cannot express) χ²/N read 12-14."""
+    fit = d["fit"]["nominal"]
+    assert fit["chi2_per_value_train"] < 1.5 and fit["chi2_per_value_held_out"] < 1.5, fit
+    assert d["findings"] == []
+    for name, v in d["parameters"].items():
+        if v["mode"] == "factor":
+            assert abs(v["updated"] - 1.0) < 0.003, (name, v)
+    f = [p["test_hz"] for p in d["pairing"]["nominal"]["pairs"]]
+    assert len(f) >= 10 and all(abs(x / 0.25 - round(x / 0.25)) > 1e-3 for x in f), f

@@ -57,3 +57,21 @@ def test_unknown_cards_listed_once_with_lines(tmp_path, caplog):
     assert len(msgs) == 1
     assert "m.bdf" in msgs[0] and "FORCE (2: lines 6, 8)" in msgs[0]      # CQUAD8: build_model refuses it
     assert all(r.pathname.endswith("reader.py") for r in caplog.records if "not modelled" in r.getMessage())
+
+
+def test_a_deck_cut_at_a_line_break_after_its_elements_begin_warns(tmp_path, caplog):
+    """Cut after the first CROD of two: the deck reads (a partial deck is a valid one), and a warning names the
+    file, the grid left without an element and the last line; a complete deck, or one with ENDDATA, is quiet."""
+    full = DECK.replace("CROD    1       1       1       2\n", "CROD    1       1       1       2\n"
+                        "CROD    2       1       2       3\nGRID    3               2.      0.      0.\n")
+    cut = full.split("CROD    2")[0].replace("GRID    2", "GRID    3               2.      0.      0.\nGRID    2")
+    cut = cut + "PROD    1       1       1.-4\nMAT1    1       7.+10           .3      2700.\n"
+    with caplog.at_level(logging.WARNING):
+        read_bdf(_file(tmp_path, cut, "cut.bdf"))
+    msgs = [r.getMessage() for r in caplog.records if "no ENDDATA" in r.getMessage()]
+    assert len(msgs) == 1 and "cut.bdf" in msgs[0] and "(3)" in msgs[0] and "after line 6" in msgs[0], msgs
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        read_bdf(_file(tmp_path, full, "full.bdf"))
+        read_bdf(_file(tmp_path, cut + "ENDDATA\n", "ended.bdf"))
+    assert not [r for r in caplog.records if "no ENDDATA" in r.getMessage()]

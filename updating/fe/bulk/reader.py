@@ -506,6 +506,14 @@ def _check_complete(bulk: BulkData, path: str, has_enddata: bool, ends_with_newl
                             + (", and has no ENDDATA: the file looks truncated" if not has_enddata else
                                "; a model needs elements (CBAR, CQUAD4 ...) or CONM2 masses"),
                             path=path, line=last_line)
+    if not has_enddata and bulk.elements:
+        used = {n for e in bulk.elements.values() for n in e.nodes} | {n for r in bulk.rigid.values() for n in r.nodes}
+        loose = sorted(set(bulk.grids) - used)
+        if loose:       # a deck cut at a line break after its grids: what follows fails far from the cause
+            log.warning("%s: no ENDDATA, and %d GRID(s) are connected to no element or rigid link (%s): if the file "
+                        "was cut short, the cards after line %d are missing; a complete deck ends with ENDDATA",
+                        path, len(loose), ", ".join(map(str, loose[:8])) + (" ..." if len(loose) > 8 else ""),
+                        last_line)
 
 
 #: Nastran cards that add stiffness, mass, damping or constraints to the structure: when build_model does not model
