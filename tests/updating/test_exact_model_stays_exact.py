@@ -100,3 +100,30 @@ def test_frequency_only_set_stays_at_nominal_with_its_covariance(nominal):
     assert np.all(np.abs(z) < 4)
     # the std reflects the covariance of the mean (~1e-4 relative), not the 1 % default
     assert np.all(up.std_unregularised_ < 0.02)
+
+
+def test_frequencies_alone_cannot_move_e_and_rho_of_one_material(tmp_path):
+    """Issue 16 #14: frequencies scale with sqrt(E/rho), so E and rho of one material (``modalab update``'s
+    default parameters) are not identifiable from frequencies alone: S has a null direction, resolved only to
+    round-off (condition ~1e10).  The Gauss-Newton step must not divide by that round-off: data from the nominal
+    itself leave both at nominal (they walked to ~1e7 x nominal, 'did not converge'), with infinite
+    unregularised std and the not-identifiable verdict."""
+    from updating.diagnosis.priors import default_parameters
+    from updating.fe.bulk import build_model, read_bdf
+    from updating.fe.parameters import ParametricFEModel
+    from updating.methods.eigensensitivity import InverseEigensensitivity
+
+    lines = ["SOL 103", "CEND", "BEGIN BULK", "MAT1,1,7.e10,,.33,2700.", "PBARL,1,1,,BAR", "+,.01,.04"]
+    lines += [f"GRID,{i + 1},,{0.1 * i:.3f},0.,0." for i in range(21)]
+    lines += [f"CBAR,{i + 1},1,{i + 1},{i + 2},0.,1.,0." for i in range(20)]
+    (tmp_path / "beam.bdf").write_text("\n".join(lines + ["ENDDATA", ""]))
+    model = build_model(read_bdf(tmp_path / "beam.bdf"))
+    pm = ParametricFEModel(model, default_parameters(model))
+    assert len(pm.p0) == 2
+    ms = pm.model_at(pm.p0).modes(16)
+    f = ms.freq_hz[ms.freq_hz > 1.0][:4]
+    up = InverseEigensensitivity().fit(pm, ModeSet(freq_hz=f, shapes=np.zeros((0, 4)), dofs=[]))
+    assert np.all(np.abs(up.p_ - pm.p0) < 1e-6), up.p_
+    assert up.converged_
+    assert not up.identifiable_ and up.condition_ > 1e3
+    assert np.all(np.isinf(up.std_unregularised_))

@@ -14,6 +14,13 @@ from modalab.core.errors import ModalabValueError
 
 __all__ = ["choose_alpha", "tikhonov_solve", "posterior"]
 
+#: singular values of S below this fraction of the largest are a null direction: the data cannot see that
+#: combination of parameters (its unregularised variance is infinite, :func:`_inverse`), and the plain
+#: least-squares step does not move along it.  The sensitivities are exact only to the eigen-solution's
+#: round-off, so an exactly dependent pair (E and ρ of one material, from frequencies alone: f ∝ √(E/ρ))
+#: comes out with a singular value ~1e-10 of the largest, not 0; dividing by it sent both to ~1e19 x nominal.
+NULL_RCOND = 1e-6
+
 
 def choose_alpha(S: np.ndarray, b: np.ndarray, method: str = "lcurve", n_grid: int = 200) -> float:
     """Tikhonov factor α for ``min ‖S y − b‖² + α²‖y‖²`` by L-curve maximum curvature or GCV (via SVD)."""
@@ -44,9 +51,10 @@ def choose_alpha(S: np.ndarray, b: np.ndarray, method: str = "lcurve", n_grid: i
 
 
 def tikhonov_solve(S, b, alpha):
-    """``argmin ‖S y − b‖² + α²‖y‖²`` (plain least squares for α = 0)."""
+    """``argmin ‖S y − b‖² + α²‖y‖²``; for α = 0 the minimum-norm least-squares step with the null directions
+    of S (singular values below :data:`NULL_RCOND` of the largest) left out."""
     if alpha == 0:
-        return np.linalg.lstsq(S, b, rcond=None)[0]
+        return np.linalg.lstsq(S, b, rcond=NULL_RCOND)[0]
     P = S.shape[1]
     A = np.vstack([S, alpha * np.eye(P)])
     return np.linalg.lstsq(A, np.concatenate([b, np.zeros(P)]), rcond=None)[0]
@@ -60,7 +68,7 @@ def _inverse(H):
     """(H)⁻¹ with ∞ variance for parameters in the null space of a rank-deficient H."""
     P = H.shape[0]
     w, V = np.linalg.eigh(0.5 * (H + H.T))
-    tol = max(w.max(initial=0.0), 0.0) * 1e-12
+    tol = max(w.max(initial=0.0), 0.0) * NULL_RCOND ** 2     # eigenvalues of H = SᵀS: squared singular values
     good = w > tol
     inv = (V[:, good] / w[good]) @ V[:, good].T
     if not good.all():
