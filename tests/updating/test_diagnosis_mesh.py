@@ -71,3 +71,28 @@ def test_a_shift_within_the_mesh_error_is_no_effect_beyond_it():
     pm2 = ParametricFEModel(aug2, PARAMS + [Parameter("k", "k", elements=(901,), mode="value")])
     full = shift_beyond_mesh(pm2, [1.0, 1.0, 2e3], spring, band, None)
     assert full > 1e-3 and shift_beyond_mesh(pm2, [1.0, 1.0, 2e3], spring, band, me) == pytest.approx(full)
+
+
+def test_a_refined_mode_that_does_not_move_the_model_dofs_is_left_out_of_the_pairing():
+    """A member clamped at both ends has no DOF in the coarse model; cut in two, its mid-node modes are zero on
+    every model DOF (MAC 0/0: NaN and a RuntimeWarning before).  They pair with nothing, and the cantilever's
+    mesh errors are those of the cantilever alone."""
+    import dataclasses
+    import warnings
+
+    plain = _cantilever(10)
+    m = _cantilever(10)
+    m.add_node(100, (0.0, 0.5, 0.0))
+    m.add_node(101, (0.3, 0.5, 0.0))
+    m.add_spc(100, "123456")
+    m.add_spc(101, "123456")
+    m.add_element(dataclasses.replace(m.elements[1], eid=100, n1=100, n2=101))
+    m._changed()
+    band = (0.0, 2500.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        me = mesh_error(m, PARAMS, [1.0, 1.0], band)
+    ref = mesh_error(plain, PARAMS, [1.0, 1.0], band)
+    assert np.all(np.isfinite(me.rel))
+    np.testing.assert_allclose(me.f_hz, ref.f_hz, rtol=1e-9)
+    np.testing.assert_allclose(me.rel, ref.rel, rtol=1e-6, atol=1e-9)

@@ -119,7 +119,12 @@ def mesh_error(model: FEModel, params: list, p, band) -> MeshError:
         raise ModalabValueError("mesh error: the refined beam mesh lost a DOF of the model")   # cannot happen
     pr = pr[take]
     num = np.abs(ph.T @ pr) ** 2
-    mac = num / np.outer(np.einsum("ij,ij->j", ph, ph), np.einsum("ij,ij->j", pr, pr))
+    nh, nr = np.einsum("ij,ij->j", ph, ph), np.einsum("ij,ij->j", pr, pr)
+    # a refined mode that does not move the model's DOFs (a member clamped at both ends vibrating between
+    # them) has no shape there to pair by: it is left out of the pairing (its MAC would be 0/0)
+    seen = nr > 1e-12 * max(float(nr.max(initial=0.0)), np.finfo(float).tiny)
+    mac = np.zeros(num.shape)
+    mac[:, seen] = num[:, seen] / np.outer(nh, nr[seen])
     rel = np.zeros(fh.size)
     mac[np.abs(fr[None, :] - fh[:, None]) > MESH_WINDOW * fh[:, None]] = 0.0
     for i in range(fh.size):
