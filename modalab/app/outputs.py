@@ -9,9 +9,10 @@ gives a new file, and never over an input of the command.
 The three JSON products other programs read have a JSON schema shipped with the package
 (``modalab/app/schemas/*.schema.json``; :func:`schema` loads one):
 
-* ``modes.json`` — identified modes: a :meth:`modalab.core.modes.ModeSet.to_dict` (so
-  :meth:`ModeSet.from_json <modalab.core.modes.ModeSet.from_json>` reads it back) plus ``input`` (the FRF file) and
-  ``table`` (one row per mode: ``mode``, ``freq_hz``, ``damping_pct`` and the indicators);
+* ``modes.json`` — identified modes, written only by :meth:`modalab.core.modes.ModeSet.to_json`: a
+  :meth:`~modalab.core.modes.ModeSet.to_dict` (so :meth:`ModeSet.from_json <modalab.core.modes.ModeSet.from_json>`
+  reads it back) plus ``input`` (the FRF file) and ``table`` (:meth:`~modalab.core.modes.ModeSet.table`: one row per
+  mode, ``mode``, ``freq_hz``, ``damping_pct`` and the indicators);
 * ``diagnosis.json`` — :meth:`updating.diagnosis.Diagnosis.to_dict` (findings, parameters, fit, statement,
   ranking, timings);
 * ``summary.json`` — the numbers of a ``modalab run`` report.
@@ -24,30 +25,12 @@ import json
 from importlib import resources
 from pathlib import Path
 
-import numpy as np
-
-from modalab.core._output import write_bytes, write_text      # the one atomic writer (umask, never over an input)
+from modalab.core._output import write_bytes, write_json, write_text  # the one atomic writer (umask, never over an input)
 
 __all__ = ["write_text", "write_bytes", "write_json", "schema", "validate", "SCHEMAS"]
 
 #: the JSON products with a schema: name -> schema file in ``modalab/app/schemas``
 SCHEMAS = {"modes": "modes.schema.json", "diagnosis": "diagnosis.schema.json", "summary": "summary.schema.json"}
-
-
-def _plain(obj):
-    """JSON fallback for numpy scalars and arrays, paths and other objects."""
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, (tuple, set)):
-        return list(obj)
-    return str(obj)
-
-
-def write_json(path, doc) -> Path:
-    """Write ``doc`` as indented JSON (numpy values as plain numbers); see :func:`write_bytes`."""
-    return write_text(path, json.dumps(doc, indent=1, default=_plain) + "\n")
 
 
 def schema(name: str) -> dict:

@@ -9,19 +9,24 @@ One place for the rules every command that writes files follows (the CLI, ``run`
   folder and ``os.replace`` it onto the target only when the writing succeeded, so a failure never leaves
   a partial file behind; the file gets the permissions the user's umask gives a new file (``0666 & ~umask``),
   not the 0600 of :func:`tempfile.mkstemp`.
+* :func:`write_json` writes a JSON document the same way (indented; numpy scalars and arrays as plain numbers
+  and lists), for :meth:`modalab.core.modes.ModeSet.to_json` and the application's JSON outputs.
 * :func:`protect` registers input paths for the duration of a command: :func:`atomic_path` (and through it
   every UFF writer of :mod:`modalab.core.uff`) refuses to replace a protected file, whatever called it.
 """
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 from .errors import OutputError
 
-__all__ = ["check_outputs", "atomic_path", "write_text", "write_bytes", "protect", "check_not_input",
+__all__ = ["check_outputs", "atomic_path", "write_text", "write_bytes", "write_json", "protect", "check_not_input",
            "file_mode", "same_file"]
 
 _PROTECTED: list[Path] = []
@@ -165,3 +170,19 @@ def write_bytes(path, data: bytes) -> Path:
 def write_text(path, text: str, encoding: str = "utf-8") -> Path:
     """Write ``text`` to ``path`` atomically (see :func:`atomic_path`)."""
     return write_bytes(path, text.encode(encoding))
+
+
+def _plain(obj):
+    """JSON fallback for numpy scalars and arrays, paths and other objects."""
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, (tuple, set)):
+        return list(obj)
+    return str(obj)
+
+
+def write_json(path, doc) -> Path:
+    """Write ``doc`` as indented JSON (numpy values as plain numbers) atomically; see :func:`write_bytes`."""
+    return write_text(path, json.dumps(doc, indent=1, default=_plain) + "\n")

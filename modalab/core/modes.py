@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import copy
 import json
+from pathlib import Path
 
 import numpy as np
 
+from ._output import write_json
 from .dof import Dof, locate, parse_dofs
 from .errors import ModalabError, ModalabValueError, ShapeError
 
@@ -243,14 +245,36 @@ class ModeSet:
                    indicators={k: dec(v) for k, v in (d.get("indicators") or {}).items()},
                    metadata=d.get("metadata"), freq_cov=cov, coordinates=d.get("coordinates"))
 
-    def to_json(self, path) -> None:
-        with open(path, "w") as fh:
-            json.dump(self.to_dict(), fh, indent=1)
+    def table(self) -> list:
+        """One row per mode: ``mode`` (from 1), ``freq_hz``, ``damping_pct`` and every scalar indicator (the
+        ``table`` of ``modes.json`` and of the report)."""
+        rows = []
+        for k in range(self.n_modes):
+            r = {"mode": k + 1, "freq_hz": float(self.freq_hz[k]),
+                 "damping_pct": 100 * float(self.damping[k]) if self.damping is not None else None}
+            for name, v in self.indicators.items():
+                try:
+                    r[name] = float(np.asarray(v)[k])
+                except (TypeError, ValueError, IndexError):
+                    pass
+            rows.append(r)
+        return rows
+
+    def to_json(self, path, *, input=None, extra: dict | None = None) -> Path:
+        """Write ``modes.json``, the one writer of that layout (schema ``modalab/app/schemas/modes.schema.json``):
+        ``input`` (the file the modes came from, or None), ``table`` (:meth:`table`), the :meth:`to_dict` keys and
+        the keys of ``extra`` (e.g. the identification's settings).  Atomic, never over an input
+        (:mod:`modalab.core._output`); :meth:`from_json` reads it back.  Returns the path."""
+        doc = {"input": None if input is None else str(input), "table": self.table(), **self.to_dict()}
+        clash = set(doc) & set(extra or {})
+        if clash:
+            raise ModalabValueError(f"extra keys {sorted(clash)} would replace the mode set's own; use other names")
+        return write_json(path, {**doc, **(extra or {})})
 
     @classmethod
     def from_json(cls, path) -> "ModeSet":
-        """A mode set from JSON: :meth:`to_json` output or the summary ``modalab identify --json`` writes
-        (its ``modes`` entry).  A file that is not such JSON raises :class:`~modalab.core.errors.ModalabValueError`
+        """A mode set from JSON: :meth:`to_json` output (``modes.json``; ``modalab identify --json`` writes it) or
+        a document holding such a set under ``modes``.  A file that is not such JSON raises :class:`~modalab.core.errors.ModalabValueError`
         naming it."""
 
         try:

@@ -43,12 +43,12 @@ from modalab.app.stages._common import StageResult, load_model, load_modes, load
 from modalab.app.stages._correlate import CorrelateOptions, DofMapping, analysis_modes_covering, correlate, resolve_dof_map
 from modalab.app.stages._diagnose import DiagnoseOptions, diagnose
 from modalab.app.stages._frf import FRFOptions, frf
-from modalab.app.stages._identify import IdentifyOptions, identify, mode_table
+from modalab.app.stages._identify import IdentifyOptions, identify
 from modalab.app.stages._report import report
 from modalab.app.stages._sim import SimOptions, _sim_structure, demo_fe_model, sim
 from modalab.app.stages._update import UPDATE_METHODS, UpdateOptions, update
 
 __all__ = ["StageResult", "acquire", "make_sim_backend", "SimOptions", "FRFOptions", "IdentifyOptions", "CorrelateOptions", "UpdateOptions",
            "DiagnoseOptions", "sim", "frf", "identify", "correlate", "update", "diagnose", "report",
-           "load_model", "load_modes", "load_parameters", "mode_table", "demo_fe_model", "UPDATE_METHODS",
+           "load_model", "load_modes", "load_parameters", "demo_fe_model", "UPDATE_METHODS",
            "DofMapping", "resolve_dof_map", "analysis_modes_covering"]

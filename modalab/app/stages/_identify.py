@@ -4,8 +4,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from modalab.core.errors import ModalabValueError
 from modalab.app.outputs import write_json
 from modalab.app.stages._common import StageResult, _band, _tuple
@@ -35,22 +33,6 @@ class IdentifyOptions:
         if isinstance(self.select, list):
             object.__setattr__(self, "select", tuple(self.select))
 
-
-
-def mode_table(modes) -> list:
-    """One row per mode: ``mode``, ``freq_hz``, ``damping_pct`` and every scalar indicator."""
-    rows = []
-    ind = getattr(modes, "indicators", None) or {}
-    for k in range(modes.n_modes):
-        r = {"mode": k + 1, "freq_hz": float(modes.freq_hz[k]),
-             "damping_pct": 100 * float(modes.damping[k]) if modes.damping is not None else None}
-        for name, v in ind.items():
-            try:
-                r[name] = float(np.asarray(v)[k])
-            except (TypeError, ValueError, IndexError):
-                pass
-        rows.append(r)
-    return rows
 
 
 def identify(frf_path, out_uff, opts: IdentifyOptions = IdentifyOptions(), *, json_path=None, plots_dir=None,
@@ -92,11 +74,10 @@ def identify(frf_path, out_uff, opts: IdentifyOptions = IdentifyOptions(), *, js
     out.parent.mkdir(parents=True, exist_ok=True)
     uff.write_modes(out, modes)                # atomic; never over an input (modalab.core._output)
     files = [out]
-    table = mode_table(modes)
     if json_path is not None:
-        files.append(write_json(json_path, {"input": str(frf_path), "table": table, **modes.to_dict(),
-                                            "reciprocity": rep.settings["reciprocity"],
-                                            "window_correction": rep.settings["window_correction"]}))
+        files.append(modes.to_json(json_path, input=frf_path,
+                                   extra={"reciprocity": rep.settings["reciprocity"],
+                                          "window_correction": rep.settings["window_correction"]}))
     if report_path is not None:
         files.append(write_json(report_path, rep.to_dict()))
     files += [Path(p) for p in rep.figures.values()]
