@@ -108,11 +108,18 @@ def load_parameters(path, model) -> tuple[list, np.ndarray, np.ndarray]:
 
     params, lo, hi = _load(path)
     try:
-        ParametricFEModel(model, params)            # each parameter selects something of this model
+        pm = ParametricFEModel(model, params)       # each parameter selects something of this model
     except ModalabValueError as e:
         raise PlanError(f"{path}: {e}") from None
-    return (params, np.array([-np.inf if v is None else float(v) for v in lo]),
-            np.array([np.inf if v is None else float(v) for v in hi]))
+    lo = np.array([-np.inf if v is None else float(v) for v in lo])
+    hi = np.array([np.inf if v is None else float(v) for v in hi])
+    for k, (prm, p0) in enumerate(zip(params, np.asarray(pm.p0, float))):
+        if not lo[k] <= p0 <= hi[k]:           # the updating starts at the nominal: bounds must admit it
+            what = "1 (factor: the model as it is)" if prm.mode == "factor" else f"{p0:g} (the model's value)"
+            raise PlanError(f"{path}: parameter {prm.name!r}: bounds lower = {lo[k]:g}, upper = {hi[k]:g} exclude "
+                            f"its nominal value {what}; give bounds around it, e.g. lower = {0.5 * p0:g}, "
+                            f"upper = {2 * p0:g}")
+    return params, lo, hi
 
 
 def _band(H, band):

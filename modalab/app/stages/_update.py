@@ -35,6 +35,10 @@ FRF_METHODS = ("mci", "rfm")
 DIRECT_METHODS = ("direct-lagrange", "direct-error-matrix", "direct-matrix", "direct-mixing")
 UPDATE_METHODS = MODAL_METHODS + FRF_METHODS + DIRECT_METHODS
 
+#: the largest relative frequency standard deviation accepted: a test frequency known to worse than ±50 % says
+#: nothing, and 0.8 is a percentage given as a fraction
+MAX_FREQ_SIGMA = 0.5
+
 
 @dataclass(frozen=True)
 class UpdateOptions:
@@ -63,6 +67,13 @@ class UpdateOptions:
             object.__setattr__(self, "bands", tuple(tuple(float(x) for x in b) for b in self.bands))
         if isinstance(self.freq_sigma, list):
             object.__setattr__(self, "freq_sigma", tuple(self.freq_sigma))
+        if self.freq_sigma is not None:
+            fs = np.atleast_1d(np.asarray(self.freq_sigma, float))
+            big = fs[np.isfinite(fs) & (fs > MAX_FREQ_SIGMA)]
+            if big.size:
+                raise PlanError(f"--freq-sigma {big[0]:g}: a relative standard deviation of {100 * big[0]:g} % of the "
+                                f"frequency; expected a fraction up to {MAX_FREQ_SIGMA:g} (0.002 = 0.2 %). Give the "
+                                f"fraction, e.g. --freq-sigma {big[0] / 100:g} for {big[0]:g} %")
 
 
 def _on_model_dofs(modes, dofs, dofmap):

@@ -1,0 +1,56 @@
+"""Issue 14 audit (ux14, third walk): the refusals a fresh user still met.  Each wrong input is one line on
+stderr, exit code 2, naming the option or file, what was expected and what to do; nothing is written."""
+import json
+from pathlib import Path
+
+import pytest
+
+from modalab.app.cli import main
+
+ROOT = Path(__file__).resolve().parents[2]
+DEMO = ROOT / "examples" / "demo_project"
+
+
+def _one_line(capsys) -> str:
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    return err
+
+
+@pytest.fixture()
+def freqs(tmp_path):
+    """A frequency-only test set of the demo deck (what a GVT's frequency list gives)."""
+    p = tmp_path / "f.json"
+    p.write_text(json.dumps({"freq_hz": [19.0, 67.5, 71.0]}))
+    return p
+
+
+@pytest.mark.parametrize("sigma", ["0.8", "5"])
+def test_update_refuses_a_freq_sigma_above_one_half(tmp_path, capsys, freqs, sigma):
+    out = tmp_path / "u"
+    assert main(["update", str(DEMO / "nominal.bdf"), "--modes", str(freqs), "--freq-sigma", sigma,
+                 "-o", str(out)]) == 2
+    err = _one_line(capsys)
+    assert f"--freq-sigma {sigma}" in err and "expected a fraction up to 0.5" in err, err
+    assert f"--freq-sigma {float(sigma) / 100:g}" in err, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("bounds", ["lower = 1.2\nupper = 2.0", "lower = 0.2\nupper = 0.9", "upper = 0.95"])
+def test_update_refuses_bounds_that_exclude_the_nominal(tmp_path, capsys, freqs, bounds):
+    params = tmp_path / "p.toml"
+    params.write_text(f'[[parameter]]\nname = "E_wing"\nfield = "E"\nproperties = ["wing"]\n{bounds}\n')
+    out = tmp_path / "u"
+    assert main(["update", str(DEMO / "nominal.bdf"), "--modes", str(freqs), "--params", str(params),
+                 "-o", str(out)]) == 2
+    err = _one_line(capsys)
+    assert str(params) in err and "'E_wing'" in err and "exclude its nominal value 1" in err, err
+    assert not out.exists()
+
+
+def test_update_accepts_bounds_around_the_nominal(tmp_path, capsys, freqs):
+    params = tmp_path / "p.toml"
+    params.write_text('[[parameter]]\nname = "E_wing"\nfield = "E"\nproperties = ["wing"]\nlower = 1.0\nupper = 2.0\n')
+    assert main(["update", str(DEMO / "nominal.bdf"), "--modes", str(freqs), "--params", str(params),
+                 "--freq-sigma", "0.5", "-o", str(tmp_path / "u")]) == 0
+    assert (tmp_path / "u" / "update.json").is_file()
