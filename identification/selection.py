@@ -42,6 +42,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import tomllib
 from dataclasses import dataclass
 
 import numpy as np
@@ -496,8 +497,6 @@ def load_selection_file(path) -> list[float]:
         raise ModalabValueError(f"selection file {p!r} does not exist; give a JSON or TOML file listing freq_hz")
     try:
         if p.lower().endswith(".toml"):
-            import tomllib
-
             with open(p, "rb") as fh:
                 data = tomllib.load(fh)
         else:

@@ -7,11 +7,11 @@ import pathlib
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 #: where the rule is checked: every package
 CHECKED = ("modalab", "acquisition", "identification", "updating", "hardware_sim")
-#: optional extras and test/benchmark dependencies (pyproject.toml), matplotlib (see the module docstring), rich
-#: (the command line's console, loaded when it draws) and tomllib (standard library from Python 3.11 only, while
-#: requires-python is 3.10: a TOML file is read with it, a JSON file without)
+#: optional extras and test/benchmark dependencies (pyproject.toml), matplotlib (see the module docstring) and rich
+#: (the command line's console, loaded when it draws); tomllib is standard library (requires-python >= 3.11) and is
+#: imported at module top like the rest
 LAZY = {"nidaqmx", "pyNastran", "dask", "distributed", "sdypy", "sksparse", "jsonschema", "referencing", "rich",
-        "matplotlib", "tomllib"}
+        "matplotlib"}
 #: project imports inside a function, each with its reason (none today)
 ALLOWED: dict = {}
 
