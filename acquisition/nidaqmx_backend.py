@@ -42,10 +42,10 @@ _TIMEOUT_CODES = {-200284, -200474, -200278}  # samples not yet available, opera
 
 def _import_nidaqmx():
     try:
-        import nidaqmx  # noqa: F401
-        import nidaqmx.constants
-        import nidaqmx.errors
-        import nidaqmx.stream_readers
+        import nidaqmx  # noqa: F401  # lazy: optional nidaqmx (daq extra)
+        import nidaqmx.constants  # lazy: optional nidaqmx (daq extra)
+        import nidaqmx.errors  # lazy: optional nidaqmx (daq extra)
+        import nidaqmx.stream_readers  # lazy: optional nidaqmx (daq extra)
     except ImportError as e:  # package itself missing
         raise DaqNotFoundError(f"the python package nidaqmx is not installed ({e}): install it with "
                                f"pip install 'modalab[daq]' (and the NI-DAQmx driver), or run with --backend sim "
@@ -102,7 +102,7 @@ class NidaqmxBackend:
                 name = ch.name or f"ch{i}_{ch.dof}".replace("+", "p").replace("-", "m")
                 excit = c.ExcitationSource.INTERNAL if ch.iepe else c.ExcitationSource.NONE
                 if self.use_teds:
-                    from nidaqmx.system import PhysicalChannel
+                    from nidaqmx.system import PhysicalChannel  # lazy: optional nidaqmx (daq extra)
 
                     PhysicalChannel(ch.physical).configure_teds()
                 if ch.role == "force":

@@ -20,7 +20,7 @@ _STYLE = {"o": ("o", "0.75", "new"), "f": ("o", "tab:orange", "freq."), "d": ("s
 
 
 def _figure(w, h):
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # lazy: matplotlib, only when drawing (start-up time)
 
     return Figure(figsize=(w, h), layout="constrained")
 

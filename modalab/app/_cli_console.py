@@ -32,11 +32,12 @@ class _CountProgress:
 
     def __call__(self, done, total, item=""):
         if self._bar is None:
-            from rich.console import Console
+            from rich.console import Console  # lazy: rich, only when drawing (start-up time)
 
             console = Console(stderr=False, highlight=False)
             if console.is_terminal:
-                from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+                from rich.progress import (  # lazy: rich, only when drawing (start-up time)
+                    BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn)
 
                 self._bar = Progress(TextColumn(f"[bold]{self.what}"), BarColumn(), MofNCompleteColumn(),
                                      TextColumn("{task.description}"), TimeElapsedColumn(), console=console,
@@ -95,7 +96,8 @@ class _ConsoleObserver:
     def _bar(self, n):
         if self._progress is None and not self.quiet:
             try:
-                from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+                from rich.progress import (  # lazy: rich, only when drawing (start-up time)
+                    BarColumn, MofNCompleteColumn, Progress, TextColumn)
 
                 self._progress = Progress(TextColumn("[bold]points"), BarColumn(), MofNCompleteColumn(),
                                           TextColumn("{task.description}"), transient=False)
@@ -111,7 +113,7 @@ class _ConsoleObserver:
 
     def _live_update(self, point, rec, running):
         try:
-            import matplotlib.pyplot as plt
+            import matplotlib.pyplot as plt  # lazy: matplotlib, only when drawing (start-up time)
 
             if self._fig is None:
                 plt.switch_backend("TkAgg")

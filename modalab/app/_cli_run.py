@@ -13,7 +13,7 @@ class _StageProgress:
     latest message; otherwise one line per stage with its time (``[3/7] identify  done in 3.1 s``)."""
 
     def __init__(self, quiet: bool = False, console=None):
-        from rich.console import Console
+        from rich.console import Console  # lazy: rich, only when drawing (start-up time)
 
         self.quiet = quiet
         self.console = console or Console(highlight=False)
@@ -28,8 +28,8 @@ class _StageProgress:
 
     def _start_bar(self):
         if self._bar is None and not self.quiet and self.console.is_terminal:
-            from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn
-            from rich.progress import TimeElapsedColumn
+            from rich.progress import (  # lazy: rich, only when drawing (start-up time)
+                BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn)
 
             self._bar = Progress(SpinnerColumn(), TextColumn("[bold]stages"), BarColumn(), MofNCompleteColumn(),
                                  TimeElapsedColumn(), TextColumn("{task.description}"), console=self.console,

@@ -43,7 +43,7 @@ class CampaignError(ModalabError):
 
 def _client(dask):
     try:
-        from distributed import Client
+        from distributed import Client  # lazy: optional distributed (dask extra)
     except ImportError:
         raise ModalabValueError("a Dask scheduler address was given but dask.distributed is not installed; "
                                 "install the extra with: pip install -e .[dask]  (or pip install dask distributed)") \
@@ -85,7 +85,7 @@ def run_many(func: Callable, inputs: Sequence, *, dask=None, workers: int | None
         client, own = _client(dask)
         try:
             futs = client.map(_call, [func] * n, inputs, pure=False)
-            from distributed import as_completed
+            from distributed import as_completed  # lazy: optional distributed (dask extra)
 
             index = {f.key: i for i, f in enumerate(futs)}
             done = 0

@@ -43,8 +43,8 @@ def schema(name: str) -> dict:
 def validate(doc, name: str) -> None:
     """Check a JSON document (or a path to one) against the schema ``name``; raises
     ``jsonschema.ValidationError`` naming the first violation.  Needs ``jsonschema`` (the test extra)."""
-    import jsonschema
-    from referencing import Registry, Resource
+    import jsonschema  # lazy: optional jsonschema (test extra)
+    from referencing import Registry, Resource  # lazy: optional, comes with jsonschema
 
     if isinstance(doc, (str, Path)):
         doc = json.loads(Path(doc).read_text())

@@ -23,7 +23,7 @@ __all__ = ["build_report", "plot_coherence_map", "plot_convergence", "plot_frf_o
 
 # ----------------------------------------------------------------------------- figures
 def _figure(w, h):
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # lazy: matplotlib, only when drawing (start-up time)
 
     return Figure(figsize=(w, h), layout="constrained")
 

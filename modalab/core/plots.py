@@ -16,7 +16,7 @@ __all__ = ["plot_frf", "plot_hit", "plot_geometry", "save"]
 
 
 def _figure(w=8.0, h=6.0):
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # lazy: matplotlib, only when drawing (start-up time)
 
     return Figure(figsize=(w, h), layout="constrained")
 

@@ -1,6 +1,7 @@
 """Imports sit at module top in every package (issue 15): an import inside a function is allowed only
 for an optional dependency (or one imported under ``try: ... except ImportError``), and for matplotlib, which every
-figure function imports when it draws so that the command line and the library start without it."""
+figure function imports when it draws so that the command line and the library start without it.  Each import left
+inside a function says why in a trailing ``# lazy: <reason>`` comment."""
 import ast
 import pathlib
 
@@ -47,8 +48,37 @@ def test_no_import_inside_a_function():
     assert found == [], "imports inside functions (move them to the module top): " + "; ".join(found)
 
 
+def unexplained(path: pathlib.Path) -> list:
+    """Line numbers of the imports inside functions of ``path`` (whatever the module) without a ``# lazy:``
+    comment on one of their lines."""
+    text = path.read_text(encoding="utf-8")
+    lines = text.splitlines()
+    out = []
+
+    def visit(node, in_func):
+        for ch in ast.iter_child_nodes(node):
+            if isinstance(ch, (ast.Import, ast.ImportFrom)):
+                if in_func and not any("# lazy:" in s for s in lines[ch.lineno - 1:ch.end_lineno]):
+                    out.append(ch.lineno)
+            else:
+                visit(ch, in_func or isinstance(ch, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)))
+
+    visit(ast.parse(text), False)
+    return out
+
+
+def test_every_import_inside_a_function_says_why():
+    found = [f"{p.relative_to(ROOT).as_posix()}:{ln}" for pkg in CHECKED for p in sorted((ROOT / pkg).rglob("*.py"))
+             for ln in unexplained(p)]
+    assert found == [], "imports inside functions without a '# lazy: <reason>' comment: " + "; ".join(found)
+
+
 def test_the_check_sees_an_import_in_a_function(tmp_path):
     p = tmp_path / "m.py"
     p.write_text("import os\n\ndef f():\n    import json\n    try:\n        import sksparse\n"
                  "    except ImportError:\n        pass\n    import matplotlib.pyplot as plt\n    return json\n")
     assert function_imports(p) == [(4, "json")]
+    assert unexplained(p) == [4, 6, 9]
+    p.write_text("def f():\n    import sksparse  # lazy: optional\n    from rich import (  # lazy: drawing\n"
+                 "        print)\n    import json\n")
+    assert unexplained(p) == [5]

@@ -22,7 +22,7 @@ log = logging.getLogger(__name__)
 
 
 def _figure(size):
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # lazy: matplotlib, only when drawing (start-up time)
 
     return Figure(figsize=size, layout="constrained")
 
@@ -43,7 +43,7 @@ def plot_mac(mac_matrix, path, *, analysis_freq_hz=None, test_freq_hz=None, pair
 
     Values are printed in the cells when ``annotate`` is True (default: when at most 15×15).
     """
-    from matplotlib.patches import Rectangle
+    from matplotlib.patches import Rectangle  # lazy: matplotlib, only when drawing (start-up time)
 
     M = np.asarray(mac_matrix, float)
     if M.ndim != 2 or 0 in M.shape:

@@ -15,7 +15,7 @@ __all__ = ["mci_maps_figure", "frf_overlay_figure", "frequency_table_figure", "w
 
 
 def _figure(w=8.0, h=5.0):
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # lazy: matplotlib, only when drawing (start-up time)
     return Figure(figsize=(w, h), constrained_layout=True)
 
 
@@ -36,7 +36,7 @@ def _line_edges(f: np.ndarray) -> tuple[np.ndarray, bool]:
 def mci_maps_figure(maps: dict, path) -> Path:
     """Condensed force residual (MCI, thesis eq. 3.89) per measured DOF and line, after parameter updating
     (before) and with the added physics (after), on a common log colour scale."""
-    from matplotlib.colors import LogNorm
+    from matplotlib.colors import LogNorm  # lazy: matplotlib, only when drawing (start-up time)
     fig = _figure(10, 4.5)
     before, after = np.asarray(maps["before"]), np.asarray(maps["after"])
     vmax = max(float(np.max(before)), float(np.max(after)), 1e-300)

@@ -70,7 +70,7 @@ _ORDER = {"receptance": 0, "mobility": 1, "accelerance": 2}
 def cholmod_available() -> bool:
     """True when scikit-sparse's CHOLMOD can be imported."""
     try:
-        import sksparse.cholmod  # noqa: F401
+        import sksparse.cholmod  # noqa: F401  # lazy: optional scikit-sparse
     except Exception:
         return False
     return True
@@ -119,7 +119,7 @@ class _Factor:
         t0 = time.perf_counter()
         try:
             if solver == "cholmod":
-                from sksparse.cholmod import cholesky
+                from sksparse.cholmod import cholesky  # lazy: optional scikit-sparse
                 self._f = cholesky(A)
                 self._solve = self._f
             elif solver == "splu":

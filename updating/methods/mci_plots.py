@@ -11,7 +11,7 @@ __all__ = ["plot_mci_map", "plot_mci_maxima", "plot_convergence"]
 
 
 def _figure(figsize):
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # lazy: matplotlib, only when drawing (start-up time)
 
     return Figure(figsize=figsize, constrained_layout=True)
 
@@ -20,7 +20,7 @@ def plot_mci_map(result, path, *, reference: int = 0, title: str = "MCI map"):
     """|MCI| of ``result`` (an :class:`~updating.methods.mci.MCIResult`, not imported here:
     :mod:`~updating.methods.mci` imports these figures) as an image, DOF (rows) × frequency (columns), log
     colour scale; saved to ``path``."""
-    from matplotlib.colors import LogNorm
+    from matplotlib.colors import LogNorm  # lazy: matplotlib, only when drawing (start-up time)
 
     fig = _figure((8, 4))
     ax = fig.add_subplot(1, 1, 1)

@@ -44,7 +44,7 @@ def _nidaqmx_backend():
 
     be = NidaqmxBackend()
     try:
-        import nidaqmx.system
+        import nidaqmx.system  # lazy: optional nidaqmx (daq extra)
 
         nidaqmx.system.System.local().driver_version
     except Exception as e:  # noqa: BLE001 - every failure here means: no usable driver
