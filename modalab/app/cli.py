@@ -5,7 +5,8 @@ The user's description (``modalab --help``) is :data:`DESCRIPTION`; each command
 the acquisition's per-hit report, the prompt) is in :mod:`modalab.app._cli_console`.
 
 Outputs (:mod:`modalab.core._output`): an output is never written over an input (not even with ``--force``); an
-existing output file is replaced only with ``--force`` (``sim``: ``--overwrite``); files are written to a
+existing output file, or an output folder holding an earlier run's products (``update -o``, ``diagnose --report``,
+``report``), is replaced only with ``--force`` (``sim``: ``--overwrite``); files are written to a
 temporary file and renamed, with the user's umask, and what a failed command created is removed.  Bad input
 gives one line ``modalab COMMAND: error: ...`` naming the file (and line) and exit code 2.
 """
@@ -335,7 +336,7 @@ def _add_acquire(sub):
 
 def _add_shared_options(sub):
     """Options several commands share: --force/--overwrite, --quantity, and the units note under every --help."""
-    for name in ("sim", "frf", "identify", "correlate", "diagnose"):
+    for name in ("sim", "frf", "identify", "correlate", "update", "diagnose", "report"):
         sp = sub.choices.get(name)
         if sp is None:
             continue
@@ -397,6 +398,12 @@ _FOLDER_FLAGS = {"output": "-o", "plots": "--plots", "report": "--report", "expo
 _WRITES_INTO = {"update": ("output", ("updated.bdf", "update.json", "updated_matrices.npz", "mac_before.png",
                                       "mac_after.png", "frequencies_after.png", "convergence.png")),
                 "diagnose": ("report", ("diagnosis.json", "diagnosed.bdf", "frf_overlay_models.png"))}
+#: output folders and the files a command puts there (its own products): a folder that already holds one of them
+#: is the output of an earlier run, replaced only with --force (never silently)
+_EARLIER = {"update": ("output", ("update.json", "updated.bdf", "updated_matrices.npz")),
+            "diagnose": ("report", ("diagnosis.json", "diagnosed.bdf", "campaign.json")),
+            "report": ("output", ("report.html", "summary.json")),
+            "identify": ("output", ("campaign.json",))}
 #: commands whose output folder is a resumable session/run: kept on failure unless empty
 _KEEP_FOLDER = {"run", "demo", "acquire"}
 
@@ -445,6 +452,25 @@ def _check_folder_names(a) -> None:
                               f"file; give a folder name, e.g. {flag} {Path(v).with_suffix('')}/")
 
 
+def _check_earlier_output(a) -> None:
+    """Refuse an output folder that holds the products of an earlier run of this command, unless ``--force``."""
+    if a.command not in _EARLIER or getattr(a, "overwrite", False):
+        return
+    attr, names = _EARLIER[a.command]
+    folder = getattr(a, attr, None)
+    if a.command == "report" and not folder:
+        folder = Path(a.folder) / "report"
+    if a.command == "identify" and len(a.inputs) < 2:        # one input: -o is a file (check_outputs)
+        return
+    if not folder or not os.path.isdir(folder):
+        return
+    found = [n for n in names if os.path.lexists(os.path.join(folder, n))]
+    if found:
+        flag = _FOLDER_FLAGS.get(attr, "--" + attr)
+        raise OutputError(f"{flag} '{folder}' holds the output of an earlier run ({', '.join(found)}); pass --force "
+                          "to replace it, or choose another folder")
+
+
 def _prepare_outputs(a):
     """Refuse unsafe outputs before any work; returns the outputs this run creates (removed on failure)."""
 
@@ -458,6 +484,7 @@ def _prepare_outputs(a):
     option = None if not hasattr(a, "overwrite") else "--overwrite" if a.command == "sim" else "--force"
     check_outputs(inputs, files, folders, force=bool(getattr(a, "overwrite", False)),
                   writes_into=into, force_option=option)
+    _check_earlier_output(a)
     created = [Path(p) for p in files + folders if not os.path.lexists(p)]
     return inputs, created
 

@@ -54,3 +54,43 @@ def test_update_accepts_bounds_around_the_nominal(tmp_path, capsys, freqs):
     assert main(["update", str(DEMO / "nominal.bdf"), "--modes", str(freqs), "--params", str(params),
                  "--freq-sigma", "0.5", "-o", str(tmp_path / "u")]) == 0
     assert (tmp_path / "u" / "update.json").is_file()
+
+
+@pytest.mark.parametrize("argv, folder, product, flag", [
+    (["update", "MODEL", "--modes", "FREQS", "-o", "OUT"], "OUT", "update.json", "-o"),
+    (["update", "MODEL", "--modes", "FREQS", "-o", "OUT"], "OUT", "updated.bdf", "-o"),
+    (["diagnose", "MODEL", "--modes", "FREQS", "--report", "OUT"], "OUT", "diagnosis.json", "--report"),
+    (["report", "TMP", "-o", "OUT"], "OUT", "report.html", "-o"),
+    (["report", "TMP"], "TMP/report", "summary.json", "-o"),
+])
+def test_an_earlier_output_folder_is_not_overwritten_without_force(tmp_path, capsys, freqs, argv, folder, product,
+                                                                    flag):
+    """``update -o``, ``diagnose --report`` and ``report`` replaced the files of an earlier run in their folder
+    silently; now that is one line naming the folder and the files, and --force replaces them."""
+    out = tmp_path / "out"
+    subst = {"MODEL": str(DEMO / "nominal.bdf"), "FREQS": str(freqs), "OUT": str(out), "TMP": str(tmp_path)}
+    argv = [subst.get(x, x) for x in argv]
+    target = Path(folder.replace("TMP", str(tmp_path)).replace("OUT", str(out)))
+    target.mkdir(parents=True)
+    (target / product).write_text("earlier run")
+    capsys.readouterr()
+    assert main(argv) == 2
+    err = _one_line(capsys)
+    assert f"{flag} '{target}' holds the output of an earlier run ({product})" in err and "--force" in err, err
+    assert (target / product).read_text() == "earlier run" and sorted(p.name for p in target.iterdir()) == [product]
+
+
+def test_update_with_force_replaces_its_earlier_output(tmp_path, capsys, freqs):
+    out = tmp_path / "u"
+    argv = ["update", str(DEMO / "nominal.bdf"), "--modes", str(freqs), "-o", str(out)]
+    assert main(argv) == 0
+    first = (out / "update.json").read_text()
+    assert main(argv) == 2
+    assert main(argv + ["--force"]) == 0
+    assert json.loads((out / "update.json").read_text())["method"] == json.loads(first)["method"]
+    # a folder holding other files only (not this command's products) is fine
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "notes.txt").write_text("mine")
+    assert main(["update", str(DEMO / "nominal.bdf"), "--modes", str(freqs), "-o", str(other)]) == 0
+    assert (other / "notes.txt").read_text() == "mine" and (other / "update.json").is_file()
