@@ -31,7 +31,7 @@ class Finding:
     @property
     def label(self) -> str:
         c = self.candidate
-        s = c.label + "".join(f" with {_fmt(v, o.unit)} at {', '.join(o.dofs) or o.nodes}" for o, v, _ in self.parts)
+        s = c.label + "".join(_part(c, o, v) for o, v, _ in self.parts)
         if self.alternatives:
             s += " or " + " or ".join(o.label for o, *_ in self.alternatives)
         return s
@@ -110,9 +110,19 @@ class _Pct(float):
         return format(float(self), ".1f" if abs(self) < 9.95 else ".0f")
 
 
+def _part(host: Candidate, part: Candidate, value: float) -> str:
+    """`` with <value> at <DOFs>`` for a part of the host's own kind (the rest of a mass lumped on a
+    neighbour); a part of another kind is named (a spring's own dashpot: `` with dashpot to ground at 3+Z of
+    20 N·s/m``)."""
+    where = ", ".join(part.dofs) or ", ".join(map(str, part.nodes))
+    if part.physics == host.physics:
+        return f" with {_fmt(value, part.unit)} at {where}"
+    return f" with {part.label} of {_fmt(value, part.unit)}"
+
+
 def _describe(f: Finding) -> str:
     s = f"{f.candidate.label} of {_fmt(f.value, f.candidate.unit)}"
-    s += "".join(f" (with {_fmt(v, o.unit)} at {', '.join(o.dofs) or o.nodes})" for o, v, _ in f.parts)
+    s += "".join(f" ({_part(f.candidate, o, v)[1:]})" for o, v, _ in f.parts)
     if f.alternatives:
         s = "either " + s + "".join(f" or {o.label} of {_fmt(v, o.unit)}" for o, v, *_ in f.alternatives) + \
             " (the data cannot tell them apart)"

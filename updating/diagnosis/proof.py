@@ -19,6 +19,14 @@ from updating.diagnosis.testmodes import peak_modes, pair_test_modes, _paired_fr
 
 log = logging.getLogger(__name__)
 
+#: findings whose physical element carries its own loss: a dashpot at the same DOFs is a part of them
+_LOSSY_SPRINGS = ("ground_spring",)
+
+
+def _is_spring_damping(c) -> bool:
+    """A dashpot to ground at DOFs (not damping on elements)."""
+    return c.physics == "local_damping" and c.matrix == "C" and not c.elements and bool(c.dofs)
+
 
 class _Proof:
     """The proof step of :class:`~updating.diagnosis.workflow.Diagnoser` (a mixin)."""
@@ -101,6 +109,11 @@ class _Proof:
             # lumped on both): one finding with two parts, not two findings
             host = next((f for f in findings if f.candidate.physics == c.physics and
                          _same_place(f.candidate, c, m_fin)), None)
+            if host is None and _is_spring_damping(c):
+                # a dashpot to ground where a spring to ground was found is the support's own loss (a rubber
+                # mount or cord has both): the same finding, not a second piece of missing physics
+                host = next((f for f in findings if f.candidate.physics in _LOSSY_SPRINGS and
+                             set(c.dofs) <= set(f.candidate.dofs)), None)
             if host is not None:
                 host.parts.append((c, float(val), float(std)))
                 continue
