@@ -315,11 +315,47 @@ class PolyMAX:
 
     # ------------------------------------------------------------------ fit
     def fit(self, frf: FRF) -> "PolyMAX":
-        """Estimate poles for every order, stabilise, select, and fit shapes by LSFD."""
-        # long: the estimator's pipeline in order (poles, stabilise, select, refine, drop picks, shapes), one call each
+        """Estimate poles for every order, stabilise, select, and fit shapes by LSFD.
 
+        The steps, in order: :meth:`_estimate_poles` (reduced normal matrix, poles of every order),
+        stabilisation and selection, :meth:`_refine_selected` (local refinement; automatic picks that run off
+        or leave the diagram's estimate), :meth:`_drop_noise_picks` (low MPC, repeated shapes),
+        :meth:`_pole_std` (standard deviations, pair test) and the final LSFD (:func:`modes_from_poles`)."""
         self._check_params(frf)
         data = self.prepare(frf, self.band_hz)
+        self._estimate_poles(data)
+        crit = self.criteria if self.criteria is not None else StabilisationCriteria()
+        self.stabilisation_ = stabilise(self.orders_, self.poles_, self.participation_, crit)
+        opts = self.selection if self.selection is not None else SelectionOptions()
+        band = (float(data.freq_hz[0]), float(data.freq_hz[-1]))
+        self.selected_ = select_poles(self.stabilisation_, self.select, opts, band_hz=band)
+        lam_sel = self._refine_selected(data, opts)
+        self.refined_poles_ = lam_sel
+        beta = float(data.window_beta_per_s) if self.window_correction else 0.0
+        lam_sel = self._drop_noise_picks(data, lam_sel, opts)
+        extra, std_source, pair_warn = self._pole_std(data, lam_sel, beta)
+        self.modes_, self.lsfd_ = modes_from_poles(
+            data, lam_sel, self.selected_.participation, lower_residual=self.lower_residual,
+            upper_residual=self.upper_residual, window_beta=beta, extra_indicators=extra)
+        self.modes_.metadata.update({"method": "pLSCF (PolyMAX-style) + LSFD", "max_order": int(self.max_order),
+                                     "band_hz": list(band), "window_beta_per_s": beta,
+                                     "weighting": self.weighting or "none"})
+        if std_source is not None:
+            self.modes_.metadata["pole_std_source"] = std_source
+        for k, F, pv, frac in pair_warn:
+            log.warning("the mode at %.5g Hz may be two modes (a close pair merged into one pole): its residues "
+                        "are not of rank one (F = %.3g, p = %.1e; a second mode would carry about %.0f %% of its "
+                        "residue); more references, a higher order or --select can tell",
+                        self.modes_.freq_hz[k], F, pv, 100 * np.sqrt(frac))
+        n_out, n_in, nf = data.shape
+        log.info("PolyMAX: %d outputs x %d references x %d lines, orders %d..%d, %d modes",
+                 n_out, n_in, nf, self.orders_[0], self.orders_[-1], self.modes_.n_modes)
+        return self
+
+    def _estimate_poles(self, data: FRF) -> None:
+        """The reduced normal matrix of the highest order and the poles and participation vectors of every
+        order: sets ``frf_``, ``dt_``, ``reduced_matrix_shape_``, ``root_methods_``, ``orders_``, ``poles_``
+        and ``participation_``."""
         n_out, n_in, nf = data.shape
         p = int(self.max_order)
         if nf < 2 * p // max(n_in, 1) + 2:
@@ -334,7 +370,6 @@ class PolyMAX:
         M = reduced_normal_matrix(data.H, w, theta, p)
         orders = np.arange(self.min_order, p + 1, self.order_step)
         poles, parts, methods = _poles_per_order(M, orders, n_in, dt)
-        crit = self.criteria if self.criteria is not None else StabilisationCriteria()
         self.frf_ = data
         self.dt_ = dt
         self.reduced_matrix_shape_ = M.shape
@@ -342,10 +377,11 @@ class PolyMAX:
         self.orders_ = orders
         self.poles_ = poles
         self.participation_ = parts
-        self.stabilisation_ = stabilise(orders, poles, parts, crit)
-        opts = self.selection if self.selection is not None else SelectionOptions()
-        band = (float(data.freq_hz[0]), fmax)
-        self.selected_ = select_poles(self.stabilisation_, self.select, opts, band_hz=band)
+
+    def _refine_selected(self, data: FRF, opts: SelectionOptions) -> np.ndarray:
+        """The selected poles refined (:func:`refine_poles`), with the participation re-estimated in
+        ``selected_``; of automatic picks, those whose refinement runs off to unphysical damping are dropped and
+        those whose refinement left the diagram's estimate keep the diagram's pole and participation."""
         lam_sel = self.selected_.lam
         L_diag = self.selected_.participation
         if self.refine and lam_sel.size:
@@ -372,8 +408,11 @@ class PolyMAX:
                 P = self.selected_.participation.copy()
                 P[:, back] = L_diag[:, back]
                 self.selected_ = dataclasses.replace(self.selected_, participation=P)
-        self.refined_poles_ = lam_sel
-        beta = float(data.window_beta_per_s) if self.window_correction else 0.0
+        return lam_sel
+
+    def _drop_noise_picks(self, data: FRF, lam_sel: np.ndarray, opts: SelectionOptions) -> np.ndarray:
+        """Automatic picks without a low MPC and not repeating another pick's shape (``selected_`` and
+        ``refined_poles_`` updated when any is dropped)."""
         if self.selected_.source == "auto" and opts.min_mpc > 0 and lam_sel.size:
             # noise modes fitted by LSFD have scattered phases: drop automatic picks with a low MPC
             # (MPC is invariant to the complex scaling of a shape: taken on the raw LSFD shapes ψ)
@@ -391,6 +430,12 @@ class PolyMAX:
                 self.selected_ = sp.subset(ok)
                 lam_sel = lam_sel[ok]
                 self.refined_poles_ = lam_sel
+        return lam_sel
+
+    def _pole_std(self, data: FRF, lam_sel: np.ndarray, beta: float):
+        """The modes' extra indicators (cluster size, order, standard deviations, pair test), the noise model
+        of the standard deviations (None without ``uncertainty``) and the modes that may be a merged pair
+        ``(k, F, p, fraction)``."""
         extra = {"cluster_size": self.selected_.cluster_size, "order": self.selected_.order}
         pair_warn = []
         std_source = None
@@ -409,22 +454,7 @@ class PolyMAX:
                               "may_be_pair": pair.astype(float)})
                 pair_warn = [(k, unc["rank2_F"][k], unc["rank2_p"][k], unc["rank2_fraction"][k])
                              for k in np.flatnonzero(pair)]
-        self.modes_, self.lsfd_ = modes_from_poles(
-            data, lam_sel, self.selected_.participation, lower_residual=self.lower_residual,
-            upper_residual=self.upper_residual, window_beta=beta, extra_indicators=extra)
-        self.modes_.metadata.update({"method": "pLSCF (PolyMAX-style) + LSFD", "max_order": p,
-                                     "band_hz": list(band), "window_beta_per_s": beta,
-                                     "weighting": self.weighting or "none"})
-        if std_source is not None:
-            self.modes_.metadata["pole_std_source"] = std_source
-        for k, F, pv, frac in pair_warn:
-            log.warning("the mode at %.5g Hz may be two modes (a close pair merged into one pole): its residues "
-                        "are not of rank one (F = %.3g, p = %.1e; a second mode would carry about %.0f %% of its "
-                        "residue); more references, a higher order or --select can tell",
-                        self.modes_.freq_hz[k], F, pv, 100 * np.sqrt(frac))
-        log.info("PolyMAX: %d outputs x %d references x %d lines, orders %d..%d, %d modes",
-                 n_out, n_in, nf, orders[0], orders[-1], self.modes_.n_modes)
-        return self
+        return extra, std_source, pair_warn
 
     def __getattr__(self, name):
         if name.endswith("_") and not name.startswith("__"):
