@@ -94,3 +94,23 @@ def test_update_with_force_replaces_its_earlier_output(tmp_path, capsys, freqs):
     (other / "notes.txt").write_text("mine")
     assert main(["update", str(DEMO / "nominal.bdf"), "--modes", str(freqs), "-o", str(other)]) == 0
     assert (other / "notes.txt").read_text() == "mine" and (other / "update.json").is_file()
+
+
+@pytest.mark.parametrize("option, value, expect", [
+    ("--sample-rate", "50", "expected at least 100 Hz"),
+    ("--samples", "0", "expected at least 256 samples"),
+    ("--samples", "200", "expected at least 256 samples"),
+    ("--hits", "0", "expected at least 1 hit per point"),
+    ("--force", "-3", "expected a peak force above 0 N"),
+    ("--double-hits", "3", "expected a probability from 0 to 1"),
+])
+def test_sim_refuses_bad_acquisition_options_before_simulating(tmp_path, capsys, option, value, expect):
+    """--sample-rate 50 printed the first point's progress and then failed on the trigger; --samples 0 ran with
+    the default record; --hits 0 answered 'hits_per_point=0 must be >= 1' (no option named)."""
+    out = tmp_path / "h.uff"
+    assert main(["sim", "-o", str(out), "--points", "1+Z", "--no-plot", option, value]) == 2
+    cap = capsys.readouterr()
+    err = cap.err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert f"{option} {value}: {expect}" in err and "give e.g." in err, err
+    assert cap.out == "" and not out.exists() and list(tmp_path.iterdir()) == []

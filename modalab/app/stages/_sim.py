@@ -22,6 +22,15 @@ from modalab.core import uff
 from modalab.core.plots import plot_hit
 
 
+#: the lowest sampling rate ``modalab sim`` accepts (Hz): a hammer impact lasts about a millisecond, and below
+#: 100 samples per second no sample sees it cross the trigger level
+MIN_SAMPLE_RATE_HZ = 100.0
+#: samples the simulated record keeps before the trigger (:func:`hardware_sim.demo.demo_setup`), and the
+#: shortest record accepted: twice that
+PRETRIGGER_SAMPLES = demo_setup().pretrigger_samples
+MIN_SAMPLES = 2 * PRETRIGGER_SAMPLES
+
+
 @dataclass(frozen=True)
 class SimOptions:
     """``modalab sim``: the structure ('demo' or a bulk-data file), hammer points, fixed accelerometers, hits
@@ -40,6 +49,23 @@ class SimOptions:
     def __post_init__(self):
         object.__setattr__(self, "points", _tuple(self.points))
         object.__setattr__(self, "references", _tuple(self.references))
+        # checked before any simulation (a bad value once failed after the first point's progress line, or
+        # ran silently: --samples 0 meant the default); the messages name the options of modalab sim
+        if isinstance(self.hits, bool) or not isinstance(self.hits, int) or self.hits < 1:
+            raise PlanError(f"--hits {self.hits}: expected at least 1 hit per point; give e.g. --hits 3")
+        fs = self.sample_rate_hz
+        if fs is not None and not (np.isfinite(fs) and fs >= MIN_SAMPLE_RATE_HZ):
+            raise PlanError(f"--sample-rate {fs:g}: expected at least {MIN_SAMPLE_RATE_HZ:g} Hz (samples per second; "
+                            "an impact lasts about a millisecond); give e.g. --sample-rate 2048")
+        n = self.n_samples
+        if n is not None and n < MIN_SAMPLES:
+            raise PlanError(f"--samples {n}: expected at least {MIN_SAMPLES} samples per record (the record keeps "
+                            f"{PRETRIGGER_SAMPLES} before the trigger); give e.g. --samples 8192")
+        if self.force_n is not None and not (np.isfinite(self.force_n) and self.force_n > 0):
+            raise PlanError(f"--force {self.force_n:g}: expected a peak force above 0 N; give e.g. --force 100")
+        p2 = self.double_hit_probability
+        if not (np.isfinite(p2) and 0 <= p2 <= 1):
+            raise PlanError(f"--double-hits {p2:g}: expected a probability from 0 to 1; give e.g. --double-hits 0.1")
 
 
 def _sim_structure(structure):
@@ -118,9 +144,9 @@ def sim(out_uff, opts: SimOptions = SimOptions(), *, plot_path=None, export_mode
     pts = list(opts.points or DEMO_POINTS)
     refs = list(opts.references or DEMO_REFERENCES)
     setup_kw = {}
-    if opts.sample_rate_hz:
+    if opts.sample_rate_hz is not None:
         setup_kw["sample_rate_hz"] = float(opts.sample_rate_hz)
-    if opts.n_samples:
+    if opts.n_samples is not None:
         setup_kw["n_samples"] = int(opts.n_samples)
     p2 = opts.double_hit_probability
     faults = FaultConfig(double_hit_probability=p2) if p2 else None
