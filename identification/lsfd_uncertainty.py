@@ -142,7 +142,6 @@ def pole_uncertainty(frf: FRF, lam, participation, *, half_bandwidths: float = 1
     ``source`` ('H_variance', 'coherence', 'residual' or 'given').  Modes whose window is too
     short for the refinement get NaN.
     """
-    # long by its docstring (derivation and assumptions, kept with the code); the body is ~60 lines
     lam = np.array(np.atleast_1d(lam), complex)
     m = lam.size
     L = np.asarray(participation, complex).reshape(frf.n_in, m)
@@ -165,49 +164,55 @@ def pole_uncertainty(frf: FRF, lam, participation, *, half_bandwidths: float = 1
     n_avg = int(frf.metadata.get("n_averages", 0)) if source == "coherence" else 0
     for r in range(m):
         loc = _local_problem(frf, f, q, df, Yall, lam, L, r, half_bandwidths)
-        if loc is None:
-            continue
-        vp, ynorm, sel = loc["vp"], loc["ynorm"], loc["sel"]
-        st = vp.factor(np.array([loc["wn"], loc["zr"]]))
-        if frf.n_in > 1:
-            F, d1, d2, frac = vp.rank_one_test(np.array([loc["wn"], loc["zr"]]))
-            if d1 > 0 and d2 > 0 and np.isfinite(F):
-                out["rank2_F"][r], out["rank2_fraction"][r] = F, frac
-                out["rank2_p"][r] = float(f_dist.sf(F, d1, d2))
-        D, c = vp._derivatives(st)
-        Dp = vp._project(st, D)                                                 # (rows, 4)
-        # J[:, o, k] = −P⊥(d_re,k c_0o + d_im,k c_1o), back in the units of H
-        J = -(Dp[:, None, :2] * c[0][None, :, None] + Dp[:, None, 2:] * c[1][None, :, None]) * ynorm
-        res = st["res"] * ynorm                                                 # (rows, n_out)
-        n_rows, n_out = res.shape
-        nu = n_rows * n_out - loc["n_lin"] * n_out - 2
-        if nu <= 0:
-            continue
-        if Vall is not None:
-            V = Vall[:, sel, :].reshape(-1, n_out)
-            V = np.concatenate([V, V], axis=0)
-            pos = V > 0
-            chi2 = float(np.sum(res[pos] ** 2 / V[pos])) / nu if pos.any() else np.nan
-            if source == "coherence" and n_avg >= 3:
-                chi2 *= (n_avg - 2) / (n_avg - 1)               # E[1/V̂] of a variance with 2(n−1) dof
-        else:
-            # per FRF (reference i, output o): s² from the residual, corrected for the fitted unknowns
-            r4 = res.reshape(2, frf.n_in, -1, n_out)
-            s2 = np.mean(r4 ** 2, axis=(0, 2)) * (n_rows * n_out / nu)            # (n_in, n_out)
-            V = np.broadcast_to(s2[None, :, None, :], r4.shape).reshape(n_rows, n_out)
-            chi2 = np.nan
-        A = np.einsum("rok,rol->kl", J, J)
-        Bm = np.einsum("rok,ro,rol->kl", J, V, J)
-        try:
-            Ai = np.linalg.inv(A)
-        except np.linalg.LinAlgError:
-            continue
-        cov = Ai @ Bm @ Ai
-        if not np.all(np.isfinite(cov)):
-            continue
-        _, _, cov = window_corrected_covariance(loc["wn"], loc["zr"], cov, float(window_beta))
-        out["cov"][r] = cov
-        out["freq_std_hz"][r] = np.sqrt(max(cov[0, 0], 0.0)) / (2 * np.pi)
-        out["damping_std"][r] = np.sqrt(max(cov[1, 1], 0.0))
-        out["chi2_ratio"][r] = chi2
+        if loc is not None:
+            _mode_std(out, r, frf, loc, Vall, source, n_avg, float(window_beta))
     return out
+
+
+def _mode_std(out: dict, r: int, frf: FRF, loc: dict, Vall, source: str, n_avg: int, window_beta: float) -> None:
+    """Mode ``r`` of :func:`pole_uncertainty`: the rank-one test of its residues and the covariance of its
+    ``(ω_n, ζ)`` from its local problem ``loc`` (:func:`_local_problem`), written into ``out``; left NaN where
+    the window has no degrees of freedom left or the normal matrix is singular."""
+    vp, ynorm, sel = loc["vp"], loc["ynorm"], loc["sel"]
+    st = vp.factor(np.array([loc["wn"], loc["zr"]]))
+    if frf.n_in > 1:
+        F, d1, d2, frac = vp.rank_one_test(np.array([loc["wn"], loc["zr"]]))
+        if d1 > 0 and d2 > 0 and np.isfinite(F):
+            out["rank2_F"][r], out["rank2_fraction"][r] = F, frac
+            out["rank2_p"][r] = float(f_dist.sf(F, d1, d2))
+    D, c = vp._derivatives(st)
+    Dp = vp._project(st, D)                                                 # (rows, 4)
+    # J[:, o, k] = −P⊥(d_re,k c_0o + d_im,k c_1o), back in the units of H
+    J = -(Dp[:, None, :2] * c[0][None, :, None] + Dp[:, None, 2:] * c[1][None, :, None]) * ynorm
+    res = st["res"] * ynorm                                                 # (rows, n_out)
+    n_rows, n_out = res.shape
+    nu = n_rows * n_out - loc["n_lin"] * n_out - 2
+    if nu <= 0:
+        return
+    if Vall is not None:
+        V = Vall[:, sel, :].reshape(-1, n_out)
+        V = np.concatenate([V, V], axis=0)
+        pos = V > 0
+        chi2 = float(np.sum(res[pos] ** 2 / V[pos])) / nu if pos.any() else np.nan
+        if source == "coherence" and n_avg >= 3:
+            chi2 *= (n_avg - 2) / (n_avg - 1)               # E[1/V̂] of a variance with 2(n−1) dof
+    else:
+        # per FRF (reference i, output o): s² from the residual, corrected for the fitted unknowns
+        r4 = res.reshape(2, frf.n_in, -1, n_out)
+        s2 = np.mean(r4 ** 2, axis=(0, 2)) * (n_rows * n_out / nu)            # (n_in, n_out)
+        V = np.broadcast_to(s2[None, :, None, :], r4.shape).reshape(n_rows, n_out)
+        chi2 = np.nan
+    A = np.einsum("rok,rol->kl", J, J)
+    Bm = np.einsum("rok,ro,rol->kl", J, V, J)
+    try:
+        Ai = np.linalg.inv(A)
+    except np.linalg.LinAlgError:
+        return
+    cov = Ai @ Bm @ Ai
+    if not np.all(np.isfinite(cov)):
+        return
+    _, _, cov = window_corrected_covariance(loc["wn"], loc["zr"], cov, window_beta)
+    out["cov"][r] = cov
+    out["freq_std_hz"][r] = np.sqrt(max(cov[0, 0], 0.0)) / (2 * np.pi)
+    out["damping_std"][r] = np.sqrt(max(cov[1, 1], 0.0))
+    out["chi2_ratio"][r] = chi2

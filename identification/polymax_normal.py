@@ -62,31 +62,15 @@ def frequency_weights(frf: FRF, weighting=None, *, normalise: bool = True) -> np
 
 
 # --------------------------------------------------------------------------- reduced matrix
-def reduced_normal_matrix(H: np.ndarray, w: np.ndarray, theta: np.ndarray, max_order: int, *,
-                          chunk: int = 16, rcond: float = 1e-12) -> np.ndarray:
-    """Reduced normal matrix ``M`` of pLSCF for order ``p = max_order``.
+def _lag_sums(H: np.ndarray, a: np.ndarray, theta: np.ndarray, p: int):
+    """The lag sums of :func:`reduced_normal_matrix` for lags d = 0..p, accumulated over chunks of lines so that
+    memory does not scale with n_freq x order: ``rho_c`` (n_out, p+1), ``sig_c``, ``sig_s`` (n_out·n_in, p+1)
+    and ``tau_pos`` (n_in, n_in, p+1).
 
-    Parameters
-    ----------
-    H : (n_out, n_in, n_freq) complex FRFs.
-    w : (n_out, n_freq) amplitude weights.
-    theta : (n_freq,) normalised angular frequencies ``ω_k Δt`` in rad.
-    max_order : highest polynomial order ``p``.
-
-    Returns the real symmetric ``((p+1)·n_in, (p+1)·n_in)`` matrix with rows
-    and columns ordered (order r, input i), r-major.  Blocks R, S, T are
-    Toeplitz in the order index and are formed from lag sums (module docs).
-    """
-    # long: one derivation (lag sums, blocks R/S/T, elimination) whose steps share every intermediate array
+    Only real parts enter R, S, T, so with C_kd = cos(θ_k d), S_kd = sin(θ_k d), d = 0..p:
+    Re rho_o(±d) = Σ_k a C,  Re sigma_oj(±d) = Σ_k a (Re H_oj C ∓ Im H_oj S),
+    Re tau_ij(d) = Σ_k (Re G_ij C − Im G_ij S),  G_ij = Σ_o a conj(H_oi) H_oj,  tau_ij(−d) = conj tau_ji(d)."""
     n_out, n_in, nf = H.shape
-    p = int(max_order)
-    c = (p + 1) * n_in
-    a = (w ** 2).astype(float)                                    # |w|², (n_out, nf)
-    D = np.arange(p + 1)[None, :] - np.arange(p + 1)[:, None]     # s - r
-    # --- lag sums, accumulated over chunks of lines so that memory does not scale with nf x order.
-    #     Only real parts enter R, S, T, so with C_kd = cos(θ_k d), S_kd = sin(θ_k d), d = 0..p:
-    #     Re rho_o(±d) = Σ_k a C,  Re sigma_oj(±d) = Σ_k a (Re H_oj C ∓ Im H_oj S),
-    #     Re tau_ij(d) = Σ_k (Re G_ij C − Im G_ij S),  G_ij = Σ_o a conj(H_oi) H_oj,  tau_ij(−d) = conj tau_ji(d)
     rho_c = np.zeros((n_out, p + 1))
     sig_c = np.zeros((n_out * n_in, p + 1))
     sig_s = np.zeros((n_out * n_in, p + 1))
@@ -104,7 +88,30 @@ def reduced_normal_matrix(H: np.ndarray, w: np.ndarray, theta: np.ndarray, max_o
         G = np.einsum("oik,ojk->ijk", H[:, :, ks].conj(), aH.reshape(n_out, n_in, -1), optimize=True)
         G = G.reshape(n_in * n_in, -1)
         tau_pos += np.ascontiguousarray(G.real) @ Cm - np.ascontiguousarray(G.imag) @ Sm
-    tau_pos = tau_pos.reshape(n_in, n_in, p + 1)
+    return rho_c, sig_c, sig_s, tau_pos.reshape(n_in, n_in, p + 1)
+
+
+def reduced_normal_matrix(H: np.ndarray, w: np.ndarray, theta: np.ndarray, max_order: int, *,
+                          chunk: int = 16, rcond: float = 1e-12) -> np.ndarray:
+    """Reduced normal matrix ``M`` of pLSCF for order ``p = max_order``.
+
+    Parameters
+    ----------
+    H : (n_out, n_in, n_freq) complex FRFs.
+    w : (n_out, n_freq) amplitude weights.
+    theta : (n_freq,) normalised angular frequencies ``ω_k Δt`` in rad.
+    max_order : highest polynomial order ``p``.
+
+    Returns the real symmetric ``((p+1)·n_in, (p+1)·n_in)`` matrix with rows
+    and columns ordered (order r, input i), r-major.  Blocks R, S, T are
+    Toeplitz in the order index and are formed from lag sums (module docs).
+    """
+    n_out, n_in, nf = H.shape
+    p = int(max_order)
+    c = (p + 1) * n_in
+    a = (w ** 2).astype(float)                                    # |w|², (n_out, nf)
+    D = np.arange(p + 1)[None, :] - np.arange(p + 1)[:, None]     # s - r
+    rho_c, sig_c, sig_s, tau_pos = _lag_sums(H, a, theta, p)
     tau = np.empty((n_in, n_in, 2 * p + 1))
     tau[:, :, p:] = tau_pos
     tau[:, :, :p] = tau_pos.transpose(1, 0, 2)[:, :, :0:-1]              # Re tau_ij(-d) = Re tau_ji(d)
