@@ -217,11 +217,12 @@ def cmd_acquire(a):
     obs = _ConsoleObserver(out, live_plot=live, quiet=a.quiet)
     prompter = None if a.auto else _TerminalPrompter()
     resume_cmd = (f"modalab acquire {a.plan} --backend {a.backend} {'--auto ' if a.auto else ''}--resume -o {out}")
-    _print("backend: " + ("sim - the simulated lab (hardware_sim): the data are SIMULATED, not measured; "
-                          "--backend nidaqmx for NI hardware" if a.backend == "sim" else f"{a.backend} (NI hardware)"))
-    try:
+    line = "backend: " + ("sim - the simulated lab (hardware_sim): the data are SIMULATED, not measured; "
+                          "--backend nidaqmx for NI hardware" if a.backend == "sim" else f"{a.backend} (NI hardware)")
+    try:       # the backend line once every check has passed: a refused plan prints the error alone
         sess, summary, exported = acquire(a.plan, out, backend=a.backend, auto=a.auto, resume=a.resume,
-                                          prompter=prompter, observer=obs, seed=a.seed)
+                                          prompter=prompter, observer=obs, seed=a.seed,
+                                          on_ready=lambda: _print(line))
     except KeyboardInterrupt:
         obs.close()
         _print(f"interrupted; every accepted hit is stored. Continue with: {resume_cmd}")

@@ -36,6 +36,7 @@ def test_nidaqmx_backend_without_driver_is_a_clear_message(tmp_path):
     assert "Traceback" not in r.stderr and "Traceback" not in r.stdout
     assert "NI-DAQmx" in r.stderr and "--backend sim" in r.stderr and "install" in r.stderr.lower()
     assert len(r.stderr.strip().splitlines()) == 1
+    assert r.stdout == ""                         # the backend line only once every check has passed
     assert not (tmp_path / "s").exists()          # no half session left behind
 
 
@@ -46,6 +47,7 @@ def test_cli_auto_sim_writes_previews_without_a_display(tmp_path, monkeypatch, c
     out = tmp_path / "s"
     assert main(["acquire", str(plan), "--backend", "sim", "--auto", "-o", str(out)]) == 0
     text = capsys.readouterr().out
+    assert text.startswith("backend: sim - the simulated lab")
     assert "session complete" in text and "range suggestion: hammer" in text
     assert text.count("lower coherence than the kept hits x1") == 2
     for k in range(2):
@@ -89,8 +91,9 @@ def test_cli_errors_are_one_clear_line(tmp_path, capsys):
     out.mkdir()
     (out / "session.json").write_text("{}")
     assert main(["acquire", str(plan), "--backend", "sim", "--auto", "-o", str(out)]) == 2
-    err = capsys.readouterr().err
-    assert "already holds a session" in err and "--resume" in err
+    cap = capsys.readouterr()
+    assert "already holds a session" in cap.err and "--resume" in cap.err
+    assert cap.out == ""                   # no backend line before a refusal (issue 14 audit)
     bad = small_plan(tmp_path, points=("14+Z", "99+Z"), name="bad.toml")
     assert main(["acquire", str(bad), "--backend", "sim", "--auto", "-o", str(tmp_path / "t")]) == 2
     assert "99" in capsys.readouterr().err
@@ -124,6 +127,7 @@ def test_cli_acquire_bad_input_is_one_line_exit_2(tmp_path, capsys, case):
     cap = capsys.readouterr()
     assert code == 2
     assert len(cap.err.strip().splitlines()) == 1 and expect in cap.err and "Traceback" not in cap.err
+    assert cap.out == ""                   # the error alone: the backend line only once every check passed
     if case.startswith("output"):
         assert (tmp_path / ("s" if case == "output_is_a_file" else "f")).read_text() == "precious"
     else:

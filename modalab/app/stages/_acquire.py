@@ -57,12 +57,14 @@ def _nidaqmx_backend():
 
 
 def acquire(plan_path, out_dir, *, backend: str = "sim", auto: bool = False, resume: bool = False,
-            prompter=None, observer=None, seed: int | None = None, **session_kw):
+            prompter=None, observer=None, seed: int | None = None, on_ready=None, **session_kw):
     """Run ``modalab acquire``: returns (session, summary, exported UFF path or None).
 
     ``backend`` is 'sim' (the plan's ``[sim]`` section, :func:`make_sim_backend`), 'nidaqmx' or a ready
     backend object.  Interactive mode (``auto=False``) needs a ``prompter``.  The UFF is exported when
-    every point is finished.  Extra keywords go to :class:`acquisition.session.AcquisitionSession`.
+    every point is finished.  ``on_ready``: called without arguments once every check has passed (plan, backend,
+    hammer, session folder and resume), before the first hit (the CLI says there which backend runs).  Extra
+    keywords go to :class:`acquisition.session.AcquisitionSession`.
     """
 
     plan = load_plan(plan_path)
@@ -82,6 +84,8 @@ def acquire(plan_path, out_dir, *, backend: str = "sim", auto: bool = False, res
     try:
         sess = AcquisitionSession(plan, be, out_dir, mode="auto" if auto else "interactive", prompter=prompter,
                                   hammer=hammer, observer=observer, resume=resume, **session_kw)
+        if on_ready is not None:
+            on_ready()
         summary = sess.run()
         exported = sess.export() if summary.complete and any(p.accepted for p in summary.points) else None
     finally:
