@@ -1,23 +1,56 @@
 """updating — from an FE model and test data to an updated model and the physics it left out.
 
-The subpackages follow the flow, bottom up (an import-linter contract keeps the order):
+By task.  Four subpackages follow the flow, bottom up (an import-linter contract keeps the order):
+:mod:`updating.fe` → :mod:`updating.correlation` → :mod:`updating.methods` → :mod:`updating.diagnosis`.
 
-The FE model — :mod:`updating.fe`
-    Elements (beams, rods, springs, masses, dampers, shells), sparse assembly, constraints (SPC, RBE2),
-    damping, eigen-solvers (dense below :data:`modalab.core.dense.EIGEN_LIMIT` DOFs, shift-invert Lanczos
-    above: the one dense/sparse rule is :mod:`modalab.core.dense`), parameters and their derivatives (:mod:`~updating.fe.parametric`, :mod:`~updating.fe.parameters`),
-    eigen-sensitivities (:mod:`~updating.fe.sensitivity`); Nastran bulk data in and out
-    (:mod:`updating.fe.bulk`: ``read_bulk``, ``build_model``, ``write_bulk``); reference models
-    (:mod:`updating.fe.models`: beams, a GARTEUR-like frame).
-Correlation — :mod:`updating.correlation`
-    MAC, AutoMAC, MSF, COMAC, ECOMAC, orthogonality, FRAC/CSAC/CSF and mode pairing
-    (:mod:`~updating.correlation.metrics`); mapping test DOFs onto model DOFs
-    (:mod:`~updating.correlation.dofmap`); reduction (Guyan, IRS, SEREP) and expansion (Kidder, SEREP, modal);
-    figures (:mod:`~updating.correlation.plots`).
-Updating methods — :mod:`updating.methods`
-    Inverse eigensensitivity (thesis 3.2.2), MCI minimisation (3.2.4), the response-function method (3.2.3),
-    the eigendynamic constraint (3.2.1) and the direct methods (3.1).
-Missing-physics discovery — :mod:`updating.diagnosis`
-    Locate the residual, screen a library of candidate physics exactly by low-rank updates, name it, add it
-    to the bulk data and prove it on held-out data; from FRFs or from modes alone.
+Read, build or write an FE model — :mod:`updating.fe`, :mod:`updating.fe.bulk`
+    :func:`~updating.fe.bulk.read_bdf` → :func:`~updating.fe.bulk.build_model` → :class:`~updating.fe.FEModel`
+    (elements one per module in :mod:`updating.fe.elements`, RBE2, SPC, damping); back to bulk data with
+    :func:`~updating.fe.bulk.to_bulk` and :func:`~updating.fe.bulk.write_bdf`.  Reference models:
+    :mod:`updating.fe.models` (beams, a GARTEUR-like frame).
+Modes and FRFs of the model
+    :func:`~updating.fe.normal_modes`, :func:`~updating.fe.modes_of`; :func:`~updating.fe.frf_direct` (at
+    ``s = iω + β`` when compared with exponentially windowed data), :func:`~updating.fe.frf_modal`.  Dense below
+    :data:`modalab.core.dense.EIGEN_LIMIT` DOFs, shift-invert Lanczos above: the one dense/sparse rule is
+    :mod:`modalab.core.dense`.
+Choose the updating parameters
+    :class:`~updating.fe.Parameter`, :class:`~updating.fe.ParametricFEModel` (the
+    :class:`~updating.fe.parametric.ParametricModel` protocol every method takes); a parameter file
+    :func:`~updating.fe.parameter_file.read_parameter_file`; eigen-sensitivities
+    (:mod:`updating.fe.sensitivity`: :func:`~updating.fe.sensitivity.frequency_sensitivities`,
+    :func:`~updating.fe.sensitivity.eigenvector_sensitivities`, Nelson).
+Compare test and model modes — :mod:`updating.correlation`
+    :func:`~updating.correlation.mac`, :func:`~updating.correlation.automac`, :func:`~updating.correlation.comac`,
+    :func:`~updating.correlation.ecomac`, :func:`~updating.correlation.msf`, orthogonality; pairing swapped and
+    missing modes: :func:`~updating.correlation.pair_modes`, :func:`~updating.correlation.correlate`; test DOFs on
+    model DOFs: :class:`~updating.correlation.DofMap`.
+Compare FRFs, put measured FRFs on the model
+    :func:`~updating.correlation.frac`, :func:`~updating.correlation.csac`, :func:`~updating.correlation.csf`;
+    the one receptance adapter :mod:`updating.correlation.receptance` (``frf_data``, ``measured_columns``; it
+    keeps an exponential window's β in ``s``) and the one dynamic expansion
+    :mod:`updating.correlation.condensation` (``condensed_residual``), shared by MCI, RFM and diagnosis.
+Reduce and expand
+    :func:`~updating.correlation.guyan`, :func:`~updating.correlation.irs`, :func:`~updating.correlation.serep`;
+    :func:`~updating.correlation.kidder`, :func:`~updating.correlation.serep_expand`,
+    :func:`~updating.correlation.modal_expand`.
+Update from identified modes — :mod:`updating.methods`
+    :class:`~updating.methods.InverseEigensensitivity` (with :func:`~updating.methods.sensitivity_ranking`,
+    :func:`~updating.methods.identifiability`, :func:`~updating.methods.choose_alpha`);
+    :class:`~updating.methods.EigendynamicConstraint`.
+Update from FRFs
+    :class:`~updating.methods.MCIUpdater`, :func:`~updating.methods.mci`, :func:`~updating.methods.mci_update`;
+    :class:`~updating.methods.ResponseFunctionMethod`.
+Update the matrices directly
+    :func:`~updating.methods.lagrange_stiffness`, :func:`~updating.methods.lagrange_mass`,
+    :func:`~updating.methods.direct_matrix_updating`, :func:`~updating.methods.matrix_mixing`,
+    :func:`~updating.methods.baruch_orthogonalise`.
+Find the physics the model left out — :mod:`updating.diagnosis`
+    :func:`~updating.diagnosis.diagnose` / :class:`~updating.diagnosis.Diagnoser` on measured FRFs,
+    :func:`~updating.diagnosis.diagnose_modes` from identified modes alone (a GVT); the parts:
+    :func:`~updating.diagnosis.build_library` (candidate physics), :func:`~updating.diagnosis.screen`
+    (locate the residual), :func:`~updating.diagnosis.frf_screen` (exact screening by low-rank updates),
+    :func:`~updating.diagnosis.fit_frf`.  The result, :class:`~updating.diagnosis.Diagnosis`, is the content of
+    ``diagnosis.json`` (``Diagnosis.to_dict()``).
+
+The command line reaches these through :mod:`modalab.app.stages` (``correlate``, ``update``, ``diagnose``).
 """

@@ -12,8 +12,9 @@ Compare FRFs
 Map test DOFs onto the model
     :class:`DofMap`, :func:`as_dofmap`, :func:`observation_matrix`.
 Measured FRFs on the model, and their dynamic expansion
-    :mod:`updating.correlation.receptance` (:class:`FRFData`, :func:`frf_data`, :func:`measured_columns`);
-    :mod:`updating.correlation.condensation` (:func:`condensed_residual`, :func:`solve_columns`) — the one
+    :mod:`updating.correlation.receptance` (:class:`~.receptance.FRFData`, :func:`~.receptance.frf_data`,
+    :func:`~.receptance.measured_columns`); :mod:`updating.correlation.condensation`
+    (:func:`~.condensation.condensed_residual`, :func:`~.condensation.solve_columns`) — the one
     adapter and the one Kidder-type expansion that MCI, RFM and diagnosis share.
 Reduce and expand (section 2.1)
     :func:`guyan`, :func:`irs`, :func:`serep`, :func:`reduce`; :func:`kidder`, :func:`serep_expand`,
