@@ -38,7 +38,6 @@ written, ``complete=False``) so the run continues with ``--resume``.
 """
 from __future__ import annotations
 
-import json
 import logging
 import math
 from pathlib import Path
@@ -46,6 +45,7 @@ from typing import Callable
 
 import numpy as np
 
+from modalab.core._output import write_json
 from modalab.core.dof import Dof
 from modalab.core.errors import DaqError, DaqTimeoutError, DeviceLostError, ModalabError, PlanError
 from modalab.core.frf import FRF
@@ -434,7 +434,7 @@ class AcquisitionSession(_Recovery):
             except (DaqError, ModalabError) as e:
                 log.warning("abort failed: %s", e)
         summ = self.summary()
-        (self.out_dir / "summary.json").write_text(json.dumps(summ.to_dict(), indent=1))
+        write_json(self.out_dir / "summary.json", summ.to_dict())     # atomic: a crash leaves no half file
         return summ
 
     # ------------------------------------------------------------------ export
