@@ -211,14 +211,18 @@ class _Acceptance:
                        max_nfev=max(8, self.config.max_nfev // 2))
         return pm_aug, fr, clo, chi, scales[-1]
 
-    def _judge_pick(self, c, pm_aug, fr, clo, chi, supported: bool = False) -> tuple[bool, str]:
+    def _judge_pick(self, c, pm_aug, fr, clo, chi, supported: bool = False, part: bool = False) -> tuple[bool, str]:
         """The tests of :meth:`_judge` on the FRF criterion for a pick fitted by :meth:`_fit_pick` (bounds
         ``clo``, ``chi``), against the current model's FRF fit: the information criterion, :func:`_term_holds`,
         the reduced χ² the pick must leave (:data:`PICK_MAX_REDUCED_CHI2`), the effect, and the
         cross-validation over folds (:meth:`_cross_validated`).  ``supported``: the MCI accepted a term here
         (the pick competes with it, :meth:`_judge_picks`) or ranked the pick itself best, so the pick is not a
         rescue of an unsupported residual and the reduced-χ² limit, which only guards such rescues, does not apply — the pick passes
-        the same tests as the MCI's term it replaces."""
+        the same tests as the MCI's term it replaces.  ``part``: the pick completes an accepted term at the same
+        place (:meth:`~updating.diagnosis.refine._Refine._refine_supports`); its effect on the frequencies may
+        be below the model-form threshold when the completed model leaves only noise (reduced χ² at most
+        :data:`PICK_MAX_REDUCED_CHI2` on the training and the held-out FRFs): the first term has already shown
+        that something is missing there, the part says how much of it."""
         cfg = self.config
         pm_ref, ref = self._frf_ref()
         err, n_eq = fr.error, n_obs(self.train)
@@ -236,7 +240,14 @@ class _Acceptance:
                 ok = False
                 why += (f"; χ²/N {red:.3g} left, above {PICK_MAX_REDUCED_CHI2:g}: the term reduces a residual "
                         "that stays far above the noise (model-form error it would absorb)")
+        ok_h, why_h = ok, why
         ok, why = self._effect_ok(ok, why, pm_aug, fr.p, c)
+        if part and ok_h and not ok:
+            st = pm_aug.structure(fr.p)
+            red = max(c1 / n1 for c1, n1 in (_chi2(st, self.train), _chi2(st, self.held)))
+            if red <= PICK_MAX_REDUCED_CHI2:
+                ok, why = True, why_h + (f"; a part of an accepted term whose completed model leaves χ²/N {red:.3g} "
+                                         f"(at most {PICK_MAX_REDUCED_CHI2:g}: noise)")
         if ok:
             lo_ref, hi_ref = (self.lo, self.hi) if pm_ref is self.pm else (self.lo_cur, self.hi_cur)
             ok, cv = self._cross_validated((pm_ref, ref.p, lo_ref, hi_ref), (pm_aug, fr.p, clo, chi))

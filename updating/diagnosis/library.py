@@ -386,12 +386,17 @@ def _active_components(ctx: _LibraryContext, spc, Kfull, moving) -> list[int]:
 
 
 def _release_spc(m, eid, spc, group):
-    """The components ``group`` of ``spc`` released into springs to ground (one parameter)."""
+    """The components ``group`` of ``spc`` released into springs to ground (one parameter).  The constraints
+    of ``spc.node`` are matched by node and components, not by identity, so that a second release at the same
+    node (a clamp's translations after its rotations) applies to a model where the first has replaced the
+    constraint by the components it left."""
     m = m.copy()
-    m.spcs = [s for s in m.spcs if s is not spc]
-    rest = tuple(x for x in spc.components if x not in group)
-    if rest:
-        m.add_spc(spc.node, "".join(map(str, rest)))
+    hit = [s for s in m.spcs if s.node == spc.node and set(s.components) & set(group)]
+    m.spcs = [s for s in m.spcs if s not in hit]
+    for s in hit:
+        rest = tuple(x for x in s.components if x not in group)
+        if rest:
+            m.add_spc(s.node, "".join(map(str, rest)))
     for k, c in enumerate(group):
         m.add_element(Spring(eid + k, a=(spc.node, c), b=None, k=0.0, group=f"diag_bc_{eid}"))
     m._changed()

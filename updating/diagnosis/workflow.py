@@ -29,6 +29,8 @@
    on the training FRFs (the MCI can prefer an inertia where a clamp is released).  On the FRFs a term must
    also hold under cross-validation over :data:`~updating.diagnosis.terms.CV_FOLDS` folds
    (:meth:`Diagnoser._cross_validated`); every test counts the same observations (:func:`~updating.diagnosis.terms.n_obs`);
+   An accepted support release is completed by the other components of its constraint when the data
+   support them (:mod:`~updating.diagnosis.refine`): one elastic clamp, one finding with two stiffnesses;
 4. **model** — the selected terms updated jointly with the parameters on the FRFs; backward elimination
    drops terms that no longer earn their place;
 5. **prove** — nominal, parameter-only and augmented models compared on the held-out FRFs and on the test
@@ -62,6 +64,7 @@ from updating.diagnosis.testmodes import suspension_band
 from updating.diagnosis.findings import Finding, Diagnosis
 from updating.diagnosis.acceptance import _Acceptance
 from updating.diagnosis.proof import _Proof
+from updating.diagnosis.refine import _Refine
 
 log = logging.getLogger(__name__)
 __all__ = ["diagnose", "Diagnoser", "DiagnoserConfig", "Diagnosis", "Finding", "default_parameters"]
@@ -96,7 +99,7 @@ class DiagnoserConfig:
             raise ModalabValueError(f"holdout={self.holdout!r}: expected 'rows', 'columns', 'lines' or None")
 
 
-class Diagnoser(_Acceptance, _Proof):
+class Diagnoser(_Acceptance, _Refine, _Proof):
     """Missing-physics diagnosis as an estimator: ``Diagnoser(config).fit(model, frf)`` runs the steps
     :meth:`baseline`, :meth:`localise`, :meth:`screen` (one term at a time), :meth:`model` and :meth:`prove`
     (module docstring) and exposes ``findings_`` (list of :class:`Finding`), ``fit_`` (the fit blocks),
@@ -124,6 +127,7 @@ class Diagnoser(_Acceptance, _Proof):
         for it in range(self.config.max_findings):
             if not self.screen(it):
                 break
+        self._refine_supports()
         self.timings["3-4 localise+name"] = time.perf_counter() - self._t1
         self.model()
         self.diagnosis_ = self.prove()
