@@ -35,7 +35,7 @@ Mode shapes
 Indicators
 ==========
 :func:`mpc`, :func:`mpd`, :func:`mcf`, :func:`mov`, :func:`frf_correlation`, :func:`synthesis_error`,
-:func:`auto_mac`, :func:`mac_vectors`.
+:func:`auto_mac`, :func:`mac_vectors`; :func:`edge_resonances` (resonances an edge of the band cuts).
 
 Figures
 =======
@@ -51,7 +51,7 @@ Small dense eigenproblems dominate the order loop; on a loaded machine a multi-t
 much slower than one thread: set ``OPENBLAS_NUM_THREADS=1`` (or the equivalent) before starting Python.
 """
 from .api import IdentificationReport, default_max_order, identify
-from .indicators import auto_mac, frf_correlation, mcf, mov, mpc, mpd, synthesis_error
+from .indicators import auto_mac, edge_resonances, frf_correlation, mcf, mov, mpc, mpd, synthesis_error
 from .lsfd import (LSFDResult, driving_points, frf_noise_variance, lsfd, modes_from_poles, pole_uncertainty,
                    refine_poles, window_corrected_covariance)
 from .plots import plot_automac, plot_stabilisation, plot_synthesis
@@ -68,6 +68,6 @@ __all__ = [
     "SelectionOptions", "SelectedPoles", "select_poles", "auto_select", "select_frequencies", "load_selection_file",
     "LSFDResult", "lsfd", "refine_poles", "driving_points", "modes_from_poles",
     "pole_uncertainty", "frf_noise_variance", "window_corrected_covariance",
-    "mpc", "mpd", "mcf", "mov", "frf_correlation", "synthesis_error", "auto_mac",
+    "mpc", "mpd", "mcf", "mov", "frf_correlation", "synthesis_error", "auto_mac", "edge_resonances",
     "plot_stabilisation", "plot_synthesis", "plot_automac", "modal_system", "noisy_frf",
 ]

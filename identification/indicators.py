@@ -25,13 +25,21 @@ orders (parts ``freq_std_orders_hz``/``damping_std_orders``, :func:`identificati
 
 FRF correlation: ``|H_sᴴH_m|² / (H_sᴴH_s · H_mᴴH_m)`` per FRF (FRAC) and the
 relative synthesis error ``‖H_s − H_m‖ / ‖H_m‖``.
+
+Band edges (:func:`edge_resonances`): a resonance of the data whose peak lies within its half-power bandwidth
+of an edge of the analysis band is cut by the band: its peak half inside, half outside, it is neither
+identified (poles at the edges are dropped) nor modelled as a neighbour, and it biases its neighbours.
 """
 from __future__ import annotations
 
 import numpy as np
+from scipy.signal import find_peaks, peak_widths
 from .stabilisation import mac_vectors
 
-__all__ = ["mpc", "mcf", "mpd", "mov", "frf_correlation", "synthesis_error", "auto_mac"]
+__all__ = ["mpc", "mcf", "mpd", "mov", "frf_correlation", "synthesis_error", "auto_mac", "edge_resonances"]
+
+#: a peak of Σ|H|² counts as a resonance when it stands this far (natural log, ~4.3 dB) above its surroundings
+EDGE_PEAK_PROMINENCE = 1.0
 
 
 def mpc(shapes) -> np.ndarray:
@@ -106,3 +114,42 @@ def auto_mac(shapes) -> np.ndarray:
 
     phi = np.asarray(shapes)
     return mac_vectors(phi, phi)
+
+
+def edge_resonances(freq_hz, H, band_hz) -> list[dict]:
+    """Resonances of the data cut by an edge of ``band_hz``: peaks of ``Σ|H|²`` over every response and
+    reference (prominence :data:`EDGE_PEAK_PROMINENCE` in log) whose frequency lies within one half-power
+    bandwidth (the peak's width at half its power, at least one line) of an edge, inside or outside the band.
+
+    ``H``: (..., n_freq) FRFs on the lines ``freq_hz`` (Hz) of the whole measurement, not only the band.
+    Returns one dict per cut resonance: ``freq_hz``, ``width_hz``, ``edge`` ('lower'/'upper'), ``edge_hz``
+    and ``suggest_hz``: an edge three widths beyond the peak (rounded outwards, within the data; for a lower
+    edge with no line that far below the peak, three widths above it), or None when the data end before."""
+    f = np.asarray(freq_hz, float)
+    lo, hi = float(band_hz[0]), float(band_hz[1])
+    if f.size < 5:
+        return []
+    power = (np.abs(np.asarray(H)) ** 2).reshape(-1, f.size).sum(axis=0)
+    ok = np.isfinite(power) & (power > 0)
+    if not ok.all():
+        power = np.where(ok, power, power[ok].min() if ok.any() else 1.0)
+    peaks, _ = find_peaks(np.log(power), prominence=EDGE_PEAK_PROMINENCE)
+    peaks = peaks[(peaks > 0) & (peaks < f.size - 1)]
+    if not peaks.size:
+        return []
+    df = float(np.median(np.diff(f)))
+    widths = np.maximum(peak_widths(power, peaks, rel_height=0.5)[0] * df, df)
+    out = []
+    for k, w in zip(peaks, widths):
+        fp = float(f[k])
+        for edge, e in (("lower", lo), ("upper", hi)):
+            if abs(fp - e) <= w:
+                step = 10.0 ** np.floor(np.log10(max(3 * w, df)))
+                if edge == "upper":
+                    s = float(np.ceil((fp + 3 * w) / step) * step)
+                    s = s if s <= f[-1] else None
+                else:                  # below the peak; when the data start too close, above it (left out)
+                    s = float(np.floor((fp - 3 * w) / step) * step)
+                    s = s if s > f[0] else float(np.ceil((fp + 3 * w) / step) * step)
+                out.append({"freq_hz": fp, "width_hz": float(w), "edge": edge, "edge_hz": e, "suggest_hz": s})
+    return out

@@ -114,3 +114,43 @@ def test_sim_refuses_bad_acquisition_options_before_simulating(tmp_path, capsys,
     assert len(err.splitlines()) == 1 and "Traceback" not in err, err
     assert f"{option} {value}: {expect}" in err and "give e.g." in err, err
     assert cap.out == "" and not out.exists() and list(tmp_path.iterdir()) == []
+
+
+@pytest.fixture(scope="module")
+def one_point_frf(tmp_path_factory):
+    """FRFs 0-800 Hz, 1 Hz apart, of a one-point simulated test (no window): the demo's 4 Hz bungee mode and
+    its elastic modes."""
+    d = tmp_path_factory.mktemp("frf")
+    assert main(["sim", "-o", str(d / "h.uff"), "--points", "1+Z", "--hits", "1", "--samples", "2048",
+                 "--no-plot"]) == 0
+    assert main(["frf", str(d / "h.uff"), "-o", str(d / "f.uff"), "--no-plot"]) == 0
+    return d / "f.uff"
+
+
+@pytest.mark.parametrize("band, expect", [
+    (("0.005", "0.7"), "the band is in Hz, not kHz: give --band 5 700"),
+    (("0.02", "0.5"), "the band is in Hz, not kHz: give --band 20 500"),
+    (("900", "2000"), "give a band below 800 Hz"),
+    (("300", "310"), "give a wider band"),
+])
+def test_identify_a_band_of_a_few_lines_is_one_clear_line(one_point_frf, tmp_path, capsys, band, expect):
+    """--band 0.005 0.7 (kHz for Hz) printed a warning 'only 2 lines for order 40' and then an error about
+    max_order; now one line says what the band holds and what to give."""
+    capsys.readouterr()
+    assert main(["identify", str(one_point_frf), "--band", *band, "-o", str(tmp_path / "m.uff")]) == 2
+    err = _one_line(capsys)
+    assert f"--band {band[0]} {band[1]} Hz holds" in err and "needs at least 16" in err and expect in err, err
+    assert str(one_point_frf) in err and "the data spans 0..800 Hz" in err, err
+    assert not (tmp_path / "m.uff").exists()
+
+
+def test_identify_warns_when_a_band_edge_cuts_a_resonance(one_point_frf, tmp_path, caplog):
+    with caplog.at_level("WARNING"):
+        assert main(["identify", str(one_point_frf), "--band", "5", "700", "-o", str(tmp_path / "a.uff")]) == 0
+    cut = [r.getMessage() for r in caplog.records if "sits at the band's" in r.getMessage()]
+    assert len(cut) == 1 and "a resonance at 4 Hz" in cut[0] and "lower edge 5 Hz" in cut[0], cut
+    assert "e.g. --band 8 700" in cut[0] and str(one_point_frf) in cut[0], cut
+    caplog.clear()
+    with caplog.at_level("WARNING"):
+        assert main(["identify", str(one_point_frf), "--band", "8", "700", "-o", str(tmp_path / "b.uff")]) == 0
+    assert not [r for r in caplog.records if "sits at the band's" in r.getMessage()]
