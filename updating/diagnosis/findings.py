@@ -103,11 +103,21 @@ def _fmt(v: float, unit: str) -> str:
     return f"{v:.3g} {unit}".replace(" -", "")
 
 
-class _Pct(float):
-    """A percentage that prints with one decimal below 10 (``0.4``) and none above (``38``)."""
+def pct(x: float) -> str:
+    """A percentage as the statements print it: two significant digits, no exponent and no digits beyond the
+    units above 10 (``0.96``, ``0.004``, ``4.1``, ``38``, ``0``); a nonzero value never reads ``0``."""
+    x = float(x)
+    if not np.isfinite(x):
+        return str(x)
+    if abs(x) >= 9.95:
+        return f"{x:.0f}"
+    return np.format_float_positional(x, precision=2, unique=False, fractional=False, trim="-")
 
-    def __format__(self, spec):
-        return format(float(self), ".1f" if abs(self) < 9.95 else ".0f")
+
+def from_to(a: float, b: float) -> str:
+    """``from 0.96 % to 0.95 %``, or ``unchanged at 0.96 %`` when the two print alike."""
+    sa, sb = pct(a), pct(b)
+    return f"unchanged at {sa} %" if sa == sb else f"from {sa} % to {sb} %"
 
 
 def _part(host: Candidate, part: Candidate, value: float) -> str:
@@ -151,12 +161,13 @@ def statement(findings, fit, held_desc: str, not_evaluated=(), unobservable=()) 
 
 
 def _statement(findings, fit, held_desc: str) -> str:
-    e_par = _Pct(100 * fit["parameters_only"]["frf_error_held_out"])
-    e_phys = _Pct(100 * fit["with_physics"]["frf_error_held_out"])
-    e_nom = _Pct(100 * fit["nominal"]["frf_error_held_out"])
+    e_par = 100 * fit["parameters_only"]["frf_error_held_out"]
+    e_phys = 100 * fit["with_physics"]["frf_error_held_out"]
+    e_nom = 100 * fit["nominal"]["frf_error_held_out"]
     if not findings:
-        return (f"Nothing is missing beyond parameter error: updating the model's own parameters brings the held-out "
-                f"FRF error ({held_desc}) from {e_nom} % to {e_par} %, and no candidate physics improves it "
+        verb = "leaves" if pct(e_nom) == pct(e_par) else "brings"
+        return (f"Nothing is missing beyond parameter error: updating the model's own parameters {verb} the held-out "
+                f"FRF error ({held_desc}) {from_to(e_nom, e_par)}, and no candidate physics improves it "
                 "further, so none is added.")
     by_kind: dict[str, list] = {}
     for f in findings:
@@ -166,6 +177,7 @@ def _statement(findings, fit, held_desc: str) -> str:
         head, tail = _PHRASES[kind]
         items = " and ".join(_describe(f) for f in fs)
         parts.append(f"{head}: {items}, {tail}.")
-    return (" ".join(parts) + f" Adding {'them' if len(findings) > 1 else 'it'} cuts the held-out FRF error "
-            f"({held_desc}) from {e_par} % to {e_phys} %; updating the model's own parameters reached "
-            f"{e_par} % (nominal {e_nom} %).")
+    verb = "leaves" if pct(e_par) == pct(e_phys) else "cuts" if e_phys < e_par else "raises"
+    return (" ".join(parts) + f" Adding {'them' if len(findings) > 1 else 'it'} {verb} the held-out FRF error "
+            f"({held_desc}) {from_to(e_par, e_phys)}; updating the model's own parameters reached "
+            f"{pct(e_par)} % (nominal {pct(e_nom)} %).")

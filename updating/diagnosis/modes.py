@@ -62,7 +62,7 @@ from updating.diagnosis.modal_fit import fit_modal_residual
 from updating.diagnosis.library import build_library
 from updating.diagnosis.priors import _bounds, default_parameters
 from updating.diagnosis.terms import _augment, _upper, promote_measured
-from updating.diagnosis.findings import Diagnosis, Finding, _fmt, statement
+from updating.diagnosis.findings import Diagnosis, Finding, _fmt, from_to, pct, statement
 from updating.diagnosis.modes_screen import MIN_OBSERVED_EFFECT, screen_modes  # noqa: F401 (re-exported)
 from updating.correlation.dofmap import as_dofmap
 from updating.diagnosis.library import _nodes_of
@@ -445,14 +445,14 @@ def _modes_statement(pb: _ModesProblem, findings, fit, unproven) -> tuple[str, s
         text = (f"Not proven: {' and '.join(unproven)} lowered the error on the training modes but not on the "
                 f"held-out ones ({held_desc}), so nothing is added; the model may lack something the candidates "
                 f"do not describe (or its mesh is too coarse). Updating the model's own parameters brings the "
-                f"held-out frequency error from {fit['nominal']['freq_error_rms_pct']:.3g} % to "
-                f"{fit['parameters_only']['freq_error_rms_pct']:.3g} % RMS.")
+                f"held-out RMS frequency error "
+                f"{from_to(fit['nominal']['freq_error_rms_pct'], fit['parameters_only']['freq_error_rms_pct'])}.")
     if not pb.separable:
         text = (f"The data cannot separate missing physics from parameter error: {pb.n_eq} numbers "
                 f"({pb.resid.f.size} training {'modes' if pb.has_shapes else 'frequencies'}"
                 f"{' with shapes' if pb.has_shapes else ', no shapes'}) against {len(pb.params)} "
                 f"parameters and a physics term; no physics is claimed. Frequency error after updating the parameters: "
-                f"{fit['parameters_only']['freq_error_rms_pct']:.3g} % RMS ({held_desc}).")
+                f"{pct(fit['parameters_only']['freq_error_rms_pct'])} % RMS ({held_desc}).")
     return text, held_desc
 
 

@@ -1,0 +1,25 @@
+"""The diagnosis statement's percentages (issue 14 audit): two significant digits, no exponent, a nonzero value
+never printed as 0 and a change that rounds away called unchanged (the README chain read "from 1.0 % to 1.0 %"
+for 0.961 % -> 0.951 %; the modes-only statement printed '0.0 %' for a nonzero error, or many digits)."""
+import pytest
+
+from updating.diagnosis.findings import from_to, pct, statement
+
+
+@pytest.mark.parametrize("x, text", [(0.0, "0"), (0.004, "0.004"), (4e-5, "0.00004"), (0.3, "0.3"), (0.9514, "0.95"),
+                                     (4.14, "4.1"), (9.96, "10"), (38.2, "38"), (120.4, "120")])
+def test_percentages_print_with_two_significant_digits(x, text):
+    assert pct(x) == text
+
+
+def _fit(nom, par, phys):
+    return {"nominal": {"frf_error_held_out": nom}, "parameters_only": {"frf_error_held_out": par},
+            "with_physics": {"frf_error_held_out": phys}}
+
+
+def test_a_small_change_shows_and_no_change_is_called_unchanged():
+    s = statement([], _fit(0.009612, 0.009514, 0.009514), "response DOFs 4+Z")
+    assert "from 0.96 % to 0.95 %" in s and "from 1.0 % to 1.0 %" not in s, s
+    s = statement([], _fit(0.003001, 0.002999, 0.002999), "response DOFs 4+Z")
+    assert "leaves the held-out FRF error (response DOFs 4+Z) unchanged at 0.3 %" in s, s
+    assert from_to(0.00004, 0.0) == "from 0.00004 % to 0 %"
