@@ -84,6 +84,30 @@ class SectionLossFactor(Parameter):
     :func:`_with_damping`)."""
 
 
+def loss_factor_totals(params: list, p, model_ge: float | None) -> dict:
+    """``{name: (properties, total)}`` for each :class:`SectionLossFactor` among ``params`` at values ``p``: the
+    group's loss factor in all, the model-wide one (the ``global_ge`` parameter, else ``model_ge``, PARAM G)
+    plus the group's offset."""
+    p = np.asarray(p, float)
+    g = next((float(p[k]) for k, par in enumerate(params) if par.field == "global_ge"), float(model_ge or 0.0))
+    return {par.name: (tuple(par.properties), g + float(p[k])) for k, par in enumerate(params)
+            if isinstance(par, SectionLossFactor)}
+
+
+def nonnegative_loss_factors(params: list, p, model_ge: float | None) -> tuple[np.ndarray, list]:
+    """``p`` with every group offset raised so that no group's total loss factor is negative (a negative
+    loss factor creates energy: no physical section has one, and a deck must not say so), and the names of
+    the offsets raised.  The fit bounds each offset at ±0.2, not at minus the model-wide factor."""
+    q = np.array(p, float, copy=True)
+    raised = []
+    for name, (_, total) in loss_factor_totals(params, q, model_ge).items():
+        if total < 0:
+            k = next(i for i, par in enumerate(params) if par.name == name)
+            q[k] -= total
+            raised.append(name)
+    return q, raised
+
+
 def _property_groups(model: FEModel) -> list:
     """``[(name, pids, n_elements)]``: the property groups of :func:`default_parameters` (by name when named),
     with the elements they hold; groups without an element are left out."""

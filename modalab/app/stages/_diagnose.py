@@ -121,10 +121,38 @@ def _diagnosis_files(diag, model, H, d: Path, opts: DiagnoseOptions, updated_mod
         files += [Path(p) for p in write_figures(diag, d / "figures")]
     except Exception as e:  # noqa: BLE001 - the engine's own figures are extras; the diagnosis stands
         log.warning("diagnosis figures failed: %s", e)
-    files.append(write_text(d / "diagnosed.bdf", write_bdf(to_bulk(diag.model))))
+    files.append(write_text(d / "diagnosed.bdf", write_bdf(_with_loss_factor_notes(to_bulk(diag.model), diag))))
     if H is not None:
         files.append(_frf_overlays(H, model, diag, d, opts.overlay_dofs, updated_model))
     return files
+
+
+def _with_loss_factor_notes(bulk, diag):
+    """``bulk`` with comment cards that give each property group's loss factor in all: a group's GE (its
+    ``eta_<group>``) is an offset added to PARAM G (``eta_global``), as Nastran adds them, so the GE on its
+    MAT1 alone misleads (it may be negative; the total never is)."""
+    totals = {n: v["total"] for n, v in (diag.parameters or {}).items() if isinstance(v, dict) and "total" in v}
+    if not totals:
+        return bulk
+    g = float(diag.model.global_ge or 0.0)
+    if "G" in bulk.params:
+        bulk.params["G"].comment = list(bulk.params["G"].comment or []) + [
+            f"$ PARAM G {g:.4g}: the model-wide loss factor (eta_global); each MAT1 GE below adds to it (the "
+            "group's loss factor in all is on its MAT1)"]
+    for name, t in totals.items():
+        mids = set()                       # the deck's own material ids (the export may renumber them)
+        for x in t["properties"]:
+            prop = bulk.properties.get(int(x) if str(x).isdigit() else x)
+            if prop is not None and getattr(prop, "mid", None) is not None:
+                mids.add(prop.mid)
+        for mid in sorted(mids):
+            card = bulk.materials.get(mid)
+            if card is None:
+                continue
+            ge = float(card.ge or 0.0)
+            card.comment = list(card.comment or []) + [
+                f"$ {name}: loss factor in all {g + ge:.4g} = PARAM G {g:.4g} + GE {ge:.4g} of this MAT1"]
+    return bulk
 
 
 def _frf_overlays(H, model, diag, d: Path, want, updated_model) -> Path:
