@@ -120,12 +120,20 @@ class _Acceptance:
         supported = rival is not None or (mci_best is not None and c.key == mci_best.key)
         ok, why = self._judge_pick(c, pm_aug, fr, clo, chi, supported=supported)
         log.info("screening pick %s on the FRFs: %s", c.label, why)
+        if not ok and self._pick_left and c.release is not None and c.release[0] == "support":
+            # a support release that leaves a residual above the noise may be a clamp elastic in its other
+            # components too: judged once more with them (updating.diagnosis.refine)
+            done = self._completed_pick(c, fr)
+            if done is not None:
+                o, pm_aug, fr, clo, chi, why = done
+                self._parts_pending = [o]
+                ok = True
         if not ok:
             self._decide("rejected", c, why)
             return None
         # the MCI state of the augmented model for the next term's criterion (minimised like every candidate's);
         # the screenings and fits start from the FRF fit
-        free = np.concatenate([self.free_mci, np.ones(len(self.current) + 1, bool)])
+        free = np.concatenate([self.free_mci, np.ones(len(fr.p) - len(self.free_mci), bool)])
         _, self.rss_cur, _ = mci_update(pm_aug, fr.p, self.train, clo, chi, weights=self.W,
                                         iters=3 if self.large else 6, free=free)
         self.pm_cur, self.p_cur, self.lo_cur, self.hi_cur = pm_aug, fr.p, clo, chi
@@ -211,7 +219,8 @@ class _Acceptance:
                        max_nfev=max(8, self.config.max_nfev // 2))
         return pm_aug, fr, clo, chi, scales[-1]
 
-    def _judge_pick(self, c, pm_aug, fr, clo, chi, supported: bool = False, part: bool = False) -> tuple[bool, str]:
+    def _judge_pick(self, c, pm_aug, fr, clo, chi, supported: bool = False, part: bool = False,
+                    n_terms: int = 1) -> tuple[bool, str]:
         """The tests of :meth:`_judge` on the FRF criterion for a pick fitted by :meth:`_fit_pick` (bounds
         ``clo``, ``chi``), against the current model's FRF fit: the information criterion, :func:`_term_holds`,
         the reduced χ² the pick must leave (:data:`PICK_MAX_REDUCED_CHI2`), the effect, and the
@@ -222,22 +231,26 @@ class _Acceptance:
         place (:meth:`~updating.diagnosis.refine._Refine._refine_supports`); its effect on the frequencies may
         be below the model-form threshold when the completed model leaves only noise (reduced χ² at most
         :data:`PICK_MAX_REDUCED_CHI2` on the training and the held-out FRFs): the first term has already shown
-        that something is missing there, the part says how much of it."""
+        that something is missing there, the part says how much of it.  ``n_terms``: the number of values
+        ``pm_aug`` adds to the current model (a support release with the rest of its constraint: 2); every
+        penalty counts them.  Sets ``_pick_left`` when the pick failed only by the residual it leaves."""
         cfg = self.config
+        penalty = cfg.penalty * n_terms
+        self._pick_left = False
         pm_ref, ref = self._frf_ref()
         err, n_eq = fr.error, n_obs(self.train)
-        if not (err < ref.error and n_eq * np.log(ref.error ** 2 / max(err ** 2, 1e-300)) > cfg.penalty * np.log(n_eq)):
+        if not (err < ref.error and n_eq * np.log(ref.error ** 2 / max(err ** 2, 1e-300)) > penalty * np.log(n_eq)):
             return False, "fails the information criterion on the FRFs"
         if self.current and err > ref.error * (1 - cfg.min_extra_gain):
             return False, (f"a further term lowering the training FRF error by less than "
                            f"{100 * cfg.min_extra_gain:.0f} % ({100 * (1 - err / ref.error):.2g} %)")
-        ok, why = _term_holds(pm_ref, ref.p, pm_aug, fr.p, self.train, self.held, cfg.penalty, cfg.min_holdout_gain)
+        ok, why = _term_holds(pm_ref, ref.p, pm_aug, fr.p, self.train, self.held, penalty, cfg.min_holdout_gain)
         if ok and not supported:
             # a pick the linearised criterion did not support must explain the residual, not only reduce it
             st = pm_aug.structure(fr.p)
             red = max(c1 / n1 for c1, n1 in (_chi2(st, self.train), _chi2(st, self.held)))
             if red > PICK_MAX_REDUCED_CHI2:
-                ok = False
+                ok, self._pick_left = False, True
                 why += (f"; χ²/N {red:.3g} left, above {PICK_MAX_REDUCED_CHI2:g}: the term reduces a residual "
                         "that stays far above the noise (model-form error it would absorb)")
         ok_h, why_h = ok, why
@@ -250,7 +263,7 @@ class _Acceptance:
                                          f"(at most {PICK_MAX_REDUCED_CHI2:g}: noise)")
         if ok:
             lo_ref, hi_ref = (self.lo, self.hi) if pm_ref is self.pm else (self.lo_cur, self.hi_cur)
-            ok, cv = self._cross_validated((pm_ref, ref.p, lo_ref, hi_ref), (pm_aug, fr.p, clo, chi))
+            ok, cv = self._cross_validated((pm_ref, ref.p, lo_ref, hi_ref), (pm_aug, fr.p, clo, chi), penalty)
             why += "; " + cv
         return ok, why
 
@@ -276,7 +289,7 @@ class _Acceptance:
         cache[key] = (pm, out)                    # the model is kept alive with its key
         return out
 
-    def _cross_validated(self, ref, new) -> tuple[bool, str]:
+    def _cross_validated(self, ref, new, penalty: float | None = None) -> tuple[bool, str]:
         """The term of ``new`` against the model ``ref`` (each ``(pm, p, lower, upper)``, fitted on the
         training FRFs) judged by :data:`~updating.diagnosis.terms.CV_FOLDS`-fold cross-validation: both are
         re-fitted without each fold, and the χ² of their predictions of the held-out folds — every held-out
@@ -291,7 +304,7 @@ class _Acceptance:
         n = int(sum(2 * r.size for r in r1))
         infl = float(np.average([inflation(r) for r in r1], weights=[max(np.sum(np.abs(r) ** 2), 1e-300)
                                                                         for r in r1]))
-        ok, stat, need = significant_gain(c0, c1, n, infl, self.config.penalty)
+        ok, stat, need = significant_gain(c0, c1, n, infl, self.config.penalty if penalty is None else penalty)
         worse = sum(float(np.sum(np.abs(b) ** 2)) > float(np.sum(np.abs(a) ** 2)) for a, b in zip(r0, r1))
         why = (f"cross-validated over {len(r1)} folds: χ²/N {c0 / n:.3g} -> {c1 / n:.3g} (statistic {stat:.3g}, "
                f"needed {need:.3g}; worse on {worse} fold(s))")

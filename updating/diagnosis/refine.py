@@ -9,7 +9,9 @@ import logging
 
 import numpy as np
 
+from updating.fe import ParametricFEModel
 from updating.diagnosis.screen import mci_update
+from updating.diagnosis.terms import _augment, _upper
 
 log = logging.getLogger(__name__)
 
@@ -51,6 +53,31 @@ class _Refine:
             self._frf_cur = (pm_aug, fr)
             self._route[o.key] = (0.0, False, [])
             self._decide("found", o, f"as a part of {c.label}: training FRF error down to {fr.error:.3g}")
+
+    def _completed_pick(self, c, fr_c):
+        """A support release ``c`` that the FRFs reject only because it leaves a residual above the noise,
+        fitted once more with the rest of its constraint (:meth:`_complement`, placed before ``c``) from
+        ``c``'s fit ``fr_c``, and judged as two values (every penalty doubled): the residual left, the held-out
+        test, ``c``'s own effect on the frequencies and the cross-validation.  ``(complement, pm, FitResult,
+        lower, upper, reason)`` when it passes, else None (the reason logged)."""
+        o = self._complement(c)
+        if o is None:
+            return None
+        terms = self.current + [o, c]
+        m_aug, cpar, scales = _augment(self.model0, terms)
+        pm_aug = ParametricFEModel(m_aug, self.params + cpar)
+        clo = np.concatenate([self.lo, np.zeros(len(cpar))])
+        chi = np.concatenate([self.hi, _upper(terms, scales)])
+        n = len(fr_c.p) - 1
+        start = np.concatenate([fr_c.p[:n], [min(self._screened_value(o), o.upper) / scales[-2]], fr_c.p[n:]])
+        fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
+                       max_nfev=max(8, self.config.max_nfev // 2))
+        ok, why = self._judge_pick(c, pm_aug, fr, clo, chi, n_terms=2)
+        log.info("screening pick %s with %s on the FRFs: %s", c.label, o.label, why)
+        if not ok:
+            self._decide("rejected", c, f"with {o.label}: {why}")
+            return None
+        return o, pm_aug, fr, clo, chi, f"with {o.label}: {why}"
 
     def _complement(self, c):
         """The library's release of the other components of ``c``'s constraint (the largest group of the other

@@ -311,7 +311,12 @@ class Diagnoser(_Acceptance, _Refine, _Proof):
             if best is not None:
                 self._decide("rejected", best[0], why)
             return False
+        parts = self.__dict__.pop("_parts_pending", [])    # the rest of a support released with c (refine)
+        self.current.extend(parts)                          # before c: the augmented model's order
         self.current.append(c)
+        for o in parts:
+            self._route[o.key] = (0.0, False, [])
+            self._decide("found", o, f"as a part of {c.label}, released with it")
         if alts:
             self.alternatives[c.key] = alts[:2]
             self._decide("ambiguous", c, f"{' or '.join(o.label for o, _ in alts[:2])} explain it equally well",
