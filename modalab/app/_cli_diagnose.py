@@ -8,6 +8,7 @@ from modalab.app.stages import DiagnoseOptions
 from modalab.app._cli_console import _print
 from modalab.app.stages import diagnose
 from modalab.app.campaign import diagnose_many
+from modalab.app.stages._diagnose import _read_measured as read_measured
 from modalab.core.errors import ModalabError, PlanError
 from updating.diagnosis.library import KINDS
 
@@ -63,6 +64,8 @@ def _campaign(a, measured):
     if not a.report or a.json or a.modes:
         raise PlanError("with several MEASURED files give --report FOLDER (one sub-folder with diagnosis.json "
                         "per input; --json and --modes name one file and are for a single input)")
+    for p in measured:          # a damaged input is refused before any is diagnosed (no partial campaign)
+        read_measured(p)
     res = diagnose_many(a.model, measured, a.report, _options(a), dask=a.dask, workers=a.workers)
     for r in res:
         _print(f"{r['input']}: {len(r['findings'])} finding(s) -> {r['out']}")

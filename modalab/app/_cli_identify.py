@@ -7,6 +7,7 @@ from modalab.app.stages import IdentifyOptions
 from modalab.app._cli_console import _print
 from modalab.app.stages import identify
 from modalab.app.campaign import identify_many
+from modalab.core import uff
 from modalab.core.errors import PlanError
 
 
@@ -103,6 +104,8 @@ def _campaign(a, opts):
 
     if a.json:
         raise PlanError("--json names one file; with several inputs every OUTPUT/<input>/modes.json is written")
+    for p in a.inputs:          # a damaged input is refused before any is identified (no partial campaign)
+        uff.read_frf(p)
     res = identify_many(a.inputs, a.output, opts, plots=bool(a.plots), dask=a.dask, workers=a.workers)
     for r in res:
         _print(f"{r['input']}: {len(r['freq_hz'])} modes -> {r['out']}")

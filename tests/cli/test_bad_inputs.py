@@ -11,8 +11,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import tomllib
+
 import numpy as np
 import pytest
+import tomli_w
 
 from modalab.app.cli import main
 from modalab.core.modes import ModeSet
@@ -40,7 +43,15 @@ def good(tmp_path_factory):
     shutil.copy(ROOT / "examples" / "concealed" / "bar_control" / "nominal.bdf", model)
     proj = d / "project.toml"
     shutil.copy(ROOT / "examples" / "demo_project" / "project_quick.toml", proj)
-    return {"hits": hits, "frf": frf, "modes": modes, "modes_json": modes_json, "model": model, "project": proj}
+    # one line, no final newline: every cut of it is broken TOML (a cut at a line end could be valid)
+    params = d / "params.toml"
+    params.write_text('parameter = [{name = "E_seg1", field = "E", properties = ["seg1"], lower = 0.5, upper = 2.0}]')
+    # a plan without comments whose last line is the point list, no final newline: every cut breaks it
+    plan = tomllib.loads((ROOT / "examples" / "plans" / "demo_roving_hammer.toml").read_text())
+    plan = {k: v for k, v in plan.items() if k not in ("roving", "hammer")} | {"roving": plan["roving"]}
+    (d / "plan.toml").write_text(tomli_w.dumps(plan).rstrip("\n"))
+    return {"hits": hits, "frf": frf, "modes": modes, "modes_json": modes_json, "model": model, "project": proj,
+            "params": params, "plan": d / "plan.toml"}
 
 
 def _bad(src: Path, variant: str, where: Path, wrong: Path) -> Path:
@@ -69,7 +80,7 @@ def _wrong_for(command, kind, good):
     if command == "info":                    # any UFF is right for info: a bulk-data deck is not
         return good["model"]
     return {"hits": good["model"], "frf": good["hits"], "modes": good["frf"], "modes_json": good["model"],
-            "model": good["frf"], "project": good["hits"]}[kind]
+            "model": good["frf"], "project": good["hits"], "params": good["model"], "plan": good["project"]}[kind]
 
 
 # (command, kind of the damaged input, argv builder: bad path, good files, output folder -> argv)
@@ -87,6 +98,23 @@ CASES = [
     ("diagnose", "model", lambda b, g, o: ["diagnose", str(b), str(g["frf"]), "--json", str(o / "d.json")]),
     ("diagnose", "frf", lambda b, g, o: ["diagnose", str(g["model"]), str(b), "--json", str(o / "d.json")]),
     ("run", "project", lambda b, g, o: ["run", str(b), "-o", str(o / "run")]),
+    # issue 14 audit: the inputs the corpus did not reach
+    ("sim", "model", lambda b, g, o: ["sim", "--structure", str(b), "-o", str(o / "h.uff"), "--points", "1+Z",
+                                      "--hits", "1", "--samples", "256", "--no-plot"]),
+    ("acquire", "plan", lambda b, g, o: ["acquire", str(b), "--backend", "sim", "--auto", "--quiet",
+                                         "-o", str(o / "s")]),
+    ("update", "params", lambda b, g, o: ["update", str(g["model"]), "--modes", str(g["modes"]), "--same-ids",
+                                          "--params", str(b), "-o", str(o / "upd")]),
+    ("update", "modes_json", lambda b, g, o: ["update", str(g["model"]), "--modes", str(b), "-o", str(o / "upd")]),
+    ("diagnose", "params", lambda b, g, o: ["diagnose", str(g["model"]), str(g["frf"]), "--params", str(b),
+                                            "--report", str(o / "diag")]),
+    ("diagnose", "modes", lambda b, g, o: ["diagnose", str(g["model"]), "--modes", str(b), "--json",
+                                           str(o / "d.json")]),
+    ("diagnose", "modes_json", lambda b, g, o: ["diagnose", str(g["model"]), "--modes", str(b), "--report",
+                                                str(o / "diag")]),
+    ("identify", "frf-campaign", lambda b, g, o: ["identify", str(g["frf"]), str(b), "-o", str(o / "camp")]),
+    ("diagnose", "frf-campaign", lambda b, g, o: ["diagnose", str(g["model"]), str(g["frf"]), str(b),
+                                                  "--report", str(o / "camp")]),
 ]
 
 
@@ -99,7 +127,8 @@ def _tree(d: Path):
 def test_bad_input_is_one_line_exit_2_nothing_left(command, kind, argv, variant, good, tmp_path, capsys):
     bad_dir = tmp_path / "in"
     bad_dir.mkdir()
-    bad = _bad(good[kind], variant, bad_dir, _wrong_for(command, kind, good))
+    base = kind.split("-")[0]                   # 'frf-campaign': a damaged FRF file among good ones
+    bad = _bad(good[base], variant, bad_dir, _wrong_for(command, base, good))
     out = tmp_path / "out"
     out.mkdir()
     before_in, before_good = _tree(bad_dir), _tree(good["hits"].parent)
