@@ -46,8 +46,9 @@ def test_diagnosis_json_and_the_deck_give_each_groups_total(tmp_path):
     t = pars["eta_seg2"]["total"]
     assert t["offset_of"] == "eta_global" and t["properties"] == ["2"]
     for key in ("initial", "updated", "parameters_only"):
-        assert t[key] == pytest.approx(max(pars["eta_global"][key] + pars["eta_seg2"][key], 0.0), rel=1e-12), key
-        assert t[key] >= 0
+        raw = pars["eta_global"][key] + pars["eta_seg2"][key]
+        assert t[key] == pytest.approx(max(raw, 0.0) if key == "updated" else raw, rel=1e-12), key
+    assert t["updated"] >= 0 and t["raised_to_zero"] is (pars["eta_global"]["updated"] + pars["eta_seg2"]["updated"] < 0)
     text = (out / "diagnosed.bdf").read_text()
     notes = [ln for ln in text.splitlines() if ln.startswith("$ eta_seg2: loss factor in all")]
     assert len(notes) == 1 and f"{t['updated']:.4g}" in notes[0], notes
@@ -58,3 +59,7 @@ def test_diagnosis_json_and_the_deck_give_each_groups_total(tmp_path):
     ge = float(bulk.materials[bulk.properties[2].mid].ge)
     assert g + ge == pytest.approx(t["updated"], rel=1e-9) and g + ge >= 0
     assert g == pytest.approx(pars["eta_global"]["updated"], rel=1e-9)
+    # the report's parameter table gives the total beside the offset
+    assert main(["report", str(tmp_path)]) == 0
+    html = (tmp_path / "report" / "report.html").read_text()
+    assert "loss factor in all" in html and "offset added to eta_global" in html

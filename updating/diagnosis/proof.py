@@ -138,9 +138,12 @@ class _Proof:
                               "prior_std": float(self.psig[k]) if np.isfinite(self.psig[k]) else None,
                               "prior_z": float(z_fin[k]), "at_prior": bool(abs(z_fin[k]) > AT_PRIOR_Z)}
             if isinstance(par, SectionLossFactor):     # an offset: the group's total is what a reader wants
-                tot = {key: max(loss_factor_totals(self.params, pv, self.model0.global_ge)[par.name][1], 0.0)
+                tot = {key: loss_factor_totals(self.params, pv, self.model0.global_ge)[par.name][1]
                        for key, pv in (("initial", self.p_nomd), ("updated", fit.p), ("parameters_only", upd.p))}
-                pars[par.name]["total"] = {**tot, "offset_of": next(
+                # the deck is written with the updated total, never negative (nonnegative_loss_factors); the
+                # start and the parameters-only fit are reported as they are
+                pars[par.name]["total"] = {**tot, "updated": max(tot["updated"], 0.0),
+                                           "raised_to_zero": bool(tot["updated"] < 0), "offset_of": next(
                     (q.name for q in self.params if q.field == "global_ge"), "PARAM G"),
                     "properties": [str(x) for x in par.properties]}
             if abs(z_fin[k]) > AT_PRIOR_Z or abs(z_upd[k]) > AT_PRIOR_Z:

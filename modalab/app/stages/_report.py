@@ -312,10 +312,17 @@ def _diagnosis_section(run_dir, diag) -> list:
     parts += _selection_html(diag)
     pars = diag.get("parameters", {})
     if pars:
-        prow = [{"parameter": k, **{kk: v[kk] for kk in ("initial", "parameters_only", "updated", "std") if kk in v}}
+        prow = [{"parameter": k, **{kk: v[kk] for kk in ("initial", "parameters_only", "updated", "std") if kk in v},
+                 **({"loss factor in all": v["total"]["updated"]} if isinstance(v.get("total"), dict) else {})}
                 for k, v in pars.items()]
-        parts += ["<p>Parameters in the diagnosis (parameter-only updating and jointly with the physics):</p>",
-                  _table(prow, ["parameter", "initial", "parameters_only", "updated", "std"])]
+        cols = ["parameter", "initial", "parameters_only", "updated", "std"]
+        note = ""
+        if any("loss factor in all" in r for r in prow):     # eta_<group>: offsets added to eta_global
+            cols.append("loss factor in all")
+            note = (" A group's eta is an offset added to eta_global (PARAM G); its loss factor in all is in the "
+                    "last column.")
+        parts += ["<p>Parameters in the diagnosis (parameter-only updating and jointly with the physics)."
+                  f"{note}</p>", _table(prow, cols)]
     figs = sorted((run_dir / "diagnose" / "figures").glob("*.png")) if (run_dir / "diagnose" / "figures").is_dir() else []
     return parts + [_fig(p, _ENGINE_FIGURES.get(p.name, p.stem.replace("_", " "))) for p in figs]
 
