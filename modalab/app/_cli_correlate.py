@@ -29,6 +29,12 @@ def correlate_options(a, **kw):
 
 def cmd_correlate(a):
 
+    if not 0 <= a.mac_min <= 1:
+        raise PlanError(f"--mac-min {a.mac_min:g}: expected the lowest MAC of a pair, from 0 to 1; give e.g. "
+                        "--mac-min 0.5")
+    if a.n_modes is not None and a.n_modes < 1:
+        raise PlanError(f"--n-modes {a.n_modes}: expected a positive number of analysis modes; give e.g. --n-modes 30 "
+                        "(or leave it out)")
     opts = correlate_options(a, mac_min=a.mac_min, **({"n_modes": a.n_modes} if a.n_modes else {}))
     r = correlate(a.model, a.modes, opts, json_path=a.json, plots_dir=a.plots)
     _print(r.result.table())

@@ -19,6 +19,12 @@ def _options(a):
         sel = _frequencies(sel)
     if a.band is not None and not 0 <= a.band[0] < a.band[1]:
         raise PlanError(f"--band {a.band[0]:g} {a.band[1]:g}: expected 0 <= LO < HI in Hz; give e.g. --band 5 700")
+    if a.max_order is not None and a.max_order < 1:
+        raise PlanError(f"--max-order {a.max_order}: expected a positive model order; give e.g. --max-order 40 (or "
+                        "leave it out: chosen from the data)")
+    if a.exp_beta is not None and not a.exp_beta >= 0:
+        raise PlanError(f"--exp-beta {a.exp_beta:g}: expected the window's decay rate >= 0 in 1/s; give e.g. "
+                        "--exp-beta 1.15 (or leave it out: the file's beta)")
     if a.select_tol is not None and not 0 < a.select_tol < 1:
         raise PlanError(f"--select-tol {a.select_tol:g}: expected a fraction of the frequency between 0 and 1 "
                         "(0.05 = ±5 %); give e.g. --select-tol 0.05")

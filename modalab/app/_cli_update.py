@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 
 from modalab.app._cli_console import _print
+from modalab.core.errors import PlanError
 from modalab.app._cli_correlate import correlate_options
 from modalab.app.stages import UpdateOptions, update
 from modalab.app.stages import UPDATE_METHODS
@@ -37,6 +38,8 @@ def parameter_change(initial, updated, std=None) -> str:
 
 
 def cmd_update(a):
+    if a.max_iter < 1:
+        raise PlanError(f"--max-iter {a.max_iter}: expected at least 1 iteration; give e.g. --max-iter 30")
 
     opts = UpdateOptions(method=a.method, parameters=a.params, max_iter=a.max_iter,
                          bands=[tuple(b) for b in a.band] if a.band else None, freq_sigma=a.freq_sigma,

@@ -22,7 +22,7 @@ from pathlib import Path
 
 from threadpoolctl import threadpool_limits
 
-from modalab.core.errors import ModalabError
+from modalab.core.errors import ModalabError, PlanError
 from modalab.app.stages import SimOptions, sim
 from modalab.app.stages import FRFOptions, frf
 from modalab.core.uff import assume_quantity
@@ -82,6 +82,7 @@ def cmd_sim(a):
 def cmd_frf(a):
 
     plot = None if a.no_plot else (a.plot or str(Path(a.output).with_suffix(".png")))
+    _frf_option_values(a)
     opts = FRFOptions(estimator=a.estimator, force_fraction=a.force_window, exp_end_level=a.exp_end,
                       exp_beta=a.exp_beta, reciprocity=not a.no_reciprocity, bandwidth_hz=a.bandwidth)
     r = frf(a.input, a.output, opts, plot_path=plot)
@@ -93,6 +94,19 @@ def cmd_frf(a):
     if plot:
         _print(f"plot: {plot}")
     return 0
+
+
+def _frf_option_values(a) -> None:
+    """One-line refusals of ``frf`` option values, naming the option (the stage's names are a project's keys)."""
+    if a.exp_end is not None and not 0 <= a.exp_end < 1:
+        raise PlanError(f"--exp-end {a.exp_end:g}: expected the level the exponential window reaches at the record's "
+                        "end, a fraction from 0 to below 1 (0.01 = 1 %; 0 = no window); give e.g. --exp-end 0.01")
+    if a.exp_beta is not None and not a.exp_beta >= 0:
+        raise PlanError(f"--exp-beta {a.exp_beta:g}: expected the window's decay rate >= 0 in 1/s (0 = no window); "
+                        "give e.g. --exp-beta 1.15 (or --exp-end 0.01)")
+    if a.force_window is not None and not 0 <= a.force_window <= 1:
+        raise PlanError(f"--force-window {a.force_window:g}: expected a fraction of the record after the trigger from "
+                        "0 to 1 (0 = off; 0.05 = the first 5 %); give e.g. --force-window 0.05")
 
 
 def cmd_acquire(a):

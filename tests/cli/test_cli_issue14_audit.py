@@ -139,7 +139,7 @@ def test_identify_a_band_of_a_few_lines_is_one_clear_line(one_point_frf, tmp_pat
     capsys.readouterr()
     assert main(["identify", str(one_point_frf), "--band", *band, "-o", str(tmp_path / "m.uff")]) == 2
     err = _one_line(capsys)
-    assert f"--band {band[0]} {band[1]} Hz holds" in err and "needs at least 16" in err and expect in err, err
+    assert f"--band {band[0]} {band[1]} Hz holds" in err and "a band needs at least 16" in err and expect in err, err
     assert str(one_point_frf) in err and "the data spans 0..800 Hz" in err, err
     assert not (tmp_path / "m.uff").exists()
 
@@ -154,3 +154,31 @@ def test_identify_warns_when_a_band_edge_cuts_a_resonance(one_point_frf, tmp_pat
     with caplog.at_level("WARNING"):
         assert main(["identify", str(one_point_frf), "--band", "8", "700", "-o", str(tmp_path / "b.uff")]) == 0
     assert not [r for r in caplog.records if "sits at the band's" in r.getMessage()]
+
+
+@pytest.mark.parametrize("argv, expect", [
+    (["frf", "HITS", "-o", "OUT/f.uff", "--no-plot", "--exp-end", "5"], "--exp-end 5: expected the level"),
+    (["frf", "HITS", "-o", "OUT/f.uff", "--no-plot", "--exp-beta", "-2"], "--exp-beta -2: expected the window's decay"),
+    (["frf", "HITS", "-o", "OUT/f.uff", "--no-plot", "--force-window", "2"], "--force-window 2: expected a fraction"),
+    (["identify", "FRF", "-o", "OUT/m.uff", "--max-order", "0"], "--max-order 0: expected a positive model order"),
+    (["identify", "FRF", "-o", "OUT/m.uff", "--exp-beta", "-2"], "--exp-beta -2: expected the window's decay"),
+    (["correlate", "MODEL", "FREQS", "--mac-min", "5"], "--mac-min 5: expected the lowest MAC"),
+    (["correlate", "MODEL", "FREQS", "--n-modes", "0"], "--n-modes 0: expected a positive number"),
+    (["update", "MODEL", "--modes", "FREQS", "-o", "OUT/u", "--max-iter", "0"], "--max-iter 0: expected at least 1"),
+    (["update", "MODEL", "--frf", "FRF", "--method", "mci", "--band", "0.005", "0.7", "-o", "OUT/u"],
+     "--band 0.005 0.7 Hz holds"),
+])
+def test_option_values_are_refused_naming_the_option(one_point_frf, tmp_path, capsys, freqs, argv, expect):
+    """update --max-iter 0 ran ('did not converge in 0 iterations') and mci on a band given in kHz ran on 2 lines;
+    frf --exp-end 5, identify --max-order 0 and correlate --mac-min 5 were refused under the stage's key names
+    (exp_end_level, max_order, mac_min), not the option typed."""
+    out = tmp_path / "out"
+    out.mkdir()
+    subst = {"HITS": str(one_point_frf.parent / "h.uff"), "FRF": str(one_point_frf), "MODEL": str(DEMO / "nominal.bdf"),
+             "FREQS": str(freqs)}
+    argv = [subst.get(x, x.replace("OUT", str(out))) for x in argv]
+    capsys.readouterr()
+    assert main(argv) == 2
+    err = _one_line(capsys)
+    assert expect in err and "give " in err, err
+    assert list(out.iterdir()) == []

@@ -122,6 +122,33 @@ def load_parameters(path, model) -> tuple[list, np.ndarray, np.ndarray]:
     return params, lo, hi
 
 
+#: the fewest frequency lines a band must hold to be identified (a band of a few lines is a mistake: kHz for Hz)
+MIN_BAND_LINES = 16
+
+
+def check_band_lines(H, band, frf_path, option: str = "--band") -> None:
+    """Refuse, in one line, a band (Hz) that holds fewer than :data:`MIN_BAND_LINES` lines of the FRFs ``H`` read
+    from ``frf_path`` (a band given in kHz, ``--band 0.005 0.7`` for 5-700 Hz; or one beyond the data's top line);
+    ``option`` names it in the message."""
+    if not band:
+        return
+    lo, hi = float(band[0]), float(band[1])
+    f = H.freq_hz
+    n = int(np.count_nonzero((f >= lo) & (f <= hi)))
+    if n >= MIN_BAND_LINES or not lo < hi:
+        return
+    data = f"in {frf_path} the data spans {f[0]:.4g}..{f[-1]:.4g} Hz" + (f", lines {f[1] - f[0]:g} Hz apart"
+                                                                         if f.size > 1 else "")
+    if n == 0 and lo > f[-1]:
+        todo = f"give a band below {f[-1]:g} Hz (the top line: fs/2.56), e.g. {option} 5 {0.9 * f[-1]:.3g}"
+    elif 1e3 * hi <= 1.01 * f[-1] and 1e3 * lo >= f[0] and hi < 1e-2 * f[-1]:
+        todo = f"the band is in Hz, not kHz: give {option} {1e3 * lo:g} {1e3 * hi:g}"
+    else:
+        todo = f"give a wider band, e.g. {option} {max(f[0], 1.0):g} {0.9 * f[-1]:.3g}"
+    raise ModalabValueError(f"{option} {lo:g} {hi:g} Hz holds {n} frequency line(s) ({data}); a band needs at least "
+                            f"{MIN_BAND_LINES}: {todo}")
+
+
 def _band(H, band):
     """The lines of ``H`` in ``band`` (Hz); a band reaching beyond the data is clipped to the data with a warning
     naming the data's range, a band without any line of the data is refused (by :meth:`FRF.band`)."""

@@ -5,11 +5,9 @@ import logging
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from modalab.core.errors import ModalabValueError
 from modalab.app.outputs import write_json
-from modalab.app.stages._common import StageResult, _band, _tuple
+from modalab.app.stages._common import StageResult, _band, _tuple, check_band_lines
 from identification import identify as _identify
 from identification import SelectionOptions, edge_resonances
 from modalab.core import uff
@@ -40,32 +38,6 @@ class IdentifyOptions:
 
 
 
-#: the fewest frequency lines a band must hold to be identified (a band of a few lines is a mistake: kHz for Hz)
-MIN_BAND_LINES = 16
-
-
-def _check_band(H, band, frf_path) -> None:
-    """Refuse, in one line, a band that holds fewer than :data:`MIN_BAND_LINES` lines of the data (a band given
-    in kHz, ``--band 0.005 0.7`` for 5-700 Hz; or one beyond the data's top line)."""
-    if not band:
-        return
-    lo, hi = float(band[0]), float(band[1])
-    f = H.freq_hz
-    n = int(np.count_nonzero((f >= lo) & (f <= hi)))
-    if n >= MIN_BAND_LINES or not lo < hi:
-        return
-    data = f"in {frf_path} the data spans {f[0]:.4g}..{f[-1]:.4g} Hz" + (f", lines {f[1] - f[0]:g} Hz apart"
-                                                                         if f.size > 1 else "")
-    if n == 0 and lo > f[-1]:
-        todo = f"give a band below {f[-1]:g} Hz (the top line: fs/2.56), e.g. --band 5 {0.9 * f[-1]:.3g}"
-    elif 1e3 * hi <= 1.01 * f[-1] and 1e3 * lo >= f[0] and hi < 1e-2 * f[-1]:
-        todo = f"the band is in Hz, not kHz: give --band {1e3 * lo:g} {1e3 * hi:g}"
-    else:
-        todo = f"give a wider band, e.g. --band {max(f[0], 1.0):g} {0.9 * f[-1]:.3g}"
-    raise ModalabValueError(f"--band {lo:g} {hi:g} Hz holds {n} frequency line(s) ({data}); identification needs "
-                            f"at least {MIN_BAND_LINES}: {todo}")
-
-
 def _warn_edges(full, H, frf_path) -> None:
     """Warn for each resonance of the data that an edge of the band cuts (:func:`edge_resonances`)."""
     for r in edge_resonances(full.freq_hz, full.H, (H.freq_hz[0], H.freq_hz[-1])):
@@ -93,7 +65,7 @@ def identify(frf_path, out_uff, opts: IdentifyOptions = IdentifyOptions(), *, js
 
 
     full = uff.read_frf(frf_path)
-    _check_band(full, opts.band_hz, frf_path)
+    check_band_lines(full, opts.band_hz, frf_path)
     H = _band(full, opts.band_hz)
     if opts.band_hz:
         _warn_edges(full, H, frf_path)

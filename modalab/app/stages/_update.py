@@ -9,7 +9,7 @@ import numpy as np
 
 from modalab.core.errors import ModalabError, PlanError
 from modalab.app.outputs import write_json, write_text
-from modalab.app.stages._common import StageResult, load_model, load_modes, load_parameters
+from modalab.app.stages._common import StageResult, check_band_lines, load_model, load_modes, load_parameters
 from modalab.app.stages._correlate import (CorrelateOptions, DofMapping, _correlation, _correlation_figures, _freq_err, _n_analysis,
                          resolve_dof_map)
 from updating.correlation.dofmap import as_dofmap
@@ -214,6 +214,10 @@ def update(model_path, out_dir, opts: UpdateOptions = UpdateOptions(), *, modes_
     fsig = _freq_sigma(opts.freq_sigma, test, modes_path)
     if test is not None and method == "eigensensitivity":
         summary["frequency_weights"] = _weights_text(test, fsig, opts.freq_sigma, modes_path, unc_source)
+    if method in FRF_METHODS and opts.bands:      # a band of a few lines (kHz for Hz) fails before any work
+        measured = FRF.from_uff(frf_path)
+        for b in opts.bands:
+            check_band_lines(measured, b, frf_path)
     params = lo = hi = None
     if method not in DIRECT_METHODS:              # a bad parameter file fails before anything is written
         params, lo, hi = load_parameters(opts.parameters, model)
