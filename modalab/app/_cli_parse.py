@@ -3,6 +3,7 @@ never the usage block."""
 from __future__ import annotations
 
 import difflib
+import re
 import sys
 
 
@@ -26,9 +27,39 @@ def _n_global(argv) -> int:
     return n
 
 
+_CHOICE = re.compile(r"invalid choice: '([^']*)' \(choose from (.*)\)$")
+
+
+def _one_line_error(p):
+    """``p.error``: argparse's own errors (a missing required argument, an invalid choice or number) as one line
+    with what to do, never the usage block; an invalid choice names the closest valid one (exit code 2)."""
+
+    def error(message):
+        m = _CHOICE.search(message)
+        if m:
+            choices = [c.strip().strip("'") for c in m.group(2).split(",")]
+            best = difflib.get_close_matches(m.group(1), choices, n=1, cutoff=0.5)
+            if best:
+                bad = f"invalid choice: '{m.group(1)}'"
+                message = message.replace(bad, f"{bad} (did you mean {best[0]!r}?)", 1)
+        print(f"{p.prog}: error: {message}; see '{p.prog} --help'", file=sys.stderr)
+        raise SystemExit(2)
+
+    return error
+
+
+def _all_parsers(parser):
+    yield parser
+    for act in getattr(parser, "_subparsers", None) and parser._subparsers._group_actions or ():
+        for sp in act.choices.values():
+            yield from _all_parsers(sp)
+
+
 def parse_args(parser, args):
     """``parse_args`` whose unknown options are one line naming the command, each unknown option and the closest
-    valid option of that command (exit code 2)."""
+    valid option of that command (exit code 2); argparse's other errors are one line too."""
+    for p in _all_parsers(parser):
+        p.error = _one_line_error(p)
     argv = list(sys.argv[1:] if args is None else args)
     first = next((x for x in argv if not x.startswith("-")), None)
     commands = parser._subparsers._group_actions[0].choices if parser._subparsers else {}

@@ -103,6 +103,7 @@ def test_update_with_force_replaces_its_earlier_output(tmp_path, capsys, freqs):
     ("--hits", "0", "expected at least 1 hit per point"),
     ("--force", "-3", "expected a peak force above 0 N"),
     ("--double-hits", "3", "expected a probability from 0 to 1"),
+    ("--seed", "-1", "expected a whole number >= 0"),              # was a ValueError traceback from numpy
 ])
 def test_sim_refuses_bad_acquisition_options_before_simulating(tmp_path, capsys, option, value, expect):
     """--sample-rate 50 printed the first point's progress and then failed on the trigger; --samples 0 ran with
@@ -182,3 +183,23 @@ def test_option_values_are_refused_naming_the_option(one_point_frf, tmp_path, ca
     err = _one_line(capsys)
     assert expect in err and "give " in err, err
     assert list(out.iterdir()) == []
+
+
+@pytest.mark.parametrize("argv, expect", [
+    (["update", "M", "--modes", "m.json", "-o", "u", "--method", "eigensens"],
+     "modalab update: error: argument --method: invalid choice: 'eigensens' (did you mean 'eigensensitivity'?)"),
+    (["run", "p.toml", "--from", "idnetify"], "invalid choice: 'idnetify' (did you mean 'identify'?)"),
+    (["frf", "h.uff", "-o", "f.uff", "--estimator", "H3"], "invalid choice: 'H3'"),
+    (["sim", "-o", "h.uff", "--hits", "abc"], "modalab sim: error: argument --hits: invalid int value: 'abc'"),
+    (["update", "M", "-o", "u"], "one of the arguments --modes --frf is required"),
+    (["identify"], "the following arguments are required: inputs, -o/--output"),
+])
+def test_argparse_errors_are_one_line_with_the_closest_choice(tmp_path, capsys, argv, expect, monkeypatch):
+    """An invalid choice, a missing argument or a bad number printed argparse's usage block above the error."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    assert e.value.code == 2
+    err = _one_line(capsys)
+    assert expect in err and "usage:" not in err and f"see 'modalab {argv[0]} --help'" in err, err
+    assert list(tmp_path.iterdir()) == []

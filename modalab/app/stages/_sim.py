@@ -51,6 +51,8 @@ class SimOptions:
         object.__setattr__(self, "references", _tuple(self.references))
         # checked before any simulation (a bad value once failed after the first point's progress line, or
         # ran silently: --samples 0 meant the default); the messages name the options of modalab sim
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise PlanError(f"--seed {self.seed}: expected a whole number >= 0; give e.g. --seed 1")
         if isinstance(self.hits, bool) or not isinstance(self.hits, int) or self.hits < 1:
             raise PlanError(f"--hits {self.hits}: expected at least 1 hit per point; give e.g. --hits 3")
         fs = self.sample_rate_hz
