@@ -175,3 +175,11 @@ class TestSelection:
         np.testing.assert_allclose(scale, [1.0, 2.0, 1.0])
         labels, _ = DofMap().model_labels(["12+Z"], ["12-Z"])
         assert [str(d) for d in labels] == ["12+Z"]
+
+
+def test_a_csv_row_written_with_an_arrow_is_refused_with_the_row_to_write(tmp_path):
+    """README once described map lines as 'test_dof -> model_dof': such a row names the CSV form to write."""
+    p = tmp_path / "map.csv"
+    p.write_text("101+Z -> 12-Z\n")
+    with pytest.raises(ModalabValueError, match=r"line 1: .*expected 'test_dof,model_dof\[,factor\]'.*write '101\+Z,12-Z'"):
+        DofMap.from_file(p)

@@ -214,8 +214,10 @@ class DofMap:
                 if lineno == 1 and cells[0].lower().replace(" ", "_") in ("test_dof", "test", "test_dofs"):
                     continue
                 if len(cells) < 2 or len(cells) > 3 or not cells[1]:
+                    arrow = "->" in ",".join(cells)
+                    fix = f"; write '{cells[0].replace('->', ',').replace(' ', '')}'" if arrow else ""
                     raise ModalabValueError(f"DOF map {str(p)!r} line {lineno}: got {row!r}; expected "
-                                            "'test_dof,model_dof[,factor]' such as '101+Z,12-Z'")
+                                            f"'test_dof,model_dof[,factor]' such as '101+Z,12-Z'{fix}")
                 try:
                     t, m = Dof.parse(cells[0]), Dof.parse(cells[1])
                 except DofError as e:
