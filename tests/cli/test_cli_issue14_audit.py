@@ -203,3 +203,16 @@ def test_argparse_errors_are_one_line_with_the_closest_choice(tmp_path, capsys, 
     err = _one_line(capsys)
     assert expect in err and "usage:" not in err and f"see 'modalab {argv[0]} --help'" in err, err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_project_band_in_khz_is_refused_naming_band_hz(one_point_frf, tmp_path):
+    """diagnose's band_hz (a project's [diagnose] key) in kHz ran on a handful of lines."""
+    from modalab.app.stages import DiagnoseOptions, diagnose
+    from modalab.core.errors import ModalabValueError
+
+    with pytest.raises(ModalabValueError) as e:
+        diagnose(DEMO / "nominal.bdf", frf_path=one_point_frf, opts=DiagnoseOptions(band_hz=(0.002, 0.08)),
+                 json_path=tmp_path / "d.json")
+    msg = str(e.value)
+    assert msg.startswith("band_hz = [0.002, 0.08] Hz holds") and "give band_hz = [2, 80]" in msg, msg
+    assert list(tmp_path.iterdir()) == []

@@ -139,13 +139,18 @@ def check_band_lines(H, band, frf_path, option: str = "--band") -> None:
         return
     data = f"in {frf_path} the data spans {f[0]:.4g}..{f[-1]:.4g} Hz" + (f", lines {f[1] - f[0]:g} Hz apart"
                                                                          if f.size > 1 else "")
+    top = float(f"{0.9 * f[-1]:.3g}")
+
+    def as_given(a, b):           # --band 5 700 on the command line, band_hz = [5, 700] in a project
+        return f"{option} {a:g} {b:g}" if option.startswith("-") else f"{option} = [{a:g}, {b:g}]"
+
     if n == 0 and lo > f[-1]:
-        todo = f"give a band below {f[-1]:g} Hz (the top line: fs/2.56), e.g. {option} 5 {0.9 * f[-1]:.3g}"
+        todo = f"give a band below {f[-1]:g} Hz (the top line: fs/2.56), e.g. {as_given(5, top)}"
     elif 1e3 * hi <= 1.01 * f[-1] and 1e3 * lo >= f[0] and hi < 1e-2 * f[-1]:
-        todo = f"the band is in Hz, not kHz: give {option} {1e3 * lo:g} {1e3 * hi:g}"
+        todo = f"the band is in Hz, not kHz: give {as_given(1e3 * lo, 1e3 * hi)}"
     else:
-        todo = f"give a wider band, e.g. {option} {max(f[0], 1.0):g} {0.9 * f[-1]:.3g}"
-    raise ModalabValueError(f"{option} {lo:g} {hi:g} Hz holds {n} frequency line(s) ({data}); a band needs at least "
+        todo = f"give a wider band, e.g. {as_given(max(f[0], 1.0), top)}"
+    raise ModalabValueError(f"{as_given(lo, hi)} Hz holds {n} frequency line(s) ({data}); a band needs at least "
                             f"{MIN_BAND_LINES}: {todo}")
 
 

@@ -8,7 +8,8 @@ from typing import Callable
 
 from modalab.core.errors import PlanError
 from modalab.app.outputs import write_json, write_text
-from modalab.app.stages._common import StageResult, _band, _tuple, load_model, load_modes, load_parameters
+from modalab.app.stages._common import (StageResult, _band, _tuple, check_band_lines, load_model, load_modes,
+                                        load_parameters)
 from updating.diagnosis import diagnose as _diagnose
 from updating.diagnosis import diagnose_modes
 from updating.fe.bulk import to_bulk, write_bdf
@@ -82,6 +83,8 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
         diag = diagnose_modes(model, test_modes, parameters=params, progress=progress, **kw)
     else:
         H = _read_measured(frf_path)
+        if opts.band_hz:
+            check_band_lines(H, opts.band_hz, frf_path, option="band_hz")
         H = _band(H, opts.band_hz) if opts.band_hz else H
         kw = {k: getattr(opts, k) for k in ("max_lines", "max_findings", "max_nfev", "holdout")
               if getattr(opts, k) is not None}
