@@ -359,7 +359,7 @@ def _check_earlier_output(a) -> None:
         return
     found = [n for n in names if os.path.lexists(os.path.join(folder, n))]
     if found:
-        flag = _FOLDER_FLAGS.get(attr, "--" + attr)
+        flag = _FOLDER_FLAGS.get(attr, "--" + attr) if getattr(a, attr, None) else "the report folder"
         raise OutputError(f"{flag} '{folder}' holds the output of an earlier run ({', '.join(found)}); pass --force "
                           "to replace it, or choose another folder")
 

@@ -61,7 +61,7 @@ def test_update_accepts_bounds_around_the_nominal(tmp_path, capsys, freqs):
     (["update", "MODEL", "--modes", "FREQS", "-o", "OUT"], "OUT", "updated.bdf", "-o"),
     (["diagnose", "MODEL", "--modes", "FREQS", "--report", "OUT"], "OUT", "diagnosis.json", "--report"),
     (["report", "TMP", "-o", "OUT"], "OUT", "report.html", "-o"),
-    (["report", "TMP"], "TMP/report", "summary.json", "-o"),
+    (["report", "TMP"], "TMP/report", "summary.json", "the report folder"),
 ])
 def test_an_earlier_output_folder_is_not_overwritten_without_force(tmp_path, capsys, freqs, argv, folder, product,
                                                                     flag):
