@@ -128,6 +128,15 @@ def one_point_frf(tmp_path_factory):
     return d / "f.uff"
 
 
+def test_sim_refuses_a_point_given_twice(tmp_path, capsys):
+    """--points 1+Z 1+Z ran silently (two roving points on one DOF)."""
+    out = tmp_path / "h.uff"
+    assert main(["sim", "-o", str(out), "--points", "1+Z", "3+Z", "1+Z", "--no-plot"]) == 2
+    err = _one_line(capsys)
+    assert "--points: 1+Z given twice; expected each DOF once" in err, err
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize("band, expect", [
     (("0.005", "0.7"), "the band is in Hz, not kHz: give --band 5 700"),
     (("0.02", "0.5"), "the band is in Hz, not kHz: give --band 20 500"),

@@ -51,6 +51,12 @@ class SimOptions:
         object.__setattr__(self, "references", _tuple(self.references))
         # checked before any simulation (a bad value once failed after the first point's progress line, or
         # ran silently: --samples 0 meant the default); the messages name the options of modalab sim
+        for opt, dofs in (("--points", self.points), ("--references", self.references)):
+            twice = sorted({d for d in dofs or () if list(dofs).count(d) > 1})
+            if twice:
+                raise PlanError(f"{opt}: {', '.join(twice)} given twice; expected each DOF once (repeat hits with "
+                                "--hits)" if opt == "--points" else f"{opt}: {', '.join(twice)} given twice; "
+                                "expected each accelerometer DOF once")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise PlanError(f"--seed {self.seed}: expected a whole number >= 0; give e.g. --seed 1")
         if isinstance(self.hits, bool) or not isinstance(self.hits, int) or self.hits < 1:
