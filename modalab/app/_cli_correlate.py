@@ -20,7 +20,7 @@ def correlate_options(a, **kw):
     if not 0 < a.freq_window < 1:
         raise PlanError(f"--freq-window {a.freq_window:g}: expected the largest relative frequency distance of a "
                         "pair as a fraction between 0 and 1 (0.35 = ±35 %); give e.g. --freq-window "
-                        f"{a.freq_window / 100:g} for ±{a.freq_window:g} %" if a.freq_window >= 1 else
+                        f"{a.freq_window / 100:g} for ±{a.freq_window:g} %" if 1 <= a.freq_window < 1e4 else
                         f"--freq-window {a.freq_window:g}: expected a fraction between 0 and 1 (0.35 = ±35 %); "
                         "give e.g. --freq-window 0.35")
     return CorrelateOptions(dofmap=a.map, geometry=a.geometry, same_ids=a.same_ids, freq_window=a.freq_window,

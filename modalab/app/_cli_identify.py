@@ -22,7 +22,7 @@ def _options(a):
     if a.max_order is not None and a.max_order < 1:
         raise PlanError(f"--max-order {a.max_order}: expected a positive model order; give e.g. --max-order 40 (or "
                         "leave it out: chosen from the data)")
-    if a.exp_beta is not None and not a.exp_beta >= 0:
+    if a.exp_beta is not None and not 0 <= a.exp_beta < float("inf"):
         raise PlanError(f"--exp-beta {a.exp_beta:g}: expected the window's decay rate >= 0 in 1/s; give e.g. "
                         "--exp-beta 1.15 (or leave it out: the file's beta)")
     if a.select_tol is not None and not 0 < a.select_tol < 1:

@@ -101,7 +101,7 @@ def _frf_option_values(a) -> None:
     if a.exp_end is not None and not 0 <= a.exp_end < 1:
         raise PlanError(f"--exp-end {a.exp_end:g}: expected the level the exponential window reaches at the record's "
                         "end, a fraction from 0 to below 1 (0.01 = 1 %; 0 = no window); give e.g. --exp-end 0.01")
-    if a.exp_beta is not None and not a.exp_beta >= 0:
+    if a.exp_beta is not None and not 0 <= a.exp_beta < float("inf"):
         raise PlanError(f"--exp-beta {a.exp_beta:g}: expected the window's decay rate >= 0 in 1/s (0 = no window); "
                         "give e.g. --exp-beta 1.15 (or --exp-end 0.01)")
     if a.force_window is not None and not 0 <= a.force_window <= 1:

@@ -36,6 +36,16 @@ def test_update_refuses_a_freq_sigma_above_one_half(tmp_path, capsys, freqs, sig
     assert not out.exists()
 
 
+@pytest.mark.parametrize("sigma", ["nan", "0", "-0.01", "inf"])
+def test_update_refuses_a_freq_sigma_that_is_not_a_positive_number(tmp_path, capsys, freqs, sigma):
+    out = tmp_path / "u"
+    assert main(["update", str(DEMO / "nominal.bdf"), "--modes", str(freqs), "--freq-sigma", sigma,
+                 "-o", str(out)]) == 2
+    err = _one_line(capsys)
+    assert f"--freq-sigma {sigma}: expected a relative standard deviation above 0" in err, err
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("bounds", ["lower = 1.2\nupper = 2.0", "lower = 0.2\nupper = 0.9", "upper = 0.95"])
 def test_update_refuses_bounds_that_exclude_the_nominal(tmp_path, capsys, freqs, bounds):
     params = tmp_path / "p.toml"
@@ -173,6 +183,8 @@ def test_identify_warns_when_a_band_edge_cuts_a_resonance(one_point_frf, tmp_pat
     (["identify", "FRF", "-o", "OUT/m.uff", "--max-order", "0"], "--max-order 0: expected a positive model order"),
     (["identify", "FRF", "-o", "OUT/m.uff", "--exp-beta", "-2"], "--exp-beta -2: expected the window's decay"),
     (["correlate", "MODEL", "FREQS", "--mac-min", "5"], "--mac-min 5: expected the lowest MAC"),
+    (["correlate", "MODEL", "FREQS", "--freq-window", "inf"], "--freq-window inf: expected a fraction between 0 and 1"),
+    (["identify", "FRF", "-o", "OUT/m.uff", "--exp-beta", "inf"], "--exp-beta inf: expected the window's decay"),
     (["correlate", "MODEL", "FREQS", "--n-modes", "0"], "--n-modes 0: expected a positive number"),
     (["update", "MODEL", "--modes", "FREQS", "-o", "OUT/u", "--max-iter", "0"], "--max-iter 0: expected at least 1"),
     (["update", "MODEL", "--frf", "FRF", "--method", "mci", "--band", "0.005", "0.7", "-o", "OUT/u"],

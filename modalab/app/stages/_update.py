@@ -69,7 +69,11 @@ class UpdateOptions:
             object.__setattr__(self, "freq_sigma", tuple(self.freq_sigma))
         if self.freq_sigma is not None:
             fs = np.atleast_1d(np.asarray(self.freq_sigma, float))
-            big = fs[np.isfinite(fs) & (fs > MAX_FREQ_SIGMA)]
+            bad = fs[~(np.isfinite(fs) & (fs > 0))]
+            if bad.size:
+                raise PlanError(f"--freq-sigma {bad[0]:g}: expected a relative standard deviation above 0 and up to "
+                                f"{MAX_FREQ_SIGMA:g} (0.002 = 0.2 %); give e.g. --freq-sigma 0.002")
+            big = fs[fs > MAX_FREQ_SIGMA]
             if big.size:
                 raise PlanError(f"--freq-sigma {big[0]:g}: a relative standard deviation of {100 * big[0]:g} % of the "
                                 f"frequency; expected a fraction up to {MAX_FREQ_SIGMA:g} (0.002 = 0.2 %). Give the "
