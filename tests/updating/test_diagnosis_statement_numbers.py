@@ -23,3 +23,15 @@ def test_a_small_change_shows_and_no_change_is_called_unchanged():
     s = statement([], _fit(0.003001, 0.002999, 0.002999), "response DOFs 4+Z")
     assert "leaves the held-out FRF error (response DOFs 4+Z) unchanged at 0.3 %" in s, s
     assert from_to(0.00004, 0.0) == "from 0.00004 % to 0 %"
+
+
+def test_the_evidence_never_says_zero_percent_for_a_nonzero_share():
+    from types import SimpleNamespace
+
+    from updating.diagnosis.terms import _evidence
+
+    c = SimpleNamespace(matrix="K", dofs=["3+Z"], nodes=[3], physics="ground_spring")
+    o = SimpleNamespace(physics="added_mass", label="point mass at node 3")
+    s = _evidence(c, 0.003, [(o, None, 0.0004)], (5.0, 700.0))
+    assert "explains 0.3 % of the residual" in s and "added mass there explains 0.04 %" in s, s
+    assert " 0 %" not in s

@@ -414,7 +414,7 @@ def _modes_findings(pb: _ModesProblem, current, scales, best_fit, ranking, alter
         gain = next((g for o, _, g in (ranking or []) if o.key == c.key), 0.0)
         alts = alternatives.get(c.key, [])
         ev = (f"the eigenvalue and shape residual of the test modes at {', '.join(c.dofs)} is removed by this term; "
-              f"it alone explains {100 * gain:.0f} % of the residual left after parameter updating")
+              f"it alone explains {pct(100 * gain)} % of the residual left after parameter updating")
         if not pb.has_shapes:
             ev = ev.replace("eigenvalue and shape residual", "frequency residual")
         if alts:

@@ -14,6 +14,7 @@ from modalab.core.frf import FRF
 from updating.fe import FEModel
 from updating.diagnosis.fit import FRFData, model_frf
 from updating.diagnosis.library import Candidate, _nodes_of
+from updating.diagnosis.findings import pct
 from modalab.core.dof import parse_dofs
 
 log = logging.getLogger(__name__)
@@ -348,13 +349,13 @@ def _evidence(c: Candidate, gain: float, rank_same_place: list, band, use_mci: b
             "C": "imaginary and growing with ω (viscous damping)", "D": "imaginary and constant (hysteretic damping)"}[c.matrix]
     where = ', '.join(c.dofs) or 'node ' + ','.join(map(str, c.nodes))
     if use_mci:
-        alt = ", ".join(f"{o.physics.replace('_', ' ')} there explains {100 * g:.0f} %" for o, _, g in rank_same_place[:2])
+        alt = ", ".join(f"{o.physics.replace('_', ' ')} there explains {pct(100 * g)} %" for o, _, g in rank_same_place[:2])
         s = (f"the dynamic-stiffness residual at {where} is {kind} between {band[0]:.3g} and {band[1]:.3g} Hz; this "
-             f"term alone explains {100 * gain:.0f} % of the residual left after parameter updating")
+             f"term alone explains {pct(100 * gain)} % of the residual left after parameter updating")
     else:
-        alt = ", ".join(f"{o.label} {100 * g:.0f} %" for o, _, g in rank_same_place[:2])
+        alt = ", ".join(f"{o.label} {pct(100 * g)} %" for o, _, g in rank_same_place[:2])
         s = (f"added alone at its best value, a dynamic stiffness at {where} that is {kind} removes "
-             f"{100 * gain:.0f} % of the FRF error between {band[0]:.3g} and {band[1]:.3g} Hz; with the parameters "
+             f"{pct(100 * gain)} % of the FRF error between {band[0]:.3g} and {band[1]:.3g} Hz; with the parameters "
              "re-fitted it gave the lowest training error of the candidates tried and passed the information "
              "criterion")
     return s + (f" (competing at the same place: {alt})" if alt else "")
