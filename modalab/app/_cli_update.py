@@ -88,7 +88,8 @@ def register(sub):
 
     add_map_arguments(s)
     s.add_argument("--freq-sigma", type=float, nargs="+",
-                   help="relative standard deviation of each test frequency (one value, or one per mode); default: "
+                   help="relative standard deviation of each test frequency, a fraction above 0 and up to 0.5 "
+                        "(0.002 = 0.2 %%; one value, or one per mode); default: "
                         "the covariance stored with the modes, else the standard deviations modalab identify "
                         "stored in modes.json (freq_std_hz; for modes.uff, the modes.json of the same identify run "
                         "beside it), else an assumed 1 %%")

@@ -183,8 +183,8 @@ def _add_sim(sub):
     s.add_argument("--hits", type=int, default=3, help="hits per point (default 3)")
     s.add_argument("--force", type=float, help="nominal peak force in N (default: the hammer's)")
     s.add_argument("--double-hits", type=float, default=0.0, help="probability of a double hit, 0..1")
-    s.add_argument("--sample-rate", type=float, help="sampling rate in Hz (default 2048)")
-    s.add_argument("--samples", type=int, help="samples per record (default 8192)")
+    s.add_argument("--sample-rate", type=float, help="sampling rate in Hz (default 2048; at least 100)")
+    s.add_argument("--samples", type=int, help="samples per record (default 8192; at least 256)")
     s.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
     s.add_argument("--no-plot", action="store_true", help="do not write the figure of the first hit (by default "
                                                           "OUTPUT_first_hit.png next to OUTPUT, e.g. hits_first_hit.png)")
