@@ -7,7 +7,7 @@ from updating.diagnosis.findings import from_to, pct, statement
 
 
 @pytest.mark.parametrize("x, text", [(0.0, "0"), (0.004, "0.004"), (4e-5, "0.00004"), (0.3, "0.3"), (0.9514, "0.95"),
-                                     (4.14, "4.1"), (9.96, "10"), (38.2, "38"), (120.4, "120")])
+                                     (4.14, "4.1"), (2.962, "3.0"), (9.96, "10"), (38.2, "38"), (120.4, "120")])
 def test_percentages_print_with_two_significant_digits(x, text):
     assert pct(x) == text
 

@@ -105,13 +105,15 @@ def _fmt(v: float, unit: str) -> str:
 
 def pct(x: float) -> str:
     """A percentage as the statements print it: two significant digits, no exponent and no digits beyond the
-    units above 10 (``0.96``, ``0.004``, ``4.1``, ``38``, ``0``); a nonzero value never reads ``0``."""
+    units above 10 (``0.96``, ``0.004``, ``3.0``, ``4.1``, ``38``, ``0``); a nonzero value never reads ``0``."""
     x = float(x)
     if not np.isfinite(x):
         return str(x)
     if abs(x) >= 9.95:
         return f"{x:.0f}"
-    return np.format_float_positional(x, precision=2, unique=False, fractional=False, trim="-")
+    if x == 0:
+        return "0"
+    return np.format_float_positional(x, precision=2, unique=False, fractional=False, trim="0")   # 3.0, 0.3
 
 
 def from_to(a: float, b: float) -> str:
