@@ -237,3 +237,15 @@ def test_a_project_band_in_khz_is_refused_naming_band_hz(one_point_frf, tmp_path
     msg = str(e.value)
     assert msg.startswith("band_hz = [0.002, 0.08] Hz holds") and "give band_hz = [2, 80]" in msg, msg
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("kinds", [["local_damping"], ["joint_flexibility", "added_mass"]])
+def test_a_modes_only_diagnosis_refuses_kinds_it_cannot_judge(tmp_path, capsys, freqs, kinds):
+    """diagnose --modes --kinds local_damping said 'Nothing is missing beyond parameter error' without looking
+    at a single damping candidate (undamped modes cannot show one)."""
+    out = tmp_path / "d.json"
+    assert main(["diagnose", str(DEMO / "nominal.bdf"), "--modes", str(freqs), "--kinds", *kinds,
+                 "--json", str(out)]) == 2
+    err = _one_line(capsys)
+    assert f"kinds {kinds[0]}: identified modes alone judge ground_spring and added_mass only" in err, err
+    assert "MEASURED.uff" in err and not out.exists()

@@ -456,6 +456,10 @@ def _modes_statement(pb: _ModesProblem, findings, fit, unproven) -> tuple[str, s
     return text, held_desc
 
 
+#: the kinds of missing physics a diagnosis from identified modes alone judges (the module docstring)
+MODES_KINDS = ("ground_spring", "added_mass")
+
+
 def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
                    kinds=("ground_spring", "added_mass"), max_findings: int = 3, penalty: float = 3.0,
                    n_try: int = 4, min_gain: float = 0.3, min_term_gain: float = 0.15, sigma_f=None,
@@ -478,6 +482,11 @@ def diagnose_modes(model: FEModel, test_modes: ModeSet, *, parameters=None,
     (:func:`_forward_selection`), backward elimination, the held-out judgement (:func:`_judge`), findings and
     statement.
     """
+    other = sorted(set(kinds or ()) - set(MODES_KINDS))
+    if other:      # undamped modes cannot show dissipation, and releases are judged on FRFs: never a silent 'nothing'
+        raise ModalabValueError(f"kinds {', '.join(other)}: identified modes alone judge {' and '.join(MODES_KINDS)} "
+                                "only; give the measured FRFs for the other kinds (modalab diagnose MODEL.bdf "
+                                "MEASURED.uff), or leave them out of --kinds")
     t0 = time.perf_counter()
     say = progress or (lambda msg: log.info(msg))
     pb = _modes_problem(model, test_modes, parameters, kinds, sigma_f, sigma_phi, say)
