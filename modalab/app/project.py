@@ -211,6 +211,17 @@ def load_project(path) -> Project:
         b = opts[sec]["band_hz"]
         if b is not None and (len(b) != 2 or not 0 <= float(b[0]) < float(b[1])):
             raise PlanError(f"{src}: [{sec}] band_hz = {b!r}; expected [low, high] in Hz with low < high")
+    for sec, key, low in (("update", "max_iter", 1), ("identify", "max_order", 1), ("diagnose", "max_findings", 0),
+                          ("diagnose", "max_lines", 1), ("diagnose", "max_nfev", 1)):
+        v = opts.get(sec, {}).get(key)
+        if v is not None and not (isinstance(v, int) and not isinstance(v, bool) and v >= low):
+            raise PlanError(f"{src}: [{sec}] {key} = {v!r}; expected a whole number >= {low}")
+    fs = opts["update"].get("freq_sigma")
+    if fs is not None:
+        vals = fs if isinstance(fs, list) else [fs]
+        if not all(isinstance(x, (int, float)) and not isinstance(x, bool) and 0 < x <= 0.5 for x in vals):
+            raise PlanError(f"{src}: [update] freq_sigma = {fs!r}; expected relative standard deviations above 0 and "
+                            "up to 0.5 (0.002 = 0.2 %)")
     if proj.parameters_path is not None:
         load_parameters(proj.parameters_path)          # validate now, not after an hour of acquisition
     if opts["diagnose"]["parameters"] is None:

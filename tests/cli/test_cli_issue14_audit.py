@@ -249,3 +249,26 @@ def test_a_modes_only_diagnosis_refuses_kinds_it_cannot_judge(tmp_path, capsys, 
     err = _one_line(capsys)
     assert f"kinds {kinds[0]}: identified modes alone judge ground_spring and added_mass only" in err, err
     assert "MEASURED.uff" in err and not out.exists()
+
+
+@pytest.mark.parametrize("section, old, new, expect", [
+    ("update", "max_iter = 10", "max_iter = 0", "[update] max_iter = 0; expected a whole number >= 1"),
+    ("update", "max_iter = 10", "max_iter = 10\nfreq_sigma = 0.8", "[update] freq_sigma = 0.8; expected relative"),
+    ("identify", "max_order = 24", "max_order = -4", "[identify] max_order = -4; expected a whole number >= 1"),
+    ("diagnose", "max_nfev = 10", "max_nfev = 0", "[diagnose] max_nfev = 0; expected a whole number >= 1"),
+])
+def test_a_project_value_the_stage_would_refuse_is_refused_before_any_work(tmp_path, capsys, section, old, new,
+                                                                          expect):
+    """[update] max_iter = 0 ran the acquisition, FRFs, identification and correlation before the update stage
+    refused it (or ran it with no iteration)."""
+    for f in DEMO.iterdir():
+        (tmp_path / f.name).write_bytes(f.read_bytes())
+    proj = tmp_path / "project_quick.toml"
+    text = proj.read_text()
+    assert old in text
+    proj.write_text(text.replace(old, new))
+    out = tmp_path / "out"
+    assert main(["run", str(proj), "-o", str(out)]) == 2
+    err = _one_line(capsys)
+    assert expect in err and str(proj) in err, err
+    assert not out.exists()

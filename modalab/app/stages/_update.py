@@ -63,6 +63,9 @@ class UpdateOptions:
     def __post_init__(self):
         if self.method not in UPDATE_METHODS:
             raise PlanError(f"updating method {self.method!r}; expected one of {', '.join(UPDATE_METHODS)}")
+        if isinstance(self.max_iter, bool) or not isinstance(self.max_iter, int) or self.max_iter < 1:
+            raise PlanError(f"max_iter = {self.max_iter!r} (--max-iter): expected at least 1 iteration; give e.g. "
+                            "max_iter = 30")
         if self.bands is not None:
             object.__setattr__(self, "bands", tuple(tuple(float(x) for x in b) for b in self.bands))
         if isinstance(self.freq_sigma, list):
