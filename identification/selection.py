@@ -39,6 +39,7 @@ stable pole of the highest order that has one within ``manual_tol``.
 """
 from __future__ import annotations
 
+import difflib
 import json
 import logging
 import os
@@ -505,6 +506,12 @@ def load_selection_file(path) -> list[float]:
     except Exception as e:  # noqa: BLE001 - report any parse failure the same way
         raise ModalabValueError(f"cannot parse selection file {p!r}: {e}. Write a JSON list of Hz, "
                                 "{\"freq_hz\": [...]} or TOML 'freq_hz = [...]'") from None
+    if isinstance(data, dict) and "freq_hz" not in data:
+        other = list(data)
+        if other:                    # a misspelt key is named (a modes.json, with freq_hz among others, is fine)
+            close = difflib.get_close_matches(other[0], ["freq_hz"], n=1, cutoff=0.5)
+            raise ModalabValueError(f"selection file {p!r}: unknown key {other[0]!r}"
+                                    + ("; did you mean 'freq_hz'?" if close else "; the only key is freq_hz = [Hz, ...]"))
     vals = data.get("freq_hz") if isinstance(data, dict) else data
     try:
         out = [float(v) for v in vals]

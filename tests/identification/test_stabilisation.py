@@ -136,6 +136,13 @@ class TestSelection:
         (tmp_path / "bad.json").write_text("{nope")
         with pytest.raises(ModalabValueError, match="cannot parse"):
             load_selection_file(tmp_path / "bad.json")
+        # a misspelt key is named with the closest (it read 'freq_hz must be a list of numbers; got None')
+        (tmp_path / "typo.toml").write_text("freq_hzz = [100.0, 180.0]\n")
+        with pytest.raises(ModalabValueError, match="unknown key 'freq_hzz'; did you mean 'freq_hz'"):
+            load_selection_file(tmp_path / "typo.toml")
+        # a modes.json (freq_hz among other keys) selects its frequencies
+        (tmp_path / "modes.json").write_text('{"freq_hz": [100, 180], "damping": [0.01, 0.02]}')
+        assert load_selection_file(tmp_path / "modes.json") == [100.0, 180.0]
 
     def test_diagram_figure(self, tmp_path):
         mm, _ = modal_system([60.0, 130.0], [0.01, 0.02], 3, rng=0)
