@@ -293,10 +293,11 @@ _WRITES_INTO = {"update": ("output", ("updated.bdf", "update.json", "updated_mat
                 "diagnose": ("report", ("diagnosis.json", "diagnosed.bdf", "frf_overlay_models.png"))}
 #: output folders and the files a command puts there (its own products): a folder that already holds one of them
 #: is the output of an earlier run, replaced only with --force (never silently)
-_EARLIER = {"update": ("output", ("update.json", "updated.bdf", "updated_matrices.npz")),
-            "diagnose": ("report", ("diagnosis.json", "diagnosed.bdf", "campaign.json")),
-            "report": ("output", ("report.html", "summary.json")),
-            "identify": ("output", ("campaign.json",))}
+_EARLIER = {"update": [("output", ("update.json", "updated.bdf", "updated_matrices.npz"))],
+            "diagnose": [("report", ("diagnosis.json", "diagnosed.bdf", "campaign.json"))],
+            "report": [("output", ("report.html", "summary.json"))],
+            "identify": [("output", ("campaign.json",)), ("plots", ("stabilisation.png", "synthesis.png", "automac.png"))],
+            "correlate": [("plots", ("mac_before.png", "frequencies_before.png", "comac.png"))]}
 #: commands whose output folder is a resumable session/run: kept on failure unless empty
 _KEEP_FOLDER = {"run", "demo", "acquire"}
 
@@ -349,19 +350,19 @@ def _check_earlier_output(a) -> None:
     """Refuse an output folder that holds the products of an earlier run of this command, unless ``--force``."""
     if a.command not in _EARLIER or getattr(a, "overwrite", False):
         return
-    attr, names = _EARLIER[a.command]
-    folder = getattr(a, attr, None)
-    if a.command == "report" and not folder:
-        folder = Path(a.folder) / "report"
-    if a.command == "identify" and len(a.inputs) < 2:        # one input: -o is a file (check_outputs)
-        return
-    if not folder or not os.path.isdir(folder):
-        return
-    found = [n for n in names if os.path.lexists(os.path.join(folder, n))]
-    if found:
-        flag = _FOLDER_FLAGS.get(attr, "--" + attr) if getattr(a, attr, None) else "the report folder"
-        raise OutputError(f"{flag} '{folder}' holds the output of an earlier run ({', '.join(found)}); pass --force "
-                          "to replace it, or choose another folder")
+    for attr, names in _EARLIER[a.command]:
+        folder = getattr(a, attr, None)
+        if a.command == "report" and not folder:
+            folder = Path(a.folder) / "report"
+        if a.command == "identify" and (len(a.inputs) > 1) != (attr == "output"):
+            continue        # one input: -o is a file (check_outputs); a campaign puts figures in each input's folder
+        if not folder or not os.path.isdir(folder):
+            continue
+        found = [n for n in names if os.path.lexists(os.path.join(folder, n))]
+        if found:
+            flag = _FOLDER_FLAGS.get(attr, "--" + attr) if getattr(a, attr, None) else "the report folder"
+            raise OutputError(f"{flag} '{folder}' holds the output of an earlier run ({', '.join(found)}); pass "
+                              "--force to replace it, or choose another folder")
 
 
 def _prepare_outputs(a):

@@ -72,14 +72,17 @@ def test_update_accepts_bounds_around_the_nominal(tmp_path, capsys, freqs):
     (["diagnose", "MODEL", "--modes", "FREQS", "--report", "OUT"], "OUT", "diagnosis.json", "--report"),
     (["report", "TMP", "-o", "OUT"], "OUT", "report.html", "-o"),
     (["report", "TMP"], "TMP/report", "summary.json", "the report folder"),
+    (["identify", "FRF", "-o", "TMP/m.uff", "--plots", "OUT"], "OUT", "stabilisation.png", "--plots"),
+    (["correlate", "MODEL", "FREQS", "--plots", "OUT"], "OUT", "mac_before.png", "--plots"),
 ])
 def test_an_earlier_output_folder_is_not_overwritten_without_force(tmp_path, capsys, freqs, argv, folder, product,
-                                                                    flag):
+                                                                    flag, one_point_frf):
     """``update -o``, ``diagnose --report`` and ``report`` replaced the files of an earlier run in their folder
     silently; now that is one line naming the folder and the files, and --force replaces them."""
     out = tmp_path / "out"
-    subst = {"MODEL": str(DEMO / "nominal.bdf"), "FREQS": str(freqs), "OUT": str(out), "TMP": str(tmp_path)}
-    argv = [subst.get(x, x) for x in argv]
+    subst = {"MODEL": str(DEMO / "nominal.bdf"), "FREQS": str(freqs), "OUT": str(out), "TMP": str(tmp_path),
+             "FRF": str(one_point_frf)}
+    argv = [subst.get(x, x.replace("TMP", str(tmp_path))) for x in argv]
     target = Path(folder.replace("TMP", str(tmp_path)).replace("OUT", str(out)))
     target.mkdir(parents=True)
     (target / product).write_text("earlier run")
