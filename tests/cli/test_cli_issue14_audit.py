@@ -275,3 +275,17 @@ def test_a_project_value_the_stage_would_refuse_is_refused_before_any_work(tmp_p
     err = _one_line(capsys)
     assert expect in err and str(proj) in err, err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("content, expect", [('{"freq_hz": [19.0, -5]}', "mode 2 has frequency -5 Hz"),
+                                             ('{"freq_hz": [19.0, NaN]}', "mode 2 has frequency nan Hz"),
+                                             ('{"freq_hz": []}', "holds no modes")])
+def test_test_modes_with_impossible_frequencies_are_refused(tmp_path, capsys, content, expect):
+    """A modes.json with a negative frequency ran the update silently; an empty one failed on the pairing."""
+    modes = tmp_path / "m.json"
+    modes.write_text(content)
+    out = tmp_path / "u"
+    assert main(["update", str(DEMO / "nominal.bdf"), "--modes", str(modes), "-o", str(out)]) == 2
+    err = _one_line(capsys)
+    assert expect in err and str(modes) in err, err
+    assert not out.exists()

@@ -92,11 +92,21 @@ def load_modes(path):
 
     p = Path(path)
     if p.suffix.lower() == ".json":
-        return ModeSet.from_json(p)
-    if p.is_file():
-        _expect(p, "uff", "test modes (UFF dataset 55, or modes.json from 'modalab identify')",
-                "check the order of the arguments")
-    return ModeSet.from_uff(p)
+        ms = ModeSet.from_json(p)
+    else:
+        if p.is_file():
+            _expect(p, "uff", "test modes (UFF dataset 55, or modes.json from 'modalab identify')",
+                    "check the order of the arguments")
+        ms = ModeSet.from_uff(p)
+    f = np.asarray(ms.freq_hz, float)
+    if f.size == 0:
+        raise PlanError(f"'{path}' holds no modes; expected the modes of 'modalab identify' (at least one)")
+    bad = np.flatnonzero(~(np.isfinite(f) & (f >= 0)))
+    if bad.size:               # a negative or NaN frequency ran the update silently
+        k = int(bad[0])
+        raise PlanError(f"'{path}': mode {k + 1} has frequency {f[k]:g} Hz; expected natural frequencies of 0 Hz "
+                        "or more. Correct the file (or identify the modes again)")
+    return ms
 
 
 def load_parameters(path, model) -> tuple[list, np.ndarray, np.ndarray]:
