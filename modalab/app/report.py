@@ -2,7 +2,7 @@
 
 The report itself (``report.html``, ``summary.json``) is the report stage, :mod:`modalab.app.stages._report`
 (:func:`build_report` is importable from here too).  The plotting helpers used by the stages live here (:func:`plot_coherence_map`,
-:func:`plot_convergence`, :func:`plot_frf_overlays`; the MCI maps are the diagnosis engine's,
+:func:`plot_frf_overlays`; the convergence figure is :func:`updating.methods.mci_plots.plot_convergence`, the MCI maps are the diagnosis engine's,
 :mod:`updating.diagnosis.report`); they write PNG files with
 matplotlib's object API (no pyplot state, safe headless).
 """
@@ -13,11 +13,10 @@ from pathlib import Path
 
 import numpy as np
 
-from modalab.core.errors import ModalabValueError
 
 log = logging.getLogger(__name__)
 
-__all__ = ["build_report", "plot_coherence_map", "plot_convergence", "plot_frf_overlays",
+__all__ = ["build_report", "plot_coherence_map", "plot_frf_overlays",
            "embed_png"]
 
 
@@ -55,24 +54,6 @@ def plot_coherence_map(frf, path) -> Path:
     axes[-1].set_xlabel("frequency [Hz]")
     axes[0].set_title("Coherence per response DOF")
     fig.colorbar(im, ax=list(axes), label="coherence", shrink=0.8)
-    return _save(fig, path)
-
-
-def plot_convergence(history, names, path) -> Path:
-    """Parameter values per iteration (row 0 = nominal)."""
-    h = np.atleast_2d(np.asarray(history, float))
-    if h.shape[1] != len(names):
-        raise ModalabValueError(f"{h.shape[1]} parameters in the history but {len(names)} names")
-    fig = _figure(6.5, 3.8)
-    ax = fig.add_subplot()
-    it = np.arange(h.shape[0])
-    for k, n in enumerate(names):
-        ax.plot(it, h[:, k], marker="o", ms=3, label=n)
-    ax.set_xlabel("iteration (0 = nominal)")
-    ax.set_ylabel("parameter value (factor or physical)")
-    ax.set_title("Parameter convergence")
-    ax.grid(True, lw=0.3)
-    ax.legend(fontsize=7, ncol=2)
     return _save(fig, path)
 
 

@@ -18,7 +18,8 @@ import pytest
 
 from modalab.core import uff
 from modalab.core.frf import FRF
-from modalab.app.report import build_report, plot_coherence_map, plot_convergence, plot_frf_overlays
+from modalab.app.report import build_report, plot_coherence_map, plot_frf_overlays
+from updating.methods.mci_plots import plot_convergence
 from updating.diagnosis.report import mci_maps_figure
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
@@ -66,8 +67,8 @@ def run_dir(tmp_path_factory):
     (d / "frf" / "frf.json").write_text(json.dumps({"responses": 4, "references": ["1+Z", "4+Z"], "lines": 200,
                                                     "band_hz": [0.5, 100.0], "median_coherence": 0.9}))
     (d / "update").mkdir()
-    plot_convergence(np.array([[1.0, 1.0], [1.02, 0.98], [1.04, 0.97]]), ["E_wing", "t_fin"],
-                     d / "update" / "convergence.png")
+    plot_convergence(np.array([[1.0, 1.0], [1.02, 0.98], [1.04, 0.97]]), d / "update" / "convergence.png",
+                     names=["E_wing", "t_fin"], normalise=False)
     (d / "update" / "update.json").write_text(json.dumps({"parameters": {
         "E_wing": {"initial": 1.0, "updated": 1.04, "std": 0.01}, "t_fin": {"initial": 1.0, "updated": 0.97, "std": 0.02}},
         "converged": True, "iterations": 2}))

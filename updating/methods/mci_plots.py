@@ -1,11 +1,16 @@
 """Figures of the MCI (thesis Figures 17, 26–27, 34–35): the MCI map, its per-DOF maxima and the parameter
-convergence of :class:`~updating.methods.mci.MCIUpdater`.  Saved as files (matplotlib's object interface).
+convergence figure, the only one in modalab (:class:`~updating.methods.mci.MCIUpdater`, the update stage of
+:mod:`modalab.app.stages`, the examples).  Saved as files (matplotlib's object interface).
 
 matplotlib is imported when a figure is drawn, as in :mod:`modalab.core.plots`, so that importing the
 updating methods does not load it."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
+
+from modalab.core.errors import ModalabValueError
 
 __all__ = ["plot_mci_map", "plot_mci_maxima", "plot_convergence"]
 
@@ -62,21 +67,36 @@ def plot_mci_maxima(results, path, *, labels=None, title: str = "absolute maxima
     return fig
 
 
-def plot_convergence(history: np.ndarray, path, *, names=None, reference=None, params=None):
-    """Parameter values per iteration divided by ``reference`` (default the first row)."""
-    H = np.asarray(history, float)
-    cols = np.arange(H.shape[1]) if params is None else np.asarray(params)
-    ref = H[0] if reference is None else np.asarray(reference, float)
-    ref = np.where(ref == 0, 1.0, ref)
+def plot_convergence(history, path, *, names=None, reference=None, params=None, normalise: bool = True) -> Path:
+    """The one parameter-convergence figure (MCI, eigensensitivity, the update stage): parameter values per
+    iteration, row 0 of ``history`` the initial (nominal) vector, saved to ``path`` (parent folders made);
+    returns the path.
+
+    ``normalise=True`` divides each parameter by ``reference`` (default the initial row; a zero reference
+    divides by 1); ``normalise=False`` draws the values themselves (factors or physical values).  ``params``
+    selects the columns drawn (default all); ``names`` labels every column of ``history``.
+    """
+    H = np.atleast_2d(np.asarray(history, float))
+    if names is not None and len(names) != H.shape[1]:
+        raise ModalabValueError(f"{H.shape[1]} parameters in the history but {len(names)} names")
+    cols = np.arange(H.shape[1]) if params is None else np.atleast_1d(np.asarray(params))
+    if normalise:
+        ref = H[0] if reference is None else np.asarray(reference, float)
+        ref = np.where(ref == 0, 1.0, ref)
+    else:
+        ref = np.ones(H.shape[1])
     fig = _figure((7, 4))
     ax = fig.add_subplot(1, 1, 1)
+    it = np.arange(H.shape[0])
     for c in cols:
-        ax.plot(np.arange(1, H.shape[0] + 1), H[:, c] / ref[c], marker=".",
-                label=None if names is None else names[c])
-    ax.set_xlabel("iteration")
-    ax.set_ylabel("parameter / reference")
-    ax.set_title("convergence of updating parameters")
+        ax.plot(it, H[:, c] / ref[c], marker="o", ms=3, label=None if names is None else names[c])
+    ax.set_xlabel("iteration (0 = initial)")
+    ax.set_ylabel("parameter / reference" if normalise else "parameter value (factor or physical)")
+    ax.set_title("Parameter convergence")
+    ax.grid(True, lw=0.3)
     if names is not None and len(cols) <= 30:
         ax.legend(ncol=2, fontsize="small")
-    fig.savefig(path)
-    return fig
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=100, metadata={"Software": None})
+    return path

@@ -15,13 +15,13 @@ from modalab.app.stages._correlate import (CorrelateOptions, DofMapping, _correl
 from updating.correlation.dofmap import as_dofmap
 from updating.fe.bulk import read_bdf, to_bulk, write_bdf
 from updating.fe import ParametricFEModel
-from modalab.app.report import plot_convergence
 from modalab.core.frf import FRF
 from modalab.core.modes import ModeSet
 from updating.correlation.expansion import kidder
 from updating.methods.eigendynamic import EigendynamicConstraint
 from updating.methods.eigensensitivity import InverseEigensensitivity
 from updating.methods.mci import MCIUpdater
+from updating.methods.mci_plots import plot_convergence
 from updating.methods.rfm import ResponseFunctionMethod
 from updating.methods import direct as dm
 from updating.correlation.metrics import correlate as _correlate, shape_noise
@@ -278,7 +278,7 @@ def _update_parameters(model, model_path, opts: UpdateOptions, declared, test, f
     summary["history"] = [{k: v for k, v in h.items() if k in ("iteration", "p", "cost", "freq_error_pct")}
                           for h in hist]
     rows = np.vstack([np.asarray(pm.p0, float)[None, :]] + [np.asarray(h["p"], float)[None, :] for h in hist])
-    files = [plot_convergence(rows, names, out / "convergence.png")]
+    files = [plot_convergence(rows, out / "convergence.png", names=names, normalise=False)]
     updated = pm.model_at(p)
     files.append(write_text(out / "updated.bdf", write_bdf(to_bulk(updated, template=read_bdf(model_path)))))
     summary["updated_model"] = str(out / "updated.bdf")
