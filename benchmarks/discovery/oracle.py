@@ -41,7 +41,7 @@ ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from modalab.app.stages._common import load_model, load_parameters  # noqa: E402
+from modalab.app.stages import load_model, load_parameters  # noqa: E402
 from modalab.core import uff  # noqa: E402
 from updating.diagnosis.fit import frf_error, model_frf  # noqa: E402
 from updating.diagnosis.workflow import Diagnoser, DiagnoserConfig  # noqa: E402

@@ -2,7 +2,7 @@
 
 :func:`file_info` says what a UFF holds, :func:`demo` runs the embedded demo project; ``acquire`` and
 ``make_sim_backend`` are re-exported from :mod:`modalab.app.stages._acquire`;
-``load_model``/``load_modes`` come from :mod:`modalab.app.stages`, ``load_params`` reads a parameter file.
+``load_model``/``load_modes`` come from :mod:`modalab.app.stages` (a parameter file: its ``load_parameters``).
 """
 from __future__ import annotations
 
@@ -16,12 +16,10 @@ from modalab.app.stages import _sim_structure, load_model, load_modes  # noqa: F
 from modalab.app.stages._acquire import acquire, make_sim_backend, _nidaqmx_backend  # noqa: F401
 from modalab.core import uff
 from modalab.app.demo_project import run_demo
-from updating.diagnosis.priors import default_parameters
-from updating.fe.parameter_file import read_parameter_file
 
 log = logging.getLogger(__name__)
 
-__all__ = ["file_info", "make_sim_backend", "acquire", "demo", "load_model", "load_params", "load_modes"]
+__all__ = ["file_info", "make_sim_backend", "acquire", "demo", "load_model", "load_modes"]
 
 
 # ------------------------------------------------------------------------- files
@@ -38,20 +36,3 @@ def demo(out_dir, *, quick: bool = False, progress=None):
     return run_demo(out_dir, quick=quick, progress=progress)
 
 
-# ------------------------------------------------------------------------- FE models and test data
-def load_params(path, model):
-    """Updating parameters from a TOML file, or the defaults (E and density multipliers per property group).
-
-    File format::
-
-        [[parameter]]
-        name = "E_wing"
-        field = "E"                    # E, G, nu, rho, ge, b, h, do, di, A, Iy, Iz, J, nsm, k, c, mass, ...
-        properties = ["wing"]          # property names or ids (or materials = [...], elements = [...])
-        mode = "factor"                # factor (p multiplies the nominal) or value (p is the SI value)
-    """
-
-    if path is None:
-        return default_parameters(model)
-
-    return read_parameter_file(path)[0]

@@ -63,11 +63,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from modalab.core.errors import PlanError
-from updating.fe.parameter_file import read_parameter_file
+from modalab.app.stages._common import load_parameters
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Project", "load_project", "load_parameters", "STAGES", "STAGE_OPTIONS"]
+__all__ = ["Project", "load_project", "STAGES", "STAGE_OPTIONS"]
 
 #: the stages of ``modalab run``, in order
 STAGES = ("acquire", "frf", "identify", "correlate", "update", "diagnose", "report")
@@ -227,9 +227,3 @@ def load_project(path) -> Project:
     if opts["diagnose"]["parameters"] is None:
         opts["diagnose"]["parameters"] = opts["update"]["parameters"]
     return proj
-
-
-def load_parameters(path) -> tuple[list, list, list]:
-    """A parameter file → (parameters, lower, upper bounds): :func:`updating.fe.parameter_file.read_parameter_file`."""
-
-    return read_parameter_file(Path(path))

@@ -32,7 +32,7 @@ def test_every_shipped_toml_passes_its_parser(path):
         return
     raw = tomllib.loads(path.read_text())
     if "parameter" in raw:                       # a parameter file of the updating stage
-        from modalab.app.project import load_parameters
+        from modalab.app.stages import load_parameters
 
         params, lo, hi = load_parameters(path)
         assert len(params) == len(raw["parameter"])

@@ -34,7 +34,7 @@ def test_help_lists_every_command(capsys):
 def test_sim_shows_progress_and_exports_the_model_it_simulated(tmp_path, capsys):
     from hardware_sim.demo import demo_structure
 
-    from modalab.app.project import load_parameters
+    from modalab.app.stages import load_parameters
     from modalab.app.stages import _sim_structure, load_model
 
     assert main(["sim", "-o", str(tmp_path / "h.uff"), "--points", "1+Z", "19+Z", "--hits", "1", "--samples", "2048",

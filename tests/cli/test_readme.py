@@ -32,11 +32,11 @@ def test_plan_example_is_valid():
 
 
 def test_parameter_example_loads(tmp_path):
-    from modalab.app.pipeline import load_params
+    from modalab.app.stages import load_parameters
     from updating.fe.models.garteur import garteur_model
 
     (tmp_path / "p.toml").write_text(_blocks("toml")[1])
-    params = load_params(tmp_path / "p.toml", garteur_model(mesh=2))
+    params = load_parameters(tmp_path / "p.toml", garteur_model(mesh=2))[0]
     assert params[0].name == "E_wing"
 
 

@@ -12,7 +12,7 @@ from modalab.core.errors import ModalabValueError, PlanError
 from updating.fe.bulk import build_model, read_bdf
 from updating.fe.parameters import ParametricFEModel
 from modalab.core.modes import ModeSet
-from modalab.app.project import load_parameters as _load
+from updating.fe.parameter_file import read_parameter_file
 from updating.diagnosis.priors import default_parameters
 
 log = logging.getLogger(__name__)
@@ -109,20 +109,28 @@ def load_modes(path):
     return ms
 
 
-def load_parameters(path, model) -> tuple[list, np.ndarray, np.ndarray]:
-    """Updating parameters and their bounds: the TOML ``[[parameter]]`` file, or (``path`` None) the default
-    E and density multipliers per property group without bounds."""
+def load_parameters(path, model=None) -> tuple[list, np.ndarray, np.ndarray]:
+    """The one reader of an updating-parameter file for every entry point (stages, ``modalab run``'s project
+    check, benchmarks): the TOML ``[[parameter]]`` file (:func:`updating.fe.parameter_file.read_parameter_file`:
+    a mistyped key is one line naming the file, the key and the closest valid key) → (parameters, lower, upper
+    bounds; ±inf where not given).  With ``model``, each parameter must select something of it and its bounds
+    must admit the nominal value.  ``path`` None: the default E and density multipliers per property group of
+    ``model``, without bounds."""
     if path is None:
+        if model is None:
+            raise ModalabValueError("load_parameters(None) needs the model whose default parameters to take")
         params = default_parameters(model)
         return params, np.full(len(params), -np.inf), np.full(len(params), np.inf)
 
-    params, lo, hi = _load(path)
+    params, lo, hi = read_parameter_file(Path(path))
+    lo = np.array([-np.inf if v is None else float(v) for v in lo])
+    hi = np.array([np.inf if v is None else float(v) for v in hi])
+    if model is None:
+        return params, lo, hi
     try:
         pm = ParametricFEModel(model, params)       # each parameter selects something of this model
     except ModalabValueError as e:
         raise PlanError(f"{path}: {e}") from None
-    lo = np.array([-np.inf if v is None else float(v) for v in lo])
-    hi = np.array([np.inf if v is None else float(v) for v in hi])
     for k, (prm, p0) in enumerate(zip(params, np.asarray(pm.p0, float))):
         if not lo[k] <= p0 <= hi[k]:           # the updating starts at the nominal: bounds must admit it
             what = "1 (factor: the model as it is)" if prm.mode == "factor" else f"{p0:g} (the model's value)"
