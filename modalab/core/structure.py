@@ -40,6 +40,15 @@ __all__ = ["Structure", "ModalModel"]
 _ORDER = {"receptance": 0, "mobility": 1, "accelerance": 2}
 
 
+def _beta(beta) -> float:
+    """The window decay β (1/s) a model FRF is evaluated at (s = iω + β): a finite number >= 0."""
+    if isinstance(beta, bool) or not isinstance(beta, (int, float, np.floating, np.integer)) \
+            or not np.isfinite(beta) or beta < 0:
+        raise ModalabValueError(f"window_beta_per_s={beta!r}; expected the exponential window's decay rate in "
+                                "1/s, a finite number >= 0 (0: no window), e.g. a measured FRF's window_beta_per_s")
+    return float(beta)
+
+
 def _as_sparse(A, name, n=None):
     if A is None:
         return None
@@ -82,15 +91,21 @@ class ModalModel:
                 self.rigid[ii] * si)
 
     def frf(self, freq_hz, responses=None, references=None, quantity: str = "accelerance",
-            chunk: int = 2048) -> FRF:
-        """Exact FRFs at ``freq_hz`` between the labelled DOFs (all DOFs by default)."""
+            chunk: int = 2048, *, window_beta_per_s: float = 0.0) -> FRF:
+        """Exact FRFs at ``freq_hz`` between the labelled DOFs (all DOFs by default), at ``s = iω + β``.
+
+        ``window_beta_per_s`` β (1/s, default 0): the decay of an exponential window ``e^{−βt}`` on the
+        measured records; the windowed FRF is the transfer function at ``s = iω + β``
+        (:attr:`FRF.s <modalab.core.frf.FRF.s>`), so a model compared with it is evaluated there (pass the
+        measured FRF's ``window_beta_per_s``).  The result carries β."""
         q = check_quantity(quantity)
         freq = np.asarray(freq_hz, dtype=float)
+        beta = _beta(window_beta_per_s)
         resp, refs, R, L, G, Gi = self._factors(responses, references)
         order = _ORDER[q]
         H = np.empty((len(resp), len(refs), freq.size), complex)
         for a in range(0, freq.size, chunk):
-            s = 2j * np.pi * freq[a:a + chunk]
+            s = 2j * np.pi * freq[a:a + chunk] + beta
             with np.errstate(divide="ignore", invalid="ignore"):
                 w = s[None, :] ** order / (s[None, :] - self.poles[:, None])      # (m, f)
                 Hc = np.einsum("ok,ki,kf->oif", R, L, w, optimize=True)
@@ -99,7 +114,7 @@ class ModalModel:
                     Hc = Hc + np.einsum("or,ir,f->oif", G, Gi, g, optimize=True)
             H[..., a:a + chunk] = Hc
         return FRF(freq_hz=freq, H=H, responses=resp, references=refs, quantity=q,
-                   metadata={"estimator": "exact"})
+                   metadata={"estimator": "exact"}, window_beta_per_s=beta)
 
     def impulse_response(self, t, responses=None, references=None) -> np.ndarray:
         """Receptance impulse responses h(t) (n_out, n_in, n_t), exact for viscous damping, t ≥ 0."""
@@ -233,10 +248,13 @@ class Structure:
 
     # ------------------------------------------------------------------ FRFs
     def frf(self, freq_hz, responses=None, references=None, quantity: str = "accelerance",
-            method: str = "modal") -> FRF:
-        """Exact FRFs: ``method='modal'`` (all modes, fast for many lines) or ``'direct'`` (a sparse solve per line)."""
+            method: str = "modal", *, window_beta_per_s: float = 0.0) -> FRF:
+        """Exact FRFs: ``method='modal'`` (all modes, fast for many lines) or ``'direct'`` (a sparse solve per line),
+        at ``s = iω + β`` with β = ``window_beta_per_s`` (1/s, default 0): pass a measured FRF's
+        ``window_beta_per_s`` to compare the model with exponentially windowed data (see :meth:`ModalModel.frf`)."""
+        beta = _beta(window_beta_per_s)
         if method == "modal":
-            return self.modal_model().frf(freq_hz, responses, references, quantity)
+            return self.modal_model().frf(freq_hz, responses, references, quantity, window_beta_per_s=beta)
         if method != "direct":
             raise ModalabValueError(f"method {method!r}; expected 'modal' or 'direct'")
         q = check_quantity(quantity)
@@ -259,13 +277,13 @@ class Structure:
             F = F[keep]
         H = np.empty((len(io), len(ii), freq.size), complex)
         for k, f in enumerate(freq):
-            w = 2 * np.pi * f
-            Z = Kc - w ** 2 * Mc + (1j * w * Cc if Cc is not None else 0)
+            w = 2j * np.pi * f + beta                 # s = iω + β
+            Z = Kc + w ** 2 * Mc + (w * Cc if Cc is not None else 0)
             try:
                 X = restore(spla.splu(sp.csc_matrix(Z)).solve(F), keep, n)
             except RuntimeError:
                 raise ModalabValueError(f"the dynamic stiffness is singular at {f} Hz (an undamped resonance or a "
                                         "rigid-body mode at 0 Hz); avoid that line or add damping") from None
-            H[:, :, k] = X[io] * np.asarray(so)[:, None] * (1j * w) ** _ORDER[q]
+            H[:, :, k] = X[io] * np.asarray(so)[:, None] * w ** _ORDER[q]
         return FRF(freq_hz=freq, H=H, responses=resp, references=refs, quantity=q,
-                   units=QUANTITY_UNITS[q], metadata={"estimator": "exact"})
+                   units=QUANTITY_UNITS[q], metadata={"estimator": "exact"}, window_beta_per_s=beta)

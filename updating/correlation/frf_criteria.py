@@ -95,7 +95,8 @@ def frf_correlation(analysis, test: FRF, *, dofmap=None, rtol: float = 1e-9) -> 
     Parameters
     ----------
     analysis : :class:`~modalab.core.frf.FRF` on model labels (same frequency lines as the test),
-        or a :class:`~modalab.core.structure.Structure` whose exact FRFs are synthesised at the test lines.
+        or a :class:`~modalab.core.structure.Structure` whose exact FRFs are synthesised at the test lines, at
+        the test's ``s = iω + β`` (its exponential window's ``window_beta_per_s``).
     test : measured FRF.
     dofmap : maps test labels onto model DOFs (oblique sensors allowed: ``H_t = C_o H_a C_iᵀ``).
     """
@@ -107,8 +108,10 @@ def frf_correlation(analysis, test: FRF, *, dofmap=None, rtol: float = 1e-9) -> 
         Ci_full = dm.matrix(test.references, analysis.dofs)
         ro = np.unique(sp.csr_matrix(Co_full).indices)
         ri = np.unique(sp.csr_matrix(Ci_full).indices)
+        # at the test's s = iω + β: an exponentially windowed test FRF is the transfer function there
         analysis = analysis.frf(test.freq_hz, responses=[analysis.dofs[i] for i in ro],
-                                references=[analysis.dofs[i] for i in ri], quantity=test.quantity)
+                                references=[analysis.dofs[i] for i in ri], quantity=test.quantity,
+                                window_beta_per_s=test.window_beta_per_s)
     if not isinstance(analysis, FRF):
         raise ModalabValueError(f"analysis: got {type(analysis).__name__}; expected an FRF or a Structure")
     if analysis.freq_hz.shape != test.freq_hz.shape or not np.allclose(analysis.freq_hz, test.freq_hz, rtol=rtol,
@@ -122,6 +125,7 @@ def frf_correlation(analysis, test: FRF, *, dofmap=None, rtol: float = 1e-9) -> 
     Ci = sp.csr_matrix(dm.matrix(test.references, analysis.references))
     H = np.einsum("oa,abf,ib->oif", Co.toarray(), analysis.H, Ci.toarray(), optimize=True)
     aligned = FRF(freq_hz=test.freq_hz, H=H, responses=test.responses, references=test.references,
-                  quantity=test.quantity, metadata={"source": "analysis on test DOFs"})
+                  quantity=test.quantity, metadata={"source": "analysis on test DOFs"},
+                  window_beta_per_s=analysis.window_beta_per_s)
     return FrfCorrelation(analysis=aligned, test=test, frac=frac(aligned, test), csac=csac(aligned, test),
                           csf=csf(aligned, test))

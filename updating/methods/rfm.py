@@ -269,8 +269,11 @@ class ResponseFunctionMethod:
         g = (Rm.conj().T @ b).real
         return N, g, float(np.sum(np.abs(b) ** 2))
 
-    def predicted_frf(self, model, freq_hz, responses=None, references=None, quantity="accelerance"):
-        """FRFs of the updated model (exact, :meth:`modalab.core.structure.Structure.frf`)."""
+    def predicted_frf(self, model, freq_hz, responses=None, references=None, quantity="accelerance", *,
+                      window_beta_per_s: float = 0.0):
+        """FRFs of the updated model (exact, :meth:`modalab.core.structure.Structure.frf`) at ``s = iω + β``
+        (β = ``window_beta_per_s``: a measured FRF's, to compare with exponentially windowed data)."""
         if not hasattr(self, "p_"):
             raise NotFittedError("fit the ResponseFunctionMethod first")
-        return model.structure(self.p_).frf(freq_hz, responses, references, quantity, method="direct")
+        return model.structure(self.p_).frf(freq_hz, responses, references, quantity, method="direct",
+                                            window_beta_per_s=window_beta_per_s)
