@@ -62,5 +62,5 @@ def open_backend(name: str, **kw) -> DaqBackend:
         return NidaqmxBackend(**kw)
     if name == "sim":
         raise PlanError("the 'sim' backend is built by the caller from hardware_sim (acquisition may not import "
-                        "it); use modalab.app.pipeline.make_backend('sim', ...) or the CLI's --backend sim")
+                        "it); use modalab.app.stages.make_sim_backend(plan) or the CLI's --backend sim")
     raise PlanError(f"backend {name!r} unknown; expected one of {', '.join(BACKENDS)}")

@@ -52,7 +52,7 @@ import logging
 
 import numpy as np
 
-from modalab.core.errors import ModalabValueError, NotFittedError, ShapeError, fmt_error
+from modalab.core.errors import ModalabValueError, NotFittedError, fmt_error
 from modalab.core.frf import FRF
 from .stabilisation import mac_vectors
 from .stabilisation import StabilisationCriteria, stabilise

@@ -7,13 +7,10 @@
 from __future__ import annotations
 
 import logging
-from pathlib import Path
 
-import numpy as np
-
-from modalab.app.stages import _sim_structure, load_model, load_modes  # noqa: F401 - re-exported
+from modalab.app.stages import load_model, load_modes  # re-exported (listed in __all__)
 # the acquire stage lives in modalab.app.stages._acquire (one implementation); its names stay importable here
-from modalab.app.stages._acquire import acquire, make_sim_backend, _nidaqmx_backend  # noqa: F401
+from modalab.app.stages._acquire import acquire, make_sim_backend
 from modalab.core import uff
 from modalab.app.demo_project import run_demo
 

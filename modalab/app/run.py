@@ -38,8 +38,6 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from modalab.app import stages
 from modalab.core._output import protect
 from modalab.core.errors import PlanError

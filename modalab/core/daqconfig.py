@@ -8,7 +8,7 @@ the largest expected force in N, an accelerometer's in m/s².
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from .dof import Dof
 from .errors import PlanError

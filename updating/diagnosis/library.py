@@ -46,12 +46,11 @@ from typing import Callable
 import numpy as np
 import scipy.sparse as sp
 
-from modalab.core.dof import DIRECTION_NAMES, Dof
+from modalab.core.dof import DIRECTION_NAMES
 from modalab.core.errors import ModalabValueError
 
 from updating.fe import Damper, FEModel, LumpedMass, Parameter, Spring
 from updating.fe.assembly import assemble, element_stiffness
-from updating.fe.constraints import RBE2, SPC
 from updating.diagnosis.local_matrix import LocalMatrix, _group_G
 
 log = logging.getLogger(__name__)

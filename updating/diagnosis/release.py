@@ -33,7 +33,6 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
 from scipy.optimize import minimize_scalar
 from scipy.sparse.linalg import splu

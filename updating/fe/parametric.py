@@ -8,13 +8,13 @@ use (section 5.1: each spring, mass or damper is one parameter).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Protocol, Sequence, runtime_checkable
 
 import numpy as np
 import scipy.sparse as sp
 
-from modalab.core.dof import Dof, parse_dofs
+from modalab.core.dof import parse_dofs
 from modalab.core.errors import ModalabValueError, ShapeError
 from modalab.core.structure import Structure
 

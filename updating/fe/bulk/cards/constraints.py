@@ -1,10 +1,9 @@
 """Constraints: SPC, SPC1, SPCADD and rigid elements RBE2."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from updating.fe.bulk.cards.base import Card
-from updating.fe.bulk.cards.geometry import Grid
 
 __all__ = ["Spc", "Spc1", "Spcadd", "Rbe2"]
 

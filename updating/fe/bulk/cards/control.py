@@ -1,7 +1,7 @@
 """Case-independent control cards: PARAM, TABDMP1, EIGRL."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from updating.fe.bulk.cards.base import Card
 

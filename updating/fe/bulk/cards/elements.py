@@ -1,7 +1,7 @@
 """Line and shell element connectivity: CBAR, CBEAM, CROD, CONROD, CQUAD4, CTRIA3."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from updating.fe.bulk.fields import RawCard
 from updating.fe.bulk.cards.base import Card

@@ -1,7 +1,7 @@
 """Geometry cards: GRID and the coordinate systems CORD2R, CORD2C, CORD2S."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from updating.fe.bulk.fields import RawCard
 from updating.fe.bulk.cards.base import Card

@@ -1,7 +1,7 @@
 """Element properties: PBAR, PBARL, PBEAM, PBEAML, PROD, PSHELL, PELAS, PDAMP."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from modalab.core.errors import BulkDataError
 
