@@ -71,3 +71,26 @@ def test_windowed_and_unwindowed_data_correlate_alike_with_the_model():
     from updating.correlation.frf_criteria import frac
 
     assert (1 - frac(at_iw, windowed)).max() > 10 * max(err_win.max(), 1e-5)
+
+
+def test_a_ready_model_frf_at_another_beta_is_warned_about(caplog):
+    """A ready analysis FRF evaluated at another β than the test's is compared with a logged warning naming both
+    β; one at the test's β, or a Structure (evaluated at the test's β), is compared silently."""
+    import logging
+
+    from updating.correlation.frf_criteria import frf_correlation
+
+    st = _chain()
+    f = np.linspace(2.0, 60.0, 80)
+    test = st.frf(f, quantity="receptance", references=["1+X"], window_beta_per_s=4.0)
+    logger = "updating.correlation.frf_criteria"
+    for quiet in (st, st.frf(f, quantity="receptance", references=["1+X"], window_beta_per_s=4.0)):
+        caplog.clear()
+        with caplog.at_level(logging.WARNING, logger=logger):
+            frf_correlation(quiet, test)
+        assert not [r for r in caplog.records if r.name == logger]
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger=logger):
+        frf_correlation(st.frf(f, quantity="receptance", references=["1+X"]), test)
+    warned = [r.getMessage() for r in caplog.records if r.name == logger and r.levelno == logging.WARNING]
+    assert len(warned) == 1 and "s = iω + 0 1/s" in warned[0] and "s = iω + 4 1/s" in warned[0], warned

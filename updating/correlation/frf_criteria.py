@@ -6,7 +6,9 @@ Split out of :mod:`updating.correlation.metrics` (which re-exports these names: 
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
+
 import numpy as np
 import scipy.sparse as sp
 from modalab.core.errors import ModalabValueError, ShapeError
@@ -14,6 +16,8 @@ from modalab.core.frf import FRF
 from modalab.core.structure import Structure
 from updating.correlation.dofmap import as_dofmap
 from updating.correlation.shape_criteria import _TINY
+
+log = logging.getLogger(__name__)
 
 
 # ------------------------------------------------------------------ FRF criteria
@@ -71,6 +75,16 @@ def csf(analysis, test) -> np.ndarray:
     return np.clip(np.where(den > _TINY, num / np.where(den > _TINY, den, 1.0), 0.0), 0, 1)
 
 
+def _warn_if_beta_differs(analysis: FRF, test: FRF) -> None:
+    """Log a warning when the two FRFs were taken at different ``s = iω + β`` (exponential windows)."""
+    ba, bt = analysis.window_beta_per_s, test.window_beta_per_s
+    if not np.isclose(ba, bt, rtol=1e-9, atol=1e-12):
+        log.warning("frf_correlation: the analysis FRF is at s = iω + %.6g 1/s but the test FRF at s = iω + %.6g "
+                    "1/s (its exponential window's window_beta_per_s): the two are compared at different s and "
+                    "differ by the window's decay alone; pass the Structure, or synthesise the analysis with "
+                    "window_beta_per_s=test.window_beta_per_s", ba, bt)
+
+
 @dataclass
 class FrfCorrelation:
     """FRF correlation on the test labels: aligned FRFs, FRAC per FRF, CSAC and CSF per line."""
@@ -99,6 +113,11 @@ def frf_correlation(analysis, test: FRF, *, dofmap=None, rtol: float = 1e-9) -> 
         the test's ``s = iω + β`` (its exponential window's ``window_beta_per_s``).
     test : measured FRF.
     dofmap : maps test labels onto model DOFs (oblique sensors allowed: ``H_t = C_o H_a C_iᵀ``).
+
+    A ready analysis FRF whose ``window_beta_per_s`` differs from the test's was evaluated at another
+    ``s = iω + β`` than the test was measured at: the comparison goes on (the criteria are defined for any
+    two FRFs) with a logged warning naming both β; pass the Structure, or synthesise the analysis with
+    ``window_beta_per_s=test.window_beta_per_s``.
     """
     if not isinstance(test, FRF):
         raise ModalabValueError(f"test: got {type(test).__name__}; expected a modalab.core.frf.FRF")
@@ -114,6 +133,7 @@ def frf_correlation(analysis, test: FRF, *, dofmap=None, rtol: float = 1e-9) -> 
                                 window_beta_per_s=test.window_beta_per_s)
     if not isinstance(analysis, FRF):
         raise ModalabValueError(f"analysis: got {type(analysis).__name__}; expected an FRF or a Structure")
+    _warn_if_beta_differs(analysis, test)
     if analysis.freq_hz.shape != test.freq_hz.shape or not np.allclose(analysis.freq_hz, test.freq_hz, rtol=rtol,
                                                                         atol=0):
         raise ShapeError(f"the analysis FRF has {analysis.n_freq} lines ({analysis.freq_hz[:1]}..) but the test "
