@@ -9,8 +9,8 @@ Read, build or write an FE model — :mod:`updating.fe`, :mod:`updating.fe.bulk`
     :func:`~updating.fe.bulk.to_bulk` and :func:`~updating.fe.bulk.write_bdf`.  Reference models:
     :mod:`updating.fe.models` (beams, a GARTEUR-like frame).
 Modes and FRFs of the model
-    :func:`~updating.fe.normal_modes`, :func:`~updating.fe.modes_of`; :func:`~updating.fe.frf_direct` (at
-    ``s = iω + β`` when compared with exponentially windowed data), :func:`~updating.fe.frf_modal`.  Dense below
+    :func:`~updating.fe.normal_modes`, :func:`~updating.fe.modes_of`; :func:`~updating.fe.frf_direct`,
+    :func:`~updating.fe.frf_modal` (at ``s = iω + β`` when compared with exponentially windowed data).  Dense below
     :data:`modalab.core.dense.EIGEN_LIMIT` DOFs, shift-invert Lanczos above: the one dense/sparse rule is
     :mod:`modalab.core.dense`.
 Choose the updating parameters

@@ -141,6 +141,34 @@ class TestFRF:
         full = frf_modal(s, f, resp, ref, n_modes=n, residual=False)
         np.testing.assert_allclose(full.H, direct.H, rtol=1e-7, atol=1e-9 * np.abs(direct.H).max())
 
+    @pytest.mark.parametrize("damping", ["hysteretic", "viscous"])
+    @pytest.mark.parametrize("quantity", ["receptance", "accelerance"])
+    def test_modal_frf_at_s_equals_direct_at_s(self, damping, quantity):
+        """Issue 15, a typed window: frf_modal and FEModel.frf(method='modal') evaluate at s = iω + β like
+        frf_direct (every mode kept: exact), carry β, and differ from the FRF at s = iω."""
+        from updating.fe import rayleigh_coefficients
+
+        m = beam_model(10, kind="beam3d")
+        if damping == "hysteretic":
+            m.global_ge = 0.02
+        else:
+            m.rayleigh = rayleigh_coefficients(20.0, 0.01, 400.0, 0.02)
+        s, f, beta = m.system(), np.linspace(5, 400, 60), 6.0
+        resp, ref = ["9+Z", "5+Y", "3+RZ"], ["9+Z", "5+Y"]
+        direct = frf_direct(s, f, resp, ref, quantity=quantity, beta=beta)
+        for modal in (frf_modal(s, f, resp, ref, n_modes=s.n_dof, residual=False, quantity=quantity,
+                                window_beta_per_s=beta),
+                      m.frf(f, resp, ref, quantity=quantity, method="modal", n_modes=s.n_dof, residual=False,
+                            window_beta_per_s=beta)):
+            assert modal.window_beta_per_s == beta
+            np.testing.assert_allclose(modal.H, direct.H, rtol=1e-7, atol=1e-9 * np.abs(direct.H).max())
+        at_iw = frf_modal(s, f, resp, ref, n_modes=s.n_dof, residual=False, quantity=quantity)
+        assert at_iw.window_beta_per_s == 0.0
+        assert np.abs(at_iw.H - direct.H).max() > 1e-2 * np.abs(direct.H).max()
+        assert m.frf(f, resp, ref, quantity=quantity, beta=beta).window_beta_per_s == beta   # the older keyword
+        with pytest.raises(ModalabValueError, match="window_beta_per_s"):
+            frf_modal(s, f, resp, ref, window_beta_per_s=-1.0)
+
     def test_modal_damping_table_gives_peak_height(self):
         # a single-DOF oscillator: m = 2 kg, k = 8e4 N/m; ζ = 2 % from a table
         from updating.fe import FEModel, Spring

@@ -49,8 +49,9 @@ Solvers (:mod:`updating.fe.solvers`)
 solver="auto"|"splu"|"cholmod", permc_spec="MMD_AT_PLUS_A", info=None)``,
 ``normal_modes(K, M, n_modes, method="auto")`` → (ω rad/s, mass-normalised Φ);
 ``modes_of(system, n_modes, full=True, modal_damping=None)`` → ModeSet;
-``frf_direct(system, freq_hz, responses, references, quantity)`` and
-``frf_modal(system, freq_hz, responses, references, n_modes=, residual=True, modal_damping=None)`` → FRF.
+``frf_direct(system, freq_hz, responses, references, quantity, beta=0)`` and
+``frf_modal(system, freq_hz, responses, references, n_modes=, residual=True, modal_damping=None,
+window_beta_per_s=0)`` → FRF, at ``s = iω + β`` for data taken with an exponential window (β on the result).
 
 Damping (:mod:`updating.fe.damping`)
 ------------------------------------

@@ -274,24 +274,29 @@ class FEModel:
         return modes_of(self.system(), n_modes, full=full, modal_damping=self.modal_damping, **kw)
 
     def frf(self, freq_hz, responses=None, references=None, *, quantity: str = "accelerance",
-            method: str = "direct", n_modes: int | None = None, residual: bool = True, beta: float = 0.0):
+            method: str = "direct", n_modes: int | None = None, residual: bool = True, beta: float = 0.0,
+            window_beta_per_s: float | None = None):
         """FRFs between any model DOFs: ``method='direct'`` (exact sparse solves) or ``'modal'``
         (``n_modes`` modes, the model's ``modal_damping`` table if set, residual flexibility).
-        ``beta`` (direct only): evaluate at ``s = iω + β``, as data measured with an exponential window of
-        decay rate β (1/s) are.
+        ``window_beta_per_s`` (or its older name ``beta``; 1/s, default 0): evaluate at ``s = iω + β``, as data
+        measured with an exponential window of decay rate β are (pass the measured FRF's
+        ``window_beta_per_s``); the result carries β.
 
         See :func:`updating.fe.solvers.frf_direct` and :func:`~updating.fe.solvers.frf_modal`.
         """
+        if window_beta_per_s is not None:
+            if beta and beta != window_beta_per_s:
+                raise ModalabValueError(f"beta={beta!r} and window_beta_per_s={window_beta_per_s!r} differ; give "
+                                        "one (window_beta_per_s, the FRF's field)")
+            beta = window_beta_per_s
         system = self.system()
         if method == "direct":
             if self.modal_damping is not None:
                 log.warning("model %r has a modal damping table, which direct FRFs cannot use; use "
                             "method='modal' to apply it", self.name)
             return frf_direct(system, freq_hz, responses, references, quantity=quantity, beta=beta)
-        if beta:
-            raise ModalabValueError("beta (an exponential window's s = iω + β) needs method='direct'")
         if method == "modal":
             return frf_modal(system, freq_hz, responses, references, n_modes=n_modes, residual=residual,
-                             modal_damping=self.modal_damping, quantity=quantity)
+                             modal_damping=self.modal_damping, quantity=quantity, window_beta_per_s=beta)
         raise ModalabValueError(f"method {method!r}; expected 'direct' or 'modal'")
 

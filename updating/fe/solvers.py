@@ -292,13 +292,18 @@ def frf_direct(system, freq_hz, responses=None, references=None, quantity: str =
 
 def frf_modal(system, freq_hz, responses=None, references=None, *, n_modes: int | None = None,
               residual: bool = True, modal_damping=None, quantity: str = "accelerance",
-              shift: float | None = None, shift_hz: float | None = None, modes=None) -> FRF:
+              shift: float | None = None, shift_hz: float | None = None, modes=None,
+              window_beta_per_s: float = 0.0) -> FRF:
     """FRFs by modal superposition of the lowest ``n_modes`` modes, optionally with residual flexibility.
 
     H(ω) = Σ_r φ_r φ_rᵀ / (ω_r² − ω² + i d_r + i ω c_r) + R, where c_r, d_r
     are the diagonal modal damping terms (or 2ζ_rω_r from ``modal_damping``)
     and R the static residual of the omitted modes at the negative shift σ
     (module docstring).  ``modes`` may pass a precomputed (ω, Φ) on the a-set.
+
+    ``window_beta_per_s`` β (1/s, default 0): evaluate at ``s = iω + β`` (``ω_r² + s² + i d_r + s c_r``, the
+    quantity's factor ``s^q``), as :func:`frf_direct` does for data taken with an exponential window; the
+    result carries β.
     """
     q = check_quantity(quantity)
     freq = np.atleast_1d(np.asarray(freq_hz, float))
@@ -319,7 +324,15 @@ def frf_modal(system, freq_hz, responses=None, references=None, *, n_modes: int 
     Pr = np.asarray(Tr @ phi)
     Pf = np.asarray(Tf @ phi)
     w = 2 * np.pi * freq
-    den = omega[:, None] ** 2 - w[None, :] ** 2 + 1j * dr[:, None] + 1j * w[None, :] * cr[:, None]
+    beta = float(window_beta_per_s)
+    if not np.isfinite(beta) or beta < 0:
+        raise ModalabValueError(f"window_beta_per_s={window_beta_per_s!r} must be finite and >= 0 (the "
+                                "exponential window's decay rate, 1/s)")
+    if beta:                                          # s = iω + β; β = 0 keeps the iω arithmetic below
+        s = 1j * w + beta
+        den = omega[:, None] ** 2 + s[None, :] ** 2 + 1j * dr[:, None] + s[None, :] * cr[:, None]
+    else:
+        den = omega[:, None] ** 2 - w[None, :] ** 2 + 1j * dr[:, None] + 1j * w[None, :] * cr[:, None]
     with np.errstate(divide="ignore", invalid="ignore"):
         H = np.einsum("or,ir,rf->oif", Pr, Pf, 1.0 / den, optimize=True)
     if residual:
@@ -329,7 +342,7 @@ def frf_modal(system, freq_hz, responses=None, references=None, *, n_modes: int 
         X = _restore(f.solve(Fk if keep is None else Fk[keep]), keep, Fk.shape[0])
         R = np.asarray(Tr @ X) - (Pr / (omega ** 2 - sigma)[None, :]) @ Pf.T
         H = H + R[:, :, None]
-    H = H * ((1j * w) ** _ORDER[q])[None, None, :]
+    H = H * ((1j * w + beta if beta else 1j * w) ** _ORDER[q])[None, None, :]
     return FRF(freq_hz=freq, H=H, responses=resp, references=refs, quantity=q, units=QUANTITY_UNITS[q],
                metadata={"estimator": "exact", "source": "updating.fe.frf_modal", "n_modes": int(omega.size),
-                         "residual": bool(residual)})
+                         "residual": bool(residual)}, window_beta_per_s=beta)
