@@ -277,7 +277,8 @@ def stage_identify(ctx: _Context) -> tuple[list, dict]:
     d = ctx.dir("identify")
     o = ctx.project.options["identify"]
     opts = stages.IdentifyOptions(band_hz=o["band_hz"], max_order=o["max_order"], select=o["select"],
-                                  weighting=o["weighting"])
+                                  weighting=o["weighting"], band_option="[identify] band_hz",
+                                  band_source=str(ctx.project.path))
     r = stages.identify(ctx.out / "frf" / "frf.uff", d / "modes.uff", opts, json_path=d / "modes.json",
                         plots_dir=d, report_path=d / "identification.json")
     return list(r.files), r.summary
@@ -320,6 +321,7 @@ def stage_diagnose(ctx: _Context) -> tuple[list, dict]:
     opts = stages.DiagnoseOptions(
         parameters=str(ctx.project.resolve(o["parameters"])) if o["parameters"] else None,
         band_hz=o["band_hz"] or ctx.project.options["identify"]["band_hz"], max_lines=o["max_lines"],
+        band_option="[diagnose] band_hz" if o["band_hz"] else "[identify] band_hz", band_source=str(ctx.project.path),
         max_findings=o["max_findings"], max_nfev=o["max_nfev"], holdout=o["holdout"], kinds=o["kinds"],
         overlay_dofs=ctx.project.options["report"]["frf_dofs"])
     modes = ctx.out / "identify" / "modes.uff"     # the identified modes give the frequency and MAC columns

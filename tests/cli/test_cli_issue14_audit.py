@@ -242,6 +242,66 @@ def test_a_project_band_in_khz_is_refused_naming_band_hz(one_point_frf, tmp_path
     assert list(tmp_path.iterdir()) == []
 
 
+def _band_project(tmp_path, one_point_frf, section_text):
+    d = tmp_path / "proj"
+    d.mkdir()
+    (d / "measured.uff").write_bytes(one_point_frf.read_bytes())
+    (d / "nominal.bdf").write_bytes((DEMO / "nominal.bdf").read_bytes())
+    p = d / "p.toml"
+    p.write_text('[project]\nname = "band"\n[test]\nfrf = "measured.uff"\n[model]\nbulk = "nominal.bdf"\n'
+                 + section_text)
+    return p
+
+
+@pytest.mark.parametrize("band, expect", [
+    ("[0.005, 0.7]", "the band is in Hz, not kHz: give [identify] band_hz = [5, 700]"),
+    ("[900, 2000]", "give a band below 800 Hz (the top line: fs/2.56), e.g. [identify] band_hz = [5, 720]"),
+])
+def test_a_project_identify_band_out_of_range_names_the_file_and_key(one_point_frf, tmp_path, capsys, band, expect):
+    """A project's [identify] band_hz in kHz (or beyond the data) was refused as '--band 0.005 0.7 Hz holds 2
+    lines ... give --band 5 700': an option the user never typed; now the project file and its key."""
+    p = _band_project(tmp_path, one_point_frf, f"[identify]\nband_hz = {band}\n")
+    capsys.readouterr()
+    assert main(["run", str(p), "-o", str(tmp_path / "out")]) == 2
+    err = _one_line(capsys)
+    lo, hi = (float(x) for x in band.strip("[]").split(","))
+    assert f"{p}: [identify] band_hz = [{lo:g}, {hi:g}] Hz holds" in err and expect in err, err
+    assert "--band" not in err, err
+    assert not (tmp_path / "out" / "identify" / "modes.uff").exists()
+
+
+def test_a_project_band_edge_warning_names_the_project_key(one_point_frf, tmp_path, caplog):
+    p = _band_project(tmp_path, one_point_frf, "[identify]\nband_hz = [5, 700]\n")
+    from modalab.app.project import load_project
+    import modalab.app.run as R
+    proj = load_project(p)
+    out = tmp_path / "out"
+    (out / "frf").mkdir(parents=True)
+    (out / "frf" / "frf.uff").write_bytes(one_point_frf.read_bytes())
+    with caplog.at_level("WARNING"):
+        R.stage_identify(R._Context(proj, out, "sim", None))
+    cut = [r.getMessage() for r in caplog.records if "sits at the band's" in r.getMessage()]
+    assert len(cut) == 1 and f"e.g. [identify] band_hz = [8, 700] in {p}" in cut[0] and "--band" not in cut[0], cut
+
+
+@pytest.mark.parametrize("own", [True, False])
+def test_a_project_diagnose_band_in_khz_names_the_file_and_the_key_it_came_from(one_point_frf, tmp_path, own):
+    """The diagnose stage of a run takes [diagnose] band_hz, else [identify] band_hz: the refusal names that."""
+    from modalab.app.project import load_project
+    from modalab.core.errors import ModalabValueError
+    import modalab.app.run as R
+    sec = "[diagnose]\nband_hz = [0.002, 0.08]\n" if own else "[identify]\nband_hz = [0.002, 0.08]\n"
+    p = _band_project(tmp_path, one_point_frf, sec)
+    out = tmp_path / "out"
+    (out / "frf").mkdir(parents=True)
+    (out / "frf" / "frf.uff").write_bytes(one_point_frf.read_bytes())
+    with pytest.raises(ModalabValueError) as e:
+        R.stage_diagnose(R._Context(load_project(p), out, "sim", None))
+    key = "[diagnose] band_hz" if own else "[identify] band_hz"
+    msg = str(e.value)
+    assert msg.startswith(f"{p}: {key} = [0.002, 0.08] Hz holds") and f"give {key} = [2, 80]" in msg, msg
+
+
 @pytest.mark.parametrize("kinds", [["local_damping"], ["joint_flexibility", "added_mass"]])
 def test_a_modes_only_diagnosis_refuses_kinds_it_cannot_judge(tmp_path, capsys, freqs, kinds):
     """diagnose --modes --kinds local_damping said 'Nothing is missing beyond parameter error' without looking

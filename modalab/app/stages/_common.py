@@ -144,10 +144,11 @@ def load_parameters(path, model=None) -> tuple[list, np.ndarray, np.ndarray]:
 MIN_BAND_LINES = 16
 
 
-def check_band_lines(H, band, frf_path, option: str = "--band") -> None:
+def check_band_lines(H, band, frf_path, option: str = "--band", source=None) -> None:
     """Refuse, in one line, a band (Hz) that holds fewer than :data:`MIN_BAND_LINES` lines of the FRFs ``H`` read
     from ``frf_path`` (a band given in kHz, ``--band 0.005 0.7`` for 5-700 Hz; or one beyond the data's top line);
-    ``option`` names it in the message."""
+    ``option`` names it in the message (a command-line option, or a project key such as ``[identify] band_hz``),
+    ``source`` the file that gave it (a project file), when not the command line."""
     if not band:
         return
     lo, hi = float(band[0]), float(band[1])
@@ -168,7 +169,7 @@ def check_band_lines(H, band, frf_path, option: str = "--band") -> None:
         todo = f"the band is in Hz, not kHz: give {as_given(1e3 * lo, 1e3 * hi)}"
     else:
         todo = f"give a wider band, e.g. {as_given(max(f[0], 1.0), top)}"
-    raise ModalabValueError(f"{as_given(lo, hi)} Hz holds {n} frequency line(s) ({data}); a band needs at least "
+    raise ModalabValueError(f"{str(source) + ': ' if source else ''}{as_given(lo, hi)} Hz holds {n} frequency line(s) ({data}); a band needs at least "
                             f"{MIN_BAND_LINES}: {todo}")
 
 

@@ -44,6 +44,8 @@ class DiagnoseOptions:
     overlay_dofs: tuple | None = None
     dofmap: str | None = None              # modes-only: DOF map file (test DOF -> model DOF), as for correlate
     ignore_unsupported: bool = False       # build the model without structural cards it cannot model
+    band_option: str = "band_hz"           # how the band was given, for messages (a project key)
+    band_source: str | None = None         # the file that gave it (a project file)
 
     def __post_init__(self):
         for k in ("band_hz", "kinds", "overlay_dofs"):
@@ -84,7 +86,7 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
     else:
         H = _read_measured(frf_path)
         if opts.band_hz:
-            check_band_lines(H, opts.band_hz, frf_path, option="band_hz")
+            check_band_lines(H, opts.band_hz, frf_path, option=opts.band_option, source=opts.band_source)
         H = _band(H, opts.band_hz) if opts.band_hz else H
         kw = {k: getattr(opts, k) for k in ("max_lines", "max_findings", "max_nfev", "holdout")
               if getattr(opts, k) is not None}

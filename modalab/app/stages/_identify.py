@@ -28,6 +28,8 @@ class IdentifyOptions:
     reciprocity: bool | None = None       # None: automatic for a roving-hammer export; False: as given
     exp_beta: float | None = None         # the exponential window's decay (1/s) when the file does not say
     force_window: bool = False            # use exp_beta even when the file carries another beta
+    band_option: str = "--band"           # how the band was given, for messages: an option or a project key
+    band_source: str | None = None        # the file that gave it (a project file), None: the command line
     select_tol: float | None = None       # relative window around each frequency of a manual selection
 
     def __post_init__(self):
@@ -38,14 +40,17 @@ class IdentifyOptions:
 
 
 
-def _warn_edges(full, H, frf_path) -> None:
-    """Warn for each resonance of the data that an edge of the band cuts (:func:`edge_resonances`)."""
+def _warn_edges(full, H, frf_path, opts: IdentifyOptions = IdentifyOptions()) -> None:
+    """Warn for each resonance of the data that an edge of the band cuts (:func:`edge_resonances`); the fix is
+    said as the band was given (``--band LO HI``, or ``[identify] band_hz = [LO, HI]`` in the project file)."""
     for r in edge_resonances(full.freq_hz, full.H, (H.freq_hz[0], H.freq_hz[-1])):
         lo, hi = H.freq_hz[0], H.freq_hz[-1]
         fix = ""
         if r["suggest_hz"] is not None:
             new = (r["suggest_hz"], hi) if r["edge"] == "lower" else (lo, r["suggest_hz"])
-            fix = f"; move the edge past it, e.g. --band {new[0]:g} {new[1]:g}"
+            fix = (f"; move the edge past it, e.g. --band {new[0]:g} {new[1]:g}" if opts.band_option.startswith("-")
+                   else f"; move the edge past it, e.g. {opts.band_option} = [{new[0]:g}, {new[1]:g}]"
+                   + (f" in {opts.band_source}" if opts.band_source else ""))
         log.warning("%s: a resonance at %.4g Hz (half-power width %.2g Hz) sits at the band's %s edge %g Hz: the "
                     "band cuts it, so it is not identified and biases its neighbours%s", frf_path, r["freq_hz"],
                     r["width_hz"], r["edge"], r["edge_hz"], fix)
@@ -65,10 +70,10 @@ def identify(frf_path, out_uff, opts: IdentifyOptions = IdentifyOptions(), *, js
 
 
     full = uff.read_frf(frf_path)
-    check_band_lines(full, opts.band_hz, frf_path)
+    check_band_lines(full, opts.band_hz, frf_path, option=opts.band_option, source=opts.band_source)
     H = _band(full, opts.band_hz)
     if opts.band_hz:
-        _warn_edges(full, H, frf_path)
+        _warn_edges(full, H, frf_path, opts)
     sel = list(opts.select) if isinstance(opts.select, tuple) else opts.select
     selection = SelectionOptions() if opts.select_tol is None else SelectionOptions(manual_tol=opts.select_tol)
     try:
