@@ -44,8 +44,6 @@ from modalab.core.errors import PlanError
 from modalab.app.outputs import write_json, write_text
 from modalab.app.project import STAGES, Project, load_project
 from acquisition.plan import load_plan
-from acquisition.session import AcquisitionSession
-from hardware_sim.bench import lab_from_sim
 
 log = logging.getLogger(__name__)
 
@@ -196,15 +194,11 @@ def _plan_with(project: Project):
     return load_plan(project.plan_path)
 
 
-def _sim_lab(ctx: _Context, plan):
-    """The simulated bench: the project's truth builder, else the plan's [sim] structure (:mod:`modalab.app.stages`)."""
+def _truth_lab(ctx: _Context, plan):
+    """The simulated bench carrying the project's ``[test] truth`` structure (:func:`modalab.app.stages.make_sim_backend`)."""
     t = ctx.project.options["test"]
     seed = t["seed"] if t["seed"] is not None else plan.sim.get("seed", 1)
-    if not t["truth"]:
-        return stages.make_sim_backend(plan, seed=seed)
-
-    return lab_from_sim(plan.sim, load_truth(t["truth"]), channel_names=[c.name for c in plan.channels], seed=seed,
-                        source=plan.source)
+    return stages.make_sim_backend(plan, seed=seed, structure=load_truth(t["truth"]))
 
 
 class _AcquireObserver:
@@ -232,22 +226,17 @@ class _AcquireObserver:
 def stage_acquire(ctx: _Context, resume: bool) -> tuple[list, dict]:
     """Run the test plan (automatic mode) and export ``acquire/session.uff`` (raw hits, FRFs, geometry).
 
-    With a ``[test] truth`` builder and the sim backend, the simulated bench carries that structure; otherwise
-    :func:`modalab.app.pipeline.acquire` runs the plan on the plan's own [sim] structure or on NI hardware.
+    :func:`modalab.app.stages.acquire` runs the plan on the plan's own [sim] structure or on NI hardware; with a
+    ``[test] truth`` builder and the sim backend, on a simulated bench carrying that structure.
     """
     d = ctx.dir("acquire")
     plan = _plan_with(ctx.project)
-    obs = _AcquireObserver(ctx)
-    if ctx.backend == "sim" and ctx.project.options["test"]["truth"]:
-        be = _sim_lab(ctx, plan)
-        sess = AcquisitionSession(plan, be, d / "session", mode="auto", observer=obs, resume=resume)
-        try:
-            summary = sess.run()
-        finally:
-            be.close()
-    else:
-        sess, summary, _ = stages.acquire(ctx.project.plan_path, d / "session", backend=ctx.backend, auto=True,
-                                          resume=resume, observer=obs, seed=ctx.project.options["test"]["seed"])
+    truth = ctx.backend == "sim" and bool(ctx.project.options["test"]["truth"])
+    # export=False with a truth bench: its session folder never held a copy of session.uff (exported below)
+    sess, summary, _ = stages.acquire(ctx.project.plan_path, d / "session",
+                                      backend=_truth_lab(ctx, plan) if truth else ctx.backend, auto=True,
+                                      resume=resume, observer=_AcquireObserver(ctx),
+                                      seed=ctx.project.options["test"]["seed"], export=not truth)
     if not summary.complete:
         raise PlanError(f"the acquisition did not complete ({summary.table()}); run again to continue")
     out = sess.export(d / "session.uff")

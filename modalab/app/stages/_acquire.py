@@ -20,15 +20,16 @@ from acquisition.instruments import AutoHammer, LineTransport
 log = logging.getLogger(__name__)
 
 
-def make_sim_backend(plan, *, seed: int | None = None):
+def make_sim_backend(plan, *, seed: int | None = None, structure=None):
     """A simulated DAQ (:class:`hardware_sim.lab.SimulatedLab`) for a test plan, from the plan's ``[sim]`` section.
 
     The keys are read by :func:`hardware_sim.bench.lab_from_sim` (listed there); ``structure`` is 'demo' or
-    a bulk-data file, loaded here.  With a ``[hammer] url = "simhammer://NAME"`` the lab's hammer is
-    automatic and the simulated serial hammer fires it.
+    a bulk-data file, loaded here, unless a ready Structure is given (``modalab run``'s ``[test] truth``
+    builder).  With a ``[hammer] url = "simhammer://NAME"`` the lab's hammer is automatic and the simulated
+    serial hammer fires it.
     """
 
-    st, _ = _sim_structure(plan.sim.get("structure", "demo"))
+    st = _sim_structure(plan.sim.get("structure", "demo"))[0] if structure is None else structure
     automatic = str(plan.hammer.get("url", "")).startswith("simhammer://")
     lab = lab_from_sim(plan.sim, st, channel_names=[c.name for c in plan.channels], automatic=automatic, seed=seed,
                        source=plan.source, dofs=list(plan.points) + plan.fixed_dofs)
@@ -57,14 +58,16 @@ def _nidaqmx_backend():
 
 
 def acquire(plan_path, out_dir, *, backend: str = "sim", auto: bool = False, resume: bool = False,
-            prompter=None, observer=None, seed: int | None = None, on_ready=None, **session_kw):
+            prompter=None, observer=None, seed: int | None = None, on_ready=None, export: bool = True,
+            **session_kw):
     """Run ``modalab acquire``: returns (session, summary, exported UFF path or None).
 
     ``backend`` is 'sim' (the plan's ``[sim]`` section, :func:`make_sim_backend`), 'nidaqmx' or a ready
-    backend object.  Interactive mode (``auto=False``) needs a ``prompter``.  The UFF is exported when
-    every point is finished.  ``on_ready``: called without arguments once every check has passed (plan, backend,
-    hammer, session folder and resume), before the first hit (the CLI says there which backend runs).  Extra
-    keywords go to :class:`acquisition.session.AcquisitionSession`.
+    backend object.  Interactive mode (``auto=False``) needs a ``prompter``.  The UFF is exported into the
+    session folder when every point is finished (``export=False``: not here; the caller exports it).
+    ``on_ready``: called without arguments once every check has passed (plan, backend, hammer, session folder
+    and resume), before the first hit (the CLI says there which backend runs).  Extra keywords go to
+    :class:`acquisition.session.AcquisitionSession`.
     """
 
     plan = load_plan(plan_path)
@@ -87,7 +90,8 @@ def acquire(plan_path, out_dir, *, backend: str = "sim", auto: bool = False, res
         if on_ready is not None:
             on_ready()
         summary = sess.run()
-        exported = sess.export() if summary.complete and any(p.accepted for p in summary.points) else None
+        exported = sess.export() if export and summary.complete and any(p.accepted for p in summary.points) \
+            else None
     finally:
         be.close()
         if hammer is not None:
