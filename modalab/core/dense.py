@@ -33,6 +33,11 @@ by operation because the work does:
     step is computed from sparse factorisations (``jacobian='condensed'``); the limit is where the
     dense arrays (``F·n²`` complex values) stop fitting comfortably in memory.
 
+``NULL_SPACE_LIMIT`` (300) — the null space of the stiffness of a model's massless DOFs (the mechanisms
+    :mod:`modalab.core.eigen` constrains before the modes). Dense ``eigh`` returns every null vector in one
+    call, however many there are; above, shift-invert Lanczos around zero looks for them a few at a time,
+    which only pays for the large massless parts of a big model (a component is small in practice).
+
 :func:`use_dense` is the test every module applies.
 
 Not dense-versus-sparse choices, and so not here: where diagnosis replaces the exact model by a reduced
@@ -43,18 +48,21 @@ from __future__ import annotations
 
 from .errors import ModalabValueError
 
-__all__ = ["SOLVE_LIMIT", "EIGEN_LIMIT", "MODES_LIMIT", "PROJECTED_LIMIT", "use_dense"]
+__all__ = ["SOLVE_LIMIT", "EIGEN_LIMIT", "MODES_LIMIT", "PROJECTED_LIMIT", "NULL_SPACE_LIMIT", "use_dense"]
 
 SOLVE_LIMIT = 80
 EIGEN_LIMIT = 2000
 MODES_LIMIT = 600
 PROJECTED_LIMIT = 400
+NULL_SPACE_LIMIT = 300
 
-_LIMITS = {"solve": "SOLVE_LIMIT", "eigen": "EIGEN_LIMIT", "modes": "MODES_LIMIT", "projected": "PROJECTED_LIMIT"}
+_LIMITS = {"solve": "SOLVE_LIMIT", "eigen": "EIGEN_LIMIT", "modes": "MODES_LIMIT", "projected": "PROJECTED_LIMIT",
+           "null_space": "NULL_SPACE_LIMIT"}
 
 
 def use_dense(n: int, operation: str) -> bool:
-    """True when an ``operation`` ('solve', 'eigen', 'modes' or 'projected') on ``n`` DOFs uses dense matrices.
+    """True when an ``operation`` ('solve', 'eigen', 'modes', 'projected' or 'null_space') on ``n`` DOFs uses
+    dense matrices.
 
     The limits are read at call time, so a test may lower one (e.g. to 1) to exercise the sparse path.
     """

@@ -31,6 +31,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import connected_components
 
+from .dense import use_dense
 from .errors import ConvergenceError, ModalabValueError
 
 log = logging.getLogger(__name__)
@@ -45,8 +46,6 @@ DEFAULT_SHIFT_HZ = 1.0
 MASSLESS_TOL = 1e-13
 #: an eigenvalue of K_oo below this fraction of its largest diagonal entry is a mechanism
 MECHANISM_TOL = 1e-10
-#: massless components up to this size get a dense null space; larger ones shift-invert Lanczos
-_DENSE_NULL = 300
 #: seed of the fixed ARPACK start vector
 _V0_SEED = 20260416
 
@@ -88,7 +87,7 @@ def _null_space_psd(A) -> np.ndarray:
     d = float(np.abs(A.diagonal()).max(initial=0.0))
     if d <= 0:
         return np.eye(n)
-    if n <= _DENSE_NULL:
+    if use_dense(n, "null_space"):              # the one dense/sparse rule (modalab.core.dense)
         w, U = np.linalg.eigh(A.toarray() if sp.issparse(A) else np.asarray(A))
         return U[:, w <= MECHANISM_TOL * d]
     delta = 1e-6 * d
