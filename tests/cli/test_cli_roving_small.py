@@ -121,3 +121,18 @@ def test_report_builds_one_html_from_the_outputs_of_the_commands(roving, tmp_pat
     assert main(["report", ".", "-o", "r2"]) == 2
     err = capsys.readouterr().err
     assert "two identify outputs" in err and "other.json" in err and len(err.strip().splitlines()) == 1
+
+
+def test_update_says_the_mac_dof_warning_once(roving, capsys):
+    """update printed 'WARNING: the MAC rests on ...' twice, below the table before and the table after updating
+    (the test DOFs are the same in both)."""
+    assert main(["identify", str(roving / "roving.uff"), "--band", "5", "70", "--no-reciprocity", "-o",
+                 str(roving / "one3.uff"), "--json", str(roving / "one3.json")]) == 0
+    (roving / "k.toml").write_text('[[parameter]]\nname = "k1"\nfield = "k"\nelements = [21]\n')
+    capsys.readouterr()
+    assert main(["update", str(roving / "model.bdf"), "--modes", str(roving / "one3.json"), "--params",
+                 str(roving / "k.toml"), "-o", str(roving / "u")]) == 0
+    out = capsys.readouterr().out
+    assert out.count("WARNING: the MAC rests on 1 measured DOF") == 1, out
+    s = json.loads((roving / "u" / "update.json").read_text())
+    assert "1 measured DOF" in s["correlation_after"]["summary"]["mac_warning"]

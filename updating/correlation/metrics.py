@@ -177,8 +177,10 @@ class CorrelationResult:
             out["geometry_map"] = self.geometry
         return out
 
-    def table(self) -> str:
-        """Plain-text frequency and MAC comparison (1-based mode numbers), with how the pairs were made."""
+    def table(self, *, mac_warning: bool = True) -> str:
+        """Plain-text frequency and MAC comparison (1-based mode numbers), with how the pairs were made, and the
+        warning when the MAC rests on too few DOFs (``mac_warning=False``: without it, e.g. below a table that
+        gave it already)."""
         fa, fx = self.analysis.freq_hz, self.test.freq_hz
         ooo = set(self.pairing.out_of_order)
         lines = [f"DOFs: {self.dof_mapping}", f"pairing: {self.pairing.method}"]
@@ -223,7 +225,7 @@ class CorrelationResult:
                          + (f", min MAC {s['min_pair_mac']:.3f}" if s["min_pair_mac"] is not None else ""))
         else:
             lines.append("no pairs: " + self.pairing.method)
-        if s["mac_warning"]:
+        if s["mac_warning"] and mac_warning:
             lines.append("WARNING: " + s["mac_warning"])
         return "\n".join(lines)
 
