@@ -82,3 +82,27 @@ def test_the_check_sees_an_import_in_a_function(tmp_path):
     p.write_text("def f():\n    import sksparse  # lazy: optional\n    from rich import (  # lazy: drawing\n"
                  "        print)\n    import json\n")
     assert unexplained(p) == [5]
+
+
+def late_imports(text: str) -> list:
+    """Line numbers of module-level imports placed after the module's first function or class (an import moved
+    down to dodge a loop: modalab/app/report.py imported the report stage last, 'the stages import the figure
+    helpers above')."""
+    first, out = None, []
+    for node in ast.parse(text).body:
+        if first is None and isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            first = node.lineno
+        elif first is not None:
+            out += [n.lineno for n in ast.walk(node) if isinstance(n, (ast.Import, ast.ImportFrom))
+                    and not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef))]
+    return out
+
+
+def test_module_imports_come_before_the_code():
+    found = [f"{p.relative_to(ROOT).as_posix()}:{ln}" for pkg in CHECKED for p in sorted((ROOT / pkg).rglob("*.py"))
+             for ln in late_imports(p.read_text(encoding="utf-8"))]
+    assert found == [], "module-level imports after the first def/class (move them to the top): " + "; ".join(found)
+
+
+def test_the_check_sees_a_late_import():
+    assert late_imports("import os\n\ndef f():\n    import json\n\nfrom x import y  # noqa: E402\n") == [6]

@@ -34,9 +34,9 @@ def test_a_hit_figure_uses_one_time_unit():
 
 
 def test_the_overlay_title_fits_in_the_figure(monkeypatch):
-    from modalab.app import report as rep
+    from modalab.app import figures
 
-    monkeypatch.setattr(rep, "_save", lambda fig, path: fig)        # keep the figure to measure its title
+    monkeypatch.setattr(figures, "_save", lambda fig, path: fig)        # keep the figure to measure its title
     f = np.arange(1, 401) * 2.0
     H = (1e-3 + 10.0 / np.abs(1 - (f / 120.0) ** 2 + 0.02j))[None, None, :] * np.ones((4, 1, 1))
     curves = {"measured": FRF(freq_hz=f, H=H, responses=["1+Z", "3+Z", "4+Z", "5+Z"], references=["19+Z"])}

@@ -14,7 +14,7 @@ from updating.diagnosis import diagnose as _diagnose
 from updating.diagnosis import diagnose_modes
 from updating.fe.bulk import to_bulk, write_bdf
 from updating.diagnosis.report import write_figures
-from modalab.app.report import plot_frf_overlays
+from modalab.app.figures import plot_frf_overlays
 from updating.fe.parameter_file import read_priors
 from updating.diagnosis.modes import map_test_modes
 from modalab.core import uff

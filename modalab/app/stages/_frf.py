@@ -15,7 +15,7 @@ from acquisition.spectral import estimate_frf_roving
 from acquisition.plan import exponential_window
 from acquisition.windows import ForceWindow
 from modalab.core.plots import plot_frf
-from modalab.app.report import plot_coherence_map
+from modalab.app.figures import plot_coherence_map
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ screening's ranking, candidates turned down and why), test overview (geometry wi
 coherence map, reciprocity), stabilisation diagram, mode table with indicators (units and a legend), MAC
 before and after updating, frequency 45° plots, parameter convergence, FRF overlays.  A section whose stage
 did not run says so.  :func:`report` is the stage function (``modalab run``); the figures the other stages
-draw for it are in :mod:`modalab.app.report`.
+draw for it are in :mod:`modalab.app.figures`.
 """
 from __future__ import annotations
 
