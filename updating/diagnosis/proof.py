@@ -12,7 +12,7 @@ import numpy as np
 from modalab.core.errors import ModalabError
 from updating.diagnosis.fit import chi2_per_value, frf_error, model_frf
 from updating.diagnosis.screen import residual_map
-from updating.diagnosis.priors import AT_PRIOR_Z, SectionLossFactor, loss_factor_totals, nonnegative_loss_factors
+from updating.diagnosis.priors import AT_PRIOR_Z, SectionLossFactor, loss_factor_totals
 from updating.diagnosis.terms import _same_place, _evidence
 from updating.diagnosis.findings import Finding, Diagnosis, statement
 from updating.diagnosis.testmodes import peak_modes, pair_test_modes, _paired_frequencies, _mode_metrics
@@ -79,11 +79,7 @@ class _Proof:
         st_upd, st_fin = self.pm.structure(self.upd.p), self.best_pm.structure(self.best_fit.p)
         maps = {"freq_hz": self.train.freq_hz, "responses": [str(d) for d in self.train.responses],
                 "before": residual_map(st_upd, self.train), "after": residual_map(st_fin, self.train)}
-        p_write, raised = nonnegative_loss_factors(self.params, self.best_fit.p, self.model0.global_ge)
-        if raised:
-            log.warning("the fitted loss factor of %s is negative in all (model-wide factor plus the group's offset): "
-                        "written as 0 in the diagnosed model", ", ".join(raised))
-        final_model = self.best_pm.model_at(p_write) if hasattr(self.best_pm, "model_at") else self.model0
+        final_model = self.best_pm.model_at(self.best_fit.p) if hasattr(self.best_pm, "model_at") else self.model0
         try:
             curves, freqs = self._overlays(findings)
         except (ModalabError, np.linalg.LinAlgError) as e:  # pragma: no cover - figures are a by-product
@@ -140,10 +136,8 @@ class _Proof:
             if isinstance(par, SectionLossFactor):     # an offset: the group's total is what a reader wants
                 tot = {key: loss_factor_totals(self.params, pv, self.model0.global_ge)[par.name][1]
                        for key, pv in (("initial", self.p_nomd), ("updated", fit.p), ("parameters_only", upd.p))}
-                # the deck is written with the updated total, never negative (nonnegative_loss_factors); the
-                # start and the parameters-only fit are reported as they are
-                pars[par.name]["total"] = {**tot, "updated": max(tot["updated"], 0.0),
-                                           "raised_to_zero": bool(tot["updated"] < 0), "offset_of": next(
+                # never negative: each of the three fits is bounded at 0 in all (nonnegative_loss_factors)
+                pars[par.name]["total"] = {**tot, "offset_of": next(
                     (q.name for q in self.params if q.field == "global_ge"), "PARAM G"),
                     "properties": [str(x) for x in par.properties]}
             if abs(z_fin[k]) > AT_PRIOR_Z or abs(z_upd[k]) > AT_PRIOR_Z:

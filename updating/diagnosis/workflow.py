@@ -58,7 +58,7 @@ from updating.diagnosis.frfscreen import frf_screen
 from updating.diagnosis.library import _nodes_of, build_library, validate_kinds
 from updating.diagnosis.release import release_screen, release_visibility
 from updating.diagnosis.screen import mci_update, rank_candidates, residual_system
-from updating.diagnosis.priors import default_parameters, PRIOR_BOUND, parameter_priors, _with_damping, _split, _bounds, _fit_continued
+from updating.diagnosis.priors import default_parameters, PRIOR_BOUND, parameter_priors, _with_damping, _split, _bounds, _fit_continued, nonnegative_loss_factors
 from updating.diagnosis.terms import _another_explanation, DAMPING_PLACES, _distinct_places, cv_folds, n_obs, promote_measured, _on_model_dofs, _dof_stiffness, _upper, _augment
 from updating.diagnosis.testmodes import suspension_band
 from updating.diagnosis.findings import Finding, Diagnosis
@@ -172,6 +172,8 @@ class Diagnoser(_Acceptance, _Refine, _Proof):
         self.free_d[len(params) - len(damp):] = True
         self.nom = fit_frf(pm, self.train, self.p_nom, lower=self.lo, upper=self.hi, free=self.free_d,
                            max_nfev=cfg.max_nfev)
+        self.nom, _ = nonnegative_loss_factors(pm, self.train, self.nom, self.lo, self.hi, free=self.free_d,
+                                               model_ge=model.global_ge, max_nfev=cfg.max_nfev)
         self.p_nomd = self.nom.p
         self._mesh = None                              # the beam mesh's own error, when a term needs it
         # the parameters' priors (MAP fits from here on): one prior σ weighs as much as an average independent
@@ -503,6 +505,14 @@ class Diagnoser(_Acceptance, _Refine, _Proof):
             self.upd = upd2
         while len(self.current) > 1 and self._eliminate():
             pass
+        # no group's loss factor in all below 0 in the fits that are reported and written
+        self.upd, _ = nonnegative_loss_factors(self.pm, self.train, self.upd, self.lo, self.hi, prior=self.prior,
+                                               model_ge=self.model0.global_ge, max_nfev=cfg.max_nfev)
+        if self.current:
+            self.best_fit, _ = nonnegative_loss_factors(
+                self.best_pm, self.train, self.best_fit, np.r_[self.lo, np.zeros(len(self.current))],
+                np.r_[self.hi, _upper(self.current, self.best_scales)], prior=self.prior,
+                model_ge=self.model0.global_ge, max_nfev=cfg.max_nfev)
         n_f = n_obs(self.train)
         gain = np.log(self.upd.error ** 2 / max(self.best_fit.error ** 2, 1e-300))
         if self.current and not (self.best_fit.error < self.upd.error and

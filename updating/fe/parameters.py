@@ -101,6 +101,16 @@ class Parameter:
                                     "properties=, elements=/groups= (got "
                                     f"{n_sel}); or a model-wide field {GLOBAL_FIELDS}")
 
+    def model_value(self, value, model: FEModel):
+        """The value set on the selected objects for the parameter value ``value`` (``mode='value'``), on
+        ``model`` with the model-wide parameters already applied: ``value`` itself.  A subclass may define its
+        value relative to a model-wide quantity (the inverse is :meth:`parameter_value`)."""
+        return value
+
+    def parameter_value(self, model_value, model: FEModel):
+        """The parameter value of the objects' value ``model_value`` on ``model`` (inverse of :meth:`model_value`)."""
+        return model_value
+
 
 # ------------------------------------------------------------------ targets
 def _section_has(section, field):
@@ -272,7 +282,7 @@ class ParametricFEModel:
             if not np.allclose(vals, vals[0], rtol=1e-12, atol=0):
                 raise ModalabValueError(f"parameter {par.name!r} (mode='value') selects objects with different "
                                         f"nominal {par.field} values {vals[:5]}; use mode='factor' or split it")
-            nominal.append(float(np.real(vals[0])))
+            nominal.append(float(np.real(par.parameter_value(vals[0], model))))
         self.nominal = np.asarray(nominal, float)
         self.p0 = self.nominal.copy() if p0 is None else np.asarray(p0, float)
         if self.p0.shape != (len(self.parameters),):
@@ -315,7 +325,7 @@ class ParametricFEModel:
                     old = _get(m, kind, key, par.field)
                     new = old * v
                 else:
-                    new = v
+                    new = par.model_value(v, m)
                 _set(m, kind, key, par.field, new, fresh)
         return m
 
