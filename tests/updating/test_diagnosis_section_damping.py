@@ -82,3 +82,31 @@ def test_a_section_loss_factor_in_all_is_never_fitted_negative():
     assert min(tot["initial"], tot["updated"], tot["parameters_only"]) >= 0
     m = d.diagnosis_.model
     assert m.global_ge + m.prop(2).ge == pytest.approx(tot["updated"], abs=1e-12)
+
+
+def test_the_constrained_refit_stays_in_the_box_of_the_offsets():
+    """The refit varies each group's total (bounded at 0); its result, back in offsets, also respects the
+    offsets' own bounds (an offset above its bound is set to it and the error re-evaluated there)."""
+    from updating.diagnosis import frf_data, frf_error, model_frf
+    from updating.diagnosis.fit import FitResult
+    from updating.diagnosis.priors import nonnegative_loss_factors
+    from updating.fe import ParametricFEModel
+
+    nominal = _two_sections()
+    params = default_parameters(nominal)
+    extra, start = _with_damping(nominal, params)
+    pm = ParametricFEModel(nominal, params + extra)
+    data = frf_data(_measured(_two_sections(0.0, 0.03)), max_lines=60)
+    lo, hi = _bounds(params + extra, [1.0] * len(params) + start)
+    hi[-1] = 0.02                       # the truth's offset (0.03, with eta_global 0) lies above it
+    p = np.array([1.0] * len(params) + [0.02, -0.03])  # the tip's total -0.01
+    out, low = nonnegative_loss_factors(pm, data, FitResult(p, np.zeros(p.size), 1.0, [], True, ""), lo, hi,
+                                        model_ge=0.0, max_nfev=20)
+    g, o = out.p[-2:]
+    assert low == ["eta_tip"] and g + o >= 0 and lo[-1] <= o <= hi[-1] and 0 <= g <= hi[-2], (g, o)
+    assert o == hi[-1] and g < 0.01, (g, o)             # eta_global fell in the refit: the offset set to its bound
+    assert out.error == pytest.approx(frf_error(model_frf(pm.structure(out.p), data), data), rel=1e-12)
+    # nothing below 0: the fit comes back as it is
+    p_ok = np.r_[p[:-1], -0.005]                        # the tip's total 0.015
+    same, low = nonnegative_loss_factors(pm, data, FitResult(p_ok, p * 0, 1.0, [], True, ""), lo, hi, model_ge=0.0)
+    assert low == [] and same.error == 1.0

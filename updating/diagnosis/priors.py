@@ -11,7 +11,7 @@ import numpy as np
 from modalab.core.errors import ModalabValueError
 
 from updating.fe import FEModel, Parameter, ParametricFEModel
-from updating.diagnosis.fit import FitResult, FRFData, Prior, fit_frf, fit_std
+from updating.diagnosis.fit import FitResult, FRFData, Prior, fit_frf, fit_std, frf_error, model_frf
 
 log = logging.getLogger(__name__)
 
@@ -117,7 +117,9 @@ def nonnegative_loss_factors(pm, data: FRFData, fit: FitResult, lower, upper, *,
     total fall below 0 (model-form error: the brace of the planar-frame case026 asked for -0.0005, the demo's
     fuselage for -0.02), the fit is repeated from there, with those totals raised to 0, in the coordinates
     (``eta_global``, each group's total), where ``total >= 0`` is a bound, and returned in the offsets again
-    (their std from the data at that point)."""
+    (their std from the data at that point).  A total's upper bound there is the offset's upper bound plus
+    the fit's ``eta_global``; an offset that still ends above its own bound (``eta_global`` fell in the
+    refit) is set to it, so that the result lies in the box every other fit of the offsets uses."""
     params = list(pm.parameters)
     totals = loss_factor_totals(params, fit.p, model_ge)
     low = [name for name, (_, t) in totals.items() if t < 0]
@@ -125,14 +127,14 @@ def nonnegative_loss_factors(pm, data: FRFData, fit: FitResult, lower, upper, *,
         return fit, []
     ig = next((k for k, par in enumerate(params) if par.field == "global_ge"), None)
     lo, hi = np.array(lower, float), np.array(upper, float)
-    g_hi = hi[ig] if ig is not None else 0.0
+    g_fit = float(fit.p[ig]) if ig is not None else float(model_ge or 0.0)
     q, qlo, qhi = np.array(fit.p, float), lo.copy(), hi.copy()
     q_params = list(params)
     mean, sig = (np.array(prior.mean, float), np.array(prior.sigma, float)) if prior is not None else (None, None)
     for k, par in enumerate(params):
         if isinstance(par, SectionLossFactor):
             q_params[k] = _GroupLossFactorTotal(par.name, par.field, properties=par.properties, mode="value")
-            q[k], qlo[k], qhi[k] = max(totals[par.name][1], 0.0), 0.0, g_hi + hi[k]
+            q[k], qlo[k], qhi[k] = max(totals[par.name][1], 0.0), 0.0, max(g_fit + hi[k], 0.0)
             if mean is not None and k < mean.size and ig is not None:
                 mean[k] += mean[ig]                  # a prior on the offset, as one on the total
     pm_q = ParametricFEModel(pm.model, q_params)
@@ -140,15 +142,20 @@ def nonnegative_loss_factors(pm, data: FRFData, fit: FitResult, lower, upper, *,
     refit = fit_frf(pm_q, data, q, lower=qlo, upper=qhi, free=free, max_nfev=max_nfev, prior=prior_q)
     p = np.array(refit.p, float)
     g = p[ig] if ig is not None else float(model_ge or 0.0)
+    error, clipped = refit.error, False
     for k, par in enumerate(params):
         if isinstance(par, SectionLossFactor):
             p[k] = refit.p[k] - g
+            if p[k] > hi[k]:
+                p[k], clipped = hi[k], True
             if g + p[k] < 0:                          # rounding of g + (total - g) at a total of 0
                 p[k] = -g
+    if clipped:
+        error = frf_error(model_frf(pm.structure(p), data), data)
     std = fit_std(pm, data, p, free=free, prior=prior)
     log.info("the loss factor in all of %s fitted below 0: refitted with it bounded at 0 (error %.4g -> %.4g)",
-             ", ".join(low), fit.error, refit.error)
-    return FitResult(p, std, refit.error, fit.history + refit.history, refit.success,
+             ", ".join(low), fit.error, error)
+    return FitResult(p, std, error, fit.history + refit.history, refit.success,
                      refit.message + f" (refitted with the loss factors of {', '.join(low)} bounded at 0)"), low
 
 
