@@ -58,6 +58,7 @@ from __future__ import annotations
 
 import difflib
 import logging
+import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -209,8 +210,11 @@ def load_project(path) -> Project:
         raise PlanError(f"{src}: [model] bulk file {str(proj.bulk_path)!r} does not exist")
     for sec in ("identify", "diagnose"):
         b = opts[sec]["band_hz"]
-        if b is not None and (len(b) != 2 or not 0 <= float(b[0]) < float(b[1])):
-            raise PlanError(f"{src}: [{sec}] band_hz = {b!r}; expected [low, high] in Hz with low < high")
+        numbers = b is not None and len(b) == 2 and all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                                        and math.isfinite(x) for x in b)
+        if b is not None and not (numbers and 0 <= b[0] < b[1]):
+            raise PlanError(f"{src}: [{sec}] band_hz = {b!r}; expected [low, high]: two numbers in Hz with "
+                            "0 <= low < high, e.g. band_hz = [5, 700]")
     for sec, key, low in (("update", "max_iter", 1), ("identify", "max_order", 1), ("diagnose", "max_findings", 0),
                           ("diagnose", "max_lines", 1), ("diagnose", "max_nfev", 1)):
         v = opts.get(sec, {}).get(key)

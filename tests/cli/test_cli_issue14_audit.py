@@ -270,6 +270,18 @@ def test_a_project_identify_band_out_of_range_names_the_file_and_key(one_point_f
     assert not (tmp_path / "out" / "identify" / "modes.uff").exists()
 
 
+@pytest.mark.parametrize("band", ['["a", 700]', "[-5, 700]", "[5, inf]", "[5, nan]", "[true, 700]", "[5]"])
+def test_a_project_band_that_is_not_two_numbers_from_0_is_one_line(one_point_frf, tmp_path, capsys, band):
+    """band_hz = ["a", 700] ended in a traceback (ValueError: could not convert string to float), and
+    [-5, 700] was refused as 'expected ... low < high', which it was."""
+    p = _band_project(tmp_path, one_point_frf, f"[identify]\nband_hz = {band}\n")
+    capsys.readouterr()
+    assert main(["run", str(p), "-o", str(tmp_path / "out")]) == 2
+    err = _one_line(capsys)
+    assert f"{p}: [identify] band_hz = " in err and "two numbers in Hz with 0 <= low < high" in err, err
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_project_band_edge_warning_names_the_project_key(one_point_frf, tmp_path, caplog):
     p = _band_project(tmp_path, one_point_frf, "[identify]\nband_hz = [5, 700]\n")
     from modalab.app.project import load_project

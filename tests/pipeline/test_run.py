@@ -303,7 +303,7 @@ def test_project_validation_names_the_problem(tmp_path):
     with pytest.raises(PlanError, match=r"\[identify\] unknown key bandwidth \(did you mean band_hz\?\); expected one of band_hz, "):
         load_project(d / "bad2.toml")
     (d / "bad3.toml").write_text(text.replace("band_hz = [2.0, 80.0]", "band_hz = [80.0, 2.0]", 1))
-    with pytest.raises(PlanError, match="low < high"):
+    with pytest.raises(PlanError, match="0 <= low < high"):
         load_project(d / "bad3.toml")
     (d / "bad4.toml").write_text(text.replace('plan = "plan_quick.toml"', 'plan = "plan_quick.toml"\nfrf = "x.uff"'))
     with pytest.raises(PlanError, match="exactly one of plan"):
