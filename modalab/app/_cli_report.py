@@ -5,7 +5,7 @@ import tempfile
 from pathlib import Path
 
 from modalab.app._cli_console import _print
-from modalab.app.stages import report
+from modalab.app.stages import ReportOptions, report
 from modalab.app.stages._report import collect_outputs
 from modalab.core.errors import PlanError
 
@@ -20,7 +20,7 @@ def cmd_report(a):
                         "update and diagnose wrote their outputs (or a 'modalab run' output folder)")
     out = Path(a.output) if a.output else folder / "report"
     if any((folder / s).is_dir() and (folder / "manifest.json").is_file() for s in _RUN_STAGES):
-        r = report(folder, out, title=a.title)                     # a 'modalab run' folder as it is
+        r = report(folder, out, ReportOptions(title=a.title))      # a 'modalab run' folder as it is
         _print(f"report of the run folder {folder}: {r.result}")
         return 0
     with tempfile.TemporaryDirectory(prefix="modalab-report-") as staging:
@@ -28,7 +28,7 @@ def cmd_report(a):
         if not found:
             raise PlanError(f"'{folder}' holds no output of modalab identify, correlate, update or diagnose (their "
                             "JSON files and figures); run them with their outputs in this folder, or give that folder")
-        r = report(staging, out, title=a.title or folder.resolve().name)
+        r = report(staging, out, ReportOptions(title=a.title or folder.resolve().name))
     for stage, srcs in found.items():
         _print(f"{stage}: {', '.join(srcs)}")
     _print(f"wrote {r.result}")

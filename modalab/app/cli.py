@@ -26,7 +26,7 @@ from modalab.core.errors import ModalabError, PlanError
 from modalab.app.stages import SimOptions, sim
 from modalab.app.stages import FRFOptions, frf
 from modalab.core.uff import assume_quantity
-from modalab.app.stages import acquire
+from modalab.app.stages import AcquireOptions, acquire
 from modalab.app._cli_console import _ConsoleObserver, _CountProgress, _print, _TerminalPrompter  # noqa: F401
 from modalab.app import _cli_correlate, _cli_diagnose, _cli_identify, _cli_info, _cli_report, _cli_run, _cli_update
 from modalab.app._cli_info import info_table  # noqa: F401  (modalab info's lines; the tests read them here)
@@ -119,15 +119,15 @@ def cmd_acquire(a):
     line = "backend: " + ("sim - the simulated lab (hardware_sim): the data are SIMULATED, not measured; "
                           "--backend nidaqmx for NI hardware" if a.backend == "sim" else f"{a.backend} (NI hardware)")
     try:       # the backend line once every check has passed: a refused plan prints the error alone
-        sess, summary, exported = acquire(a.plan, out, backend=a.backend, auto=a.auto, resume=a.resume,
-                                          prompter=prompter, observer=obs, seed=a.seed,
-                                          on_ready=lambda: _print(line))
+        r = acquire(a.plan, out, AcquireOptions(backend=a.backend, auto=a.auto, resume=a.resume, seed=a.seed),
+                    prompter=prompter, observer=obs, on_ready=lambda: _print(line))
     except KeyboardInterrupt:
         obs.close()
         _print(f"interrupted; every accepted hit is stored. Continue with: {resume_cmd}")
         return 130
     finally:
         obs.close()
+    summary, exported = r.result.summary, r.result.uff
     _print(summary.table())
     for name, s in summary.range_suggestions.items():
         _print(f"range suggestion: {name}: peak {s['peak']:g}, range {s['range']:g} -> {s['suggested']:g}")

@@ -233,10 +233,11 @@ def stage_acquire(ctx: _Context, resume: bool) -> tuple[list, dict]:
     plan = _plan_with(ctx.project)
     truth = ctx.backend == "sim" and bool(ctx.project.options["test"]["truth"])
     # export=False with a truth bench: its session folder never held a copy of session.uff (exported below)
-    sess, summary, _ = stages.acquire(ctx.project.plan_path, d / "session",
-                                      backend=_truth_lab(ctx, plan) if truth else ctx.backend, auto=True,
-                                      resume=resume, observer=_AcquireObserver(ctx),
-                                      seed=ctx.project.options["test"]["seed"], export=not truth)
+    opts = stages.AcquireOptions(backend=ctx.backend, auto=True, resume=resume,
+                                 seed=ctx.project.options["test"]["seed"], export=not truth)
+    r = stages.acquire(ctx.project.plan_path, d / "session", opts, daq=_truth_lab(ctx, plan) if truth else None,
+                       observer=_AcquireObserver(ctx))
+    sess, summary = r.result.session, r.result.summary
     if not summary.complete:
         raise PlanError(f"the acquisition did not complete ({summary.table()}); run again to continue")
     out = sess.export(d / "session.uff")
@@ -322,7 +323,9 @@ def stage_diagnose(ctx: _Context) -> tuple[list, dict]:
 
 
 def stage_report(ctx: _Context) -> tuple[list, dict]:
-    r = stages.report(ctx.out, ctx.dir("report"), project=ctx.project)
+    opts = stages.ReportOptions(title=ctx.project.options["report"]["title"] or ctx.project.name,
+                                model=str(ctx.project.bulk_path))
+    r = stages.report(ctx.out, ctx.dir("report"), opts)
     return list(r.files), r.summary
 
 

@@ -18,7 +18,7 @@ from acquisition.store import HitStore
 from acquisition.windows import beta_from_end_level
 from hardware_sim import serial_devices
 from modalab.core import uff
-from modalab.app.pipeline import acquire, make_sim_backend
+from modalab.app.stages import AcquireOptions, acquire, make_sim_backend
 
 N_REC, PRE, FS = 2048, 64, 2048.0          # small_plan: 1 s records, 64 pretrigger samples
 BETA = beta_from_end_level(0.01, N_REC, FS, PRE)
@@ -51,7 +51,8 @@ def auto_run(tmp_path_factory):
     violations = []
     out = tmp / "session"
     _spy_arm(lab, out, rec, violations)
-    sess, summary, exported = acquire(plan_path, out, backend=lab, auto=True, observer=rec)
+    r = acquire(plan_path, out, AcquireOptions(auto=True), daq=lab, observer=rec)
+    sess, summary, exported = r.result.session, r.result.summary, r.result.uff
     return dict(plan=plan, lab=lab, rec=rec, sess=sess, summary=summary, exported=exported, out=out,
                 violations=violations)
 
@@ -137,7 +138,8 @@ def test_range_suggestions_after_the_first_point(auto_run):
 
 def test_roving_accelerometer_session_matches_exact(tmp_path):
     plan_path = small_plan(tmp_path, "demo_roving_accelerometer", points=("3+Z", "18+Z"))
-    sess, summary, exported = acquire(plan_path, tmp_path / "s", auto=True)
+    r = acquire(plan_path, tmp_path / "s", AcquireOptions(auto=True))
+    sess, summary, exported = r.result.session, r.result.summary, r.result.uff
     assert summary.complete
     assert "hammer" not in summary.range_suggestions       # the example plan's 500 N range suits ~100 N hits
     frf = uff.read_frf(exported)
@@ -165,7 +167,8 @@ def test_automatic_hammer_session_arms_the_daq_before_firing(tmp_path):
     lab.arm, lab.fire = spy_arm, spy_fire
     dev = serial_devices.device(plan.hammer["url"])
     dev.on_fire = spy_fire
-    sess, summary, exported = acquire(plan_path, tmp_path / "s", backend=lab, auto=True)
+    r = acquire(plan_path, tmp_path / "s", AcquireOptions(auto=True), daq=lab)
+    sess, summary, exported = r.result.session, r.result.summary, r.result.uff
     assert summary.complete
     n_hits = sum(p.taken for p in summary.points)
     assert [c[0] for c in calls] == ["arm", "fire"] * n_hits
@@ -185,7 +188,8 @@ def test_interactive_accept_reject_back_skip(tmp_path):
     # p0: accept, reject, accept | p1: accept, back | p0 again: accept, accept | p1: accept | p2: skip
     prompter = ScriptedPrompter("ara" "ab" "aa" "a" "s")
     rec = Recorder()
-    sess, summary, exported = acquire(plan_path, tmp_path / "s", prompter=prompter, observer=rec)
+    r = acquire(plan_path, tmp_path / "s", prompter=prompter, observer=rec)
+    sess, summary, exported = r.result.session, r.result.summary, r.result.uff
     assert len(prompter.asked) == 9 and all("[a]ccept" in q for q in prompter.asked)
     assert rec.started == ["1+Z", "14+Z", "1+Z", "14+Z", "19+Z"]
     assert summary.complete
@@ -204,11 +208,13 @@ def test_interactive_accept_reject_back_skip(tmp_path):
 def test_interactive_quit_then_resume_keeps_every_accepted_hit(tmp_path):
     plan_path = small_plan(tmp_path, points=("1+Z", "19+Z"))
     out = tmp_path / "s"
-    _, summary, exported = acquire(plan_path, out, prompter=ScriptedPrompter("aaaq"))
+    r = acquire(plan_path, out, prompter=ScriptedPrompter("aaaq"))
+    summary, exported = r.result.summary, r.result.uff
     assert not summary.complete and exported is None and "resume" in summary.stopped
     before = accepted_hits(journal(out))
     assert sorted(p for p, _ in before.values()) == [0, 0, 1]
-    _, summary, exported = acquire(plan_path, out, resume=True, prompter=ScriptedPrompter("a" * 5))
+    r = acquire(plan_path, out, AcquireOptions(resume=True), prompter=ScriptedPrompter("a" * 5))
+    summary, exported = r.result.summary, r.result.uff
     assert summary.complete and [p.accepted for p in summary.points] == [2, 2]
     after = accepted_hits(journal(out))
     assert all(after.get(h) == v for h, v in before.items())
@@ -219,7 +225,8 @@ def test_interactive_quit_then_resume_keeps_every_accepted_hit(tmp_path):
 def test_interactive_prompt_shows_the_flags_of_a_double_hit(tmp_path):
     plan_path = small_plan(tmp_path, points=("14+Z",), sim={"faults": {"double_hit_on": [1]}})
     prompter = ScriptedPrompter("raa")
-    _, summary, _ = acquire(plan_path, tmp_path / "s", prompter=prompter)
+    r = acquire(plan_path, tmp_path / "s", prompter=prompter)
+    summary = r.result.summary
     assert "double_hit" in prompter.asked[0] and "WARNING" in prompter.asked[0]
     assert "WARNING" not in prompter.asked[1]
     assert summary.points[0].accepted == 2
@@ -235,9 +242,10 @@ def test_resume_with_a_changed_plan_is_refused(tmp_path):
     acquire(plan_path, out, prompter=ScriptedPrompter("aq"))
     other = small_plan(tmp_path, points=("1+Z", "14+Z"), name="other.toml")
     with pytest.raises(PlanError, match=r"\[roving\] differs"):
-        acquire(other, out, resume=True, prompter=ScriptedPrompter("q"))
+        acquire(other, out, AcquireOptions(resume=True), prompter=ScriptedPrompter("q"))
     faulty = small_plan(tmp_path, points=("1+Z", "19+Z"), name="faulty.toml", sim={"faults": {"double_hit_on": [9]}})
-    _, summary, _ = acquire(faulty, out, resume=True, prompter=ScriptedPrompter("q"))   # [sim] may change
+    r = acquire(faulty, out, AcquireOptions(resume=True), prompter=ScriptedPrompter("q"))   # [sim] may change
+    summary = r.result.summary
     assert summary.points[0].accepted == 1
 
 
@@ -267,7 +275,8 @@ def test_a_corrupted_accepted_hit_reopens_its_point_and_the_session_is_not_compl
 
     plan_path = small_plan(tmp_path, points=("1+Z", "19+Z"))
     out = tmp_path / "s"
-    _, summary, exported = acquire(plan_path, out, auto=True)
+    r = acquire(plan_path, out, AcquireOptions(auto=True))
+    summary, exported = r.result.summary, r.result.uff
     assert summary.complete and exported
     victim = next(h for h, (p, _) in accepted_hits(journal(out)).items() if p == 1)
     f = out / "hits" / f"hit_{victim:06d}.npz"
@@ -306,11 +315,12 @@ def test_lost_session_json_with_a_changed_plan_is_refused(tmp_path):
     (out / "session.json").unlink()
     changed = small_plan(tmp_path, points=("1+Z", "19+Z"), averages=4, max_hits=5, name="changed.toml")
     with pytest.raises(PlanError, match=r"\[acquisition\] differs"):
-        acquire(changed, out, resume=True, prompter=ScriptedPrompter("q"))
+        acquire(changed, out, AcquireOptions(resume=True), prompter=ScriptedPrompter("q"))
     # rebuilt from the journal's first line, with the plan the session was started with
     assert json.loads((out / "session.json").read_text())["plan"]["acquisition"]["averages"] == 2
     (out / "session.json").write_text("{ torn")
-    _, summary, _ = acquire(plan_path, out, resume=True, prompter=ScriptedPrompter("q"))
+    r = acquire(plan_path, out, AcquireOptions(resume=True), prompter=ScriptedPrompter("q"))
+    summary = r.result.summary
     assert summary.points[0].accepted == 1
     assert "session.json was unreadable; rebuilt from the journal (the plan is checked against it)" in summary.resume
 
@@ -318,12 +328,15 @@ def test_lost_session_json_with_a_changed_plan_is_refused(tmp_path):
 def test_interrupted_and_resumed_session_gives_the_frfs_of_an_uninterrupted_one(tmp_path):
     # issue 14 #14: resuming restarted the simulator's random stream, so resumed points replayed the same forces
     plan_path = small_plan(tmp_path, points=("1+Z", "19+Z"))
-    _, s1, ref = acquire(plan_path, tmp_path / "one", prompter=ScriptedPrompter("aaaa"))
+    r = acquire(plan_path, tmp_path / "one", prompter=ScriptedPrompter("aaaa"))
+    s1, ref = r.result.summary, r.result.uff
     out = tmp_path / "two"
     acquire(plan_path, out, prompter=ScriptedPrompter("aq"))                 # quit after the first hit
-    _, s2, exported = acquire(plan_path, out, resume=True, prompter=ScriptedPrompter("aq"))
+    r = acquire(plan_path, out, AcquireOptions(resume=True), prompter=ScriptedPrompter("aq"))
+    s2, exported = r.result.summary, r.result.uff
     assert not s2.complete
-    _, s3, exported = acquire(plan_path, out, resume=True, prompter=ScriptedPrompter("aa"))
+    r = acquire(plan_path, out, AcquireOptions(resume=True), prompter=ScriptedPrompter("aa"))
+    s3, exported = r.result.summary, r.result.uff
     assert s1.complete and s3.complete
     assert s3.resume[0] == "recovered 1 of 2 points complete, 2 hits kept (2 accepted, 0 awaiting selection), " \
                            "0 rejected before"

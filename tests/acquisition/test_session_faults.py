@@ -11,7 +11,7 @@ from _acq_session_util import Recorder, accepted_hits, journal, rel_errors, smal
 from acquisition.session import ScriptedPrompter
 from acquisition.windows import beta_from_end_level
 from modalab.core import uff
-from modalab.app.pipeline import acquire
+from modalab.app.stages import AcquireOptions, acquire
 
 BETA = beta_from_end_level(0.01, 2048, 2048.0, 64)
 
@@ -29,7 +29,8 @@ def _exact_ok(exported, model, **select):
 def test_no_trigger_for_two_arms_then_hits(tmp_path):
     plan = small_plan(tmp_path, points=("14+Z",), sim={"faults": {"no_trigger_on": [1, 2]}})
     rec = Recorder()
-    sess, summary, exported = acquire(plan, tmp_path / "s", auto=True, observer=rec)
+    r = acquire(plan, tmp_path / "s", AcquireOptions(auto=True), observer=rec)
+    sess, summary, exported = r.result.session, r.result.summary, r.result.uff
     no_hit = [m for m in rec.messages if "no hit within" in m]
     assert len(no_hit) == 4                               # two waits per arm, two arms without a trigger
     assert sess.backend.n_armed == 3 + 2                   # 3 hits + the 2 silent arms
@@ -41,7 +42,8 @@ def test_no_trigger_for_two_arms_then_hits(tmp_path):
 def test_trigger_never_comes_skips_the_point_in_auto_mode(tmp_path):
     plan = small_plan(tmp_path, points=("14+Z", "19+Z"),
                       sim={"faults": {"no_trigger_on": [1, 2, 3]}})   # 2 waits per arm
-    sess, summary, exported = acquire(plan, tmp_path / "s", auto=True)
+    r = acquire(plan, tmp_path / "s", AcquireOptions(auto=True))
+    sess, summary, exported = r.result.session, r.result.summary, r.result.uff
     p0, p1 = summary.points
     assert p0.skipped == "no trigger in 6 waits" and p0.accepted == 0 and p0.taken == 0
     assert p1.accepted == 2 and summary.complete
@@ -52,7 +54,8 @@ def test_trigger_never_comes_skips_the_point_in_auto_mode(tmp_path):
 def test_trigger_never_comes_operator_skips(tmp_path):
     plan = small_plan(tmp_path, points=("14+Z",), sim={"faults": {"no_trigger_probability": 1.0}})
     prompter = ScriptedPrompter("ws")
-    _, summary, exported = acquire(plan, tmp_path / "s", prompter=prompter)
+    r = acquire(plan, tmp_path / "s", prompter=prompter)
+    summary, exported = r.result.summary, r.result.uff
     assert [q.startswith("No hit at 14+Z") for q in prompter.asked] == [True, True]
     assert summary.points[0].skipped == "skipped by the operator after no trigger"
     assert summary.complete and exported is None          # nothing accepted, nothing to export
@@ -61,7 +64,8 @@ def test_trigger_never_comes_operator_skips(tmp_path):
 def test_device_lost_mid_record_reconnects_and_completes(tmp_path):
     plan = small_plan(tmp_path, points=("1+Z", "19+Z"), sim={"faults": {"device_lost_on": [2, 5]}})
     rec = Recorder()
-    sess, summary, exported = acquire(plan, tmp_path / "s", auto=True, observer=rec)
+    r = acquire(plan, tmp_path / "s", AcquireOptions(auto=True), observer=rec)
+    sess, summary, exported = r.result.session, r.result.summary, r.result.uff
     assert sess.reconnects == 2
     assert sum("the DAQ was lost" in m for m in rec.messages) == 2
     assert sum(m.startswith("reconnected") for m in rec.messages) == 2
@@ -73,7 +77,8 @@ def test_device_lost_without_reconnect_stops_cleanly_and_resumes(tmp_path):
     faulty = small_plan(tmp_path, points=("1+Z", "14+Z", "19+Z"), sim={"faults": {"device_lost_on": [5]}},
                         name="faulty.toml")
     out = tmp_path / "s"
-    sess, summary, exported = acquire(faulty, out, auto=True, max_reconnects=0)
+    r = acquire(faulty, out, AcquireOptions(auto=True, max_reconnects=0))
+    sess, summary, exported = r.result.session, r.result.summary, r.result.uff
     assert not summary.complete and exported is None
     assert "--resume" in summary.stopped and "lost" in summary.stopped
     assert sess.backend.state == "closed"
@@ -82,7 +87,8 @@ def test_device_lost_without_reconnect_stops_cleanly_and_resumes(tmp_path):
     assert sorted(p for p, _ in before.values()) == [0, 0]                 # point 0 done, point 1 started
     assert len(cands_before - set(before)) == 1 + 1                         # 1 unselected + 1 candidate at point 1
     clean = small_plan(tmp_path, points=("1+Z", "14+Z", "19+Z"), name="clean.toml")
-    sess, summary, exported = acquire(clean, out, auto=True, resume=True)
+    r = acquire(clean, out, AcquireOptions(auto=True, resume=True))
+    sess, summary, exported = r.result.session, r.result.summary, r.result.uff
     assert summary.complete and [p.accepted for p in summary.points] == [2, 2, 2]
     after = accepted_hits(journal(out))
     assert all(after[h] == v for h, v in before.items())
@@ -99,7 +105,8 @@ def test_device_lost_without_reconnect_stops_cleanly_and_resumes(tmp_path):
 def test_overload_storm_hits_are_rejected(tmp_path):
     plan = small_plan(tmp_path, points=("14+Z",), sim={"faults": {"overload_storm_on": [2, 3]}})
     rec = Recorder()
-    sess, summary, exported = acquire(plan, tmp_path / "s", auto=True, observer=rec)
+    r = acquire(plan, tmp_path / "s", AcquireOptions(auto=True), observer=rec)
+    sess, summary, exported = r.result.session, r.result.summary, r.result.uff
     stormy = {h[1].hit_id for h in rec.hits if h[1].metadata["sim"]["overload_storm"]}
     assert len(stormy) == 2
     for _, hid, decision, reasons in rec.decisions:
@@ -113,7 +120,8 @@ def test_overload_storm_hits_are_rejected(tmp_path):
 def test_double_hits_are_rejected(tmp_path):
     plan = small_plan(tmp_path, points=("14+Z",), sim={"faults": {"double_hit_on": [1, 3]}})
     rec = Recorder()
-    sess, summary, exported = acquire(plan, tmp_path / "s", auto=True, observer=rec)
+    r = acquire(plan, tmp_path / "s", AcquireOptions(auto=True), observer=rec)
+    sess, summary, exported = r.result.session, r.result.summary, r.result.uff
     doubles = {h[1].hit_id for h in rec.hits if h[1].metadata["sim"]["double_hit"]}
     assert len(doubles) == 2
     rejected = {hid for _, hid, d, r in rec.decisions if d == "rejected" and "double_hit" in r}
@@ -124,7 +132,8 @@ def test_double_hits_are_rejected(tmp_path):
 
 def test_noisy_channel_shows_as_low_coherence(tmp_path):
     plan = small_plan(tmp_path, points=("14+Z", "19+Z"), sim={"noisy": {"acc_12Z": 0.05}})
-    sess, summary, exported = acquire(plan, tmp_path / "s", auto=True)
+    r = acquire(plan, tmp_path / "s", AcquireOptions(auto=True))
+    sess, summary, exported = r.result.session, r.result.summary, r.result.uff
     for p in summary.points:
         assert p.channel_coherence["acc_12Z"] < 0.8
         assert p.channel_coherence["acc_19Z"] > 0.99 and p.channel_coherence["acc_1Z"] > 0.99
@@ -137,7 +146,8 @@ def test_noisy_channel_shows_as_low_coherence(tmp_path):
 def test_dead_accelerometer_is_reported_and_the_others_are_exact(tmp_path):
     plan = small_plan(tmp_path, points=("14+Z", "19+Z"), sim={"dead": ["acc_1Z"]})
     rec = Recorder()
-    sess, summary, exported = acquire(plan, tmp_path / "s", auto=True, observer=rec)
+    r = acquire(plan, tmp_path / "s", AcquireOptions(auto=True), observer=rec)
+    sess, summary, exported = r.result.session, r.result.summary, r.result.uff
     assert all("dead_channel:acc_1Z" in r for _, _, d, r in rec.decisions)
     assert not any("dead_channel:acc_19Z" in r or "dead_channel:acc_12Z" in r for _, _, d, r in rec.decisions)
     for p in summary.points:
@@ -161,4 +171,4 @@ def test_sim_section_errors_are_clear(tmp_path, bad, match):
 
     plan = small_plan(tmp_path, points=("14+Z",), sim=bad)
     with pytest.raises(PlanError, match=r"plan\.toml: .*" + match):
-        acquire(plan, tmp_path / "s", auto=True)
+        acquire(plan, tmp_path / "s", AcquireOptions(auto=True))

@@ -18,7 +18,7 @@ import numpy as np
 
 from _acq_session_util import ROOT, accepted_hits, journal, small_plan
 from modalab.core import uff
-from modalab.app.pipeline import acquire
+from modalab.app.stages import AcquireOptions, acquire
 
 
 def _start(plan, out, resume):
@@ -80,7 +80,8 @@ def test_sigkill_at_random_points_then_resume_loses_nothing(tmp_path):
     named = {ev["file"] for ev in journal(out) if ev["event"] == "hit" and ev.get("file")}
     assert files == named
     # and the FRFs equal those of an uninterrupted session of the same plan (issue 14 #14)
-    _, summary, ref = acquire(plan, tmp_path / "uninterrupted", auto=True)
+    r = acquire(plan, tmp_path / "uninterrupted", AcquireOptions(auto=True))
+    summary, ref = r.result.summary, r.result.uff
     assert summary.complete
     a, b = uff.read_frf(out / "session.uff"), uff.read_frf(ref)
     assert [str(d) for d in a.references] == [str(d) for d in b.references]

@@ -8,7 +8,7 @@ import pytest
 import tomli_w
 
 from acquisition.plan import HAMMER_TIPS, load_plan
-from modalab.app.pipeline import acquire, make_sim_backend
+from modalab.app.stages import AcquireOptions, acquire, make_sim_backend
 
 ROOT = Path(__file__).resolve().parents[2]
 SHIPPED = sorted(p for d in ("examples", "modalab/app/demo_data") for p in (ROOT / d).rglob("*.toml"))
@@ -80,7 +80,8 @@ def test_every_shipped_plan_acquires_in_the_simulated_lab(path, tmp_path):
         d["sim"]["structure"] = str((path.parent / d["sim"]["structure"]).resolve())
     plan_file = tmp_path / path.name
     plan_file.write_text(tomli_w.dumps(d))
-    sess, summary, exported = acquire(plan_file, tmp_path / "s", auto=True)
+    r = acquire(plan_file, tmp_path / "s", AcquireOptions(auto=True))
+    sess, summary, exported = r.result.session, r.result.summary, r.result.uff
     assert summary.complete and exported is not None and summary.points[0].accepted == 1
 
 

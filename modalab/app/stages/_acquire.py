@@ -1,19 +1,24 @@
 """The acquire stage: run a test plan on the simulated lab or NI hardware (``modalab acquire``, ``modalab run``).
 
-:func:`acquire` runs the plan and exports the session's UFF; :func:`make_sim_backend` builds the simulated DAQ
-of a plan.  The backend that took the data ('sim' or 'nidaqmx') is recorded in ``session.json`` and in the
+:func:`acquire` runs the plan (:class:`AcquireOptions`) and exports the session's UFF;
+:func:`make_sim_backend` builds the simulated DAQ of a plan.  The backend that took the data ('sim' or 'nidaqmx') is recorded in ``session.json`` and in the
 UFF's ID lines (:class:`acquisition.session.AcquisitionSession`).
 """
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
+from pathlib import Path
 
 from modalab.core.errors import DaqNotFoundError, PlanError
+from modalab.app.stages._common import StageResult
 from modalab.app.stages._sim import _sim_structure
 from hardware_sim.bench import lab_from_sim
 from acquisition.nidaqmx_backend import NidaqmxBackend
 from acquisition.plan import load_plan
+from acquisition.checks import HitCheckConfig
 from acquisition.session import AcquisitionSession
+from acquisition.session_summary import SessionSummary
 from hardware_sim import serial_devices
 from acquisition.instruments import AutoHammer, LineTransport
 
@@ -57,43 +62,85 @@ def _nidaqmx_backend():
     return be
 
 
-def acquire(plan_path, out_dir, *, backend: str = "sim", auto: bool = False, resume: bool = False,
-            prompter=None, observer=None, seed: int | None = None, on_ready=None, export: bool = True,
-            **session_kw):
-    """Run ``modalab acquire``: returns (session, summary, exported UFF path or None).
+@dataclass(frozen=True)
+class AcquireOptions:
+    """``modalab acquire``: backend ('sim': the simulated lab of the plan's ``[sim]`` section, 'nidaqmx': NI
+    hardware), automatic mode (best N of M hits by coherence; otherwise a prompter decides each hit), resume the
+    session stored in the folder, the simulated lab's random seed, export the UFF into the session folder once
+    every point is finished (False: the caller exports it), and the session's limits
+    (:class:`acquisition.session.AcquisitionSession`; None: the session's default)."""
 
-    ``backend`` is 'sim' (the plan's ``[sim]`` section, :func:`make_sim_backend`), 'nidaqmx' or a ready
-    backend object.  Interactive mode (``auto=False``) needs a ``prompter``.  The UFF is exported into the
-    session folder when every point is finished (``export=False``: not here; the caller exports it).
-    ``on_ready``: called without arguments once every check has passed (plan, backend, hammer, session folder
-    and resume), before the first hit (the CLI says there which backend runs).  Extra keywords go to
-    :class:`acquisition.session.AcquisitionSession`.
+    backend: str = "sim"
+    auto: bool = False
+    resume: bool = False
+    seed: int | None = None
+    export: bool = True
+    max_timeouts: int | None = None
+    waits_per_arm: int | None = None
+    max_attempts_factor: int | None = None
+    max_reconnects: int | None = None
+    check_config: HitCheckConfig | None = None
+
+    def __post_init__(self):
+        if self.backend not in ("sim", "nidaqmx"):
+            raise PlanError(f"backend {self.backend!r}; expected 'sim' or 'nidaqmx'")
+
+    def session_limits(self) -> dict:
+        """The limits given, as keywords of :class:`acquisition.session.AcquisitionSession`."""
+        return {k: getattr(self, k) for k in ("max_timeouts", "waits_per_arm", "max_attempts_factor",
+                                              "max_reconnects", "check_config") if getattr(self, k) is not None}
+
+
+@dataclass(frozen=True)
+class Acquisition:
+    """What :func:`acquire` produced (its :attr:`StageResult.result`): the session, its summary (also in the
+    folder's ``summary.json``) and the exported UFF (None: not exported)."""
+
+    session: AcquisitionSession
+    summary: SessionSummary
+    uff: Path | None = None
+
+
+def acquire(plan_path, out_dir, opts: AcquireOptions = AcquireOptions(), *, daq=None, prompter=None, observer=None,
+            on_ready=None) -> StageResult:
+    """Run a test plan into the session folder ``out_dir`` (``modalab acquire``, ``modalab run``).
+
+    Returns a :class:`StageResult`: ``result`` an :class:`Acquisition` (session, summary, exported UFF or None),
+    ``files`` the session folder, its ``summary.json`` and the exported UFF, ``summary`` the session summary as
+    written to ``summary.json``.
+
+    ``opts.backend`` is 'sim' (the plan's ``[sim]`` section, :func:`make_sim_backend`) or 'nidaqmx'; ``daq``: a
+    ready backend object instead (a test double, or ``modalab run``'s simulated bench carrying the ``[test]
+    truth``).  Interactive mode (``opts.auto`` False) needs a ``prompter``.  The UFF is exported into the session
+    folder when every point is finished (``opts.export`` False: not here; the caller exports it).  ``on_ready``:
+    called without arguments once every check has passed (plan, backend, hammer, session folder and resume),
+    before the first hit (the CLI says there which backend runs).
     """
 
     plan = load_plan(plan_path)
-    if backend == "sim":
-        be = make_sim_backend(plan, seed=seed)
-    elif backend == "nidaqmx":
-        be = _nidaqmx_backend()
-    elif isinstance(backend, str):
-        raise PlanError(f"backend {backend!r}; expected 'sim' or 'nidaqmx'")
+    if daq is not None:
+        be = daq
+    elif opts.backend == "sim":
+        be = make_sim_backend(plan, seed=opts.seed)
     else:
-        be = backend
+        be = _nidaqmx_backend()
     hammer = None
     if plan.hammer.get("url"):
         if plan.hammer["url"].startswith("sim"):
             serial_devices.register()
         hammer = AutoHammer(LineTransport.from_url(plan.hammer["url"], timeout=2.0))
     try:
-        sess = AcquisitionSession(plan, be, out_dir, mode="auto" if auto else "interactive", prompter=prompter,
-                                  hammer=hammer, observer=observer, resume=resume, **session_kw)
+        sess = AcquisitionSession(plan, be, out_dir, mode="auto" if opts.auto else "interactive",
+                                  prompter=prompter, hammer=hammer, observer=observer, resume=opts.resume,
+                                  **opts.session_limits())
         if on_ready is not None:
             on_ready()
         summary = sess.run()
-        exported = sess.export() if export and summary.complete and any(p.accepted for p in summary.points) \
+        exported = sess.export() if opts.export and summary.complete and any(p.accepted for p in summary.points) \
             else None
     finally:
         be.close()
         if hammer is not None:
             hammer.t.close()
-    return sess, summary, exported
+    files = (sess.out_dir, sess.out_dir / "summary.json") + ((Path(exported),) if exported else ())
+    return StageResult(Acquisition(sess, summary, exported), files, summary.to_dict())

@@ -18,6 +18,7 @@ import datetime as _dt
 import html
 import json
 import logging
+from dataclasses import dataclass
 from pathlib import Path
 
 from modalab.core.errors import ModalabValueError
@@ -31,10 +32,19 @@ from updating.fe.bulk.build import build_model
 log = logging.getLogger(__name__)
 
 
-def report(run_dir, report_dir=None, *, project=None, title: str | None = None) -> StageResult:
+@dataclass(frozen=True)
+class ReportOptions:
+    """``modalab report``: the report's title (None: the run folder's name) and the FE model (bulk data) whose wire
+    frame is drawn under the test geometry (None: the measured points alone; ``modalab run``: the project's)."""
+
+    title: str | None = None
+    model: str | None = None
+
+
+def report(run_dir, report_dir=None, opts: ReportOptions = ReportOptions()) -> StageResult:
     """The self-contained HTML report of a run folder and its ``summary.json`` (:func:`build_report`)."""
 
-    html_path, summary = build_report(run_dir, report_dir, project=project, title=title)
+    html_path, summary = build_report(run_dir, report_dir, title=opts.title, model=opts.model)
     return StageResult(html_path, (html_path, summary), {"report": str(html_path)})
 
 
@@ -170,8 +180,8 @@ def _load(path):
                                 f"changed or cut: rerun that stage (modalab run ... --from {p.parent.name})") from None
 
 
-def _geometry_figure(run_dir: Path, report_dir: Path, project=None) -> Path | None:
-    """The FE model's wire frame (when the project is known) with the measured DOFs of the test."""
+def _geometry_figure(run_dir: Path, report_dir: Path, model=None) -> Path | None:
+    """The FE model's wire frame (when ``model``, a bulk-data file, is given) with the measured DOFs of the test."""
 
     frf_path = run_dir / "frf" / "frf.uff"
     if not frf_path.is_file():
@@ -181,9 +191,9 @@ def _geometry_figure(run_dir: Path, report_dir: Path, project=None) -> Path | No
         coords = dict(uff.read_geometry(frf_path))
     except Exception:  # noqa: BLE001 - FRFs without geometry
         coords = {}
-    if project is not None:
+    if model is not None:
         try:
-            m = build_model(read_bdf(project.bulk_path))
+            m = build_model(read_bdf(model))
             for nid, n in m.nodes.items():
                 coords.setdefault(nid, tuple(float(x) for x in n.xyz))
             lines = [tuple(e.nodes[:2]) for e in m.elements.values() if len(getattr(e, "nodes", ())) >= 2]
@@ -238,13 +248,15 @@ def _selection_html(diag: dict) -> list:
     return out
 
 
-def build_report(run_dir, report_dir=None, *, project=None, title: str | None = None) -> tuple[Path, Path]:
-    """Write ``report.html`` (self-contained) and ``summary.json`` into ``report_dir``; returns both paths."""
+def build_report(run_dir, report_dir=None, *, title: str | None = None, model=None) -> tuple[Path, Path]:
+    """Write ``report.html`` (self-contained) and ``summary.json`` into ``report_dir``; returns both paths.
+
+    ``title``: the report's (None: the run folder's name); ``model``: the FE model's bulk data, drawn as a wire
+    frame under the test geometry."""
     run_dir = Path(run_dir)
     rd = Path(report_dir) if report_dir is not None else run_dir / "report"
     rd.mkdir(parents=True, exist_ok=True)
-    name = title or (project.options["report"]["title"] if project and project.options["report"]["title"]
-                     else (project.name if project else run_dir.name))
+    name = title or run_dir.name
     frf_s = _load(run_dir / "frf" / "frf.json")
     rec = _load(run_dir / "frf" / "reciprocity.json")
     modes = (_load(run_dir / "identify" / "modes.json") or {}).get("table")
@@ -270,7 +282,7 @@ def build_report(run_dir, report_dir=None, *, project=None, title: str | None = 
     parts += ["<h2>Stages</h2>", _table(rows, ["stage", "completed (UTC)", "time [s]", "key"], {"time [s]": "{:.1f}"})]
     # diagnosis first: it is what people came for
     parts += _diagnosis_section(run_dir, diag)
-    parts += _test_section(run_dir, rd, project, frf_s, rec)
+    parts += _test_section(run_dir, rd, model, frf_s, rec)
     parts += _identification_section(run_dir, modes)
     parts += _correlation_and_update_sections(run_dir, upd, diag)
     doc = ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
@@ -327,10 +339,10 @@ def _diagnosis_section(run_dir, diag) -> list:
     return parts + [_fig(p, _ENGINE_FIGURES.get(p.name, p.stem.replace("_", " "))) for p in figs]
 
 
-def _test_section(run_dir, rd, project, frf_s, rec) -> list:
+def _test_section(run_dir, rd, model, frf_s, rec) -> list:
     """Geometry, the FRF set, reciprocity and coherence."""
     parts = ["<h2>Test overview</h2>"]
-    g = _geometry_figure(run_dir, rd, project)
+    g = _geometry_figure(run_dir, rd, model)
     if g:
         parts.append(_fig(g, "Geometry and measured DOFs"))
     if frf_s:
