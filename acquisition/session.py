@@ -392,7 +392,8 @@ class AcquisitionSession(_Recovery):
 
     # ------------------------------------------------------------------ run
     def run(self) -> SessionSummary:
-        """Measure every unfinished point; returns the summary (also written to ``summary.json``)."""
+        """Measure every unfinished point; returns the summary (also written to ``summary.json``, its one writer:
+        schema ``modalab/app/schemas/session_summary.schema.json``, checked by the tests)."""
         plan = self.plan
         n = len(plan.points)
         k = 0

@@ -6,7 +6,7 @@ written next to its destination under a temporary name and moved into place with
 never sees half a file; an interrupted write leaves the old file), with the permissions the user's umask
 gives a new file, and never over an input of the command.
 
-The three JSON products other programs read have a JSON schema shipped with the package
+The four JSON products other programs read have a JSON schema shipped with the package
 (``modalab/app/schemas/*.schema.json``; :func:`schema` loads one):
 
 * ``modes.json`` — identified modes, written only by :meth:`modalab.core.modes.ModeSet.to_json`: a
@@ -15,7 +15,11 @@ The three JSON products other programs read have a JSON schema shipped with the 
   mode, ``mode``, ``freq_hz``, ``damping_pct`` and the indicators);
 * ``diagnosis.json`` — :meth:`updating.diagnosis.Diagnosis.to_dict` (findings, parameters, fit, statement,
   ranking, timings);
-* ``summary.json`` — the numbers of a ``modalab run`` report.
+* ``summary.json`` — the numbers of a ``modalab run`` report;
+* a session folder's ``summary.json`` (``'session_summary'``) — what an acquisition session did at each point,
+  written only by :meth:`acquisition.session.AcquisitionSession.run` (a
+  :meth:`~acquisition.session_summary.SessionSummary.to_dict`; through the same atomic writer) at the end of each
+  run of the session that ends: complete, stopped by the operator or a lost device, resumed.
 
 The tests check every writer's output against these schemas (``jsonschema``, a test dependency).
 """
@@ -30,11 +34,12 @@ from modalab.core._output import write_bytes, write_json, write_text  # the one 
 __all__ = ["write_text", "write_bytes", "write_json", "schema", "validate", "SCHEMAS"]
 
 #: the JSON products with a schema: name -> schema file in ``modalab/app/schemas``
-SCHEMAS = {"modes": "modes.schema.json", "diagnosis": "diagnosis.schema.json", "summary": "summary.schema.json"}
+SCHEMAS = {"modes": "modes.schema.json", "diagnosis": "diagnosis.schema.json", "summary": "summary.schema.json",
+           "session_summary": "session_summary.schema.json"}
 
 
 def schema(name: str) -> dict:
-    """The JSON schema of a product: ``'modes'``, ``'diagnosis'`` or ``'summary'``."""
+    """The JSON schema of a product: ``'modes'``, ``'diagnosis'``, ``'summary'`` or ``'session_summary'``."""
     if name not in SCHEMAS:
         raise KeyError(f"no schema {name!r}; expected one of {sorted(SCHEMAS)}")
     return json.loads(resources.files("modalab.app").joinpath("schemas", SCHEMAS[name]).read_text())

@@ -98,10 +98,12 @@ def test_end_to_end_artifacts_and_manifest(demo):
 
 
 def test_outputs_follow_the_schemas(demo):
-    """modes.json, diagnosis.json and summary.json of a run follow the schemas shipped with the package."""
+    """modes.json, diagnosis.json, summary.json and the session's summary.json of a run follow the schemas shipped
+    with the package."""
     from modalab.app.outputs import validate
 
     out = demo["out"]
+    validate(out / "acquire" / "session" / "summary.json", "session_summary")
     validate(out / "identify" / "modes.json", "modes")
     validate(out / "diagnose" / "diagnosis.json", "diagnosis")
     validate(out / "report" / "summary.json", "summary")

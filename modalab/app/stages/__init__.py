@@ -35,8 +35,9 @@ Each function takes its input files, its output locations and one frozen options
 an FRF, a ModeSet, a correlation, a summary dict, a Diagnosis, the report's path), the files it wrote and a
 short JSON-ready summary.  Run-time objects are keywords beside the options (a ``progress`` callable, the
 acquisition's prompter, observer or a ready backend).  Every text/JSON file goes through
-:mod:`modalab.app.outputs` (one writer, umask permissions, atomic replace); ``modes.json``, ``diagnosis.json``
-and ``summary.json`` follow the schemas shipped in ``modalab/app/schemas``.  Library code logs; ``progress`` callables let the CLI show progress.
+:mod:`modalab.app.outputs` (one writer, umask permissions, atomic replace); ``modes.json``, ``diagnosis.json``,
+the report's ``summary.json`` and the session folder's ``summary.json`` follow the schemas shipped in
+``modalab/app/schemas``.  Library code logs; ``progress`` callables let the CLI show progress.
 """
 from __future__ import annotations
 
