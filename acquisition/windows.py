@@ -69,6 +69,7 @@ from typing import NamedTuple
 import numpy as np
 
 from modalab.core.errors import ModalabValueError
+from modalab.core.frf import check_window_beta
 
 __all__ = [
     "ForceWindow",
@@ -308,16 +309,8 @@ def correct_poles(poles, beta: float) -> np.ndarray:
     Poles in rad/s (``λ = σ + iω_d`` with σ < 0 for a stable mode); the damped frequency is unchanged,
     ``σ_true = σ_meas + β`` (i.e. the decay rate ``−σ`` drops by β).
     """
-    b = _check_beta(beta)
+    b = check_window_beta(beta)
     return np.asarray(poles, dtype=complex) + b
-
-
-def _check_beta(beta):
-    b = float(beta)
-    if not np.isfinite(b) or b < 0:
-        raise ModalabValueError(f"beta={beta!r} must be the window's decay rate >= 0 in 1/s "
-                                "(FRF.window_beta_per_s)")
-    return b
 
 
 def correct_damping(freq_hz, damping, beta: float, *, exact: bool = True) -> np.ndarray:
@@ -342,7 +335,7 @@ def correct_damping(freq_hz, damping, beta: float, *, exact: bool = True) -> np.
     """
     f = np.asarray(freq_hz, dtype=float)
     z = np.asarray(damping, dtype=float)
-    b = _check_beta(beta)
+    b = check_window_beta(beta)
     try:
         f, z = np.broadcast_arrays(f, z)
     except ValueError:

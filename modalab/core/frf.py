@@ -36,7 +36,7 @@ from .dof import Dof, locate, parse_dofs
 from .errors import ShapeError, ModalabValueError
 from .units import QUANTITY_UNITS, check_quantity
 
-__all__ = ["FRF", "concat"]
+__all__ = ["FRF", "concat", "check_window_beta"]
 
 _ORDER = {"receptance": 0, "mobility": 1, "accelerance": 2}
 #: former metadata keys -> typed FRF attributes
@@ -112,8 +112,12 @@ class _Metadata(dict):
         return (dict, (dict(self),))
 
 
-def _check_beta(beta) -> float:
+def check_window_beta(beta) -> float:
+    """The exponential window's decay rate β (1/s) as a float: a finite number >= 0 (0 = no window).  The one
+    check of β, for an FRF's ``window_beta_per_s`` and for every model FRF evaluated at ``s = iω + β``."""
     try:
+        if isinstance(beta, (bool, str, bytes)):      # float() would take True and "2"
+            raise TypeError
         b = float(beta)
     except (TypeError, ValueError):
         raise ModalabValueError(f"window_beta_per_s={beta!r} must be a number: the exponential window's decay "
@@ -199,7 +203,7 @@ class FRF:
 
     @window_beta_per_s.setter
     def window_beta_per_s(self, value):
-        self._beta = _check_beta(value)
+        self._beta = check_window_beta(value)
 
     @property
     def variance(self):

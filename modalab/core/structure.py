@@ -32,21 +32,12 @@ from .dense import use_dense
 from .dof import Dof, locate, parse_dofs
 from .eigen import dense_modes, drop_mechanisms, lanczos_modes, massless_dofs, restore
 from .errors import ModalabValueError, ShapeError
-from .frf import FRF
+from .frf import FRF, check_window_beta
 from .units import QUANTITY_UNITS, check_quantity
 
 __all__ = ["Structure", "ModalModel"]
 
 _ORDER = {"receptance": 0, "mobility": 1, "accelerance": 2}
-
-
-def _beta(beta) -> float:
-    """The window decay β (1/s) a model FRF is evaluated at (s = iω + β): a finite number >= 0."""
-    if isinstance(beta, bool) or not isinstance(beta, (int, float, np.floating, np.integer)) \
-            or not np.isfinite(beta) or beta < 0:
-        raise ModalabValueError(f"window_beta_per_s={beta!r}; expected the exponential window's decay rate in "
-                                "1/s, a finite number >= 0 (0: no window), e.g. a measured FRF's window_beta_per_s")
-    return float(beta)
 
 
 def _as_sparse(A, name, n=None):
@@ -100,7 +91,7 @@ class ModalModel:
         measured FRF's ``window_beta_per_s``).  The result carries β."""
         q = check_quantity(quantity)
         freq = np.asarray(freq_hz, dtype=float)
-        beta = _beta(window_beta_per_s)
+        beta = check_window_beta(window_beta_per_s)
         resp, refs, R, L, G, Gi = self._factors(responses, references)
         order = _ORDER[q]
         H = np.empty((len(resp), len(refs), freq.size), complex)
@@ -252,7 +243,7 @@ class Structure:
         """Exact FRFs: ``method='modal'`` (all modes, fast for many lines) or ``'direct'`` (a sparse solve per line),
         at ``s = iω + β`` with β = ``window_beta_per_s`` (1/s, default 0): pass a measured FRF's
         ``window_beta_per_s`` to compare the model with exponentially windowed data (see :meth:`ModalModel.frf`)."""
-        beta = _beta(window_beta_per_s)
+        beta = check_window_beta(window_beta_per_s)
         if method == "modal":
             return self.modal_model().frf(freq_hz, responses, references, quantity, window_beta_per_s=beta)
         if method != "direct":

@@ -53,7 +53,7 @@ from modalab.core.dof import locate, parse_dofs
 from modalab.core.eigen import (DEFAULT_SHIFT_HZ, check_definite, dense_modes, drop_mechanisms, lanczos_modes,
                                  massless_dofs, massless_mechanisms, normalise, restore)
 from modalab.core.errors import ModalabValueError
-from modalab.core.frf import FRF
+from modalab.core.frf import FRF, check_window_beta
 from modalab.core.modes import ModeSet
 from modalab.core.units import QUANTITY_UNITS, check_quantity
 
@@ -324,10 +324,7 @@ def frf_modal(system, freq_hz, responses=None, references=None, *, n_modes: int 
     Pr = np.asarray(Tr @ phi)
     Pf = np.asarray(Tf @ phi)
     w = 2 * np.pi * freq
-    beta = float(window_beta_per_s)
-    if not np.isfinite(beta) or beta < 0:
-        raise ModalabValueError(f"window_beta_per_s={window_beta_per_s!r} must be finite and >= 0 (the "
-                                "exponential window's decay rate, 1/s)")
+    beta = check_window_beta(window_beta_per_s)
     if beta:                                          # s = iω + β; β = 0 keeps the iω arithmetic below
         s = 1j * w + beta
         den = omega[:, None] ** 2 + s[None, :] ** 2 + 1j * dr[:, None] + s[None, :] * cr[:, None]
