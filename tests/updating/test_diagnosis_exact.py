@@ -1,6 +1,7 @@
 """An exact model stays exact (BRIEF; issue 13, issue 14 #1-2): FRFs measured through the simulated lab
 (hammer, IEPE chain, anti-alias filter, ADC, H1 from 3 hits) on a structure built from the nominal bulk data
-itself give no finding and leave the parameters at nominal, with and without the exponential window."""
+itself give no finding and leave the parameters at nominal within their uncertainty, with and without the
+exponential window."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -33,18 +34,19 @@ def test_data_simulated_from_the_nominal_give_no_finding(hits, exp_end):
     dd = d.to_dict()
     assert dd["findings"] == [], dd["findings"]
     par = dd["parameters"]
-    # E and ρ scaled together change only the FRF's amplitude (the lab's calibration: the simulated chain reads
-    # ~1 % low); the frequencies they set stay exact
-    assert par["E_seg1"]["updated"] / par["rho_seg1"]["updated"] == pytest.approx(1.0, abs=0.002)
+    # every parameter at nominal within its printed uncertainty: before the simulated lab's miss was an
+    # eccentric force (it leaned the force on the neighbouring node 0.2 m away), the chain read 1.35 % low and
+    # E and ρ rose together by 1.3 % at 30-45 σ (issue 14 #2)
     for name, p in par.items():
         if p["mode"] == "factor":
-            assert p["updated"] == pytest.approx(1.0, abs=0.02), (name, p)
-    assert dd["parameters"]["eta_global"]["updated"] == pytest.approx(0.02, rel=0.15)
+            assert abs(p["updated"] - 1.0) < max(4 * p["std"], 1e-3), (name, p)
+            assert p["updated"] == pytest.approx(1.0, abs=3e-3), (name, p)
+    assert dd["parameters"]["eta_global"]["updated"] == pytest.approx(0.02, rel=0.05)
     for blk in dd["fit"].values():
         assert blk["freq_error_max_pct"] < 1.0 and blk["mac_min"] > 0.95 and blk["n_pairs"] >= 3
     # χ²/N of the final model in units of the data's noise model (coherence, averages, leakage bounds, 1 % floor):
-    # measured 1.40 (training) / 0.91 (held-out) with the exponential window, 0.54 / 0.49 without it (6.4 / 6.4
-    # before the leakage bound counted the low modes that outlive the record: fit.decay_leakage); below 1
-    # where the 1 % floor exceeds the simulated lab's errors
+    # measured 0.34 (training) / 0.37 (held-out) with the exponential window, 0.38 / 0.40 without it; below 1
+    # because the 1 % floor exceeds the simulated lab's errors (1.40 / 0.91 with the window while the lab's
+    # miss read the FRFs 1.35 % low)
     chi2 = [dd["fit"]["with_physics"][f"chi2_per_value_{k}"] for k in ("train", "held_out")]
-    assert all(0.4 <= c <= 2.5 for c in chi2), chi2
+    assert all(0.2 <= c <= 1.5 for c in chi2), chi2
