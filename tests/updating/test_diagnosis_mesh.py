@@ -61,7 +61,7 @@ def test_a_shift_within_the_mesh_error_is_no_effect_beyond_it():
     # a small mass near the clamp lowers the higher frequencies by less than the mesh's own error
     # (1 g on a beam of 0.54 kg: 0.23 % on some mode, all of it within the mesh error)
     assert shift_beyond_mesh(pm, [1.0, 1.0, 0.001], mass, band, None) > 2e-3
-    assert shift_beyond_mesh(pm, [1.0, 1.0, 0.001], mass, band, me) == 0.0
+    assert shift_beyond_mesh(pm, [1.0, 1.0, 0.001], mass, band, me) < 1e-9      # rounding: 2e-14 on some CPUs
     # a large mass lowers them by more: the excess counts
     assert shift_beyond_mesh(pm, [1.0, 1.0, 0.2], mass, band, me) > 0.1
     # a stiffening term (against the mesh error's direction) counts in full
@@ -95,4 +95,5 @@ def test_a_refined_mode_that_does_not_move_the_model_dofs_is_left_out_of_the_pai
     ref = mesh_error(plain, PARAMS, [1.0, 1.0], band)
     assert np.all(np.isfinite(me.rel))
     np.testing.assert_allclose(me.f_hz, ref.f_hz, rtol=1e-9)
-    np.testing.assert_allclose(me.rel, ref.rel, rtol=1e-6, atol=1e-9)
+    # relative errors of 1e-6 are differences of eigenvalues good to ~1e-12: agree to 1e-8 of a frequency
+    np.testing.assert_allclose(me.rel, ref.rel, rtol=1e-6, atol=1e-8)
