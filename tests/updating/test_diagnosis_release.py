@@ -394,3 +394,23 @@ def test_an_elastic_clamp_is_one_finding_with_its_rotational_and_translational_s
     assert len(tra) == 1 if kt < 1e7 else len(tra) <= 1
     assert all(v == pytest.approx(kt, rel=0.25) for v in tra)
     assert d.fit_["with_physics"]["frf_error_held_out"] < d.fit_["parameters_only"]["frf_error_held_out"] / 5
+
+
+def test_two_member_ends_released_about_one_axis_at_one_node_are_two_terms():
+    """Three members end at node 5 (the rail, a post up and a brace down): two of their ends released about
+    the same axis are two terms with two parameters.  Both parameters were named kj_5_6, and the diagnosis of
+    a planar frame (a fresh benchmark case, seed 603) stopped with 'duplicate parameter names' after its first
+    finding."""
+    from updating.diagnosis.terms import _augment
+
+    m = _t_frame(clamp=True)
+    m.add_node(9, (0.6, 0.15, 0.0))
+    m.add_node(10, (0.6, -0.15, 0.0))
+    m.add_element(Beam3D(8, 5, 9, 2, orientation=(0.0, 0.0, 1.0)))
+    m.add_element(Beam3D(9, 5, 10, 1, orientation=(0.0, 0.0, 1.0)))
+    lib = [c for c in build_library(m, kinds=["joint_flexibility"]) if c.dofs == ("5+RZ",)]
+    assert len(lib) >= 2, [c.label for c in lib]
+    m_aug, params, _ = _augment(m, lib[:2])
+    assert len({p.name for p in params}) == 2, [p.name for p in params]
+    pm = ParametricFEModel(m_aug, params)
+    assert len(pm.structure([1e4, 2e4]).dofs) > len(m.structure().dofs)

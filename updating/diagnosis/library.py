@@ -492,7 +492,8 @@ def _split_node(m, eid, n, side, c, comps_present):
     _fix_foreign(m, nn, comps_present)
     m.add_element(Spring(eid, a=(n, c), b=(nn, c), k=0.0, group=f"diag_j_{eid}"))
     m._changed()
-    return m, Parameter(f"kj_{n}_{c}", "k", elements=(eid,), mode="value"), 1.0
+    # named by the member end too: two ends at one junction released about the same axis are two terms
+    return m, Parameter(f"kj_{n}_{c}_e{min(side)}", "k", elements=(eid,), mode="value"), 1.0
 
 
 def _member_end_candidates(ctx: _LibraryContext, jnodes) -> list[Candidate]:
