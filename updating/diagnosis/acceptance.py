@@ -19,6 +19,10 @@ from updating.diagnosis.terms import _another_explanation, MIN_FREQ_EFFECT, FRF_
 log = logging.getLogger(__name__)
 
 
+#: the reason :meth:`_Acceptance._judge` gives when the criterion's best option fails the information criterion
+IC_FAILED = "fails the information criterion"
+
+
 class _Acceptance:
     """The acceptance tests of :class:`~updating.diagnosis.workflow.Diagnoser` (a mixin)."""
 
@@ -35,7 +39,7 @@ class _Acceptance:
         if best is None:
             return False, "no candidate could be fitted"
         if not (best[1] < rss_cur and n_eq * np.log(rss_cur / max(best[1], 1e-300)) > cfg.penalty * np.log(n_eq)):
-            return False, "fails the information criterion"
+            return False, IC_FAILED
         if not self.use_mci and self.current and np.sqrt(best[1]) > np.sqrt(rss_cur) * (1 - cfg.min_extra_gain):
             return False, (f"a further term lowering the training FRF error by less than "
                            f"{100 * cfg.min_extra_gain:.0f} % ({100 * (1 - np.sqrt(best[1] / rss_cur)):.2g} %)")
@@ -74,7 +78,7 @@ class _Acceptance:
             self._frf_cur = (self.pm_cur, fr)
         return self._frf_cur
 
-    def _judge_picks(self, it: int, n_eq_mci: int, rival=None, mci_best=None):
+    def _judge_picks(self, it: int, n_eq_mci: int, rival=None, mci_best=None, mci_refit: bool = False):
         """The exact FRF screening's picks judged on the FRFs (MCI criterion, when the MCI's best failed).
 
         The best pick of each screening (around the nominal and the updated parameters: updating may have
@@ -91,7 +95,13 @@ class _Acceptance:
         ln N, N = :func:`n_obs`) and it passes the tests the rival passed (:meth:`_judge_pick` with ``supported``);
         else None (the rival stands).  ``mci_best``: the candidate the MCI ranked and fitted best, rejected by
         :meth:`_judge` (its MCI-optimal value can be far from the FRFs'); the same candidate picked here is
-        supported by the MCI too, so it is judged like a supported pick."""
+        supported by the MCI too, so it is judged like a supported pick.  ``mci_refit``: ``mci_best`` passed the
+        MCI's information criterion and failed a later test with its MCI-optimal value; it is fitted on the
+        training FRFs too, from its exact screening's value (:meth:`_screened`), as one more pick.
+
+        An alternative that the screening alone (parameters fixed) found within the margin but that was fitted
+        on the FRFs as a pick and is worse than the accepted pick by the information criterion is no
+        alternative (the fitted comparison decides)."""
         cfg = self.config
         have = {c.key for c in self.current}
         self._rival_fit = None
@@ -100,12 +110,14 @@ class _Acceptance:
             self._rival_fit = self._fit(rival[2], self.train, rival[3], lower=rival[4], upper=rival[5],
                                         max_nfev=max(8, cfg.max_nfev // 2))
             log.info("the MCI's choice %s fitted on the FRFs: error %.4g", rival[0].label, self._rival_fit.error)
-        picks = self._screening_picks(have)
+        picks = self._screening_picks(have)[:FRF_PICKS]
+        if mci_refit and mci_best is not None and mci_best.key not in {c.key for c, *_ in picks} | have:
+            picks += [x for x in [self._screened(mci_best)] if x is not None]
         if not picks:
             return None
         pm_ref, ref = self._frf_ref()
         tried = []
-        for c, v, p_scr, k in picks[:FRF_PICKS]:
+        for c, v, p_scr, k in picks:
             pm_aug, fr, clo, chi, scale = self._fit_pick(c, v, p_scr)
             log.info("screening pick %s fitted on the FRFs: error %.4g (current %.4g)", c.label, fr.error, ref.error)
             tried.append((fr.error, c, pm_aug, fr, clo, chi, k, scale))
@@ -142,13 +154,33 @@ class _Acceptance:
         g_c = next(g for o, _, g in scr if o.key == c.key)
         self._route[c.key] = (g_c, False, [(o, v, g) for o, v, g in scr if set(o.nodes) & set(c.nodes)
                                             and o.key != c.key])
-        # equally good single-term explanations elsewhere in the same screening (χ² within the margin)
-        e_c = (1 - g_c) ** 2
-        margin = e_c * cfg.penalty * np.log(n_eq) / n_eq
         m_now = pm_aug.model_at(fr.p)
-        alts = [(o, v) for o, v, g in scr if o.key != c.key and o.key not in have
-                and (1 - g) ** 2 - e_c <= margin and _another_explanation(o, c, m_now)]
+        alts = self._screened_alternatives(c, err, g_c, scr, have, tried, m_now, n_eq)
         return c, alts + self._fitted_alternatives(c, err, k, tried, alts, m_now, n_eq)
+
+    def _screened_alternatives(self, c, err: float, g_c: float, scr, have: set, tried: list, m_now,
+                               n_eq: int) -> list:
+        """Equally good single-term explanations elsewhere in ``c``'s screening (χ² within the information
+        criterion's margin, parameters fixed), less those fitted on the FRFs as picks (``tried``) and worse there
+        than ``c`` (error ``err``) by the information criterion.  Returns ``[(candidate, value)]``."""
+        need = self.config.penalty * np.log(n_eq)
+        e_c = (1 - g_c) ** 2
+        alts = [(o, v) for o, v, g in scr if o.key != c.key and o.key not in have
+                and (1 - g) ** 2 - e_c <= e_c * need / n_eq and _another_explanation(o, c, m_now)]
+        fitted = {o.key: e for e, o, *_ in tried}
+        worse = [o for o, _ in alts if o.key in fitted
+                 and n_eq * np.log(max(fitted[o.key], 1e-300) ** 2 / max(err, 1e-300) ** 2) > need]
+        for o in worse:
+            log.info("%s is no alternative to %s: fitted on the FRFs its error is %.4g against %.4g", o.label,
+                     c.label, fitted[o.key], err)
+        return [(o, v) for o, v in alts if o not in worse]
+
+    def _screened(self, c):
+        """``(c, value, screening parameters, screening index)`` of ``c`` in the exact FRF screening where it
+        gains most, or None when no screening holds it."""
+        found = [(g, (o, v, p_scr, k)) for k, (scr, p_scr) in enumerate(self._screens) for o, v, g in scr
+                 if o.key == c.key]
+        return max(found, key=lambda t: t[0])[1] if found else None
 
     def _screening_picks(self, have: set) -> list:
         """``[(candidate, value, screening parameters, screening index)]``: the best candidate of each exact
@@ -188,7 +220,7 @@ class _Acceptance:
             if o.key not in seen and n_eq * np.log(max(err, 1e-300) ** 2 / max(err_c, 1e-300) ** 2) <= need \
                     and _another_explanation(o, c, m_now):
                 out.append((o, float(fr.p[-1] * scale)))
-                seen.add(o.key)
+        seen |= {o.key for _, o, *_ in tried}          # fitted once already: not again as a competitor
         scr, p_scr = self._screens[k]
         g_c = next(g for o, _, g in scr if o.key == c.key)
         close = [(o, v) for o, v, g in scr if o.key not in seen and _another_explanation(o, c, m_now)

@@ -62,7 +62,7 @@ from updating.diagnosis.priors import default_parameters, PRIOR_BOUND, parameter
 from updating.diagnosis.terms import _another_explanation, DAMPING_PLACES, _distinct_places, cv_folds, n_obs, promote_measured, _on_model_dofs, _dof_stiffness, _upper, _augment
 from updating.diagnosis.testmodes import suspension_band
 from updating.diagnosis.findings import Finding, Diagnosis
-from updating.diagnosis.acceptance import _Acceptance
+from updating.diagnosis.acceptance import IC_FAILED, _Acceptance
 from updating.diagnosis.proof import _Proof
 from updating.diagnosis.refine import _Refine
 
@@ -325,7 +325,8 @@ class Diagnoser(_Acceptance, _Refine, _Proof):
             if best is not None:
                 self._decide("rejected", best[0], why)
             supported, self._displaced = self._displaced or (best[0] if best is not None else None), None
-            picked = self._judge_picks(it, n_eq, mci_best=supported)
+            picked = self._judge_picks(it, n_eq, mci_best=supported,     # refit: see _judge_picks
+                                       mci_refit=best is not None and why != IC_FAILED)
             if picked is None:
                 return False
             c, alts = picked
