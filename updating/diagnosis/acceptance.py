@@ -130,19 +130,16 @@ class _Acceptance:
                          rival[0].label, e_r)
                 return None
         supported = rival is not None or (mci_best is not None and c.key == mci_best.key)
-        ok, why = self._judge_pick(c, pm_aug, fr, clo, chi, supported=supported)
-        log.info("screening pick %s on the FRFs: %s", c.label, why)
-        if not ok and self._pick_left and c.release is not None and c.release[0] == "support":
-            # a support release that leaves a residual above the noise may be a clamp elastic in its other
-            # components too: judged once more with them (updating.diagnosis.refine)
-            done = self._completed_pick(c, fr)
-            if done is not None:
-                o, pm_aug, fr, clo, chi, why = done
-                self._parts_pending = [o]
-                ok = True
-        if not ok:
-            self._decide("rejected", c, why)
+        judged = self._judge_or_complete((err, c, pm_aug, fr, clo, chi, k), supported, "screening pick")
+        if judged is None and (rival is None and self._pick_left):
+            # a support release among the other picks that lowered the error: judged next (a clamp elastic in
+            # all its components; the best pick was an inertia absorbing part of it)
+            sup = sorted((t for t in tried if t[1].key != c.key and t[1].release is not None
+                          and t[1].release[0] == "support" and t[0] < ref.error), key=lambda t: t[0])
+            judged = self._judge_or_complete(sup[0][:7], supported, "support pick") if sup else None
+        if judged is None:
             return None
+        err, c, pm_aug, fr, clo, chi, k = judged
         # the MCI state of the augmented model for the next term's criterion (minimised like every candidate's);
         # the screenings and fits start from the FRF fit
         free = np.concatenate([self.free_mci, np.ones(len(fr.p) - len(self.free_mci), bool)])
@@ -151,12 +148,31 @@ class _Acceptance:
         self.pm_cur, self.p_cur, self.lo_cur, self.hi_cur = pm_aug, fr.p, clo, chi
         self._frf_cur = (pm_aug, fr)
         scr = self._screens[k][0]
-        g_c = next(g for o, _, g in scr if o.key == c.key)
-        self._route[c.key] = (g_c, False, [(o, v, g) for o, v, g in scr if set(o.nodes) & set(c.nodes)
+        g_c = next((g for o, _, g in scr if o.key == c.key), None)     # None: a completed group, not screened here
+        self._route[c.key] = (g_c or 0.0, False, [(o, v, g) for o, v, g in scr if set(o.nodes) & set(c.nodes)
                                             and o.key != c.key])
         m_now = pm_aug.model_at(fr.p)
-        alts = self._screened_alternatives(c, err, g_c, scr, have, tried, m_now, n_eq)
+        alts = self._screened_alternatives(c, err, g_c, scr, have, tried, m_now, n_eq) if g_c is not None else []
         return c, alts + self._fitted_alternatives(c, err, k, tried, alts, m_now, n_eq)
+
+    def _judge_or_complete(self, t, supported: bool, what: str):
+        """The pick ``t = (error, candidate, pm, FitResult, lower, upper, screening index)`` judged on the FRFs
+        (:meth:`_judge_pick`); a support release that fails is judged once more completed by the rest of its
+        constraint (:meth:`_completed_pick`, its other components placed in ``_parts_pending``).  Returns ``t``
+        as accepted (the completed release in it) or None, the rejection recorded."""
+        err, c, pm_aug, fr, clo, chi, k = t
+        ok, why = self._judge_pick(c, pm_aug, fr, clo, chi, supported=supported)
+        log.info("%s %s on the FRFs: %s", what, c.label, why)
+        if not ok and self._pick_left and c.release is not None and c.release[0] == "support":
+            done = self._completed_pick(c, fr)
+            if done is not None:
+                o, c, pm_aug, fr, clo, chi, why = done
+                self._parts_pending = [o]
+                return err, c, pm_aug, fr, clo, chi, k
+        if not ok:
+            self._decide("rejected", c, why)
+            return None
+        return t
 
     def _screened_alternatives(self, c, err: float, g_c: float, scr, have: set, tried: list, m_now,
                                n_eq: int) -> list:
@@ -222,9 +238,10 @@ class _Acceptance:
                 out.append((o, float(fr.p[-1] * scale)))
         seen |= {o.key for _, o, *_ in tried}          # fitted once already: not again as a competitor
         scr, p_scr = self._screens[k]
-        g_c = next(g for o, _, g in scr if o.key == c.key)
-        close = [(o, v) for o, v, g in scr if o.key not in seen and _another_explanation(o, c, m_now)
-                 and n_eq * np.log(max(1 - g, 1e-300) ** 2 / max(1 - g_c, 1e-300) ** 2) <= 4 * need]
+        g_c = next((g for o, _, g in scr if o.key == c.key), None)     # None: a completed group, not screened here
+        close = [] if g_c is None else [
+            (o, v) for o, v, g in scr if o.key not in seen and _another_explanation(o, c, m_now)
+            and n_eq * np.log(max(1 - g, 1e-300) ** 2 / max(1 - g_c, 1e-300) ** 2) <= 4 * need]
         for o, v in close[:FRF_PICKS - 1]:
             m_aug, cpar, scales = _augment(self.model0, self.current + [o])
             pm_aug = ParametricFEModel(m_aug, self.params + cpar)

@@ -58,11 +58,16 @@ class _Refine:
         """A support release ``c`` that the FRFs reject only because it leaves a residual above the noise,
         fitted once more with the rest of its constraint (:meth:`_complement`, placed before ``c``) from
         ``c``'s fit ``fr_c``, and judged as two values (every penalty doubled): the residual left, the held-out
-        test, ``c``'s own effect on the frequencies and the cross-validation.  ``(complement, pm, FitResult,
-        lower, upper, reason)`` when it passes, else None (the reason logged)."""
+        test, ``c``'s own effect on the frequencies and the cross-validation.  A single component ``c`` is
+        replaced by the release of all of its kind there (:meth:`_group_of`: an elastic clamp is elastic in all
+        its translations).  ``(complement, c or its group, pm, FitResult, lower, upper, reason)`` when it
+        passes, else None (the reason logged)."""
         o = self._complement(c)
         if o is None:
             return None
+        g = self._group_of(c)
+        if g is not None:                      # a clamp's translations (rotations) released together
+            c = g
         terms = self.current + [o, c]
         m_aug, cpar, scales = _augment(self.model0, terms)
         pm_aug = ParametricFEModel(m_aug, self.params + cpar)
@@ -77,7 +82,19 @@ class _Refine:
         if not ok:
             self._decide("rejected", c, f"with {o.label}: {why}")
             return None
-        return o, pm_aug, fr, clo, chi, f"with {o.label}: {why}"
+        return o, c, pm_aug, fr, clo, chi, f"with {o.label}: {why}"
+
+    def _group_of(self, c):
+        """The library's release of all of ``c``'s kind (translations or rotations) at ``c``'s constraint, when
+        ``c`` is one component of it; else None."""
+        if len(c.release[2]) != 1:
+            return None
+        node, comp = c.release[1], c.release[2][0]
+        have = {x.key for x in self.current}
+        grp = [o for o in self._library(self.model0) if o.release is not None and o.release[0] == "support"
+               and o.release[1] == node and comp in o.release[2] and len(o.release[2]) > 1
+               and o.key not in have and o.key not in self._hidden]
+        return max(grp, key=lambda o: len(o.release[2])) if grp else None
 
     def _complement(self, c):
         """The library's release of the other components of ``c``'s constraint (the largest group of the other
