@@ -123,7 +123,7 @@ def test_the_frf_diagnosis_leaves_the_exact_model_at_nominal(identified, tmp_pat
     leaned on the neighbouring node, the FRFs read about 1 % low and all E and ρ rose together by +1.1 %
     (30-45 std; issue 14 #2).  Without the window they still rise by +0.4 to +0.6 % (8-11 std): the leakage of
     the unwindowed record, which the diagnosis counts as noise, not as a bias."""
-    with caplog.at_level("WARNING", logger="updating.diagnosis.workflow"):
+    with caplog.at_level("WARNING", logger="updating.diagnosis.fit"):
         assert main(["diagnose", str(DEMO / "nominal.bdf"), str(identified / "frf.uff"),
                      "--json", str(tmp_path / "diag.json")]) == 0
     assert not [r for r in caplog.records if "leakage" in r.getMessage()]
@@ -139,7 +139,7 @@ def test_the_frf_diagnosis_of_unwindowed_data_warns_of_the_leakage(hits, tmp_pat
     record, 25 % leakage below 14 Hz, and E and ρ rise together by +0.4..+0.6 % (8-11 std): the diagnosis says
     so and how to measure instead; no finding either way."""
     assert main(["frf", str(hits), "-o", str(tmp_path / "frf.uff"), "--no-plot"]) == 0
-    with caplog.at_level("WARNING", logger="updating.diagnosis.workflow"):
+    with caplog.at_level("WARNING", logger="updating.diagnosis.fit"):
         assert main(["diagnose", str(DEMO / "nominal.bdf"), str(tmp_path / "frf.uff"),
                      "--json", str(tmp_path / "diag.json")]) == 0
     said = [r.getMessage() for r in caplog.records if "leakage of up to" in r.getMessage()]

@@ -30,7 +30,7 @@ def test_data_simulated_from_the_nominal_give_no_finding(hits, exp_end, caplog):
     out = hits / f"frf_{exp_end}.uff"
     frf(hits / "hits.uff", out, FRFOptions(exp_end_level=exp_end))
     model = build_model(read_bdf(NOMINAL))
-    with caplog.at_level("WARNING", logger="updating.diagnosis.workflow"):
+    with caplog.at_level("WARNING", logger="updating.diagnosis.fit"):
         d = diagnose(model, uff.read_frf(out), max_lines=120)
     # its modes on the springs (2.25 and 4.04 Hz, ζ = 1 %) keep 57 % and 36 % of their amplitude at the end of
     # the 4 s record: said once without the window (fit.decay_leakage), not with it (0.5 %)

@@ -89,24 +89,24 @@ class _Refine:
         ``c`` is one component of it; else None."""
         if len(c.release[2]) != 1:
             return None
-        node, comp = c.release[1], c.release[2][0]
-        have = {x.key for x in self.current}
-        grp = [o for o in self._library(self.model0) if o.release is not None and o.release[0] == "support"
-               and o.release[1] == node and comp in o.release[2] and len(o.release[2]) > 1
-               and o.key not in have and o.key not in self._hidden]
+        comp = c.release[2][0]
+        grp = [o for o in self._support_releases(c.release[1]) if comp in o.release[2] and len(o.release[2]) > 1]
         return max(grp, key=lambda o: len(o.release[2])) if grp else None
+
+    def _support_releases(self, node) -> list:
+        """The library's support releases at ``node`` not yet accepted nor hidden."""
+        have = {x.key for x in self.current}
+        return [o for o in self._library(self.model0) if o.release is not None and o.release[0] == "support"
+                and o.release[1] == node and o.key not in have and o.key not in self._hidden]
 
     def _complement(self, c):
         """The library's release of the other components of ``c``'s constraint (the largest group of the other
         kind, translations or rotations), not yet accepted; None when the constraint has none."""
         node, comps = c.release[1], set(c.release[2])
-        have = {x.key for x in self.current}
         if any(x.release is not None and x.release[0] == "support" and x.release[1] == node and
                _is_translation(x.release[2]) != _is_translation(tuple(comps)) for x in self.current):
             return None                       # the other kind is accepted already
-        lib = self._library(self.model0)
-        other = [o for o in lib if o.release is not None and o.release[0] == "support" and o.release[1] == node
-                 and not set(o.release[2]) & comps and o.key not in have and o.key not in self._hidden
+        other = [o for o in self._support_releases(node) if not set(o.release[2]) & comps
                  and _is_translation(o.release[2]) != _is_translation(tuple(comps))]
         if not other:
             return None

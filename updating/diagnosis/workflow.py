@@ -53,7 +53,7 @@ from modalab.core.errors import ModalabValueError
 from modalab.core.modes import ModeSet
 from modalab.core.frf import FRF
 from updating.fe import FEModel, ParametricFEModel
-from updating.diagnosis.fit import RITZ_LIMIT, Prior, decay_leakage, fit_frf, fit_std, frf_data, frf_error, model_frf, quick_frf_error
+from updating.diagnosis.fit import RITZ_LIMIT, Prior, fit_frf, fit_std, frf_data, frf_error, model_frf, quick_frf_error
 from updating.diagnosis.frfscreen import frf_screen
 from updating.diagnosis.library import _nodes_of, build_library, validate_kinds
 from updating.diagnosis.release import release_screen, release_visibility
@@ -67,11 +67,6 @@ from updating.diagnosis.proof import _Proof
 from updating.diagnosis.refine import _Refine
 
 log = logging.getLogger(__name__)
-
-#: leakage bound (relative, :func:`~updating.diagnosis.fit.decay_leakage`) above which the diagnosis warns that
-#: modes outlive the record: the fits count it as noise per line, but it is one bias shared by many lines (on
-#: the demo's exact, unwindowed FRFs, 25 % below 14 Hz moved every E and ρ by +0.4..+0.6 %, 8-11 std)
-LEAKAGE_WARN = 0.05
 
 __all__ = ["diagnose", "Diagnoser", "DiagnoserConfig", "Diagnosis", "Finding", "default_parameters"]
 
@@ -144,19 +139,6 @@ class Diagnoser(_Acceptance, _Refine, _Proof):
         """A MAP FRF fit with the parameters' priors."""
         return fit_frf(*a, prior=self.prior, **k)
 
-    def _warn_leakage(self, measured) -> None:
-        """Warn when modes outlive the record (:func:`decay_leakage` above :data:`LEAKAGE_WARN` on some line)."""
-        b = decay_leakage(measured, self.data.s)
-        leaky = b > LEAKAGE_WARN
-        if leaky.any():
-            fl = self.data.freq_hz[leaky]
-            df = np.diff(np.sort(measured.freq_hz))
-            log.warning("the FRFs carry leakage of up to %.0f %% at %.3g-%.3g Hz: lightly damped modes outlive the "
-                        "%.3g s record; the fits count it as noise, but it is one bias shared by those lines and "
-                        "can move the parameters by more than their standard deviations; measure with an "
-                        "exponential window (modalab frf --exp-end 0.01) or a longer record",
-                        100 * float(b.max()), float(fl.min()), float(fl.max()), 1.0 / float(df[df > 0].min()))
-
     # ------------------------------------------------------------------ steps 1-2
     def baseline(self, model: FEModel, measured: FRF):
         """The data and their split, the nominal model with fitted damping, the priors, parameter updating."""
@@ -182,7 +164,6 @@ class Diagnoser(_Acceptance, _Refine, _Proof):
                       "suspension")
             band = (max(self.suspension_hz, band[0] if band else 0.0), band[1] if band else None)
         self.data = frf_data(measured, max_lines=cfg.max_lines, band_hz=band)
-        self._warn_leakage(measured)
         self.train, self.held, self.held_desc = _split(self.data, cfg.holdout)
         self._folds = cv_folds(self.data, cfg.holdout)
         self.band = (float(self.data.freq_hz.min()), float(self.data.freq_hz.max()))
