@@ -33,7 +33,7 @@ class Finding:
         c = self.candidate
         s = c.label + "".join(_part(c, o, v) for o, v, _ in self.parts)
         if self.alternatives:
-            s += " or " + " or ".join(o.label for o, *_ in self.alternatives)
+            s += or_labels(c, [o for o, *_ in self.alternatives])
         return s
 
     def to_dict(self) -> dict:
@@ -136,9 +136,23 @@ def _describe(f: Finding) -> str:
     s = f"{f.candidate.label} of {_fmt(f.value, f.candidate.unit)}"
     s += "".join(f" ({_part(f.candidate, o, v)[1:]})" for o, v, _ in f.parts)
     if f.alternatives:
-        s = "either " + s + "".join(f" or {o.label} of {_fmt(v, o.unit)}" for o, v, *_ in f.alternatives) + \
+        c = f.candidate
+        s = "either " + s + "".join(f" or {_short(c, o)} of {_fmt(v, o.unit)}" for o, v, *_ in f.alternatives) + \
             " (the data cannot tell them apart)"
     return s
+
+
+def _short(c: Candidate, o: Candidate) -> str:
+    """``o``'s label, without the words it shares with ``c``'s before the place (`` at ``): ``at 8+X`` for
+    a spring to ground at 8+X beside one at 6+X."""
+    what, at, where = o.label.partition(" at ")
+    return f"at {where}" if at and c.label.partition(" at ")[0] == what else o.label
+
+
+def or_labels(c: Candidate, others) -> str:
+    """`` or <label>`` for each of ``others`` (alternatives to ``c``), the words shared with ``c`` left out
+    (:func:`_short`)."""
+    return "".join(f" or {_short(c, o)}" for o in others)
 
 
 def statement(findings, fit, held_desc: str, not_evaluated=(), unobservable=()) -> str:

@@ -61,7 +61,7 @@ from updating.diagnosis.screen import mci_update, rank_candidates, residual_syst
 from updating.diagnosis.priors import default_parameters, PRIOR_BOUND, parameter_priors, _with_damping, _split, _bounds, _fit_continued, nonnegative_loss_factors
 from updating.diagnosis.terms import _another_explanation, DAMPING_PLACES, _distinct_places, cv_folds, n_obs, promote_measured, _on_model_dofs, _dof_stiffness, _upper, _augment
 from updating.diagnosis.testmodes import suspension_band
-from updating.diagnosis.findings import Finding, Diagnosis
+from updating.diagnosis.findings import Finding, Diagnosis, or_labels
 from updating.diagnosis.acceptance import IC_FAILED, _Acceptance
 from updating.diagnosis.proof import _Proof
 from updating.diagnosis.refine import _Refine
@@ -322,8 +322,11 @@ class Diagnoser(_Acceptance, _Refine, _Proof):
             self._route[o.key] = (0.0, False, [])
             self._decide("found", o, f"as a part of {c.label}, released with it")
         if alts:
-            self.alternatives[c.key] = alts[:2]
-            self._decide("ambiguous", c, f"{' or '.join(o.label for o, _ in alts[:2])} explain it equally well",
+            # every place the data cannot tell from c's, not the first few: along an axially stiff member a
+            # spring to ground in its axis acts alike at each of its nodes
+            self.alternatives[c.key] = alts
+            self._decide("ambiguous", c, f"{alts[0][0].label}{or_labels(c, [o for o, _ in alts[1:]])} explain it equally "
+                                              "well",
                          sep=" or ")
         self._decide("found", c, f"{'MCI residual' if self.use_mci else 'training FRF error'} down to "
                                  f"{self.rss_cur if self.use_mci else np.sqrt(self.rss_cur):.3g}")
