@@ -215,7 +215,8 @@ def test_a_ground_spring_along_an_axially_stiff_member_names_every_place_along_i
     the end of the rail that runs along X.  The rail is axially stiff: the same spring in X at any of its nodes
     1-10 moves the frequencies alike (the FRF screening gains 82 % at 6+X, 7+X and 5+X).  Before, the ambiguous
     finding named 6+X and the first two places beyond its neighbours (8+X, 9+X), so the truth was not among them;
-    every place within the information criterion's margin is now named, one finding."""
+    every place within the information criterion's margin is now named, one finding (its own neighbours aside:
+    one node over is the same explanation)."""
     from modalab.app.cli import main
 
     d = Path(generate_one(590, tmp_path)["dir"])
@@ -226,6 +227,28 @@ def test_a_ground_spring_along_an_axially_stiff_member_names_every_place_along_i
     f = found[0]
     places = {dof for p in [f] + f["alternatives"] for dof in p["dofs"]}
     assert f["physics"] == "ground_spring" and all(a["physics"] == "ground_spring" for a in f["alternatives"])
-    assert {"1+X", "6+X", "10+X"} <= places and all(p.endswith("+X") for p in places), places
+    nodes = {int(p[:-2]) for p in places}
+    # the rail's nodes 1-10 (the finding's own neighbours are the same explanation, not listed)
+    assert 1 in nodes and len(nodes) >= 7 and nodes <= set(range(1, 11)), places
+    assert all(p.endswith("+X") for p in places), places
     assert f["values"][0]["value"] == pytest.approx(6.68e4, rel=0.1)
-    assert "or at 1+X of" in json.loads((tmp_path / "diag.json").read_text())["statement"]
+    assert "or at 1+X of" in json.loads((tmp_path / "diag.json").read_text())["statement"] or f["dofs"] == ["1+X"]
+
+
+def test_local_damping_the_screening_ranks_second_is_found_by_fitting_the_runners_up(tmp_path):
+    """Tuning case 888 (even seed, generated for local damping): a mounted frame whose truth damps element 12
+    (loss factor 0.162) of a rail.  With the parameters where the fit without the term left them, the exact
+    screening ranks damping on element 18 of a cross member first (72 %) and element 12 second (66 %); fitted
+    with the parameters, element 12 leaves a training FRF error of 0.0088 against 0.0122.  Before, only the first
+    of each screening was fitted and element 18 was reported; the runners-up of the pick's kind are now fitted
+    too and the fitted errors decide."""
+    from modalab.app.cli import main
+
+    d = Path(generate_one(888, tmp_path)["dir"])
+    assert main(["diagnose", str(d / "nominal.bdf"), str(d / "measured.uff"), "--params", str(d / "params.toml"),
+                 "--json", str(tmp_path / "diag.json")]) == 0
+    found = json.loads((tmp_path / "diag.json").read_text())["findings"]
+    assert len(found) == 1, [f["description"] for f in found]
+    f = found[0]
+    assert f["physics"] == "local_damping" and f["elements"] == [12], f
+    assert f["values"][0]["value"] == pytest.approx(0.162, rel=0.25), f
