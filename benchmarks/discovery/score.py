@@ -109,7 +109,7 @@ sys.exit(rc)
 """
 
 
-def run_case(case_dir: Path, out_dir: Path, timeout: float) -> dict:
+def run_case(case_dir: Path, out_dir: Path, timeout: float, verbose: bool = False) -> dict:
     case_dir = Path(case_dir)
     truth = json.loads((case_dir / "truth.json").read_text())
     js = out_dir / f"{case_dir.name}.diagnosis.json"
@@ -118,7 +118,7 @@ def run_case(case_dir: Path, out_dir: Path, timeout: float) -> dict:
     args = ["diagnose", str(case_dir / "nominal.bdf"), str(case_dir / "measured.uff"), "--json", str(js)]
     if (case_dir / "params.toml").exists():
         args += ["--params", str(case_dir / "params.toml")]
-    cmd = [sys.executable, "-c", _WRAPPER, *args]
+    cmd = [sys.executable, "-c", _WRAPPER, *(["-v"] if verbose else []), *args]
     env = dict(os.environ)
     env["PYTHONPATH"] = str(ROOT) + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
     t0 = time.perf_counter()
@@ -370,6 +370,8 @@ def main(argv=None) -> int:
     ap.add_argument("--follow", type=int, metavar="N", help="score cases as generate.py writes them, until N are "
                                                               "scored (one at a time, in seed order)")
     ap.add_argument("--out", help="folder for score.md, score.json and the per-case logs (default ROOT/score)")
+    ap.add_argument("--log", action="store_true", help="run diagnose with -v: every decision and test statistic "
+                    "in the per-case logs (the score is the same)")
     ap.add_argument("--rescore", action="store_true", help="do not run diagnose: score the diagnosis.json files a "
                                                            "previous run left in --out again (times kept)")
     a = ap.parse_args(argv)
@@ -404,15 +406,15 @@ def main(argv=None) -> int:
                 time.sleep(20)
                 continue
             seen.add(todo[0].name)
-            done(run_case(todo[0], out, a.timeout))
+            done(run_case(todo[0], out, a.timeout, a.log))
     elif a.jobs > 1:
         from concurrent.futures import ThreadPoolExecutor
         with ThreadPoolExecutor(a.jobs) as ex:
-            for r in ex.map(lambda c: run_case(c, out, a.timeout), cases):
+            for r in ex.map(lambda c: run_case(c, out, a.timeout, a.log), cases):
                 done(r)
     else:
         for c in cases:
-            done(run_case(c, out, a.timeout))
+            done(run_case(c, out, a.timeout, a.log))
     results.sort(key=lambda x: x["seed"])
     tab = table(results)
     summ, _ = summary(results)
