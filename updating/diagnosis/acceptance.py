@@ -14,7 +14,7 @@ import numpy as np
 from updating.fe import ParametricFEModel
 from updating.diagnosis.mesh import mesh_error, shift_beyond_mesh
 from updating.diagnosis.screen import mci_update
-from updating.diagnosis.terms import _another_explanation, MIN_FREQ_EFFECT, FRF_PICKS, MIN_DAMPING_EFFECT, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, CV_NFEV, _residual, inflation, significant_gain, n_obs, _upper, _augment
+from updating.diagnosis.terms import _another_explanation, MIN_FREQ_EFFECT, FRF_PICKS, PICK_EXPLAINS, MIN_DAMPING_EFFECT, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, CV_NFEV, _residual, inflation, significant_gain, n_obs, _upper, _augment
 
 log = logging.getLogger(__name__)
 
@@ -185,13 +185,15 @@ class _Acceptance:
 
     def _judge_or_complete(self, t, supported: bool, what: str):
         """The pick ``t = (error, candidate, pm, FitResult, lower, upper, screening index)`` judged on the FRFs
-        (:meth:`_judge_pick`); a support release that fails is judged once more completed by the rest of its
+        (:meth:`_judge_pick`); a support release that fails after passing the information criterion (on the
+        held-out FRFs, by the residual it leaves, its effect or the cross-validation: one component of an
+        elastic clamp explains less than the whole) is judged once more completed by the rest of its
         constraint (:meth:`_completed_pick`, its other components placed in ``_parts_pending``).  Returns ``t``
         as accepted (the completed release in it) or None, the rejection recorded."""
         err, c, pm_aug, fr, clo, chi, k = t
         ok, why = self._judge_pick(c, pm_aug, fr, clo, chi, supported=supported)
         log.info("%s %s on the FRFs: %s", what, c.label, why)
-        if not ok and self._pick_left and c.release is not None and c.release[0] == "support":
+        if not ok and (self._pick_left or self._pick_held) and c.release is not None and c.release[0] == "support":
             done = self._completed_pick(c, fr)
             if done is not None:
                 o, c, pm_aug, fr, clo, chi, why = done
@@ -308,12 +310,17 @@ class _Acceptance:
         place (:meth:`~updating.diagnosis.refine._Refine._refine_supports`); its effect on the frequencies may
         be below the model-form threshold when the completed model leaves only noise (reduced χ² at most
         :data:`PICK_MAX_REDUCED_CHI2` on the training and the held-out FRFs): the first term has already shown
-        that something is missing there, the part says how much of it.  ``n_terms``: the number of values
+        that something is missing there, the part says how much of it.  A pick that leaves at most
+        :data:`~updating.diagnosis.terms.PICK_EXPLAINS` of the current model's χ² on the training and the held-out
+        FRFs, where that χ² was well above the noise (χ²/N above twice the limit), explains the residual: the reduced-χ² limit does not apply to it, nor the effect limit when it leaves
+        noise (what remains is the model's form error; a term absorbing that error cannot remove 90 % of a
+        residual that a missing effect dominates).  ``n_terms``: the number of values
         ``pm_aug`` adds to the current model (a support release with the rest of its constraint: 2); every
-        penalty counts them.  Sets ``_pick_left`` when the pick failed only by the residual it leaves."""
+        penalty counts them.  Sets ``_pick_left`` when the pick failed only by the residual it leaves, and
+        ``_pick_held`` when it passed the information criterion (whatever failed after)."""
         cfg = self.config
         penalty = cfg.penalty * n_terms
-        self._pick_left = False
+        self._pick_left = self._pick_held = False
         pm_ref, ref = self._frf_ref()
         err, n_eq = fr.error, n_obs(self.train)
         if not (err < ref.error and n_eq * np.log(ref.error ** 2 / max(err ** 2, 1e-300)) > penalty * np.log(n_eq)):
@@ -321,23 +328,39 @@ class _Acceptance:
         if self.current and err > ref.error * (1 - cfg.min_extra_gain):
             return False, (f"a further term lowering the training FRF error by less than "
                            f"{100 * cfg.min_extra_gain:.0f} % ({100 * (1 - err / ref.error):.2g} %)")
+        self._pick_held = True                 # past the information criterion
         ok, why = _term_holds(pm_ref, ref.p, pm_aug, fr.p, self.train, self.held, penalty, cfg.min_holdout_gain)
-        if ok and not supported:
+        red = left = np.inf
+        red0 = 0.0
+        if ok:
+            st, st0 = pm_aug.structure(fr.p), pm_ref.structure(ref.p)
+            parts = [(_chi2(st, d), _chi2(st0, d)[0]) for d in (self.train, self.held)]
+            red = max(c1 / n1 for (c1, n1), _ in parts)
+            red0 = min(c0 / n1 for (_, n1), c0 in parts)
+            left = max(c1 / max(c0, 1e-300) for (c1, _), c0 in parts)
+        # the term removes nearly all of a residual well above the noise (a residual near the noise level is
+        # model-form error a term can absorb whole: a control T-joint's χ²/N 1.9 -> 0.14 by a joint flexibility)
+        explains = left <= PICK_EXPLAINS and red0 > 2 * PICK_MAX_REDUCED_CHI2
+        if ok and not supported and red > PICK_MAX_REDUCED_CHI2:
             # a pick the linearised criterion did not support must explain the residual, not only reduce it
-            st = pm_aug.structure(fr.p)
-            red = max(c1 / n1 for c1, n1 in (_chi2(st, self.train), _chi2(st, self.held)))
-            if red > PICK_MAX_REDUCED_CHI2:
+            if explains:
+                why += (f"; χ²/N {red:.3g} left, above {PICK_MAX_REDUCED_CHI2:g}, but {100 * left:.2g} % of the "
+                        f"current model's χ² (at most {100 * PICK_EXPLAINS:g} %): the term explains the residual")
+            else:
                 ok, self._pick_left = False, True
-                why += (f"; χ²/N {red:.3g} left, above {PICK_MAX_REDUCED_CHI2:g}: the term reduces a residual "
-                        "that stays far above the noise (model-form error it would absorb)")
+                why += (f"; χ²/N {red:.3g} left ({100 * left:.2g} % of the current model's), above "
+                        f"{PICK_MAX_REDUCED_CHI2:g}: the term reduces a residual that stays far above the noise "
+                        "(model-form error it would absorb)")
         ok_h, why_h = ok, why
         ok, why = self._effect_ok(ok, why, pm_aug, fr.p, c)
-        if part and ok_h and not ok:
-            st = pm_aug.structure(fr.p)
-            red = max(c1 / n1 for c1, n1 in (_chi2(st, self.train), _chi2(st, self.held)))
-            if red <= PICK_MAX_REDUCED_CHI2:
-                ok, why = True, why_h + (f"; a part of an accepted term whose completed model leaves χ²/N {red:.3g} "
-                                         f"(at most {PICK_MAX_REDUCED_CHI2:g}: noise)")
+        if ok_h and not ok and red <= PICK_MAX_REDUCED_CHI2 and (part or explains):
+            # the effect limit keeps a term from absorbing model-form error; a term after which the model is
+            # exact within the noise, having removed nearly all of the residual (or completing an accepted term
+            # at its place), absorbs none
+            ok, why = True, why_h + (f"; a part of an accepted term whose completed model leaves χ²/N {red:.3g} "
+                                     f"(at most {PICK_MAX_REDUCED_CHI2:g}: noise)" if part else
+                                     f"; a small effect on the frequencies, but the model with it leaves χ²/N "
+                                     f"{red:.3g} (noise), {100 * left:.2g} % of the current model's χ²")
         if ok:
             lo_ref, hi_ref = (self.lo, self.hi) if pm_ref is self.pm else (self.lo_cur, self.hi_cur)
             ok, cv = self._cross_validated((pm_ref, ref.p, lo_ref, hi_ref), (pm_aug, fr.p, clo, chi), penalty)

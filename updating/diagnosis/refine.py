@@ -55,7 +55,7 @@ class _Refine:
             self._decide("found", o, f"as a part of {c.label}: training FRF error down to {fr.error:.3g}")
 
     def _completed_pick(self, c, fr_c):
-        """A support release ``c`` that the FRFs reject only because it leaves a residual above the noise,
+        """A support release ``c`` that the FRFs reject after it passed the information criterion,
         fitted once more with the rest of its constraint (:meth:`_complement`, placed before ``c``) from
         ``c``'s fit ``fr_c``, and judged as two values (every penalty doubled): the residual left, the held-out
         test, ``c``'s own effect on the frequencies and the cross-validation.  A single component ``c`` is

@@ -59,6 +59,11 @@ FRF_PICKS = 3
 #: ``tests/updating/test_diagnosis_exact.py``, ``examples/concealed/bar_control``)
 PICK_MAX_REDUCED_CHI2 = 1.5
 
+#: ... unless the χ² it leaves is at most this share of the current model's on the training and on the held-out
+#: FRFs: a term that removes nearly all of the residual explains it; what is left is the model's form error,
+#: which is no reason to reject it
+PICK_EXPLAINS = 0.1
+
 
 #: a damping term must add at least this fraction of the background loss factor to some in-band mode
 MIN_DAMPING_EFFECT = 0.25
