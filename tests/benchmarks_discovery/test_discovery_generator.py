@@ -287,3 +287,21 @@ def test_a_control_t_joint_gets_no_joint_flexibility_for_its_model_form_error(tm
     assert main(["diagnose", str(d / "nominal.bdf"), str(d / "measured.uff"), "--params", str(d / "params.toml"),
                  "--json", str(tmp_path / "diag.json")]) == 0
     assert json.loads((tmp_path / "diag.json").read_text())["findings"] == []
+
+
+def test_a_ground_spring_s_own_loss_at_one_of_its_ambiguous_places_is_part_of_it(tmp_path):
+    """Tuning case 576 (even seed): a free-free frame held in Y at node 32 by a spring of 4.3e3 N/m whose truth
+    carries a loss factor of 0.02 (the model's springs only the structure's).  The spring is named at 34+Y, or
+    36+Y or 20+Y (the data cannot tell them apart), and the loss the spring lacks as a dashpot to ground at 20+Y:
+    before, a second finding; a dashpot in the spring's direction at or next to any of the spring's places is the
+    spring's own loss, one finding with it as a part."""
+    from modalab.app.cli import main
+
+    d = Path(generate_one(576, tmp_path)["dir"])
+    assert main(["diagnose", str(d / "nominal.bdf"), str(d / "measured.uff"), "--params", str(d / "params.toml"),
+                 "--json", str(tmp_path / "diag.json")]) == 0
+    found = json.loads((tmp_path / "diag.json").read_text())["findings"]
+    assert len(found) == 1, [f["description"] for f in found]
+    f = found[0]
+    assert f["physics"] == "ground_spring" and all(p["physics"] == "local_damping" for p in f["parts"]), f
+    assert all(d.endswith("+Y") for p in [f] + f["parts"] for d in p["dofs"]), f

@@ -23,6 +23,11 @@ log = logging.getLogger(__name__)
 _LOSSY_SPRINGS = ("ground_spring",)
 
 
+def _directions(c) -> set:
+    """The directions (``Y``, ``RZ``) of a candidate's DOFs, without their nodes and signs."""
+    return {str(d).lstrip("0123456789").lstrip("+-") for d in c.dofs}
+
+
 def _is_spring_damping(c) -> bool:
     """A dashpot to ground at DOFs (not damping on elements)."""
     return c.physics == "local_damping" and c.matrix == "C" and not c.elements and bool(c.dofs)
@@ -111,9 +116,14 @@ class _Proof:
                          _same_place(f.candidate, c, m_fin)), None)
             if host is None and _is_spring_damping(c):
                 # a dashpot to ground where a spring to ground was found is the support's own loss (a rubber
-                # mount or cord has both): the same finding, not a second piece of missing physics
+                # mount or cord has both): the same finding, not a second piece of missing physics.  Where the
+                # spring's place is ambiguous (along an axially stiff member), its loss is as ambiguous: a dashpot
+                # in the spring's direction at or next to any of the spring's places is that loss
                 host = next((f for f in findings if f.candidate.physics in _LOSSY_SPRINGS and
-                             set(c.dofs) <= set(f.candidate.dofs)), None)
+                             (set(c.dofs) <= set(f.candidate.dofs) or
+                              (_directions(c) <= _directions(f.candidate) and
+                               any(_same_place(o, c, m_fin) for o in
+                                   [f.candidate] + [a for a, *_ in f.alternatives])))), None)
             if host is not None:
                 host.parts.append((c, float(val), float(std)))
                 continue
