@@ -7,6 +7,7 @@ import scipy.sparse as sp
 
 import modalab.core.dense as dense
 from modalab.core.errors import ModalabValueError
+from modalab.core.frf import FRF
 from cases import six_dof_model
 from updating.correlation.condensation import condensed_residual
 from updating.correlation.receptance import frf_data, measured_columns, receptance_data
@@ -176,3 +177,28 @@ def test_diagnosis_and_mci_updater_linearise_the_same_mci():
     J = np.transpose(J, (2, 0, 1, 3))
     np.testing.assert_allclose(B, -J, rtol=1e-8, atol=1e-10 * np.abs(J).max())
     assert np.abs(J).max() > 0
+
+
+def test_structurally_zero_pairs_do_not_veto_every_line():
+    """A planar frame measured with in-plane accelerometers and one out-of-plane hit (discovery case 875): the
+    in-plane responses to the out-of-plane force are noise, coherence about 0.2 at every line, and they were
+    most of the pairs, so the mean over all pairs stayed below 0.5 at every line and ``frf_data`` refused the
+    data.  Lines are judged by the pairs whose median coherence reaches the limit; the dead pairs stay in the
+    data with their coherence (weighted down by it); lines bad in the live pairs are still dropped."""
+    f = np.linspace(1.0, 100.0, 200)
+    rng = np.random.default_rng(0)
+    H = (rng.standard_normal((4, 2, f.size)) + 1j * rng.standard_normal((4, 2, f.size))) * 1e-3
+    coh = np.full(H.shape, 0.2)
+    coh[0, 0] = 0.99                      # the out-of-plane response to the out-of-plane hit
+    coh[1, 1] = 0.99                      # one in-plane response to the in-plane hit; six pairs dead
+    coh[:, :, 50:60] = 0.3                # ten lines bad everywhere
+    frf = FRF(freq_hz=f, H=H, responses=["1+Z", "2+X", "3+X", "4+Y"], references=["1+Z", "5+Y"],
+              coherence=coh, quantity="receptance")
+    d = frf_data(frf, max_lines=1000)
+    assert d.H.shape == (4, 2, f.size - 10)
+    assert not np.isin(f[50:60], d.freq_hz).any()
+    assert np.allclose(d.coherence[1:, 0], 0.2)          # the dead pairs kept, with their coherence
+    dead = FRF(freq_hz=f, H=H, responses=frf.responses, references=frf.references,
+               coherence=np.full(H.shape, 0.2), quantity="receptance")
+    with pytest.raises(ModalabValueError, match="too poor to diagnose"):
+        frf_data(dead)
