@@ -118,7 +118,10 @@ def test_the_reduced_chi2_limit_guards_only_unsupported_picks(monkeypatch):
     # with a term the MCI accepted is judged by the tests that term passed
     monkeypatch.setattr(acceptance, "PICK_MAX_REDUCED_CHI2", 1e-9)
     ok, why = d._judge_pick(c, pm_aug, fr, clo, chi)
-    assert not ok and "left, above" in why
+    assert ok and "the term explains the residual" in why      # it removes nearly all of a large residual
+    monkeypatch.setattr(acceptance, "PICK_EXPLAINS", 0.0)          # ... unless no share counts as explaining
+    ok, why = d._judge_pick(c, pm_aug, fr, clo, chi)
+    assert not ok and "left" in why and "above" in why
     ok, why = d._judge_pick(c, pm_aug, fr, clo, chi, supported=True)
     assert ok and "cross-validated over" in why
 
@@ -128,7 +131,8 @@ def test_a_pick_the_mci_ranked_best_is_a_supported_pick(monkeypatch):
     spring = next(t[0] for t in d._screens[1][0] if t[0].physics == "ground_spring" and t[0].dofs == ("4+Y",))
     other = next(t[0] for t in d._screens[1][0] if t[0].key != spring.key)
     monkeypatch.setattr(acceptance, "PICK_MAX_REDUCED_CHI2", 1e-9)       # a limit no fit meets
+    monkeypatch.setattr(acceptance, "PICK_EXPLAINS", 0.0)                # and no pick explains the residual
     assert d._judge_picks(0, 1, mci_best=other) is None           # a rescue of an unsupported residual
-    assert d.current == [] and "left, above" in d.decisions[-1]["reason"]
+    assert d.current == [] and "above 1e-09" in d.decisions[-1]["reason"]
     picked = d._judge_picks(0, 1, mci_best=spring)               # the MCI's own best candidate, FRF-fitted
     assert picked is not None and picked[0].key == spring.key

@@ -321,13 +321,10 @@ class Diagnoser(_Acceptance, _Refine, _Proof):
         for o in parts:
             self._route[o.key] = (0.0, False, [])
             self._decide("found", o, f"as a part of {c.label}, released with it")
-        if alts:
-            # every place the data cannot tell from c's, not the first few: along an axially stiff member a
-            # spring to ground in its axis acts alike at each of its nodes
+        if alts:                     # every place the data cannot tell from c's (along a stiff member: all)
             self.alternatives[c.key] = alts
-            self._decide("ambiguous", c, f"{alts[0][0].label}{or_labels(c, [o for o, _ in alts[1:]])} explain it equally "
-                                              "well",
-                         sep=" or ")
+            self._decide("ambiguous", c, f"{alts[0][0].label}{or_labels(c, [o for o, _ in alts[1:]])} explain it "
+                                         "equally well", sep=" or ")
         self._decide("found", c, f"{'MCI residual' if self.use_mci else 'training FRF error'} down to "
                                  f"{self.rss_cur if self.use_mci else np.sqrt(self.rss_cur):.3g}")
         return True
