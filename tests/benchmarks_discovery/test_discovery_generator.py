@@ -189,18 +189,25 @@ def test_summary_reports_the_rate_on_visible_effects_beside_the_whole():
     assert s["right_within_one_node_visible"] == 0.5 and "below the noise: 1 case" in text
 
 
+def _diagnosed(seed: int, tmp_path) -> dict:
+    """The case of ``seed`` generated into ``tmp_path`` and diagnosed as a user would (``modalab diagnose`` with
+    its parameter file): the diagnosis JSON."""
+    from modalab.app.cli import main
+
+    d = Path(generate_one(seed, tmp_path)["dir"])
+    assert main(["diagnose", str(d / "nominal.bdf"), str(d / "measured.uff"), "--params", str(d / "params.toml"),
+                 "--json", str(tmp_path / "diag.json")]) == 0
+    return json.loads((tmp_path / "diag.json").read_text())
+
+
 def test_a_post_clamp_elastic_in_all_six_components_is_one_finding(tmp_path):
     """Tuning case 578 (even seed): a post whose SPC1 123456 clamp is, in the truth, springs of 5.3e8 N/m and
     4.65e5 N·m/rad, measured with one accelerometer.  The best screening pick, a mass at the post's top, leaves
     χ²/N 40 and is rejected as model-form error; the support translation 1+Z alone leaves 38.  Before, nothing
     was found.  The support pick is now judged next, and completed as a clamp: its translations and its rotations
     released together (training χ²/N 187 -> 1.1, held-out 234 -> 0.93)."""
-    from modalab.app.cli import main
-
-    d = Path(generate_one(578, tmp_path)["dir"])
-    assert main(["diagnose", str(d / "nominal.bdf"), str(d / "measured.uff"), "--params", str(d / "params.toml"),
-                 "--json", str(tmp_path / "diag.json")]) == 0
-    found = json.loads((tmp_path / "diag.json").read_text())["findings"]
+    diag = _diagnosed(578, tmp_path)
+    found = diag["findings"]
     assert len(found) == 1, [f["description"] for f in found]
     f = found[0]
     assert f["physics"] == "boundary_flexibility" and f["nodes"] == [1], f
@@ -217,12 +224,8 @@ def test_a_ground_spring_along_an_axially_stiff_member_names_every_place_along_i
     finding named 6+X and the first two places beyond its neighbours (8+X, 9+X), so the truth was not among them;
     every place within the information criterion's margin is now named, one finding (its own neighbours aside:
     one node over is the same explanation)."""
-    from modalab.app.cli import main
-
-    d = Path(generate_one(590, tmp_path)["dir"])
-    assert main(["diagnose", str(d / "nominal.bdf"), str(d / "measured.uff"), "--params", str(d / "params.toml"),
-                 "--json", str(tmp_path / "diag.json")]) == 0
-    found = json.loads((tmp_path / "diag.json").read_text())["findings"]
+    diag = _diagnosed(590, tmp_path)
+    found = diag["findings"]
     assert len(found) == 1, [f["description"] for f in found]
     f = found[0]
     places = {dof for p in [f] + f["alternatives"] for dof in p["dofs"]}
@@ -232,7 +235,7 @@ def test_a_ground_spring_along_an_axially_stiff_member_names_every_place_along_i
     assert 1 in nodes and len(nodes) >= 7 and nodes <= set(range(1, 11)), places
     assert all(p.endswith("+X") for p in places), places
     assert f["values"][0]["value"] == pytest.approx(6.68e4, rel=0.1)
-    assert "or at 1+X of" in json.loads((tmp_path / "diag.json").read_text())["statement"] or f["dofs"] == ["1+X"]
+    assert "or at 1+X of" in diag["statement"] or f["dofs"] == ["1+X"]
 
 
 def test_local_damping_the_screening_ranks_second_is_found_by_fitting_the_runners_up(tmp_path):
@@ -242,12 +245,8 @@ def test_local_damping_the_screening_ranks_second_is_found_by_fitting_the_runner
     with the parameters, element 12 leaves a training FRF error of 0.0088 against 0.0122.  Before, only the first
     of each screening was fitted and element 18 was reported; the runners-up of the pick's kind are now fitted
     too and the fitted errors decide."""
-    from modalab.app.cli import main
-
-    d = Path(generate_one(888, tmp_path)["dir"])
-    assert main(["diagnose", str(d / "nominal.bdf"), str(d / "measured.uff"), "--params", str(d / "params.toml"),
-                 "--json", str(tmp_path / "diag.json")]) == 0
-    found = json.loads((tmp_path / "diag.json").read_text())["findings"]
+    diag = _diagnosed(888, tmp_path)
+    found = diag["findings"]
     assert len(found) == 1, [f["description"] for f in found]
     f = found[0]
     assert f["physics"] == "local_damping" and f["elements"] == [12], f
@@ -262,12 +261,8 @@ def test_a_stiff_elastic_clamp_is_found_when_its_completed_release_leaves_only_n
     completed release (training χ²/N 9.5 -> 0.67, held-out 5.7 -> 0.46: 7-8 % of the χ² left, noise) is
     accepted although its frequency effect is at the model-form limit (0.4 %): a term that removes 90 % of the
     residual and leaves noise absorbs no model-form error."""
-    from modalab.app.cli import main
-
-    d = Path(generate_one(1122, tmp_path)["dir"])
-    assert main(["diagnose", str(d / "nominal.bdf"), str(d / "measured.uff"), "--params", str(d / "params.toml"),
-                 "--json", str(tmp_path / "diag.json")]) == 0
-    found = json.loads((tmp_path / "diag.json").read_text())["findings"]
+    diag = _diagnosed(1122, tmp_path)
+    found = diag["findings"]
     assert len(found) == 1, [f["description"] for f in found]
     f = found[0]
     assert f["physics"] == "boundary_flexibility" and f["nodes"] == [1], f
@@ -281,12 +276,8 @@ def test_a_control_t_joint_gets_no_joint_flexibility_for_its_model_form_error(tm
     χ²/N 1.9 is left, and a flexible joint at the T removes 92 % of it (to 0.14) with a frequency effect below
     the model-form limit.  A term that removes nearly all of a residual is exempt from that limit only where the
     residual was well above the noise (χ²/N above 3); here it stays rejected: no finding."""
-    from modalab.app.cli import main
-
-    d = Path(generate_one(574, tmp_path)["dir"])
-    assert main(["diagnose", str(d / "nominal.bdf"), str(d / "measured.uff"), "--params", str(d / "params.toml"),
-                 "--json", str(tmp_path / "diag.json")]) == 0
-    assert json.loads((tmp_path / "diag.json").read_text())["findings"] == []
+    diag = _diagnosed(574, tmp_path)
+    assert diag["findings"] == []
 
 
 def test_a_ground_spring_s_own_loss_at_one_of_its_ambiguous_places_is_part_of_it(tmp_path):
@@ -295,12 +286,8 @@ def test_a_ground_spring_s_own_loss_at_one_of_its_ambiguous_places_is_part_of_it
     36+Y or 20+Y (the data cannot tell them apart), and the loss the spring lacks as a dashpot to ground at 20+Y:
     before, a second finding; a dashpot in the spring's direction at or next to any of the spring's places is the
     spring's own loss, one finding with it as a part."""
-    from modalab.app.cli import main
-
-    d = Path(generate_one(576, tmp_path)["dir"])
-    assert main(["diagnose", str(d / "nominal.bdf"), str(d / "measured.uff"), "--params", str(d / "params.toml"),
-                 "--json", str(tmp_path / "diag.json")]) == 0
-    found = json.loads((tmp_path / "diag.json").read_text())["findings"]
+    diag = _diagnosed(576, tmp_path)
+    found = diag["findings"]
     assert len(found) == 1, [f["description"] for f in found]
     f = found[0]
     assert f["physics"] == "ground_spring" and all(p["physics"] == "local_damping" for p in f["parts"]), f
