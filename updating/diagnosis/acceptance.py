@@ -193,7 +193,7 @@ class _Acceptance:
         err, c, pm_aug, fr, clo, chi, k = t
         ok, why = self._judge_pick(c, pm_aug, fr, clo, chi, supported=supported)
         log.info("%s %s on the FRFs: %s", what, c.label, why)
-        if not ok and (self._pick_left or self._pick_held) and c.release is not None and c.release[0] == "support":
+        if not ok and self._pick_held and c.release is not None and c.release[0] == "support":
             done = self._completed_pick(c, fr)
             if done is not None:
                 o, c, pm_aug, fr, clo, chi, why = done
