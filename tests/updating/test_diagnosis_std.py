@@ -67,3 +67,21 @@ def test_a_solution_from_outside_the_frf_fit_gets_the_frf_data_std_not_zero():
     std = fit_std(pm, data, res.p)
     assert np.all(std > 0) and np.all(np.isfinite(std))
     np.testing.assert_allclose(std, res.std, rtol=0.05)
+
+
+def test_parameter_std_does_not_depend_on_the_parameters_units():
+    """Parameters in their own units differ by decades (a factor on E near 1, a clamp stiffness near 10⁶
+    N·m/rad whose Jacobian column is ~10⁻⁸ as long): the stated σ of each follows its unit, and a short column
+    is not cut as rank deficient (it was: the pseudo-inverse of the unscaled JᵀJ gave the stiffness
+    σ ≈ 10⁻¹¹ N·m/rad on 2·10⁶)."""
+    from updating.diagnosis.fit import correlated_std
+    rng = np.random.default_rng(8)
+    J = rng.standard_normal((60, 3))
+    u = np.array([1.0, 1e-9, 1e4])                       # a parameter's unit made 10⁹ times larger: column / 10⁹
+    meat = 0.3 * J.T @ J
+    np.testing.assert_allclose(parameter_std(J * u, 0.5), parameter_std(J, 0.5) / u, rtol=1e-8)
+    np.testing.assert_allclose(parameter_std(J * u, 0.5, meat=meat * np.outer(u, u)),
+                               parameter_std(J, 0.5, meat=meat) / u, rtol=1e-8)
+    r = 0.1 * rng.standard_normal(60)
+    np.testing.assert_allclose(correlated_std(r, J * u, (1, 1, 30)), correlated_std(r, J, (1, 1, 30)) / u,
+                               rtol=1e-6)

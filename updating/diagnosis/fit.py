@@ -401,19 +401,24 @@ def correlated_std(fun: np.ndarray, jac: np.ndarray, shape: tuple, *, prior_scal
     determine get ``inf`` (:func:`parameter_std`)."""
     fun = np.asarray(fun, float)
     jac = np.asarray(jac, float)
+    if not np.all(np.isfinite(jac)) or not np.all(np.isfinite(fun)):
+        return parameter_std(jac, float(fun @ fun))            # raises, naming the parameters concerned
+    # columns of unit norm (scaled back at the end): the REML's normal matrix and the sandwich are then as well
+    # conditioned as the problem, whatever the parameters' units (see parameter_std)
+    cn = np.linalg.norm(jac, axis=0)
+    d = np.where(cn > 0, cn, 1.0)
+    jac = jac / d
     nd = 2 * int(np.prod(shape))
     p = jac.shape[1]
     n_s = int(shape[-1])
     r_d = fun[:nd].reshape(-1, n_s)
     J_d = jac[:nd].reshape(-1, n_s, p)
-    if not np.all(np.isfinite(J_d)) or not np.all(np.isfinite(r_d)):
-        return parameter_std(jac, float(fun @ fun))            # raises, naming the parameters concerned
     s2, rho = reml_ar1(r_d, J_d)
     RJ = np.moveaxis(_ar1_apply(np.moveaxis(J_d, -1, 0), rho), 0, -1).reshape(-1, p)
     J_p = jac[nd:]
     meat = s2 * (jac[:nd].T @ RJ) + prior_scale ** 2 * (J_p.T @ J_p)
     log.debug("FRF fit σ: AR(1) error along the lines, ρ = %.3g, σ² = %.3g", rho, s2)
-    return parameter_std(jac, 1.0, meat=meat)
+    return parameter_std(jac, 1.0, meat=meat) / d
 
 
 def fit_std(pmodel, data: FRFData, p, *, free=None, prior: Prior | None = None) -> np.ndarray:
@@ -444,10 +449,15 @@ def parameter_std(J: np.ndarray, s2: float, *, meat: np.ndarray | None = None) -
     solution and the residual variance ``s2``; with ``meat`` (the covariance of ``Jᵀe``), the sandwich
     ``√diag(s² (JᵀJ)⁺ meat (JᵀJ)⁺)``.
 
+    The inverse is taken with the columns of ``J`` scaled to unit norm (and scaled back): parameters in their
+    own units differ by many decades (a factor on E near 1, a clamp stiffness near 10⁶ N·m/rad has a column
+    ~10⁻⁸ as long), and a pseudo-inverse of the unscaled ``JᵀJ`` cuts the small parameters' directions as if
+    they were rank deficient and gives them a standard deviation of ~0 (10⁻¹¹ N·m/rad on 2·10⁶ N·m/rad).
     A parameter the data do not determine — a zero column of ``J``, or a component along a direction whose
     singular value (columns scaled to unit norm) is below :data:`RANK_TOL` of the largest — gets ``inf``,
-    not the 0 a pseudo-inverse would give it.  A Jacobian with non-finite entries raises
-    :class:`~modalab.core.errors.ConvergenceError` naming the parameters concerned.
+    not the 0 a pseudo-inverse would give it; the pseudo-inverse drops exactly those directions.  A Jacobian
+    with non-finite entries raises :class:`~modalab.core.errors.ConvergenceError` naming the parameters
+    concerned.
     """
     J = np.asarray(J, float)
     bad = ~np.all(np.isfinite(J), axis=0)
@@ -456,21 +466,25 @@ def parameter_std(J: np.ndarray, s2: float, *, meat: np.ndarray | None = None) -
             f"the FRF fit's Jacobian has non-finite entries for free parameter(s) {np.flatnonzero(bad).tolist()} "
             "at the solution (a model resonance exactly on a data line, or parameters at a singular model); "
             "no standard deviation can be given: move the bounds or the frequency band")
-    Ai = np.linalg.pinv(J.T @ J)
-    cov = (Ai if meat is None else Ai @ meat @ Ai) * s2
-    std = np.sqrt(np.clip(np.diag(cov), 0, None))
+    std = np.full(J.shape[1], np.inf)
     cn = np.linalg.norm(J, axis=0)
-    undetermined = cn == 0
-    if J.shape[1] and not undetermined.all():
-        Js = J[:, ~undetermined] / cn[~undetermined]
-        wide = Js.shape[0] < Js.shape[1]           # fewer equations than parameters: Vt must span them all
-        _, sv, Vt = np.linalg.svd(Js, full_matrices=wide)
-        sv = np.concatenate([sv, np.zeros(Vt.shape[0] - sv.size)])
-        null = Vt[sv < RANK_TOL * sv[0]]
-        if null.size:
-            weak = np.max(np.abs(null), axis=0) > np.sqrt(RANK_TOL)
-            undetermined[np.flatnonzero(~undetermined)[weak]] = True
-    std[undetermined] = np.inf
+    seen = cn > 0
+    if not seen.any():
+        return std
+    d = cn[seen]
+    Js = J[:, seen] / d
+    wide = Js.shape[0] < Js.shape[1]               # fewer equations than parameters: Vt must span them all
+    _, sv, Vt = np.linalg.svd(Js, full_matrices=wide)
+    sv = np.concatenate([sv, np.zeros(Vt.shape[0] - sv.size)])
+    keep = sv >= RANK_TOL * sv[0]
+    V = Vt[keep].T
+    Ai = (V / sv[keep] ** 2) @ V.T                 # (JsᵀJs)⁺ over the determined directions
+    cov = Ai if meat is None else Ai @ (np.asarray(meat, float)[np.ix_(seen, seen)] / np.outer(d, d)) @ Ai
+    sd = np.sqrt(np.clip(np.diag(cov) * s2, 0, None)) / d
+    null = Vt[~keep]
+    if null.size:
+        sd[np.max(np.abs(null), axis=0) > np.sqrt(RANK_TOL)] = np.inf
+    std[seen] = sd
     return std
 
 
