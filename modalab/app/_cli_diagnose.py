@@ -39,6 +39,12 @@ def _options(a):
                            ignore_unsupported=a.ignore_unsupported)
 
 
+def _pm(std) -> str:
+    """One standard deviation as the findings print it; ``None`` (diagnosis.json's value for one the data do not
+    determine: a flat direction, or a value on its bound) said in words, never as a number."""
+    return "± not determined by these data" if std is None else f"± {std:.2g}"
+
+
 def cmd_diagnose(a):
 
     measured = list(a.measured or [])
@@ -48,8 +54,9 @@ def cmd_diagnose(a):
                  json_path=a.json, out_dir=a.report, progress=lambda m: _print(m))
     dd = r.result.to_dict()
     for f in dd["findings"]:
-        vals = ", ".join(f"{v['name']} = {v['value']:.4g} {v['unit']} (± "
-                         + ("—" if v["std"] is None else f"{v['std']:.2g}") + ")" for v in f["values"])
+        vals = ", ".join(f"{v['name']} = {v['value']:.4g} {v['unit']} ({_pm(v['std'])})" for v in f["values"])
+        vals += "".join(f"; with {p['value']:.4g} {p['unit']} at {', '.join(p['dofs']) or p['nodes']} "
+                        f"({_pm(p['std'])})" for p in f.get("parts", []))
         _print(f"FINDING {f['physics']} at {', '.join(f['dofs']) or f['nodes']}: {vals}")
     for name, blk in dd["fit"].items():
         _print(f"{name:>16}: " + ", ".join(f"{k} = {v:.4g}" for k, v in blk.items() if isinstance(v, (int, float))))

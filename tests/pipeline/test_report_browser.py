@@ -145,7 +145,7 @@ def test_report_with_null_fit_values_and_std(tmp_path):
         "ranking": [], "parameters": {"E": {"initial": 1.0, "updated": 1.01, "std": None}}}))
     html, _ = build_report(d, d / "report", title="nulls")
     text = html.read_text(encoding="utf-8")
-    assert "m = 0.05 ± — kg" in text
+    assert "m = 0.05 kg (± not determined by these data)" in text
     assert "largest frequency error [%]" in text and "lowest MAC" in text and ">0.97<" in text
     assert ">None<" not in text and ">—<" in text
 

@@ -33,6 +33,16 @@ def _is_spring_damping(c) -> bool:
     return c.physics == "local_damping" and c.matrix == "C" and not c.elements and bool(c.dofs)
 
 
+def _at_bound(value: float, lower: float, upper: float, std: float, rtol: float = 1e-6) -> bool:
+    """Whether a fitted ``value`` lies on its ``lower`` or ``upper`` bound: closer to it than ``rtol`` × the
+    larger of the bound's magnitude and the value's finite ``std`` (both in the value's unit, so the test does
+    not depend on the unit; a bounded fit's iterates stay strictly inside, a hair from the bound)."""
+    s = float(std) if np.isfinite(std) else 0.0
+    lo = np.isfinite(lower) and value - lower <= rtol * max(abs(lower), s)
+    hi = np.isfinite(upper) and upper - value <= rtol * max(abs(upper), s)
+    return bool(lo or hi)
+
+
 class _Proof:
     """The proof step of :class:`~updating.diagnosis.workflow.Diagnoser` (a mixin)."""
 
@@ -110,6 +120,12 @@ class _Proof:
         for k, (c, scale) in enumerate(zip(self.current, self.best_scales)):
             val = self.best_fit.p[n_par + k] * scale
             std = self.best_fit.std[n_par + k] * scale
+            if _at_bound(val, 0.0, getattr(c, "upper", np.inf), std):
+                # the fit stopped on the value's bound: the curvature there is not the spread of the estimate
+                # (the data would take it past the bound), so no ± is stated
+                log.info("%s: %.4g %s lies on its bound (0 or the plausible %.4g): its standard deviation is "
+                         "reported as not determined", c.label, val, c.unit, getattr(c, "upper", np.inf))
+                std = np.inf
             # a term of the same physics next to an earlier finding refines it (a mass between two nodes is
             # lumped on both): one finding with two parts, not two findings
             host = next((f for f in findings if f.candidate.physics == c.physics and

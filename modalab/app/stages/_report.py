@@ -307,7 +307,10 @@ def _diagnosis_section(run_dir, diag) -> list:
         return parts + ['<p class="muted">The diagnosis stage has not run.</p>']
     parts.append(f'<p class="statement">{html.escape(diag.get("statement", ""))}</p>')
     for f in diag.get("findings", []):
+        # a std of None: the data do not determine the value (a flat direction, or the value on its bound)
         vals = "; ".join(f"{v['name']} = {_num(v['value'], '.4g')} ± {_num(v.get('std'), '.2g')} {v['unit']}"
+                         if v.get("std") is not None else
+                         f"{v['name']} = {_num(v['value'], '.4g')} {v['unit']} (± not determined by these data)"
                          for v in f.get("values", []))
         parts.append(f"<p><b>{html.escape(f.get('description', f.get('physics', '')))}</b> — {html.escape(vals)}"
                      f"<br><i>Evidence:</i> {html.escape(f.get('evidence', ''))}</p>")
