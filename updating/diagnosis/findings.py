@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from updating.fe import FEModel
-from updating.diagnosis.library import Candidate
+from updating.diagnosis.library import SPRING_LOSS, Candidate
 
 log = logging.getLogger(__name__)
 
@@ -125,8 +125,11 @@ def from_to(a: float, b: float) -> str:
 def _part(host: Candidate, part: Candidate, value: float) -> str:
     """`` with <value> at <DOFs>`` for a part of the host's own kind (the rest of a mass lumped on a
     neighbour); a part of another kind is named (a spring's own dashpot: `` with dashpot to ground at 3+Z of
-    20 N·s/m``)."""
+    20 N·s/m``); a spring's own loss factor (:func:`~updating.diagnosis.library.spring_loss_candidates`, its
+    CELAS GE on top of PARAM G) is `` with its own loss factor (GE) 0.0135``."""
     where = ", ".join(part.dofs) or ", ".join(map(str, part.nodes))
+    if part.label.startswith(SPRING_LOSS):
+        return f" with its own loss factor (GE) {_fmt(value, part.unit)}"
     if part.physics == host.physics:
         return f" with {_fmt(value, part.unit)} at {where}"
     return f" with {part.label} of {_fmt(value, part.unit)}"

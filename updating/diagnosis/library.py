@@ -54,7 +54,12 @@ from updating.fe.assembly import assemble, element_stiffness
 from updating.diagnosis.local_matrix import LocalMatrix, _group_G
 
 log = logging.getLogger(__name__)
-__all__ = ["Candidate", "LocalMatrix", "build_library", "UNITS"]
+__all__ = ["Candidate", "LocalMatrix", "build_library", "spring_loss_candidates", "loss_of", "UNITS"]
+
+#: the group label prefix of the springs to ground the diagnosis adds (its terms, :func:`_dof_candidates`)
+SPRING_GROUP = "diag_k_"
+#: the label of a found spring's own loss (:func:`spring_loss_candidates`)
+SPRING_LOSS = "loss factor of the spring to ground at"
 
 UNITS = {("ground_spring", 1): "N/m", ("ground_spring", 4): "N·m/rad", ("added_mass", 1): "kg",
          ("added_mass", 4): "kg·m²", ("local_damping", "D"): "-", ("local_damping", "C"): "N·s/m",
@@ -278,7 +283,7 @@ def _dof_candidates(ctx: _LibraryContext, kinds) -> list[Candidate]:
             if "ground_spring" in kinds:
                 def add_spring(m, eid, n=n, c=c):
                     m = m.copy()
-                    m.add_element(Spring(eid, a=(n, c), b=None, k=0.0, group=f"diag_k_{eid}"))
+                    m.add_element(Spring(eid, a=(n, c), b=None, k=0.0, group=f"{SPRING_GROUP}{eid}"))
                     return m, Parameter(f"k_{n}_{c}", "k", elements=(eid,), mode="value"), 1.0
                 out.append(Candidate("ground_spring", f"spring to ground at {lbl}", (n,), (lbl,), (), "k",
                                      _unit("ground_spring", c), "K", True, add_spring, G))
@@ -312,6 +317,45 @@ def _dof_candidates(ctx: _LibraryContext, kinds) -> list[Candidate]:
                                      tuple(f"{n}+{DIRECTION_NAMES[c]}" for c in trans), (), "m",
                                      _unit("added_mass", 1), "M", True, add_mass, G, upper=m_max))
     return out
+
+
+def spring_loss_candidates(model: FEModel) -> list[Candidate]:
+    """The loss of each spring to ground that the diagnosis has added to ``model`` (a current term).
+
+    A rubber mount, a cord or an elastic support dissipates in proportion to its own deflection: a
+    hysteretic ``i η k`` at its DOF, the spring's own structural damping (CELAS ``GE``, on top of PARAM G,
+    which acts on every stiffness).  One value each, η of that spring (bounded to [0, 1]); ``G`` is the
+    spring's stiffness at ``model``, so that the screening's value is η itself.  Without this form the loss
+    of a found spring shows up as a dashpot to ground wherever the spring's own mode moves (on a free frame,
+    anywhere along the spring's direction): a second finding the data do not need."""
+    springs = [e for e in model.elements.values() if isinstance(e, Spring) and e.b is None and
+               e.group.startswith(SPRING_GROUP) and e.k > 0]
+    if not springs:
+        return []
+    ctx, out = _LibraryContext(model, None), []
+    for e in springs:
+        n, comp = int(e.a[0]), int(e.a[1])
+        G = ctx.dof_G([(n, comp)])
+        if G is None:
+            continue
+        lbl = f"{n}+{DIRECTION_NAMES[comp]}"
+
+        def add_loss(m, eid, n=n, comp=comp, lbl=lbl):
+            hit = [x for x in m.elements.values() if isinstance(x, Spring) and x.b is None and
+                   tuple(x.a) == (n, comp) and x.group.startswith(SPRING_GROUP)]
+            if not hit:
+                raise ModalabValueError(f"{SPRING_LOSS} {lbl}: the model has no spring to ground there (its "
+                                        "spring must be a term before its loss)")
+            return m, Parameter(f"ge_{n}_{comp}", "ge", elements=(hit[-1].eid,), mode="value"), 1.0
+        out.append(Candidate("local_damping", f"{SPRING_LOSS} {lbl}", (n,), (lbl,), (), "eta",
+                             _unit("local_damping", matrix="D"), "D", True, add_loss,
+                             LocalMatrix(G.rows, G.block * float(e.k), G.n), upper=1.0))
+    return out
+
+
+def loss_of(c: Candidate, spring: Candidate) -> bool:
+    """Whether ``c`` is the own loss (:func:`spring_loss_candidates`) of the spring to ground ``spring``."""
+    return spring.physics == "ground_spring" and c.label.startswith(SPRING_LOSS) and tuple(c.dofs) == tuple(spring.dofs)
 
 
 def _damping_groups(model: FEModel, group_size: int) -> list[tuple]:

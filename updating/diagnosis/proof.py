@@ -15,6 +15,7 @@ from updating.diagnosis.screen import residual_map
 from updating.diagnosis.priors import AT_PRIOR_Z, SectionLossFactor, loss_factor_totals
 from updating.diagnosis.terms import _same_place, _evidence
 from updating.diagnosis.findings import Finding, Diagnosis, statement
+from updating.diagnosis.library import SPRING_LOSS, loss_of
 from updating.diagnosis.testmodes import peak_modes, pair_test_modes, _paired_frequencies, _mode_metrics
 
 log = logging.getLogger(__name__)
@@ -130,6 +131,10 @@ class _Proof:
             # lumped on both): one finding with two parts, not two findings
             host = next((f for f in findings if f.candidate.physics == c.physics and
                          _same_place(f.candidate, c, m_fin)), None)
+            if c.label.startswith(SPRING_LOSS):
+                # a found spring's own loss factor (library.spring_loss_candidates): a property of its finding
+                host = next((f for f in findings if loss_of(c, f.candidate) or
+                             any(loss_of(c, o) for o, *_ in f.parts)), None)
             if host is None and _is_spring_damping(c):
                 # a dashpot to ground where a spring to ground was found is the support's own loss (a rubber
                 # mount or cord has both): the same finding, not a second piece of missing physics.  Where the

@@ -55,7 +55,7 @@ from modalab.core.frf import FRF
 from updating.fe import FEModel, ParametricFEModel
 from updating.diagnosis.fit import RITZ_LIMIT, Prior, fit_frf, fit_std, frf_data, frf_error, model_frf, quick_frf_error
 from updating.diagnosis.frfscreen import frf_screen
-from updating.diagnosis.library import _nodes_of, build_library, validate_kinds
+from updating.diagnosis.library import _nodes_of, build_library, loss_of as _loss_of, spring_loss_candidates, validate_kinds
 from updating.diagnosis.release import release_screen, release_visibility
 from updating.diagnosis.screen import mci_update, rank_candidates, residual_system
 from updating.diagnosis.priors import default_parameters, PRIOR_BOUND, parameter_priors, _with_damping, _split, _bounds, _fit_continued, nonnegative_loss_factors
@@ -336,6 +336,8 @@ class Diagnoser(_Acceptance, _Refine, _Proof):
         dashpot acts on the elastic modes (f_s/f)² times less than on its own modes — so a grounded dashpot
         fitted there would stand in for the per-section structural damping the background leaves out."""
         lib = build_library(model, kinds=self.config.kinds)
+        if {"ground_spring", "local_damping"} <= self.config.kinds:
+            lib += spring_loss_candidates(model)         # the loss of each spring found so far
         if getattr(self, "suspension_hz", None) is not None:
             lib = [c for c in lib if c.matrix != "C"]
         return lib
@@ -544,10 +546,12 @@ class Diagnoser(_Acceptance, _Refine, _Proof):
                 worst, worst_err = k, ek
         if worst is None:
             return False
-        rest = current[:worst] + current[worst + 1:]
+        # a spring's own loss (library.spring_loss_candidates) goes with its spring
+        gone = {worst} | {k for k, t in enumerate(current) if _loss_of(t, current[worst])}
+        rest = [t for k, t in enumerate(current) if k not in gone]
         m_aug, cpar, sc = _augment(self.model0, rest)
         pm_rest = ParametricFEModel(m_aug, self.params + cpar)
-        keep = np.r_[np.arange(n0), n0 + np.array([k for k in range(len(current)) if k != worst], int)]
+        keep = np.r_[np.arange(n0), n0 + np.array([k for k in range(len(current)) if k not in gone], int)]
         clo_r = np.concatenate([self.lo, np.zeros(len(cpar))])
         chi_r = np.concatenate([self.hi, _upper(rest, sc)])
         refit = self._fit(pm_rest, self.train, best_fit.p[keep], lower=clo_r, upper=chi_r, max_nfev=cfg.max_nfev)
