@@ -44,7 +44,7 @@ from modalab.core.units import to_si
 
 from .estimators import (ESTIMATORS, CrossSpectra, _check_estimator, _one_sided_factor, _spectra_sums, coherence,
                          cross_spectra, h1, h2, hv, multiple_coherence)
-from .windows import ExponentialWindow, ForceWindow
+from .windows import ExponentialWindow, ForceWindow, windowed_force
 
 __all__ = [
     "CrossSpectra",
@@ -165,6 +165,23 @@ class _Layout:
                 f"{first_id} has {[str(d) for d in self.responses]} ({self.quantity}); use one channel setup")
 
 
+def _force_highpass(rec: TimeRecord, force_idx) -> list:
+    """AC-coupling corners (Hz) of the force channels of ``rec`` from ``metadata['highpass_hz']`` (one per
+    channel, 0 = DC coupled); zeros when the record does not say (the force window then cuts whatever
+    follows the pulse, as before)."""
+    hp = (rec.metadata or {}).get("highpass_hz")
+    if hp is None:
+        return [0.0] * len(force_idx)
+    try:
+        v = [float(c) for c in hp]
+    except (TypeError, ValueError):
+        v = []
+    if len(v) != rec.n_channels or not all(np.isfinite(c) and c >= 0 for c in v):
+        raise ModalabValueError(f"hit {rec.hit_id}: metadata highpass_hz={hp!r}; expected one AC-coupling corner "
+                                f">= 0 Hz per channel ({rec.n_channels}), 0 for a DC-coupled channel")
+    return [v[i] for i in force_idx]
+
+
 class SpectralAverager:
     """Running average of hammer hits into auto/cross spectra, for a live FRF.
 
@@ -221,13 +238,16 @@ class SpectralAverager:
         y = rec.data[list(L.resp_idx)] * L.resp_scale[:, None]
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
             raise ModalabValueError(f"hit {rec.hit_id} contains NaN or infinite samples; discard it")
+        if self.force_window is not None:
+            # before the exponential window: the coupling's undershoot is put back on the windowed force
+            fw = self.force_window.array(n, fs, ti)
+            hp = _force_highpass(rec, L.force_idx)
+            x = np.stack([windowed_force(x[k], fw, fs, hp[k]) for k in range(x.shape[0])])
         if self.exp_window is not None:
             ew = np.exp(-self._beta * ((np.arange(n) - ti) / fs if self.exp_window.before_trigger == "extend"
                                        else np.maximum((np.arange(n) - ti) / fs, 0.0)))
             x = x * ew
             y = y * ew
-        if self.force_window is not None:
-            x = x * self.force_window.array(n, fs, ti)
         nfft = n if self.nfft is None else int(self.nfft)
         return np.fft.rfft(x, n=nfft, axis=-1) / fs, np.fft.rfft(y, n=nfft, axis=-1) / fs
 

@@ -46,6 +46,7 @@ def write_records(path, records, *, binary: bool = True, append: bool = False) -
             x0 = -rec.trigger_index * dt
             hammer = rec.force_dofs[0] if rec.force_dofs else Dof(0, 0)
             m4 = f"modalab fs={fs!r} trig={rec.trigger_index}"
+            hp = _highpass(rec, path)
             meta_line = "NONE"
             if rec.metadata:
                 # keep the entries that fit the 80-character ID line (point, backend...); large ones such as
@@ -73,12 +74,29 @@ def write_records(path, records, *, binary: bool = True, append: bool = False) -
                 ids_ = [f"hit {rec.hit_id} ch {k} {role} {d}",
                         f"modalab role={role} sens={float(rec.sensitivity[k])!r} ovl={int(bool(rec.overload[k]))} "
                         f"ch={k} nch={rec.n_channels}",
-                        date, m4, meta_line]
+                        date, m4 if hp is None else f"{m4} hp={hp[k]!r}", meta_line]
                 axes = [Axis(17, 0, 0, 0, "Time", "s"), Axis(spec, 0, 0, 0, "NONE", unit_lab), Axis(0), Axis(0)]
                 fh.write(format_58(binary=binary, ids=ids_, func_type=1, func_id=k + 1, load_case=rec.hit_id,
                                    rsp_node=d.node, rsp_dir=d.direction, ref_node=hammer.node,
                                    ref_dir=hammer.direction, x=None, y=rec.data[k], even=True, x0=x0, dx=dt,
                                    axes=axes))
+
+
+def _highpass(rec: TimeRecord, path) -> list | None:
+    """The channels' AC-coupling corners (Hz) from ``metadata['highpass_hz']``, written to ID line 4 as ``hp=``
+    (the FRF estimator's force window needs them, :func:`acquisition.windows.windowed_force`); None when the
+    record does not say."""
+    hp = (rec.metadata or {}).get("highpass_hz")
+    if hp is None:
+        return None
+    try:
+        v = [float(c) for c in hp]
+    except (TypeError, ValueError):
+        v = []
+    if len(v) != rec.n_channels or not all(np.isfinite(c) and c >= 0 for c in v):
+        raise UffError(f"hit {rec.hit_id}: metadata highpass_hz={hp!r}; expected one AC-coupling corner >= 0 Hz "
+                       f"per channel ({rec.n_channels})", path=path)
+    return v
 
 
 def read_records(path) -> list[TimeRecord]:
@@ -132,8 +150,28 @@ def _hit(hit: int, chans: list, lf: float, ff: float, path) -> TimeRecord:
         except ValueError:
             raise UffError("sensitivity / overload tokens in ID line 2 are not numbers", path=path,
                            dataset=58, line=f.line + 2) from None
+    hp = [f.tags.get("hp") for f in chans]
+    if any(c is not None for c in hp):
+        bad = [f for f, c in zip(chans, hp) if not _is_number(c)]
+        if bad:
+            raise UffError(f"hit {hit}: AC-coupling corner hp={bad[0].tags.get('hp')!r} in ID line 4 is not a "
+                           "number (or missing on this channel while others give it)", path=path, dataset=58,
+                           line=bad[0].line + 4)
+        corners = [float(c) for c in hp]
+        if not all(np.isfinite(c) and c >= 0 for c in corners):
+            raise UffError(f"hit {hit}: AC-coupling corners {corners} in ID line 4 must be >= 0 Hz", path=path,
+                           dataset=58, line=c0.line + 4)
+        meta["highpass_hz"] = corners
     return TimeRecord(sample_rate_hz=fs, data=data, dofs=dofs, roles=roles, units=units,
                       sensitivity=sens, trigger_index=trig, overload=ovl, hit_id=hit, metadata=meta)
+
+
+def _is_number(text) -> bool:
+    try:
+        float(text)
+    except (TypeError, ValueError):
+        return False
+    return True
 
 
 def _check_channels(hit: int, chans: list, path) -> None:

@@ -36,7 +36,9 @@ class TimeRecord:
     hit_id : number of the hit in its session (UFF ``load_case_id``).
     metadata : free-form dict.  Keys used by modalab: ``range`` (per channel, the ± input range in
         engineering units, or ``(lo, hi)``), ``range_v`` (volts), ``point`` (the roving DOF),
-        ``backend``, ``sim`` (the simulator's ground truth: pulse times, double hit...).
+        ``backend``, ``sim`` (the simulator's ground truth: pulse times, double hit...), ``highpass_hz`` (per
+        channel, the AC-coupling corner in Hz, 0 = DC coupled: the force window keeps the coupling's
+        undershoot with it, :func:`acquisition.windows.windowed_force`; kept in the UFF's ID line 4).
     """
 
     def __init__(self, *, sample_rate_hz, data, dofs, roles, units=None, sensitivity=None,

@@ -53,7 +53,8 @@ Raw hits (``write_records``): one time record (func_type 1) per channel per hit:
     ID line 1  hit <hit_id> ch <k> <role> <dof>  e.g. "hit 3 ch 0 force 1+Z"
     ID line 2  modalab role=<force|response> sens=<V per unit> ovl=<0|1> ch=<k> nch=<n_channels>
     ID line 3  DD-MMM-YY HH:MM:SS modalab w=<write id>r ns=<records of this write>
-    ID line 4  modalab fs=<sample rate, Hz> trig=<trigger index>
+    ID line 4  modalab fs=<sample rate, Hz> trig=<trigger index> [hp=<AC-coupling corner of the channel, Hz>]
+               (hp when ``metadata['highpass_hz']`` gives the corners; read back into it)
     ID line 5  modalab m=<json of TimeRecord.metadata> (or NONE when empty or longer than the line)
     Record 6   func_type 1, function id k+1, load case id = hit_id,
                response node/direction = the channel's DOF,

@@ -478,3 +478,31 @@ def test_h1_of_the_simulated_lab_matches_its_structure():
     err = rel_err(frf.H, exact.H)[good]
     assert np.median(err) < 1e-3
     assert np.quantile(err, 0.99) < 5e-3
+
+
+def test_the_force_window_keeps_the_ac_coupling_of_the_simulated_lab_below_20_hz():
+    """The same cross-check at 0.25-20 Hz, where the IEPE coupling (0.5 Hz corner on every channel) matters:
+    the force window used to cut the coupling's undershoot from the force while the responses kept it, and the
+    windowed H1 read 16.8 % off (median) at 0.25-2 Hz, 3.5 % at 2-5 Hz and 0.7 % at 5-20 Hz (issue 14 #2:
+    E and ρ of an exact model rose by 0.4-0.6 %).  With the corners the records carry (metadata
+    highpass_hz) it keeps the undershoot: the estimate equals the one without a force window within 0.1 % (the
+    force noise it cuts, 0.02 % median), and the lab's noise is what remains: 0.56 % at 0.25-2 Hz, below
+    0.08 % above 2 Hz."""
+    from hardware_sim import demo_lab
+    from hardware_sim.demo import DEMO_HAMMER
+
+    lab = demo_lab(rng=1, hammer=dataclasses.replace(DEMO_HAMMER, placement_scatter_m=0.0))
+    recs = [lab.hit("14+Z", force_n=150.0) for _ in range(5)]
+    assert all(r.metadata["highpass_hz"] == [0.5] * 4 for r in recs)
+    ew = ExponentialWindow(end_level=0.01)
+    fw = ForceWindow(fraction=0.05, taper=0.25)
+    frf = estimate_frf(recs, exp_window=ew, force_window=fw)
+    plain = estimate_frf(recs, exp_window=ew)
+    exact = shifted_exact(lab.structure.modal_model(), frf.freq_hz, frf.responses, frf.references,
+                          frf.window_beta_per_s)
+    f = frf.freq_hz
+    for lo, hi, most in [(0.25, 2.0, 0.01), (2.0, 5.0, 2e-3), (5.0, 20.0, 2e-3)]:
+        good = ((f >= lo) & (f < hi))[None, None, :] & (frf.coherence > 0.99)
+        assert good.sum() >= 16
+        assert np.median(rel_err(frf.H, exact.H)[good]) < most, (lo, hi)
+        assert np.median(rel_err(frf.H, plain.H)[good]) < 1e-3, (lo, hi)     # the force noise it cuts

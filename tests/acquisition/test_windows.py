@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from acquisition.windows import (ExponentialWindow, ForceWindow, beta_from_end_level, correct_damping, correct_poles,
-                                 exponential_window, force_window)
+                                 exponential_window, force_window, windowed_force)
 from modalab.core.errors import ModalabValueError
 
 
@@ -144,3 +144,34 @@ class TestDampingCorrection:
         with caplog.at_level("WARNING"):
             z = correct_damping(10.0, 0.001, 5.0)
         assert z < 0 and "negative damping" in caplog.text
+
+
+def test_windowed_force_keeps_the_ac_coupling_undershoot_and_cuts_the_noise():
+    """A half-sine hit through a 0.5 Hz AC coupling (synthesised continuously, as the simulated lab does):
+    its undershoot −A ω_c e^{−ω_c t} lasts the whole record and the response channels keep it.  The force
+    window with the corner given leaves the samples inside it as they were and continues the undershoot after
+    it (to 5e-4 of the undershoot, measured 2.5e-4: the noise integrated inside the window), the noise there
+    cut; the plain window (corner 0, as before) cuts it: the force's spectrum at 1 Hz then reads 10-30 % off."""
+    fs, n, ti, fc = 2048.0, 8192, 128, 0.5
+    L = 16 * n
+    f = np.fft.rfftfreq(L, 1 / fs)
+    x = 2 * np.pi * f * 8e-4
+    pulse = 200.0 * 8e-4 * np.pi * (1 + np.exp(-1j * x)) / np.where(np.abs(np.pi ** 2 - x ** 2) < 1e-9, 1.0,
+                                                                    np.pi ** 2 - x ** 2)
+    hp = 2j * np.pi * f / (2j * np.pi * f + 2 * np.pi * fc)
+    lowpass = np.exp(-(f / 300.0) ** 2)                          # band-limited, as behind an anti-alias filter
+    clean = np.fft.irfft(pulse * hp * lowpass * np.exp(-2j * np.pi * f * ti / fs), n=L)[:n] * fs
+    noise = 1e-3 * np.random.default_rng(0).standard_normal(n)
+    w = ForceWindow(fraction=0.05).array(n, fs, ti)
+    kept = windowed_force(clean + noise, w, fs, fc)
+    np.testing.assert_allclose(kept[w == 1], (clean + noise)[w == 1], rtol=0, atol=1e-10 * clean.max())
+    tail = w == 0
+    assert clean[tail].min() < -0.16        # the undershoot at the window's end: −A ω_c e^{−0.2 ω_c} = −0.17 N
+    assert np.abs(kept[tail] - clean[tail]).max() < 5e-4 * np.abs(clean[tail]).max()     # measured 2.5e-4
+    np.testing.assert_array_equal(windowed_force(clean, w, fs, 0.0), clean * w)
+    line = int(round(1.0 * n / fs))
+    ratio = np.fft.rfft(clean * w)[line] / np.fft.rfft(clean)[line]
+    assert 0.1 < abs(ratio - 1) < 0.3
+    assert abs(np.fft.rfft(windowed_force(clean, w, fs, fc))[line] / np.fft.rfft(clean)[line] - 1) < 1e-5
+    with pytest.raises(ModalabValueError, match="AC-coupling corner -1 Hz must be >= 0"):
+        windowed_force(clean, w, fs, -1)

@@ -474,6 +474,26 @@ class TestRecords:
         assert s["id4"] == "modalab fs=51200.0 trig=7"
         np.testing.assert_allclose(s["x"][7], 0.0, atol=1e-9)
 
+    def test_ac_coupling_corners_round_trip_in_id_line_4(self, tmp_path):
+        """The channels' AC-coupling corners (metadata highpass_hz), which the FRF estimator's force window needs,
+        survive the file (ID line 4 ``hp=``): before, they were dropped with the other metadata too long for
+        ID line 5, and ``modalab frf`` of simulated hits cut the coupling's undershoot from the force."""
+        recs = _records(2)
+        for r in recs:
+            r.metadata = {"point": "1+Z", "highpass_hz": [0.5, 0.5, 0.15915494309189535],
+                          "range_v": [5.0, 5.0, 5.0], "source": "hardware_sim", "aa_filter": "delta-sigma"}
+        p = tmp_path / "r.uff"
+        uff.write_records(p, recs, binary=False)
+        assert pyuff.UFF(str(p)).read_sets()[2]["id4"] == "modalab fs=51200.0 trig=7 hp=0.15915494309189535"
+        assert [r.metadata["highpass_hz"] for r in uff.read_records(p)] == [[0.5, 0.5, 0.15915494309189535]] * 2
+        bad = p.read_text().replace("trig=7 hp=0.5 ", "trig=7 hp=x.5 ", 1)
+        (tmp_path / "bad.uff").write_text(bad)
+        with pytest.raises(UffError, match=r"AC-coupling corner hp='x.5' in ID line 4 is not a number"):
+            uff.read_records(tmp_path / "bad.uff")
+        recs[0].metadata["highpass_hz"] = [0.5]
+        with pytest.raises(UffError, match="one AC-coupling corner >= 0 Hz per channel"):
+            uff.write_records(tmp_path / "w.uff", recs)
+
     def test_missing_channel_detected(self, tmp_path):
         p = tmp_path / "r.uff"
         rec = _records(1)[0]
