@@ -6,7 +6,7 @@ from pathlib import Path
 
 from modalab.app._cli_console import _print
 from modalab.app.stages import ReportOptions, report
-from modalab.app.stages._report import collect_outputs
+from modalab.app.stages._report import collect_outputs, model_files
 from modalab.core.errors import PlanError
 
 #: the sub-folders of a ``modalab run`` output folder
@@ -28,7 +28,8 @@ def cmd_report(a):
         if not found:
             raise PlanError(f"'{folder}' holds no output of modalab identify, correlate, update or diagnose (their "
                             "JSON files and figures); run them with their outputs in this folder, or give that folder")
-        r = report(staging, out, ReportOptions(title=a.title or folder.resolve().name))
+        r = report(staging, out, ReportOptions(title=a.title or folder.resolve().name,
+                                               model_files=model_files(folder, found)))
     for stage, srcs in found.items():
         _print(f"{stage}: {', '.join(srcs)}")
     _print(f"wrote {r.result}")

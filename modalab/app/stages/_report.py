@@ -39,12 +39,15 @@ class ReportOptions:
 
     title: str | None = None
     model: str | None = None
+    #: where the updated and diagnosed bulk data are, for outputs of commands run one by one (:func:`model_files`)
+    model_files: dict | None = None
 
 
 def report(run_dir, report_dir=None, opts: ReportOptions = ReportOptions()) -> StageResult:
     """The self-contained HTML report of a run folder and its ``summary.json`` (:func:`build_report`)."""
 
-    html_path, summary = build_report(run_dir, report_dir, title=opts.title, model=opts.model)
+    html_path, summary = build_report(run_dir, report_dir, title=opts.title, model=opts.model,
+                                      model_files=opts.model_files)
     return StageResult(html_path, (html_path, summary), {"report": str(html_path)})
 
 
@@ -147,26 +150,47 @@ def _mode_table(modes: list) -> str:
     return _table(rows, cols, fmt) + f'<ul class="muted">{legend}</ul>'
 
 
-def _which_model(diag: dict | None, upd: dict | None) -> tuple[str, str] | None:
-    """(file to use, why) between ``update/updated.bdf`` (parameters only) and ``diagnose/diagnosed.bdf``
-    (the diagnosed physics added, parameters re-fitted with it)."""
+def _which_model(diag: dict | None, upd: dict | None, files: dict | None = None) -> tuple[str, str] | None:
+    """(file to use, why) between the parameter-updated model (``update/updated.bdf`` of a run folder) and the
+    diagnosed one (``diagnose/diagnosed.bdf``: the diagnosed physics added, parameters re-fitted with it).
+    ``files``: where those two are for outputs of commands run one by one (``{"update": path, "diagnose":
+    path}``, relative to the report's folder; :func:`model_files`)."""
+    files = {"update": "update/updated.bdf", "diagnose": "diagnose/diagnosed.bdf", **(files or {})}
+    u, d = files["update"], files["diagnose"]
     if not diag:
-        return ("update/updated.bdf", "the diagnosis has not run: the parameter-updated model is the best there is"
-                ) if upd else None
+        return (u, "the diagnosis has not run: the parameter-updated model is the best there is") if upd else None
     if diag.get("findings"):
         what = "; ".join(f.get("description", f.get("physics", "")) for f in diag["findings"])
-        return ("diagnose/diagnosed.bdf",
+        return (d,
                 f"the diagnosis added physics the nominal model leaves out ({what}) and re-fitted the parameters "
-                "with it. update/updated.bdf is a parameters-only update: its parameters absorb the missing "
+                f"with it. {u} is a parameters-only update: its parameters absorb the missing "
                 "physics and are biased by it (compare the two parameter tables); do not use it as the model of "
                 "the structure")
     if not upd:
-        return ("diagnose/diagnosed.bdf", "the diagnosis found no missing physics and no parameter update ran: the "
+        return (d, "the diagnosis found no missing physics and no parameter update ran: the "
                 "diagnosis' own parameter fit on the FRFs is the model")
-    return ("update/updated.bdf",
+    return (u,
             "the diagnosis found no missing physics: the parameter update (inverse eigensensitivity on the "
-            "identified modes) is the model to use; diagnose/diagnosed.bdf holds the diagnosis' own parameter "
+            f"identified modes) is the model to use; {d} holds the diagnosis' own parameter "
             "fit on the FRFs, without added physics, for comparison")
+
+
+def model_files(folder, found: dict) -> dict:
+    """``{"update": path, "diagnose": path}``: the bulk data ``modalab update`` (``updated.bdf``) and
+    ``modalab diagnose`` (``diagnosed.bdf``) wrote beside the outputs :func:`collect_outputs` found in
+    ``folder`` (``found``: {stage: [sources]}), relative to ``folder``; a stage without one is left out."""
+    folder = Path(folder)
+    out = {}
+    for stage, name in (("update", "updated.bdf"), ("diagnose", "diagnosed.bdf")):
+        near = [Path(s).parent / name for s in found.get(stage, [])]
+        near += sorted(folder.glob(name)) + sorted(folder.glob(f"*/{name}"))
+        hit = next((p for p in near if p.is_file()), None)
+        if hit is not None:
+            try:
+                out[stage] = str(hit.resolve().relative_to(folder.resolve()))
+            except ValueError:
+                out[stage] = str(hit)
+    return out
 
 
 def _load(path):
@@ -248,7 +272,8 @@ def _selection_html(diag: dict) -> list:
     return out
 
 
-def build_report(run_dir, report_dir=None, *, title: str | None = None, model=None) -> tuple[Path, Path]:
+def build_report(run_dir, report_dir=None, *, title: str | None = None, model=None,
+                 model_files: dict | None = None) -> tuple[Path, Path]:
     """Write ``report.html`` (self-contained) and ``summary.json`` into ``report_dir``; returns both paths.
 
     ``title``: the report's (None: the run folder's name); ``model``: the FE model's bulk data, drawn as a wire
@@ -266,7 +291,7 @@ def build_report(run_dir, report_dir=None, *, title: str | None = None, model=No
     diag = _load(run_dir / "diagnose" / "diagnosis.json")
     manifest = _load(run_dir / "manifest.json") or {"stages": {}}
     backend = (frf_s or {}).get("backend")
-    use = _which_model(diag, upd)
+    use = _which_model(diag, upd, model_files)
     parts = [f"<h1>{html.escape(name)}</h1>",
              f'<p class="muted">modalab run report, {_dt.datetime.now(_dt.timezone.utc):%Y-%m-%d %H:%M} UTC. '
              "Every figure is embedded in this file.</p>"]
