@@ -20,6 +20,9 @@ from .records import TimeRecord
 
 log = logging.getLogger("modalab.core.uff")
 
+#: metadata written first into a hit's ID line 5 (the rest as long as the 80 characters allow)
+_FIRST_META = ("point", "backend")
+
 
 # ----------------------------------------------------------------------------- time records
 def write_records(path, records, *, binary: bool = True, append: bool = False) -> None:
@@ -52,7 +55,8 @@ def write_records(path, records, *, binary: bool = True, append: bool = False) -
                 # keep the entries that fit the 80-character ID line (point, backend...); large ones such as
                 # the simulator's ground truth stay out of the file
                 kept: dict = {}
-                for key, value in rec.metadata.items():
+                # the point and the backend first: what took the hits must survive a long entry (range_v ...)
+                for key, value in sorted(rec.metadata.items(), key=lambda kv: kv[0] not in _FIRST_META):
                     try:
                         trial = "modalab m=" + _compact_json({**kept, key: value})
                     except (TypeError, ValueError):

@@ -291,6 +291,9 @@ def build_report(run_dir, report_dir=None, *, title: str | None = None, model=No
     diag = _load(run_dir / "diagnose" / "diagnosis.json")
     manifest = _load(run_dir / "manifest.json") or {"stages": {}}
     backend = (frf_s or {}).get("backend")
+    if frf_s is None and (run_dir / "frf" / "frf.uff").is_file():
+        # FRFs of commands run one by one (no frf.json): the backend their ID lines carry
+        backend = (uff.read_frf(run_dir / "frf" / "frf.uff").metadata or {}).get("backend")
     use = _which_model(diag, upd, model_files)
     parts = [f"<h1>{html.escape(name)}</h1>",
              f'<p class="muted">modalab run report, {_dt.datetime.now(_dt.timezone.utc):%Y-%m-%d %H:%M} UTC. '
