@@ -112,7 +112,10 @@ def read_records(path) -> list[TimeRecord]:
                      path, "time record", "r")
         fns = _functions(blocks, cur, (1,))
         if not fns:
-            raise UffError("no time records (dataset 58, function type 1) in the file", path=path)
+            n_frf = len(_functions(blocks, cur, (4,)))
+            raise UffError("no time records (dataset 58, function type 1) in the file" + (
+                f"; it holds {n_frf} FRFs (function type 4): FRFs already, not raw hits (identify takes them)"
+                if n_frf else ""), path=path)
         rot = _node_rotations(blocks, path, cur)
         local = sorted({f.rsp_node for f in fns if f.rsp_node in rot})
         if local:

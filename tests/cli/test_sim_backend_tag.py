@@ -29,3 +29,16 @@ def test_the_point_and_backend_fit_the_id_line_before_long_entries(tmp_path):
     uff.write_records(tmp_path / "h.uff", [rec])
     back = uff.read_records(tmp_path / "h.uff")[0].metadata
     assert back["point"] == "1+Z" and back["backend"] == "nidaqmx", back
+
+
+def test_frf_given_frfs_says_they_are_frfs_already(tmp_path, monkeypatch, capsys):
+    """A user mistake a fresh user made: ``modalab frf`` on a file of FRFs.  One line, exit 2, no output file,
+    and it says what the file holds and which command takes it."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["sim", "-o", "hits.uff", "--no-plot"]) == 0
+    assert main(["frf", "hits.uff", "-o", "frf.uff", "--no-plot"]) == 0
+    capsys.readouterr()
+    assert main(["frf", "frf.uff", "-o", "again.uff", "--no-plot"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "frf.uff" in err and "FRFs already" in err and "identify" in err, err
+    assert not (tmp_path / "again.uff").exists()
