@@ -293,8 +293,11 @@ def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None
     in a Ritz basis built at the start (:class:`~updating.diagnosis.ritz.RitzBasis`: modes to 3× the band
     top plus static corrections at the measured and reference DOFs); the result is checked against the
     exact receptance, and the fit is repeated from there with a basis rebuilt at the new parameters (at most
-    ``rounds`` times) while the reduced and exact errors differ by more than ``tol`` (relative).
-    The returned error is always the exact one.
+    ``rounds`` times) while the reduced and exact errors differ by more than ``tol`` (relative).  The basis
+    also carries the static correction at the DOFs of the free local parameters (:data:`LOCAL_DOFS`).  The
+    result is the round with the lowest exact objective, and never worse than the start: when every round
+    raised it (the reduced model led the steps astray), the start is returned, with its standard deviations,
+    and the message says so.  The returned error is always the exact one.
     """
     p_start = np.asarray(p_start, float)
     npar = p_start.size
@@ -314,6 +317,11 @@ def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None
     # its own DOFs: with those vectors in the basis, the basis built at the start stays accurate over decades of
     # its value (without them a joint's fit from 2e5 N·m/rad ended at 2e4 with the exact error 4x its start's)
     local = _local_dofs(pmodel, p_start, free) if reduced else None
+    best = None
+    if reduced:
+        # the exact objective at the start: a round whose reduced model misleads it must not leave it worse
+        err0 = frf_error(model_frf(st0, data), data)
+        best = (_objective(err0, p_start, data, prior, free), p_start, err0, None)
     for rnd in range(max(int(rounds), 1) if reduced else 1):
         basis = None
         if reduced:
@@ -328,6 +336,8 @@ def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None
         err = frf_error(H, data)
         if not reduced:
             break
+        if _objective(err, p, data, prior, free) < best[0]:
+            best = (_objective(err, p, data, prior, free), p, err, sol)
         # the reduced error, in the same measure
         r = sol.fun[:2 * data.H.size]
         e_red = np.sqrt(float(r @ r) / max(float(np.sum(data.quality ** 2)), 1e-300))
@@ -335,10 +345,34 @@ def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None
         if abs(err - e_red) <= tol * max(err, 1e-12):
             break
         p_cur = p
+    fun, jac, message = sol.fun, sol.jac, str(sol.message)
+    if reduced and best[3] is None:
+        # no round lowered the exact objective: the Ritz model led every step astray; the start is the fit
+        log.info("an FRF fit in a Ritz basis ended above its start (exact error %.4g against %.4g): the start is "
+                 "kept", err, best[2])
+        p, err = best[1], best[2]
+        r0, ctx = _residual(pmodel, p, data)
+        fun, jac = r0, _jacobian(pmodel, p, data, free, ctx)
+        if prior is not None:
+            pr, pj = prior.rows(p, free)
+            fun, jac = np.concatenate([fun, pr]), np.vstack([jac, pj])
+        message += "; the start kept (every step raised the exact error)"
+    elif reduced:
+        p, err, sol = best[1], best[2], best[3]
+        fun, jac = sol.fun, sol.jac
     std = np.zeros(npar)
-    std[free] = correlated_std(sol.fun, sol.jac, data.H.shape, prior_scale=prior.scale if prior is not None else 0.0)
-    return FitResult(p, std, err, history, bool(sol.success), str(sol.message) + (
+    std[free] = correlated_std(fun, jac, data.H.shape, prior_scale=prior.scale if prior is not None else 0.0)
+    return FitResult(p, std, err, history, bool(sol.success), message + (
         f" ({total_nfev} evaluations in a Ritz basis)" if reduced else ""))
+
+
+def _objective(err: float, p, data: FRFData, prior, free) -> float:
+    """The MAP objective of :func:`fit_frf` at a point of exact FRF error ``err``: the data's squared residual
+    (``err² Σ quality²``) plus the prior's rows."""
+    obj = err * err * float(np.sum(data.quality ** 2))
+    if prior is not None:
+        obj += float(np.sum(prior.rows(p, free)[0] ** 2))
+    return obj
 
 
 def _ar1_inv(x: np.ndarray, rho: float) -> np.ndarray:
