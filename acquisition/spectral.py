@@ -169,16 +169,9 @@ def _force_highpass(rec: TimeRecord, force_idx) -> list:
     """AC-coupling corners (Hz) of the force channels of ``rec`` from ``metadata['highpass_hz']`` (one per
     channel, 0 = DC coupled); zeros when the record does not say (the force window then cuts whatever
     follows the pulse, as before)."""
-    hp = (rec.metadata or {}).get("highpass_hz")
-    if hp is None:
+    v = rec.highpass_hz()
+    if v is None:
         return [0.0] * len(force_idx)
-    try:
-        v = [float(c) for c in hp]
-    except (TypeError, ValueError):
-        v = []
-    if len(v) != rec.n_channels or not all(np.isfinite(c) and c >= 0 for c in v):
-        raise ModalabValueError(f"hit {rec.hit_id}: metadata highpass_hz={hp!r}; expected one AC-coupling corner "
-                                f">= 0 Hz per channel ({rec.n_channels}), 0 for a DC-coupled channel")
     return [v[i] for i in force_idx]
 
 

@@ -15,7 +15,7 @@ from ._uff_core import Axis, Fn58, check_groups, date_line, format_58
 from ._uff_frf import _functions
 from ._uff_geometry import _node_rotations
 from .dof import Dof
-from .errors import UffError
+from .errors import ModalabValueError, UffError
 from .records import TimeRecord
 
 log = logging.getLogger("modalab.core.uff")
@@ -90,17 +90,10 @@ def _highpass(rec: TimeRecord, path) -> list | None:
     """The channels' AC-coupling corners (Hz) from ``metadata['highpass_hz']``, written to ID line 4 as ``hp=``
     (the FRF estimator's force window needs them, :func:`acquisition.windows.windowed_force`); None when the
     record does not say."""
-    hp = (rec.metadata or {}).get("highpass_hz")
-    if hp is None:
-        return None
     try:
-        v = [float(c) for c in hp]
-    except (TypeError, ValueError):
-        v = []
-    if len(v) != rec.n_channels or not all(np.isfinite(c) and c >= 0 for c in v):
-        raise UffError(f"hit {rec.hit_id}: metadata highpass_hz={hp!r}; expected one AC-coupling corner >= 0 Hz "
-                       f"per channel ({rec.n_channels})", path=path)
-    return v
+        return rec.highpass_hz()
+    except ModalabValueError as e:
+        raise UffError(str(e), path=path) from None
 
 
 def read_records(path) -> list[TimeRecord]:

@@ -128,6 +128,21 @@ class TimeRecord:
     def overloaded(self) -> bool:
         return bool(self.overload.any())
 
+    def highpass_hz(self) -> list | None:
+        """The channels' AC-coupling corners (Hz, 0 = DC coupled) from ``metadata['highpass_hz']``, one per
+        channel; None when the record does not say.  A malformed entry is an error naming the hit."""
+        hp = (self.metadata or {}).get("highpass_hz")
+        if hp is None:
+            return None
+        try:
+            v = [float(c) for c in hp]
+        except (TypeError, ValueError):
+            v = []
+        if len(v) != self.n_channels or not all(np.isfinite(c) and c >= 0 for c in v):
+            raise ModalabValueError(f"hit {self.hit_id}: metadata highpass_hz={hp!r}; expected one AC-coupling "
+                                    f"corner >= 0 Hz per channel ({self.n_channels}), 0 for a DC-coupled channel")
+        return v
+
     def copy(self) -> "TimeRecord":
         return copy.deepcopy(self)
 
