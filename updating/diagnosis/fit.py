@@ -351,11 +351,7 @@ def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None
         log.info("an FRF fit in a Ritz basis ended above its start (exact error %.4g against %.4g): the start is "
                  "kept", err, best[2])
         p, err = best[1], best[2]
-        r0, ctx = _residual(pmodel, p, data)
-        fun, jac = r0, _jacobian(pmodel, p, data, free, ctx)
-        if prior is not None:
-            pr, pj = prior.rows(p, free)
-            fun, jac = np.concatenate([fun, pr]), np.vstack([jac, pj])
+        fun, jac = _exact_rows(pmodel, p, data, free, prior)
         message += "; the start kept (every step raised the exact error)"
     elif reduced:
         p, err, sol = best[1], best[2], best[3]
@@ -364,6 +360,16 @@ def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None
     std[free] = correlated_std(fun, jac, data.H.shape, prior_scale=prior.scale if prior is not None else 0.0)
     return FitResult(p, std, err, history, bool(sol.success), message + (
         f" ({total_nfev} evaluations in a Ritz basis)" if reduced else ""))
+
+
+def _exact_rows(pmodel, p, data: FRFData, free, prior):
+    """The exact residual rows of a MAP FRF fit at ``p`` and their Jacobian (the prior's rows appended)."""
+    r0, ctx = _residual(pmodel, p, data)
+    fun, jac = r0, _jacobian(pmodel, p, data, free, ctx)
+    if prior is not None:
+        pr, pj = prior.rows(p, free)
+        fun, jac = np.concatenate([fun, pr]), np.vstack([jac, pj])
+    return fun, jac
 
 
 def _objective(err: float, p, data: FRFData, prior, free) -> float:
