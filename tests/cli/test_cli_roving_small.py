@@ -117,6 +117,7 @@ def test_report_builds_one_html_from_the_outputs_of_the_commands(roving, tmp_pat
     # the model to use is named where update wrote it (updated/), not in a run folder's layout (update/)
     assert summary["model_to_use"]["file"] == "updated/updated.bdf", summary["model_to_use"]
     assert (tmp_path / summary["model_to_use"]["file"]).is_file()
+    assert "modalab report," in html and "modalab run report" not in html      # no 'modalab run' was involved
     # two different outputs of one stage: the report cannot choose, and says which
     other = json.loads((tmp_path / "modes.json").read_text())
     other["freq_hz"][0] *= 1.01

@@ -296,7 +296,8 @@ def build_report(run_dir, report_dir=None, *, title: str | None = None, model=No
         backend = (uff.read_frf(run_dir / "frf" / "frf.uff").metadata or {}).get("backend")
     use = _which_model(diag, upd, model_files)
     parts = [f"<h1>{html.escape(name)}</h1>",
-             f'<p class="muted">modalab run report, {_dt.datetime.now(_dt.timezone.utc):%Y-%m-%d %H:%M} UTC. '
+             f'<p class="muted">{"modalab run" if (run_dir / "manifest.json").is_file() else "modalab"} report, '
+             f'{_dt.datetime.now(_dt.timezone.utc):%Y-%m-%d %H:%M} UTC. '
              "Every figure is embedded in this file.</p>"]
     if backend == "sim":
         parts.append('<p class="statement"><b>Simulated data.</b> The hits were produced by the simulated lab '
