@@ -213,7 +213,6 @@ def force_window(n_samples: int, sample_rate_hz: float, *, trigger_index: int = 
     return w
 
 
-# --------------------------------------------------------------------------------------- exponential window
 def windowed_force(x, window, sample_rate_hz: float, highpass_hz: float = 0.0) -> np.ndarray:
     """A force window applied to force samples ``x`` (last axis time) recorded through an AC coupling.
 
@@ -239,6 +238,7 @@ def windowed_force(x, window, sample_rate_hz: float, highpass_hz: float = 0.0) -
     return lfilter(hp_b, hp_a, force * w, axis=-1)
 
 
+# --------------------------------------------------------------------------------------- exponential window
 def beta_from_end_level(end_level: float, n_samples: int, sample_rate_hz: float, trigger_index: int = 0) -> float:
     """Decay rate β (1/s) that brings the exponential window to ``end_level`` at the last sample.
 

@@ -336,8 +336,9 @@ def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None
         err = frf_error(H, data)
         if not reduced:
             break
-        if _objective(err, p, data, prior, free) < best[0]:
-            best = (_objective(err, p, data, prior, free), p, err, sol)
+        obj = _objective(err, p, data, prior, free)
+        if obj < best[0]:
+            best = (obj, p, err, sol)
         # the reduced error, in the same measure
         r = sol.fun[:2 * data.H.size]
         e_red = np.sqrt(float(r @ r) / max(float(np.sum(data.quality ** 2)), 1e-300))

@@ -129,12 +129,13 @@ class _Proof:
                 std = np.inf
             # a term of the same physics next to an earlier finding refines it (a mass between two nodes is
             # lumped on both): one finding with two parts, not two findings
-            host = next((f for f in findings if f.candidate.physics == c.physics and
-                         _same_place(f.candidate, c, m_fin)), None)
             if c.label.startswith(SPRING_LOSS):
                 # a found spring's own loss factor (library.spring_loss_candidates): a property of its finding
                 host = next((f for f in findings if loss_of(c, f.candidate) or
                              any(loss_of(c, o) for o, *_ in f.parts)), None)
+            else:
+                host = next((f for f in findings if f.candidate.physics == c.physics and
+                             _same_place(f.candidate, c, m_fin)), None)
             if host is None and _is_spring_damping(c):
                 # a dashpot to ground where a spring to ground was found is the support's own loss (a rubber
                 # mount or cord has both): the same finding, not a second piece of missing physics.  Where the
