@@ -138,11 +138,14 @@ def test_the_frf_diagnosis_leaves_the_exact_model_at_nominal(identified, tmp_pat
 def test_the_frf_diagnosis_of_unwindowed_data_warns_of_the_leakage(hits, tmp_path, caplog):
     """The same exact data without the window: the bungee and first elastic modes (ζ = 1 %) outlive the 4 s
     record, 25 % leakage below 14 Hz: the diagnosis says so and how to measure instead; no finding either way,
-    and every E and ρ within 0.3 % and 6 std of nominal (measured −0.04 to −0.25 %, at most 4.8 std: that
-    leakage, −0.14 to −0.27 % on the same chain without noise and placement scatter).  Before, E and ρ rose
-    together by +0.42 to +0.62 % (8-11 std): the force window cut the IEPE coupling's undershoot (0.5 Hz
-    corner) from the force while the responses kept it, which read the FRFs +16..+22 % off at 0.1-2 Hz and
-    −4 % at 2-5 Hz (:func:`acquisition.windows.windowed_force`)."""
+    and every E and ρ within 0.3 % and 6 std of nominal (measured +0.07 to +0.15 %, at most 3.1 std: the lab's
+    placement scatter, as with the window above).  Before the cut tails were restored
+    (:mod:`updating.diagnosis.truncation`) −0.04 to −0.25 %, at most 4.8 std: the leakage, −0.14 to −0.27 %
+    (3.5-7.6 std) on the same chain without noise and placement scatter, −0.001 to +0.005 % now
+    (tests/updating/test_diagnosis_truncation.py).  Before that, E and ρ rose together by +0.42 to +0.62 %
+    (8-11 std): the force window cut the IEPE coupling's undershoot (0.5 Hz corner) from the force while the
+    responses kept it, which read the FRFs +16..+22 % off at 0.1-2 Hz and −4 % at 2-5 Hz
+    (:func:`acquisition.windows.windowed_force`)."""
     assert main(["frf", str(hits), "-o", str(tmp_path / "frf.uff"), "--no-plot"]) == 0
     with caplog.at_level("WARNING", logger="updating.diagnosis.fit"):
         assert main(["diagnose", str(DEMO / "nominal.bdf"), str(tmp_path / "frf.uff"),

@@ -23,7 +23,6 @@ import numpy as np
 import scipy.optimize as so
 import scipy.sparse as sp
 from scipy.linalg import solve_banded
-from scipy.signal import find_peaks
 
 from modalab.core.dof import locate
 from modalab.core.errors import ConvergenceError
@@ -32,7 +31,7 @@ from updating.correlation.condensation import solve_columns
 from updating.correlation.receptance import LOCAL_BAND, FRFData, leakage_bias  # noqa: F401 (re-exported)
 from updating.correlation.receptance import frf_data as _frf_data
 from updating.diagnosis.ritz import RitzBasis
-from updating.diagnosis.testmodes import refine_pole
+from updating.diagnosis.truncation import RESTORED_SHARE, peak_poles, restore_tails
 from updating.methods.mci_condensed import derivatives
 
 log = logging.getLogger(__name__)
@@ -70,26 +69,39 @@ LEAKAGE_WARN = 0.05
 
 
 def frf_data(frf, **kw) -> FRFData:
-    """:func:`updating.correlation.receptance.frf_data` (the same keywords), with the leakage bound of every
-    line raised to :func:`decay_leakage` where a lightly damped mode's response outlives the record, and a
-    warning where that bound exceeds :data:`LEAKAGE_WARN`."""
-    data = _frf_data(frf, **kw)
-    b = decay_leakage(frf, data.s)
+    """:func:`updating.correlation.receptance.frf_data` (the same keywords) of ``frf`` with the tails its record
+    cut off restored (:func:`~updating.diagnosis.truncation.restore_tails`; the lines of a mode too far from
+    decayed to restore left out), the leakage bound of every line raised to :func:`decay_leakage` of the
+    measured FRF, and a warning where that bound exceeds :data:`LEAKAGE_WARN`."""
+    rest = restore_tails(frf)
+    data = _frf_data(rest.frf, **kw)
+    if rest.cut_hz > 0:
+        data = data.take(lines=np.flatnonzero(data.freq_hz > rest.cut_hz))
+    raw = decay_leakage(frf, data.s)
+    b = decay_leakage(frf, data.s, restored=rest.poles) if rest.poles.size else raw
     if np.any(b > data.bias):
         data.bias = np.maximum(data.bias, b)
-    leaky = b > LEAKAGE_WARN
-    if leaky.any():
-        fl = data.freq_hz[leaky]
-        df = np.diff(np.sort(frf.freq_hz))
-        log.warning("the FRFs carry leakage of up to %.0f %% at %.3g-%.3g Hz: lightly damped modes outlive the "
-                    "%.3g s record; the fits count it as noise, but it is one bias shared by those lines and "
-                    "can move the parameters by more than their standard deviations; measure with an "
-                    "exponential window (modalab frf --exp-end 0.01) or a longer record",
-                    100 * float(b.max()), float(fl.min()), float(fl.max()), 1.0 / float(df[df > 0].min()))
+    if np.any(raw > LEAKAGE_WARN):
+        _warn_leakage(raw, data.freq_hz[raw > LEAKAGE_WARN], frf, rest)
     return data
 
 
-def decay_leakage(frf, s: np.ndarray) -> np.ndarray:
+def _warn_leakage(b, fl, frf, rest):
+    """The warning of :func:`frf_data`: how much leakage, where, and what was done about it."""
+    df = np.diff(np.sort(frf.freq_hz))
+    done = (f"their tails cut off by the record are restored from the data (modes at "
+            f"{', '.join(f'{v:.3g}' for v in rest.poles.imag / (2 * np.pi))} Hz)"
+            + (f" and the lines up to {rest.cut_hz:.3g} Hz, too far from decayed, left out" if rest.cut_hz else "")
+            + f"; the fits count {RESTORED_SHARE:g} of the bound as noise, but what the restoration misses") \
+        if rest.poles.size else "the fits count it as noise, but it"
+    log.warning("the FRFs carry leakage of up to %.0f %% at %.3g-%.3g Hz: lightly damped modes outlive the "
+                "%.3g s record; %s is one bias shared by those lines and can move the parameters by more than "
+                "their standard deviations; measure with an exponential window (modalab frf --exp-end 0.01) or "
+                "a longer record", 100 * float(b.max()), float(fl.min()),
+                float(fl.max()), 1.0 / float(df[df > 0].min()), done)
+
+
+def decay_leakage(frf, s: np.ndarray, restored=()) -> np.ndarray:
     """Bound of the relative leakage error of spectral lines at ``s`` left by modes that have not died out at
     the end of the record (length ``T = 1/Δf``).
 
@@ -100,34 +112,21 @@ def decay_leakage(frf, s: np.ndarray) -> np.ndarray:
     the peaks of the measured FRFs (:func:`~updating.diagnosis.testmodes.refine_pole`); each line takes the
     errors of the modes weighted by their shares ``|1/(s − λ_r)| / Σ_k |1/(s − λ_k)|``.  The rigid-body tail
     (a mode that never decays, below the first line) is :func:`leakage_bias`.  Data whose metadata name no
-    spectral estimator (synthesised FRFs) get none, as for :func:`leakage_bias`."""
+    spectral estimator (synthesised FRFs) get none, as for :func:`leakage_bias`.  A mode within 1 % of one of
+    the poles ``restored`` (rad/s; its cut tail restored, :func:`~updating.diagnosis.truncation.restore_tails`)
+    counts :data:`~updating.diagnosis.truncation.RESTORED_SHARE` of its error."""
     s = np.asarray(s, complex)
     out = np.zeros(s.shape)
     if not frf.metadata.get("estimator") or frf.freq_hz.size < 8:
         return out
-    f = frf.band(max(float(frf.freq_hz[0]), 1e-9), None) if frf.freq_hz[0] <= 0 else frf
-    df = float(np.min(np.diff(f.freq_hz)))
-    T, beta = 1.0 / df, float(frf.window_beta_per_s)
-    rec = f.to("receptance")
-    ok = np.all(np.isfinite(rec.H), axis=(0, 1))               # lines frf_data leaves out leave no pole here
-    if np.count_nonzero(ok) < 8:
+    T, beta = 1.0 / float(np.min(np.diff(frf.freq_hz))), float(frf.window_beta_per_s)
+    lam = peak_poles(frf, "receptance")
+    if not lam.size:
         return out
-    if not ok.all():
-        rec = rec.lines(ok)
-    P = np.sum(np.abs(rec.H) ** 2, axis=(0, 1))
-    lg = np.log10(P + 1e-300)
-    pk, _ = find_peaks(lg, prominence=0.05 * max(float(np.ptp(lg)), 1e-12))
-    sl = rec.s
-    poles = []
-    for k, i in enumerate(pk):
-        lam = refine_pole(sl, rec.H, P, int(i), int(pk[k - 1]) if k else 0,
-                          int(pk[k + 1]) if k + 1 < pk.size else P.size - 1)
-        if lam is not None:
-            poles.append(lam)
-    if not poles:
-        return out
-    lam = np.array(poles)
     leak = np.exp(-(-lam.real + beta) * T)                       # (n_modes,)
+    if np.size(restored):
+        gap = np.min(np.abs(lam[:, None] - np.asarray(restored)[None, :]), axis=1)
+        leak = np.where(gap < 0.01 * np.abs(lam), RESTORED_SHARE * leak, leak)
     share = 1.0 / np.abs(s[:, None] - lam[None, :])
     share /= share.sum(axis=1, keepdims=True)
     return share @ leak

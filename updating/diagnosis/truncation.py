@@ -13,7 +13,7 @@ exponential; ``e^{−iω_k T} = 1`` at the lines).  It is not a multiple of the 
 of s) holds it.  On the demo structure's exact, unwindowed data (4 s, ζ = 1 %) the cut reads the FRFs −72 %
 at the 1 Hz bounce mode, −25 % at 5-10 Hz and +4 % at 10-14 Hz, and it moved every E and ρ of the exact model
 in the FRF diagnosis by −0.14..−0.27 % (3.5-7.6 std); with the tails restored here the FRFs are within 0.7 %
-rms above the bounce mode's lines (3.25 Hz), 0.3 % above 5 Hz, and E and ρ within 0.005 % (1.1 std).
+rms above the bounce mode's lines (3.25 Hz), 0.3 % above 5 Hz, and E and ρ within 0.005 % (0.7 std).
 
 :func:`restore_tails` fits, on the lines up to halfway from the highest such mode to the next peak, every FRF
 by those modes with the truncated form above (their poles from the peaks, :func:`peak_poles`; ``t0`` by a
@@ -42,7 +42,8 @@ from modalab.core.frf import FRF
 from updating.diagnosis.testmodes import refine_pole
 
 log = logging.getLogger(__name__)
-__all__ = ["Restored", "restore_tails", "peak_poles", "trigger_time", "RESTORE_FROM", "TAIL_MIN", "UNRESOLVED"]
+__all__ = ["Restored", "restore_tails", "peak_poles", "trigger_time", "RESTORE_FROM", "RESTORED_SHARE", "TAIL_MIN",
+           "UNRESOLVED"]
 
 #: share of its response a mode keeps at the record's end above which the record's tails are restored (the
 #: level ``fit.LEAKAGE_WARN`` warns at): below it the fit's leakage bound (``fit.decay_leakage``, counted as
@@ -51,8 +52,13 @@ __all__ = ["Restored", "restore_tails", "peak_poles", "trigger_time", "RESTORE_F
 RESTORE_FROM = 0.05
 #: share left below which a mode's tail is not restored (once a record is): on the demo's exact unwindowed data
 #: 0.05 instead (the 15.7 Hz mode's 2 % left alone) read the FRFs 2 % off at 10-30 Hz and left E and ρ at
-#: −0.02..+0.005 % (at most 1.6 std) instead of 0.000..+0.005 % (at most 1.1 std)
+#: −0.02..+0.005 % (at most 1.6 std) instead of 0.000..+0.005 % (at most 1.1 std; both with the restored
+#: modes' leakage bound counted in full, before :data:`RESTORED_SHARE`)
 TAIL_MIN = 0.01
+#: share of a restored mode's leakage bound (``fit.decay_leakage``) left to count as noise: the restoration
+#: leaves a few hundredths of the cut (demo: 0.07 % of 25 % at 5-10 Hz, 0.3 % of 6.6 % at 10-14 Hz, 0.7 % of
+#: 31 % at 3.25-5 Hz), a tenth is counted
+RESTORED_SHARE = 0.1
 #: share left at the record's end above which a mode's own lines are left out (:attr:`Restored.cut_hz`)
 UNRESOLVED = 0.5
 _Q = {"receptance": 0, "mobility": 1, "accelerance": 2}
@@ -124,8 +130,10 @@ def _solve(frf: FRF, lam, t0: float, T: float):
 
 def trigger_time(frf: FRF, lam, T: float) -> float:
     """The time ``t0`` (s) of the hit in the record that fits the truncated modes ``lam`` best: a grid over the
-    first quarter of the record, then a bounded search around the grid's best point."""
-    grid = np.linspace(0.0, 0.25 * T, 41)
+    first quarter of the record, fine enough that ``e^{iωt0}`` turns by at most π/4 between its points on the
+    lines of ``frf`` (at most 401 points), then a bounded search around the grid's best point."""
+    n = int(min(400, np.ceil(0.25 * T * 8 * float(np.max(frf.freq_hz))))) + 1
+    grid = np.linspace(0.0, 0.25 * T, max(n, 41))
     k = int(np.argmin([_solve(frf, lam, t, T)[1] for t in grid]))
     lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
     return float(minimize_scalar(lambda t: _solve(frf, lam, t, T)[1], bounds=(lo, hi), method="bounded").x)
