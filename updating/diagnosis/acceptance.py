@@ -312,7 +312,7 @@ class _Acceptance:
         :data:`PICK_MAX_REDUCED_CHI2` on the training and the held-out FRFs): the first term has already shown
         that something is missing there, the part says how much of it.  A pick that leaves at most
         :data:`~updating.diagnosis.terms.PICK_EXPLAINS` of the current model's χ² on the training and the held-out
-        FRFs, where that χ² was well above the noise (χ²/N above twice the limit), explains the residual: the reduced-χ² limit does not apply to it, nor the effect limit when it leaves
+        FRFs pooled, where that χ² was well above the noise (pooled χ²/N above twice the limit), explains the residual: the reduced-χ² limit does not apply to it, nor the effect limit when it leaves
         noise (what remains is the model's form error; a term absorbing that error cannot remove 90 % of a
         residual that a missing effect dominates).  ``n_terms``: the number of values
         ``pm_aug`` adds to the current model (a support release with the rest of its constraint: 2); every
@@ -336,8 +336,11 @@ class _Acceptance:
             st, st0 = pm_aug.structure(fr.p), pm_ref.structure(ref.p)
             parts = [(_chi2(st, d), _chi2(st0, d)[0]) for d in (self.train, self.held)]
             red = max(c1 / n1 for (c1, n1), _ in parts)
-            red0 = min(c0 / n1 for (_, n1), c0 in parts)
-            left = max(c1 / max(c0, 1e-300) for (c1, _), c0 in parts)
+            # the whole residual, training and held-out FRFs pooled: a held-out part that barely sees the effect
+            # (χ²/N 1.7 against the training part's 89) says nothing about what the term explains
+            n_all = sum(n1 for (_, n1), _ in parts)
+            red0 = sum(c0 for _, c0 in parts) / n_all
+            left = sum(c1 for (c1, _), _ in parts) / max(sum(c0 for _, c0 in parts), 1e-300)
         # the term removes nearly all of a residual well above the noise (a residual near the noise level is
         # model-form error a term can absorb whole: a control T-joint's χ²/N 1.9 -> 0.14 by a joint flexibility)
         explains = left <= PICK_EXPLAINS and red0 > 2 * PICK_MAX_REDUCED_CHI2

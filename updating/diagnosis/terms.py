@@ -59,8 +59,8 @@ FRF_PICKS = 3
 #: ``tests/updating/test_diagnosis_exact.py``, ``examples/concealed/bar_control``)
 PICK_MAX_REDUCED_CHI2 = 1.5
 
-#: ... unless the χ² it leaves is at most this share of the current model's on the training and on the held-out
-#: FRFs: a term that removes nearly all of the residual explains it; what is left is the model's form error,
+#: ... unless the χ² it leaves is at most this share of the current model's on the training and held-out FRFs
+#: pooled: a term that removes nearly all of the residual explains it; what is left is the model's form error,
 #: which is no reason to reject it
 PICK_EXPLAINS = 0.1
 
