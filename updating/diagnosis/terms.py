@@ -29,6 +29,17 @@ def _same_place(a: Candidate, b: Candidate, model: FEModel) -> bool:
     return any(na & set(ns) and nb & set(ns) for ns in (_nodes_of(e) for e in model.elements.values()))
 
 
+def _axes(c: Candidate) -> set:
+    """The directions of a candidate's DOFs (``{'Y'}`` for a spring at 9+Y), whatever the node."""
+    return {d.split("+")[-1].split("-")[-1] for d in c.dofs}
+
+
+#: a fitted candidate's kind in the same direction at this many neighbouring places is fitted too (the screening
+#: holds the parameters, which biases the place within a localisation spread): :meth:`_Acceptance._nearby_options`,
+#: :meth:`_Acceptance._nearby_places`
+NEARBY_PLACES = 4
+
+
 def _another_explanation(a: Candidate, b: Candidate, model: FEModel) -> bool:
     """Whether ``a`` is a different explanation from ``b``: elsewhere, or the same place with other physics (a
     joint's flexibility and a rotary inertia at one node are two explanations; the same kind one node over is a

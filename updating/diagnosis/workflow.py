@@ -263,12 +263,9 @@ class Diagnoser(_Acceptance, _Refine, _Proof):
         options = self._options(it)
         best, evaluated = None, []
         for c, th in options:
-            r = self._try(c, th, it)
-            if r is None:
-                continue
-            evaluated.append((c, r[1], float(r[3][-1] * r[6])))
-            if best is None or r[1] < best[1]:
-                best = r[:6]
+            best = self._run_option(c, th, it, best, evaluated)
+        for c, th in self._nearby_options(evaluated, options):
+            best = self._run_option(c, th, it, best, evaluated)
         n_eq = (self.W.size * len(self.train.responses) * 2) if self.use_mci else n_obs(self.train)
         ok, why = self._judge(best, n_eq)
         if best is not None:
