@@ -128,7 +128,8 @@ def register(sub):
                                    "with the indicators (schema: modalab/app/schemas/modes.schema.json)")
     s.add_argument("--plots", help="folder for the stabilisation diagram, synthesis overlays and AutoMAC (campaigns: any value "
                                          "puts them in each input's folder)")
-    s.add_argument("--band", nargs=2, type=float, metavar=("LO", "HI"), help="band in Hz")
+    s.add_argument("--band", nargs=2, type=float, metavar=("LO", "HI"),
+                   help="band in Hz (default: every line of the FRFs above 0 Hz)")
     s.add_argument("--max-order", type=int, help="highest model order (default: chosen from the data)")
     s.add_argument("--references", nargs="+", help="use only these reference DOFs, e.g. 1+Z 12+Z")
     s.add_argument("--select", default="auto",
