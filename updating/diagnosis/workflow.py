@@ -54,6 +54,7 @@ from modalab.core.modes import ModeSet
 from modalab.core.frf import FRF
 from updating.fe import FEModel, ParametricFEModel
 from updating.diagnosis.fit import RITZ_LIMIT, Prior, fit_frf, fit_std, frf_data, frf_error, model_frf, quick_frf_error
+from updating.diagnosis.dampscreen import damping_screen
 from updating.diagnosis.frfscreen import frf_screen
 from updating.diagnosis.library import _nodes_of, build_library, loss_of as _loss_of, spring_loss_candidates, validate_kinds
 from updating.diagnosis.release import release_screen, release_visibility
@@ -384,7 +385,10 @@ class Diagnoser(_Acceptance, _Refine, _Proof):
         # FRF-screen picks: the best two overall, the best of each kind of matrix and the best release of each
         # kind (joint, support): a release changes the DOF set, which no other candidate can imitate exactly
         listed = {c.key for c, _ in options}
-        for scr in screens:
+        # local damping ranked with the parameters (loss factors among them) re-fitted: updating.diagnosis.dampscreen
+        dscr = damping_screen(pm_cur, p_cur, [c for c in lib if c.key not in have], self.train)
+        self._screens.append((dscr, np.asarray(p_cur, float)))          # its best is a pick too (_judge_picks)
+        for scr in screens + [dscr]:
             by_kind: dict = {}
             for c, v, g in scr:
                 by_kind.setdefault(c.matrix, []).append((c, v, g))

@@ -1,0 +1,53 @@
+"""Local damping screened with the parameters re-fitted (updating.diagnosis.dampscreen).
+
+The data are exact receptances of the thesis beam (free-free tube, PARAM G 0.01) with a structural loss factor
+added on one element, computed by the direct solve of the augmented model (the library's element matrix, not
+the modal form under test).  The screen starts from a global loss factor fitted without the local term (raised
+to absorb it), the situation in which the exact screening with the parameters held ranks the element far down."""
+import numpy as np
+import pytest
+
+from modalab.core.frf import FRF
+from updating.diagnosis.dampscreen import damping_screen
+from updating.diagnosis.fit import frf_data
+from updating.diagnosis.library import build_library
+from updating.diagnosis.terms import _augment
+from updating.fe import Parameter, ParametricFEModel
+from updating.fe.models.beams import thesis_beam
+
+
+def _case(element: int | None, eta: float):
+    nominal = thesis_beam()
+    nominal.global_ge = 0.01
+    nominal._changed()
+    lib = build_library(nominal, kinds=("local_damping",))
+    truth = nominal
+    if element is not None:
+        c = next(c for c in lib if c.matrix == "D" and c.elements == (element,))
+        m_aug, cpar, scales = _augment(nominal, [c])
+        truth = ParametricFEModel(m_aug, cpar).model_at([eta / scales[-1]])
+    labels = [str(d) for d in nominal.structure().dofs if d.axis == 3]
+    f = np.linspace(5.0, 900.0, 600)
+    H = truth.frf(f, labels, [labels[2], labels[7]], quantity="receptance")
+    meas = FRF(freq_hz=f, H=H.H, responses=H.responses, references=H.references, coherence=np.ones(H.H.shape),
+               quantity="receptance")
+    pm = ParametricFEModel(nominal, [Parameter("eta", "global_ge", mode="value")])
+    return pm, lib, frf_data(meas, max_lines=300)
+
+
+@pytest.mark.parametrize("element", [2, 5, 8])
+def test_the_damped_element_ranks_first_with_its_loss_factor(element):
+    pm, lib, data = _case(element, 0.2)
+    # the global loss factor as a fit without the local term leaves it: raised to take part of it
+    ranked = damping_screen(pm, [0.013], lib, data)
+    c, value, gain = ranked[0]
+    assert element in c.elements, [(o.label, round(g, 3)) for o, _, g in ranked[:4]]
+    if c.elements == (element,):
+        assert value == pytest.approx(0.2, rel=0.15)
+    assert gain > 0.5
+
+
+def test_an_exact_model_gains_nothing():
+    pm, lib, data = _case(None, 0.0)
+    ranked = damping_screen(pm, [0.01], lib, data)
+    assert all(g < 1e-3 for _, _, g in ranked), ranked[:3]
