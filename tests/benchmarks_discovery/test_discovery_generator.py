@@ -367,3 +367,16 @@ def test_an_option_is_fitted_at_its_neighbouring_places_too(tmp_path):
     f = found[0]
     assert f["physics"] == "added_mass" and f["nodes"] == [30], f
     assert f["values"][0]["value"] == pytest.approx(0.255, rel=0.1), f
+
+
+def test_local_damping_is_ranked_with_the_loss_factors_re_fitted(tmp_path):
+    """Tuning case 1424 (even seed): a free-free frame whose rail element 18 carries a loss factor of 0.216 (the
+    sections 0.004-0.006).  The parameter fit raised the sections' loss factors to take part of it, and the exact
+    screening, holding them there, ranked element 33 first: local damping was named on element 33 (0.07).  Ranked
+    with every parameter re-fitted alongside (updating.diagnosis.dampscreen), element 18 is fitted and found."""
+    diag = _diagnosed(1424, tmp_path)
+    found = diag["findings"]
+    assert len(found) == 1, [f["description"] for f in found]
+    f = found[0]
+    assert f["physics"] == "local_damping" and f["elements"] == [18], f
+    assert f["values"][0]["value"] == pytest.approx(0.216, rel=0.25), f
