@@ -200,16 +200,20 @@ def _diagnosed(seed: int, tmp_path) -> dict:
     return json.loads((tmp_path / "diag.json").read_text())
 
 
+
+def _single_finding(seed: int, tmp_path) -> dict:
+    """The one finding of :func:`_diagnosed` (a second finding or none fails, naming what was found)."""
+    found = _diagnosed(seed, tmp_path)["findings"]
+    assert len(found) == 1, [f["description"] for f in found]
+    return found[0]
+
 def test_a_post_clamp_elastic_in_all_six_components_is_one_finding(tmp_path):
     """Tuning case 578 (even seed): a post whose SPC1 123456 clamp is, in the truth, springs of 5.3e8 N/m and
     4.65e5 N·m/rad, measured with one accelerometer.  The best screening pick, a mass at the post's top, leaves
     χ²/N 40 and is rejected as model-form error; the support translation 1+Z alone leaves 38.  Before, nothing
     was found.  The support pick is now judged next, and completed as a clamp: its translations and its rotations
     released together (training χ²/N 187 -> 1.1, held-out 234 -> 0.93)."""
-    diag = _diagnosed(578, tmp_path)
-    found = diag["findings"]
-    assert len(found) == 1, [f["description"] for f in found]
-    f = found[0]
+    f = _single_finding(578, tmp_path)
     assert f["physics"] == "boundary_flexibility" and f["nodes"] == [1], f
     # truth 4.65e5 N·m/rad and 5.33e8 N/m; measured 4.95e5 and 5.48e8
     assert f["values"][0]["value"] == pytest.approx(4.65e5, rel=0.25), f
@@ -245,10 +249,7 @@ def test_local_damping_the_screening_ranks_second_is_found_by_fitting_the_runner
     with the parameters, element 12 leaves a training FRF error of 0.0088 against 0.0122.  Before, only the first
     of each screening was fitted and element 18 was reported; the runners-up of the pick's kind are now fitted
     too and the fitted errors decide."""
-    diag = _diagnosed(888, tmp_path)
-    found = diag["findings"]
-    assert len(found) == 1, [f["description"] for f in found]
-    f = found[0]
+    f = _single_finding(888, tmp_path)
     assert f["physics"] == "local_damping" and f["elements"] == [12], f
     assert f["values"][0]["value"] == pytest.approx(0.162, rel=0.25), f
 
@@ -261,10 +262,7 @@ def test_a_stiff_elastic_clamp_is_found_when_its_completed_release_leaves_only_n
     completed release (training χ²/N 9.5 -> 0.67, held-out 5.7 -> 0.46: 7-8 % of the χ² left, noise) is
     accepted although its frequency effect is at the model-form limit (0.4 %): a term that removes 90 % of the
     residual and leaves noise absorbs no model-form error."""
-    diag = _diagnosed(1122, tmp_path)
-    found = diag["findings"]
-    assert len(found) == 1, [f["description"] for f in found]
-    f = found[0]
+    f = _single_finding(1122, tmp_path)
     assert f["physics"] == "boundary_flexibility" and f["nodes"] == [1], f
     comps = {d[-2:] for p in [f] + f.get("parts", []) for d in p["dofs"]}
     assert {"+X", "+Y", "+Z", "RX", "RY", "RZ"} <= comps, f
@@ -286,10 +284,7 @@ def test_a_ground_spring_s_own_loss_at_one_of_its_ambiguous_places_is_part_of_it
     36+Y or 20+Y (the data cannot tell them apart), and the loss the spring lacks as a dashpot to ground at 20+Y:
     before, a second finding; a dashpot in the spring's direction at or next to any of the spring's places is the
     spring's own loss, one finding with it as a part."""
-    diag = _diagnosed(576, tmp_path)
-    found = diag["findings"]
-    assert len(found) == 1, [f["description"] for f in found]
-    f = found[0]
+    f = _single_finding(576, tmp_path)
     assert f["physics"] == "ground_spring" and all(p["physics"] == "local_damping" for p in f["parts"]), f
     assert all(d.endswith("+Y") for p in [f] + f["parts"] for d in p["dofs"]), f
 
@@ -320,10 +315,7 @@ def test_a_joint_fitted_in_a_ritz_basis_from_a_stiff_start_converges(tmp_path):
     FRF error 0.51, four times its start's, and a rotary inertia at 48+RX was reported instead.  The basis now
     carries the static correction at a local parameter's own DOFs: the fit converges from either side (6.201e4,
     training χ²/N 84 -> 0.036)."""
-    diag = _diagnosed(1340, tmp_path)
-    found = diag["findings"]
-    assert len(found) == 1, [f["description"] for f in found]
-    f = found[0]
+    f = _single_finding(1340, tmp_path)
     assert f["physics"] == "joint_flexibility" and f["dofs"] == ["18+RX"], f
     assert f["values"][0]["value"] == pytest.approx(6.2e4, rel=0.1), f
 
@@ -334,10 +326,7 @@ def test_a_mass_whose_held_out_rows_barely_see_it_is_judged_on_the_whole_residua
     1.8 % of the whole χ² is left.  The test 'the term explains the residual' took the worse of the two parts
     (19 % left on held-out rows that barely see the mass, whose χ² was near the noise) and nothing was found;
     it now judges the training and held-out χ² pooled."""
-    diag = _diagnosed(1048, tmp_path)
-    found = diag["findings"]
-    assert len(found) == 1, [f["description"] for f in found]
-    f = found[0]
+    f = _single_finding(1048, tmp_path)
     assert f["physics"] == "added_mass" and f["nodes"][0] in (6, 7, 8), f
     assert f["values"][0]["value"] == pytest.approx(0.0151, rel=0.25), f
 
@@ -348,10 +337,7 @@ def test_a_pick_is_fitted_at_its_neighbouring_places_too(tmp_path):
     parameters, 9+Y left χ²/N 3.2 (training) and 4.5 (held-out), 12 % of the residual, and was rejected as
     absorbing model-form error: nothing was found.  The best pick's kind at its neighbouring places is fitted
     too: 10+Y leaves χ²/N 0.13 and 0.11 (noise)."""
-    diag = _diagnosed(1044, tmp_path)
-    found = diag["findings"]
-    assert len(found) == 1, [f["description"] for f in found]
-    f = found[0]
+    f = _single_finding(1044, tmp_path)
     assert f["physics"] == "ground_spring" and f["dofs"] == ["10+Y"], f
     assert f["values"][0]["value"] == pytest.approx(5.06e4, rel=0.1), f
 
@@ -361,10 +347,7 @@ def test_an_option_is_fitted_at_its_neighbouring_places_too(tmp_path):
     densities (+9 %, -6 %) and the screening then ranked a point mass at node 31 (leaving χ²/N 72 fitted) and a
     rotary inertia at 20+RX (40) — the inertia was reported.  The two best kinds of the fitted options are fitted
     at their neighbouring places too: the mass at node 30 leaves χ²/N 0.21 (noise)."""
-    diag = _diagnosed(1456, tmp_path)
-    found = diag["findings"]
-    assert len(found) == 1, [f["description"] for f in found]
-    f = found[0]
+    f = _single_finding(1456, tmp_path)
     assert f["physics"] == "added_mass" and f["nodes"] == [30], f
     assert f["values"][0]["value"] == pytest.approx(0.255, rel=0.1), f
 
@@ -374,9 +357,6 @@ def test_local_damping_is_ranked_with_the_loss_factors_re_fitted(tmp_path):
     sections 0.004-0.006).  The parameter fit raised the sections' loss factors to take part of it, and the exact
     screening, holding them there, ranked element 33 first: local damping was named on element 33 (0.07).  Ranked
     with every parameter re-fitted alongside (updating.diagnosis.dampscreen), element 18 is fitted and found."""
-    diag = _diagnosed(1424, tmp_path)
-    found = diag["findings"]
-    assert len(found) == 1, [f["description"] for f in found]
-    f = found[0]
+    f = _single_finding(1424, tmp_path)
     assert f["physics"] == "local_damping" and f["elements"] == [18], f
     assert f["values"][0]["value"] == pytest.approx(0.216, rel=0.25), f
