@@ -14,7 +14,7 @@ import numpy as np
 from updating.fe import ParametricFEModel
 from updating.diagnosis.mesh import mesh_error, shift_beyond_mesh
 from updating.diagnosis.screen import mci_update
-from updating.diagnosis.terms import _another_explanation, _same_place, _axes, NEARBY_PLACES, MIN_FREQ_EFFECT, FRF_PICKS, PICK_EXPLAINS, MIN_DAMPING_EFFECT, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, CV_NFEV, _residual, inflation, significant_gain, n_obs, _upper, _augment
+from updating.diagnosis.terms import _another_explanation, _same_kind_nearby, NEARBY_PLACES, MIN_FREQ_EFFECT, FRF_PICKS, PICK_EXPLAINS, MIN_DAMPING_EFFECT, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, CV_NFEV, _residual, inflation, significant_gain, n_obs, _upper, _augment
 
 log = logging.getLogger(__name__)
 
@@ -213,9 +213,8 @@ class _Acceptance:
             if crit >= self.rss_cur or c.release is not None or kind in kinds or len(kinds) == 2:
                 continue
             kinds.append(kind)
-            near = sorted((t for t in value.values() if t[0].key not in listed and t[0].physics == c.physics
-                           and t[0].value_name == c.value_name and _axes(t[0]) == _axes(c)
-                           and _same_place(t[0], c, m_now)), key=lambda t: -t[1])[:NEARBY_PLACES]
+            near = sorted((t for t in value.values() if t[0].key not in listed and _same_kind_nearby(t[0], c, m_now)),
+                          key=lambda t: -t[1])[:NEARBY_PLACES]
             out += [(o, v) for o, _, v in near]
             listed |= {o.key for o, _, _ in near}
         if out:
@@ -234,9 +233,7 @@ class _Acceptance:
         scr, p_scr = self._screens[k]
         m_now = self.pm_cur.model_at(self.p_cur)
         done = {t[1].key for t in tried} | have
-        axes = _axes(c)
-        near = [(o, v) for o, v, _ in scr if o.physics == c.physics and o.value_name == c.value_name
-                and o.key not in done and _axes(o) == axes and _same_place(o, c, m_now)][:NEARBY_PLACES]
+        near = [(o, v) for o, v, _ in scr if o.key not in done and _same_kind_nearby(o, c, m_now)][:NEARBY_PLACES]
         out = []
         for o, v in near:
             pm_aug, fr, clo, chi, scale = self._fit_pick(o, v, p_scr)

@@ -50,14 +50,6 @@ def _modes(structure, f_top_hz: float):
     return omega[keep] ** 2, phi[:, keep]
 
 
-def _energy(G, phi) -> np.ndarray:
-    """``diag(Φᵀ G Φ)`` for a library matrix (``LocalMatrix``) or a sparse matrix."""
-    if hasattr(G, "low_rank"):
-        rows, L = G.low_rank()
-        return np.sum((L.T @ phi[rows]) ** 2, axis=0)
-    return np.einsum("ij,ij->j", phi, sp.csr_matrix(G) @ phi)
-
-
 def _projected(A, phi) -> np.ndarray:
     """``Φᵀ A Φ`` for a library matrix (``LocalMatrix``) or a sparse matrix (None: zeros)."""
     if A is None:

@@ -61,7 +61,7 @@ from updating.diagnosis.fit import FitResult, FRFData
 from updating.diagnosis.modal_fit import fit_modal_residual
 from updating.diagnosis.library import build_library
 from updating.diagnosis.priors import _bounds, default_parameters
-from updating.diagnosis.terms import _augment, _upper, promote_measured
+from updating.diagnosis.terms import _axes, _augment, _upper, promote_measured
 from updating.diagnosis.findings import Diagnosis, Finding, _fmt, from_to, pct, statement
 from updating.diagnosis.modes_screen import MIN_OBSERVED_EFFECT, screen_modes  # noqa: F401 (re-exported)
 from updating.correlation.dofmap import as_dofmap
@@ -145,9 +145,7 @@ def _same_place(a, b, nb) -> bool:
     not a second explanation."""
     if a.physics != b.physics or a.value_name != b.value_name:
         return False
-    ax = {d.split("+")[-1].split("-")[-1] for d in a.dofs}
-    bx = {d.split("+")[-1].split("-")[-1] for d in b.dofs}
-    return ax == bx and any(y == x or y in nb.get(x, ()) for x in a.nodes for y in b.nodes)
+    return _axes(a) == _axes(b) and any(y == x or y in nb.get(x, ()) for x in a.nodes for y in b.nodes)
 
 
 def _on_independent_dofs(cands, structure) -> list:

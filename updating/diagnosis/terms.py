@@ -34,6 +34,13 @@ def _axes(c: Candidate) -> set:
     return {d.split("+")[-1].split("-")[-1] for d in c.dofs}
 
 
+def _same_kind_nearby(a: Candidate, b: Candidate, model: FEModel) -> bool:
+    """Whether ``a`` is ``b``'s kind (physics and value) in the same direction at the same or a neighbouring
+    place (:func:`_same_place`): where :data:`NEARBY_PLACES` looks for a better place of ``b``."""
+    return a.physics == b.physics and a.value_name == b.value_name and _axes(a) == _axes(b) \
+        and _same_place(a, b, model)
+
+
 #: a fitted candidate's kind in the same direction at this many neighbouring places is fitted too (the screening
 #: holds the parameters, which biases the place within a localisation spread): :meth:`_Acceptance._nearby_options`,
 #: :meth:`_Acceptance._nearby_places`
