@@ -155,3 +155,38 @@ def test_ritz_basis_of_a_larger_model_uses_lanczos_and_stays_accurate():
     scale = np.sqrt(np.mean(np.abs(X) ** 2, axis=(0, 2), keepdims=True))
     err = np.abs(H - X) / (np.abs(X) + 0.01 * scale)
     assert np.median(err) < 1e-4 and err.max() < 2e-2
+
+
+def test_reduced_fit_keeps_its_start_when_the_basis_leads_every_step_astray(frame, monkeypatch):
+    """The guard of :func:`fit_frf`: a Ritz basis too poor for the band (modes to 0.3x its top only) moves the
+    reduced optimum off the truth; started at the truth on noise-free data, every round raises the exact error,
+    so the start is returned, with its exact error and finite standard deviation, and the message says so."""
+    import updating.diagnosis.fit as fitmod
+
+    class PoorBasis(RitzBasis):
+        def __init__(self, structure, cols, f_max_hz, **kw):
+            super().__init__(structure, cols, f_max_hz, mode_factor=0.3, min_modes=2)
+
+    truth = frame.copy()
+    pm = ParametricFEModel(frame, [Parameter("E_wing", "E", properties=("wing",))])
+    st_t = ParametricFEModel(truth, [Parameter("E_wing", "E", properties=("wing",))]).structure([1.06])
+    labels = [str(st_t.dofs[i]) for i in _rows(st_t, 12, seed=2, axes=(3,))]
+    f = np.linspace(2.0, 90.0, 300)
+    H = st_t.frf(f, labels, labels[:2], quantity="receptance")
+    meas = FRF(freq_hz=f, H=H.H, responses=H.responses, references=H.references,
+               coherence=np.ones(H.H.shape), quantity="receptance")
+    data = frf_data(meas, max_lines=100)
+    start_error = frf_error(model_frf(pm.structure([1.06]), data), data)
+
+    # the same basis class, configured too poor for the band: the reduced model is wrong, not faked
+    monkeypatch.setattr(fitmod, "RitzBasis", PoorBasis)
+    res = fit_frf(pm, data, [1.06], lower=[0.5], upper=[2.0], reduced=True)
+    assert "start kept" in res.message
+    assert res.p[0] == 1.06
+    assert res.error == pytest.approx(start_error, rel=1e-12)
+    assert np.isfinite(res.std[0]) and res.std[0] > 0
+
+    # with the basis as configured in the library the same fit moves nowhere worse either, and says nothing of it
+    monkeypatch.undo()
+    good = fit_frf(pm, data, [1.0], lower=[0.5], upper=[2.0], reduced=True)
+    assert "start kept" not in good.message and good.p[0] == pytest.approx(1.06, rel=2e-3)
