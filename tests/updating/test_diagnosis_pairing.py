@@ -69,3 +69,53 @@ def test_a_mode_on_modelled_supports_is_paired_not_left_out():
     p = pair_test_modes(st, tm)
     assert p["excluded_model_hz"] == [] and p["excluded_test_hz"] == [] and p["cutoff_hz"] == 0.0
     assert sorted(t for _, t in p["pairs"]) == [0, 1, 2] and max(abs(e) for e in p["freq_error_pct"]) < 1e-6
+
+
+CONTROL = pathlib.Path(__file__).resolve().parents[2] / "examples" / "concealed" / "bar_control"
+
+
+def test_a_diagnosis_says_a_test_mode_without_partner_once_not_once_per_fit_block(caplog):
+    """The concealed set's control case with a test mode no model has (the first mode's shape at 5x the highest
+    frequency): the proof pairs each of the three fit blocks (and the overlays pair again), and the note that
+    the mode has no partner was logged by the pairing each time, 8 times in all; now once, naming the blocks."""
+    from modalab.core import uff
+    from updating.diagnosis import diagnose
+    from updating.diagnosis.testmodes import peak_modes
+    from updating.fe.bulk import build_model, read_bdf
+
+    model = build_model(read_bdf(CONTROL / "nominal.bdf"))
+    frf = uff.read_frf(CONTROL / "measured.uff")
+    pk = peak_modes(frf)
+    S = np.asarray(pk.shapes)
+    far = 5 * float(np.max(pk.freq_hz))
+    tm = ModeSet(freq_hz=[*pk.freq_hz, far], shapes=np.column_stack([S, S[:, 0]]), dofs=pk.dofs)
+    with caplog.at_level("INFO"):
+        d = diagnose(model, frf, test_modes=tm)
+    said = [r.getMessage() for r in caplog.records if "partner" in r.getMessage()]
+    assert len(said) == 1, said
+    assert "fit blocks nominal, parameters_only and with_physics" in said[0], said
+    assert f"{tm.n_modes} ({far:.4g} Hz)" in said[0], said
+    for block in ("nominal", "parameters_only", "with_physics"):
+        assert far in d.pairing[block]["unpaired_test_hz"]
+        assert d.fit[block]["n_unpaired_test"] >= 1
+
+
+def test_fit_blocks_that_leave_out_different_modes_are_said_apart(caplog):
+    """Blocks that differ in which test modes they leave out get one line each (the reasons of the last)."""
+    from updating.diagnosis.testmodes import say_unpaired
+
+    st = garteur_model(suspension=True).structure()
+    tm = _z_modes(st, 16)
+    f = np.array(tm.freq_hz, float)
+    f[8] *= 3.0
+    moved = ModeSet(freq_hz=f, shapes=tm.shapes, dofs=tm.dofs)
+    same, far = pair_test_modes(st, tm), pair_test_modes(st, moved)
+    assert same["unpaired_reason"] == {} and list(far["unpaired_reason"]) == [8]
+    with caplog.at_level("INFO", logger="updating.diagnosis.testmodes"):
+        say_unpaired({"nominal": far, "parameters_only": far, "with_physics": same}, moved)
+        say_unpaired({"nominal": far, "parameters_only": same, "with_physics": far}, moved)
+    said = [r.getMessage() for r in caplog.records]
+    assert len(said) == 2, said
+    assert said[0].startswith("test modes without a model partner in the fit blocks nominal and parameters_only: "
+                              f"9 ({f[8]:.4g} Hz): "), said
+    assert "fit blocks nominal and with_physics: 9" in said[1], said

@@ -244,8 +244,8 @@ def analysis_modes(structure: Structure, n_modes: int | None = None) -> ModeSet:
 def correlate(analysis, test: ModeSet, *, dofmap=None, mac_min: float = MAC_MIN, freq_weight: float | None = None,
               max_freq_error: float | None = FREQ_WINDOW, n_analysis_modes: int | None = None,
               min_observability: float = MIN_OBSERVABILITY, rigid_hz: float | None = None,
-              rigid: str = "exclude", dof_mapping: str | None = None, geometry: dict | None = None
-              ) -> CorrelationResult:
+              rigid: str = "exclude", dof_mapping: str | None = None, geometry: dict | None = None,
+              log_unpaired: bool = True) -> CorrelationResult:
     """Correlate analysis modes with test modes on the test DOFs.
 
     The analysis modes are observed at the test DOFs through ``dofmap``
@@ -263,7 +263,7 @@ def correlate(analysis, test: ModeSet, *, dofmap=None, mac_min: float = MAC_MIN,
     ``analysis`` may also be a :class:`~modalab.core.structure.Structure`: its lowest
     ``n_analysis_modes`` normal modes are used (default: twice the number of test
     modes plus 5, at most the model size).  ``dof_mapping``/``geometry`` only label the
-    result (how the map was made, distances of a geometry map).
+    result (how the map was made, distances of a geometry map).  ``log_unpaired``: as in :func:`pair_modes`.
     """
     if isinstance(analysis, Structure):
         if not isinstance(test, ModeSet):
@@ -279,7 +279,7 @@ def correlate(analysis, test: ModeSet, *, dofmap=None, mac_min: float = MAC_MIN,
     if not test.has_shapes:
         fa = analysis.freq_hz
         pairing = pair_modes(None, fa, test.freq_hz, mac_min=mac_min, max_freq_error=max_freq_error,
-                             rigid_hz=rigid_hz, rigid="exclude")
+                             rigid_hz=rigid_hz, rigid="exclude", log_unpaired=log_unpaired)
         rows = frequency_table(fa, test.freq_hz, pairing.pairs)
         ana = analysis.select_dofs([]) if analysis.n_dof else analysis
         return CorrelationResult(analysis=ana, test=test, mac=np.full((analysis.n_modes, test.n_modes), np.nan),
@@ -294,7 +294,7 @@ def correlate(analysis, test: ModeSet, *, dofmap=None, mac_min: float = MAC_MIN,
     obs = observability(A, analysis.shapes, analysis.dofs)
     pairing = pair_modes(M, ana.freq_hz, test.freq_hz, mac_min=mac_min, freq_weight=freq_weight,
                          max_freq_error=max_freq_error, observability=obs, min_observability=min_observability,
-                         rigid_hz=rigid_hz, rigid=rigid, mode_shapes=(A, X))
+                         rigid_hz=rigid_hz, rigid=rigid, mode_shapes=(A, X), log_unpaired=log_unpaired)
     ia, jx = pairing.analysis_index, pairing.test_index
     rows = frequency_table(ana.freq_hz, test.freq_hz, pairing.pairs)
     ferr = np.array([r["freq_error_pct"] for r in rows], float)

@@ -140,7 +140,7 @@ def pair_modes(mac_matrix=None, freq_a_hz=None, freq_x_hz=None, *, mac_min: floa
                freq_weight: float | None = None, max_freq_error: float | None = FREQ_WINDOW,
                observability=None, min_observability: float = MIN_OBSERVABILITY, rigid_hz: float | None = None,
                rigid: str = "exclude", mode_shapes=None, close_modes: float = CLOSE_MODES,
-               merge_gain: float = MERGE_GAIN) -> Pairing:
+               merge_gain: float = MERGE_GAIN, log_unpaired: bool = True) -> Pairing:
     """Pair analysis modes (rows) with test modes (columns): the one pairing rule of modalab.
 
     ``correlate``, every updating method and the diagnosis fit use this function, so
@@ -178,6 +178,9 @@ def pair_modes(mac_matrix=None, freq_a_hz=None, freq_x_hz=None, *, mac_min: floa
     the models (the shapes mix differently): those modes stay paired by the assignment.  A test mode
     paired with MAC 0.53 at 37.5 Hz whose shape the FE modes at 37.30, 37.42 and 37.63 Hz explain with
     MAC 1.00 together is such a merge (issue 14).
+
+    The unpaired test modes and their reasons are logged (INFO); ``log_unpaired=False`` leaves that to a caller
+    that pairs the same modes many times and says it once (the reasons are in the result either way).
     """
     Mc, fa, fx, rel, has_f, freq_weight, window = _checked_inputs(mac_matrix, freq_a_hz, freq_x_hz, mac_min,
                                                                   freq_weight, max_freq_error, rigid)
@@ -212,7 +215,7 @@ def pair_modes(mac_matrix=None, freq_a_hz=None, freq_x_hz=None, *, mac_min: floa
                   unpaired_test=[j for j in range(nx) if j not in used_x],
                   unpaired_analysis=[i for i in range(na) if i not in used_a], out_of_order=ooo,
                   rigid_pairs=rigid_pairs, excluded_analysis=excluded, unpaired_reason=reasons, method=how)
-    if res.unpaired_test:
+    if res.unpaired_test and log_unpaired:
         log.info("test modes without an analysis partner: %s",
                  "; ".join(f"{j + 1}: {reasons[j]}" for j in res.unpaired_test))
     return res

@@ -201,13 +201,13 @@ def paired_test_modes(structure, test_modes: ModeSet):
     r = ModalResidual(test_modes)
     fm, Vm = r.model_modes(structure)
     if not r.has_shapes:
-        pr = pair_modes(None, fm, r.f)
+        pr = pair_modes(None, fm, r.f, log_unpaired=False)        # the caller says each left-out mode
     else:
         _, seen = _observed(Vm)
         # no frequency window: missing physics may move a mode far (a spring to ground gives a free bar a
         # mode of its own); what must stay out are modes the sensors cannot see and merges of close modes
         pr = pair_modes(mac_matrix(Vm, r.phi), fm, r.f, observability=seen.astype(float), max_freq_error=None,
-                        mode_shapes=(Vm, r.phi))
+                        mode_shapes=(Vm, r.phi), log_unpaired=False)
     usable = np.array(sorted(int(x) for _, x in pr.pairs), int)
     left = {int(j): pr.unpaired_reason.get(int(j), "no mode of the nominal model pairs with it")
             for j in range(test_modes.n_modes) if int(j) not in set(usable.tolist())}

@@ -16,7 +16,8 @@ from updating.diagnosis.priors import AT_PRIOR_Z, SectionLossFactor, loss_factor
 from updating.diagnosis.terms import _same_place, _evidence
 from updating.diagnosis.findings import Finding, Diagnosis, statement
 from updating.diagnosis.library import SPRING_LOSS, loss_of
-from updating.diagnosis.testmodes import peak_modes, pair_test_modes, _paired_frequencies, _mode_metrics
+from updating.diagnosis.testmodes import peak_modes, pair_test_modes, _paired_frequencies, _pairing_metrics, \
+    say_unpaired
 
 log = logging.getLogger(__name__)
 
@@ -61,23 +62,29 @@ class _Proof:
                 modes_source = None
         self.test_modes = test_modes
 
-        def metrics(pmodel, p):
-            st = pmodel.structure(p)
+        structures = {"nominal": self.pm.structure(self.p_nomd), "parameters_only": self.pm.structure(self.upd.p),
+                      "with_physics": self.best_pm.structure(self.best_fit.p)}
+        # each block's models paired with the test modes once (its metrics and its pairing record), and the test
+        # modes left without a partner said once for the blocks that leave out the same ones
+        paired = ({} if test_modes is None else
+                  {key: pair_test_modes(st, test_modes) for key, st in structures.items()})
+        if paired:
+            say_unpaired(paired, test_modes)
+
+        def metrics(key):
+            st = structures[key]
             out = {"frf_error_held_out": frf_error(model_frf(st, self.held), self.held),
                    "frf_error_train": frf_error(model_frf(st, self.train), self.train)}
-            out.update(_mode_metrics(st, test_modes))
+            out.update(_pairing_metrics(paired.get(key)))
             out["chi2_per_value_held_out"] = chi2_per_value(out["frf_error_held_out"], self.held)
             out["chi2_per_value_train"] = chi2_per_value(out["frf_error_train"], self.train)
             return out
 
-        fit_blocks = {"nominal": metrics(self.pm, self.p_nomd), "parameters_only": metrics(self.pm, self.upd.p)}
-        fit_blocks["with_physics"] = metrics(self.best_pm, self.best_fit.p) if self.current else \
-            dict(fit_blocks["parameters_only"])
+        fit_blocks = {"nominal": metrics("nominal"), "parameters_only": metrics("parameters_only")}
+        fit_blocks["with_physics"] = metrics("with_physics") if self.current else dict(fit_blocks["parameters_only"])
         pairing = {}
         if test_modes is not None:
-            for key, (pmod, pv) in (("nominal", (self.pm, self.p_nomd)), ("parameters_only", (self.pm, self.upd.p)),
-                                    ("with_physics", (self.best_pm, self.best_fit.p))):
-                pr = pair_test_modes(pmod.structure(pv), test_modes)
+            for key, pr in paired.items():
                 pairing[key] = {"pairs": [{"model_hz": fm, "test_hz": float(test_modes.freq_hz[t]), "mac": mc,
                                            "freq_error_pct": fe}
                                           for (fm, t), mc, fe in zip(pr["pairs"], pr["mac"], pr["freq_error_pct"])],

@@ -239,7 +239,9 @@ def pair_test_modes(structure, test_modes: ModeSet) -> dict:
     frequency difference of at most :data:`PAIR_MAX_FREQ_ERROR`; a mode without such a partner is unpaired.
 
     Returns ``pairs`` [(model freq, test index)], ``freq_error_pct``, ``mac``, ``excluded_test_hz``,
-    ``excluded_model_hz``, ``unpaired_test_hz``, ``cutoff_hz``.
+    ``excluded_model_hz``, ``unpaired_test_hz``, ``unpaired_reason`` {test index: why it has no partner},
+    ``cutoff_hz``.  Nothing is logged: a caller says the unpaired modes once (:func:`say_unpaired`), not once
+    for each model it pairs.
     """
     n = min(structure.n_dof, 2 * test_modes.n_modes + 12)
     ana = analysis_modes(structure, n)
@@ -263,16 +265,36 @@ def pair_test_modes(structure, test_modes: ModeSet) -> dict:
     out = {"pairs": [], "freq_error_pct": [], "mac": [], "cutoff_hz": cutoff,
            "excluded_test_hz": [float(f) for f in fx[fx < cutoff]],
            "excluded_model_hz": [float(f) for f in fa[drop_a]]}
+    why: dict = {}
     if keep_x.size and keep_a.size:
         c = correlate(ana.select_modes(keep_a), test_modes.select_modes(keep_x), mac_min=PAIR_MAC_MIN,
-                      max_freq_error=PAIR_MAX_FREQ_ERROR)
+                      max_freq_error=PAIR_MAX_FREQ_ERROR, log_unpaired=False)
         for (a, t), e in zip(c.pairs, c.freq_error_pct):
             out["pairs"].append((float(fa[keep_a[a]]), int(keep_x[t])))
             out["freq_error_pct"].append(float(e))
             out["mac"].append(float(c.mac[a, t]))
+        why = {int(keep_x[t]): r for t, r in c.pairing.unpaired_reason.items()}
     paired = {t for _, t in out["pairs"]}
     out["unpaired_test_hz"] = [float(fx[t]) for t in keep_x if t not in paired]
+    out["unpaired_reason"] = {int(t): why.get(int(t), "no model mode left to pair with")
+                              for t in keep_x if t not in paired}
     return out
+
+
+def say_unpaired(pairings: dict, test_modes: ModeSet) -> None:
+    """Log the test modes without a model partner once for the fit blocks (``pairings``: block name ->
+    :func:`pair_test_modes` result) that leave out the same modes, with the reasons of the last of those blocks
+    (the model the diagnosis ends with); one line per group only when the blocks leave out different modes."""
+    groups: dict = {}
+    for name, pr in pairings.items():
+        groups.setdefault(tuple(sorted(pr["unpaired_reason"])), []).append(name)
+    for modes, names in groups.items():
+        if not modes:
+            continue
+        why = pairings[names[-1]]["unpaired_reason"]
+        blocks = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+        log.info("test modes without a model partner in the fit block%s %s: %s", "s" * (len(names) > 1), blocks,
+                 "; ".join(f"{j + 1} ({test_modes.freq_hz[j]:.4g} Hz): {why[j]}" for j in modes))
 
 
 def _paired_frequencies(structure, test_modes, n_modes: int, band) -> list:
@@ -291,9 +313,13 @@ def _paired_frequencies(structure, test_modes, n_modes: int, band) -> list:
 def _mode_metrics(structure, test_modes) -> dict:
     """``freq_error_max_pct`` and ``mac_min`` over the test modes paired by :func:`pair_test_modes`, with
     the counts of pairs, unpaired test modes and the rigid-body/suspension modes left out on purpose."""
-    if test_modes is None:
+    return _pairing_metrics(None if test_modes is None else pair_test_modes(structure, test_modes))
+
+
+def _pairing_metrics(p) -> dict:
+    """:func:`_mode_metrics` from a :func:`pair_test_modes` result (None: no test modes)."""
+    if p is None:
         return {"freq_error_max_pct": None, "mac_min": None}
-    p = pair_test_modes(structure, test_modes)
     out = {"freq_error_max_pct": float(np.max(np.abs(p["freq_error_pct"]))) if p["pairs"] else None,
            "mac_min": float(np.min(p["mac"])) if p["pairs"] else None, "n_pairs": len(p["pairs"]),
            "n_unpaired_test": len(p["unpaired_test_hz"]),
