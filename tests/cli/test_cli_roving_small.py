@@ -114,6 +114,8 @@ def test_report_builds_one_html_from_the_outputs_of_the_commands(roving, tmp_pat
     summary = json.loads((tmp_path / "report" / "summary.json").read_text())
     assert len(summary["modes"]) == 3 and summary["update"]["parameters"]["k_12"]["updated"] > 0
     assert "Stabilisation diagram: not available" not in html and "MAC, updated model: not available" not in html
+    # roving.uff (pyuff, FRFs only): why there is no coherence map, in words
+    assert "No coherence map: the FRF file roving.uff holds no coherence functions" in html, html
     # the model to use is named where update wrote it (updated/), not in a run folder's layout (update/)
     assert summary["model_to_use"]["file"] == "updated/updated.bdf", summary["model_to_use"]
     assert (tmp_path / summary["model_to_use"]["file"]).is_file()

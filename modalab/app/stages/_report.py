@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from modalab.core.errors import ModalabValueError
+from modalab.app.figures import plot_coherence_map
 from modalab.app.outputs import write_json, write_text
 from modalab.app.stages._common import StageResult
 from modalab.core import uff
@@ -384,7 +385,25 @@ def _test_section(run_dir, rd, model, frf_s, rec) -> list:
     if rec and "max_rel_diff" in rec:
         parts.append(f"<p>Reciprocity: largest relative difference between reciprocal FRFs "
                      f"{100 * float(rec['max_rel_diff']):.1f} %.</p>")
-    return parts + [_fig(run_dir / "frf" / "coherence.png", "Coherence map")]
+    return parts + [_coherence_figure(run_dir, rd)]
+
+
+def _coherence_figure(run_dir: Path, report_dir: Path) -> str:
+    """The coherence map: the frf stage's (``modalab run``), else drawn here from the FRF file the report found
+    (outputs of commands run one by one: ``modalab frf`` writes no map); where there is none, why in words."""
+    frf_path, done = run_dir / "frf" / "frf.uff", run_dir / "frf" / "coherence.png"
+    frf = uff.read_frf(frf_path) if frf_path.is_file() else None
+    if frf is not None and frf.coherence is None:
+        why = (f"the FRF file {frf_path.resolve().name} holds no coherence functions (they are estimated from "
+               "repeated hits: modalab frf writes them beside the FRFs, an export may leave them out)")
+    elif done.is_file():
+        return _fig(done, "Coherence map")
+    elif frf is not None:
+        return _fig(plot_coherence_map(frf, report_dir / "coherence.png"), "Coherence map")
+    else:
+        why = ("no FRF file with this report: it takes the FRFs that identify read (the input named in "
+               "modes.json), and found none in the folder")
+    return f'<p class="muted">(No coherence map: {html.escape(why)}.)</p>'
 
 
 def _identification_section(run_dir, modes) -> list:
