@@ -2,7 +2,12 @@
 
 * hammer: ``ai_channels.add_ai_force_iepe_chan`` (N, mV/N, internal current excitation);
 * accelerometers: ``ai_channels.add_ai_accel_chan`` (m/s², mV/g);
-* AC coupling for IEPE channels (``ai_coupling = Coupling.AC``);
+* AC coupling for IEPE channels (``ai_coupling = Coupling.AC``); the coupling's corner is recorded with every
+  hit (``metadata['highpass_hz']``, one per channel, 0 for DC coupling: the force window keeps the coupling's
+  undershoot with it).  NI-DAQmx has no channel attribute for it (AC coupling switches in a single-pole RC
+  high-pass whose corner the device's specifications give; ``ai_dig_fltr_highpass_cutoff_freq`` is a digital
+  filter's, another thing), so it comes from the plan's ``highpass_hz``; a hit of an AC-coupled channel
+  without it records no corners, and :meth:`NidaqmxBackend.configure` warns;
 * ``timing.cfg_samp_clk_timing`` finite acquisition of the record length;
 * a hardware reference trigger on the hammer channel with pretrigger samples
   (``triggers.reference_trigger.cfg_anlg_edge_ref_trig``);
@@ -53,6 +58,23 @@ def _import_nidaqmx():
     return nidaqmx
 
 
+def _coupling_corners(channels: Sequence[ChannelConfig]) -> list | None:
+    """The AC-coupling corner (Hz) of each channel as configured: 0 for a DC-coupled one (``iepe`` off), the
+    plan's ``highpass_hz`` for an AC-coupled one; None (with a warning) when an AC-coupled channel's is not
+    stated: NI-DAQmx does not report it, and a guess would bias the FRFs the force window makes."""
+    corners = [0.0 if not ch.iepe else ch.highpass_hz for ch in channels]
+    unknown = [ch.name or ch.physical for ch, hp in zip(channels, corners) if hp is None]
+    if unknown:
+        log.warning("AC-coupling corner of %s not stated: the hits record no corners, and the force window will cut "
+                    "the coupling's undershoot from the force (the FRFs are then off by percents below a few times "
+                    "the corner). "
+                    "Give highpass_hz (Hz) for each IEPE channel in the plan's [[channels]], from the DAQ module's "
+                    "specifications (AC-coupling -3 dB cutoff); NI-DAQmx does not report it",
+                    ", ".join(unknown))
+        return None
+    return [float(c) for c in corners]
+
+
 class NidaqmxBackend:
     """Real NI hardware.  ``task_factory`` creates the ``nidaqmx.Task`` (tests pass an autospec'd one).
 
@@ -71,6 +93,7 @@ class NidaqmxBackend:
         self._reader = None
         self._point: Dof | None = None
         self._hit = 0
+        self._highpass: list | None = None
 
     # ------------------------------------------------------------------ errors
     def _translate(self, exc, action: str):
@@ -141,6 +164,7 @@ class NidaqmxBackend:
                 raise self._translate(e, "configuring channels and trigger") from None
             raise
         self._channels, self._acq = list(channels), acq
+        self._highpass = _coupling_corners(channels)
         log.info("configured %d channels at %g Hz, %d samples, pretrigger %d", len(channels),
                  acq.sample_rate_hz, acq.n_samples, acq.pretrigger_samples)
 
@@ -180,7 +204,8 @@ class NidaqmxBackend:
                           roles=[ch.role for ch in self._channels], units=[ch.units for ch in self._channels],
                           sensitivity=[ch.sensitivity for ch in self._channels],
                           trigger_index=int(acq.pretrigger_samples), overload=flags, hit_id=self._hit,
-                          metadata={"backend": "nidaqmx", "range": [ch.range for ch in self._channels]})
+                          metadata={"backend": "nidaqmx", "range": [ch.range for ch in self._channels],
+                                    **({"highpass_hz": list(self._highpass)} if self._highpass is not None else {})})
 
     def abort(self) -> None:
         if self._task is not None:

@@ -99,7 +99,8 @@ SECTION_KEYS = {
     "hammer": frozenset({"url", "force_n"}),
     "sim": SIM_KEYS,
 }
-CHANNEL_KEYS = frozenset({"name", "physical", "role", "dof", "sensitivity", "sensitivity_unit", "range", "iepe"})
+CHANNEL_KEYS = frozenset({"name", "physical", "role", "dof", "sensitivity", "sensitivity_unit", "range", "iepe",
+                          "highpass_hz"})
 #: the simulated hammer's tips (hardware_sim.hammer.TIP_STIFFNESS_N_PER_M; a test keeps the two equal)
 HAMMER_TIPS = ("hard", "medium", "soft")
 _REQUIRED = object()
@@ -154,10 +155,11 @@ class PlanChannel:
     sensitivity: float           # V per SI unit
     range: float
     iepe: bool = True
+    highpass_hz: float | None = None     # the input's AC-coupling corner (Hz) from the module's specifications
 
     def config(self, dof: Dof) -> ChannelConfig:
         return ChannelConfig(self.physical, dof, self.role, sensitivity=self.sensitivity, range=self.range,
-                             iepe=self.iepe, name=self.name)
+                             iepe=self.iepe, highpass_hz=self.highpass_hz, name=self.name)
 
 
 @dataclass(frozen=True)
@@ -347,9 +349,16 @@ def _parse_channel(get: _Reader, i: int, c: dict) -> "PlanChannel":
     rng = get(sec, "range", table=c)
     if rng <= 0:
         raise PlanError(f"{where}: range {rng} must be positive (N for force, m/s^2 for acceleration)")
+    iepe = get(sec, "iepe", True, bool, table=c)
+    hp = get(sec, "highpass_hz", None, table=c)
+    if hp is not None and hp < 0:
+        raise PlanError(f"{where}: highpass_hz {hp} must be the input's AC-coupling corner in Hz (>= 0)")
+    if hp and not iepe:
+        raise PlanError(f"{where}: highpass_hz {hp} is the AC-coupling corner of an IEPE input, but this channel "
+                        "has iepe = false (DC coupled, no corner); remove highpass_hz or set iepe = true")
     return PlanChannel(name=get(sec, "name", f"ch{i}", str, table=c),
                        physical=get(sec, "physical", kind=str, table=c), role=role, dof=dof,
-                       sensitivity=sens, range=rng, iepe=get(sec, "iepe", True, bool, table=c))
+                       sensitivity=sens, range=rng, iepe=iepe, highpass_hz=hp)
 
 
 def _parse_channels(get: _Reader) -> list:

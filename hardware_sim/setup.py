@@ -88,12 +88,14 @@ class ChannelSetup:
             rng_v = float(cfg.range_v) if hasattr(cfg, "range_v") else float(cfg.range) * sens
             kw = dict(dof=cfg.dof, role=cfg.role, sensitivity=sens, range_v=rng_v,
                       iepe=bool(getattr(cfg, "iepe", True)),
-                      highpass_hz=float(getattr(cfg, "highpass_hz", 0.5)),
                       noise_v_rms=float(getattr(cfg, "noise_v_rms", 1e-5)),
                       name=str(getattr(cfg, "physical", getattr(cfg, "name", ""))))
         except AttributeError as e:
             raise ModalabValueError(f"cannot read a channel from {cfg!r}: {e}; it needs dof, role, sensitivity "
                                     "and range (engineering units) or range_v") from None
+        hp = getattr(cfg, "highpass_hz", None)      # None: not stated, the simulated conditioner's own corner
+        if hp is not None:
+            kw["highpass_hz"] = float(hp)
         kw.update(overrides)
         return cls(**kw)
 
@@ -159,6 +161,9 @@ class AcquisitionSetup:
         names = ("sample_rate_hz", "n_samples", "pretrigger_samples", "trigger_level", "trigger_slope",
                  "timeout_s", "aa_filter", "aa_cutoff", "aa_order", "adc_bits", "adc_noise_v_rms")
         kw = {n: getattr(cfg, n) for n in names if hasattr(cfg, n)}
+        hp = getattr(cfg, "highpass_hz", None)      # None: not stated, the simulated conditioner's own corner
+        if hp is not None:
+            kw["highpass_hz"] = float(hp)
         kw.update(overrides)
         return cls(**kw)
 

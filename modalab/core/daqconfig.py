@@ -8,6 +8,7 @@ the largest expected force in N, an accelerometer's in m/s².
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from .dof import Dof
@@ -46,7 +47,9 @@ class ChannelConfig:
     units : 'N' or 'm/s^2'.
     iepe : constant-current excitation on (AC coupled) or off (DC).
     iepe_current_a : excitation current in A.
-    highpass_hz : AC-coupling corner of the conditioner (simulation and documentation).
+    highpass_hz : AC-coupling corner (-3 dB, Hz) of the input an IEPE channel is wired to, from the DAQ module's
+        specifications (NI-DAQmx does not report it); None: not stated (the simulator then uses its own
+        conditioner's corner; the NI backend records the hits' corners as unknown and says so).
     noise_v_rms : channel noise (simulator only).
     """
 
@@ -58,7 +61,7 @@ class ChannelConfig:
     units: str = ""
     iepe: bool = True
     iepe_current_a: float = 0.004
-    highpass_hz: float = 0.5
+    highpass_hz: float | None = None
     noise_v_rms: float = 2e-5
     name: str = ""
 
@@ -72,6 +75,9 @@ class ChannelConfig:
             raise PlanError(f"channel {self.physical}: sensitivity {self.sensitivity} V/unit must be positive")
         if not (self.range > 0):
             raise PlanError(f"channel {self.physical}: range {self.range} {self.units} must be positive")
+        if self.highpass_hz is not None and not (math.isfinite(self.highpass_hz) and self.highpass_hz >= 0):
+            raise PlanError(f"channel {self.physical}: highpass_hz {self.highpass_hz!r} must be an AC-coupling corner "
+                            ">= 0 Hz")
 
     @property
     def range_v(self) -> float:

@@ -136,3 +136,37 @@ def test_typo_in_api_would_fail():
     task = make_task()
     with pytest.raises(TypeError):
         task.ai_channels.add_ai_accel_chan("x", sensitivty=1.0)
+
+
+def test_the_ac_coupling_corner_is_recorded_with_every_hit(reader_cls, tmp_path):
+    """The plan's corner of each AC-coupled (IEPE) input goes into every hit's metadata, 0 for the DC-coupled
+    channel, and survives the UFF (ID line 4): the FRF step keeps the coupling's undershoot with the force."""
+    from modalab.core import uff
+
+    chans = [ChannelConfig(c.physical, c.dof, c.role, c.sensitivity, c.range, iepe=c.iepe,
+                           highpass_hz=hp if c.iepe else None) for c, hp in zip(CHANNELS, (0.35, 1.6, None))]
+    task = make_task()
+    with NidaqmxBackend(task_factory=lambda: task) as b:
+        b.configure(chans, ACQ)
+        f_chan = task.ai_channels.add_ai_force_iepe_chan.return_value
+        assert f_chan.ai_coupling == Coupling.AC
+        b.arm()
+        rec = b.wait()
+    assert rec.metadata["highpass_hz"] == [0.35, 1.6, 0.0]
+    assert rec.highpass_hz() == [0.35, 1.6, 0.0]
+    uff.write_records(tmp_path / "hit.uff", [rec])
+    assert uff.read_records(tmp_path / "hit.uff")[0].highpass_hz() == pytest.approx([0.35, 1.6, 0.0])
+
+
+def test_an_ac_coupled_channel_without_its_corner_records_none_and_says_so(reader_cls, caplog):
+    """NI-DAQmx has no attribute for the coupling's corner: without the plan's value nothing is guessed."""
+    task = make_task()
+    with caplog.at_level("WARNING", logger="acquisition.nidaqmx_backend"):
+        with NidaqmxBackend(task_factory=lambda: task) as b:
+            b.configure(CHANNELS, ACQ)                 # IEPE channels ai0 and ai1 without highpass_hz
+            b.arm()
+            rec = b.wait()
+    assert "highpass_hz" not in rec.metadata and rec.highpass_hz() is None
+    said = [r.getMessage() for r in caplog.records]
+    assert len(said) == 1 and "cDAQ1Mod1/ai0, cDAQ1Mod1/ai1" in said[0] and "cDAQ1Mod1/ai2" not in said[0]
+    assert "highpass_hz" in said[0] and "specifications" in said[0], said

@@ -74,6 +74,24 @@ def test_bad_channel_fields():
         TestPlan.from_dict(d)
 
 
+def test_the_inputs_ac_coupling_corner_reaches_the_channel_configs():
+    """``highpass_hz``: the input's AC-coupling corner from the module's specifications, per channel; not stated
+    is None (never a default number); negative, or on a DC-coupled channel, is an error naming the channel."""
+    d = copy.deepcopy(BASE)
+    d["channels"][0]["highpass_hz"] = 0.35
+    cfg = TestPlan.from_dict(d).channel_configs("2+Z")
+    assert cfg[0].highpass_hz == 0.35 and cfg[1].highpass_hz is None
+    d["channels"][1].update(highpass_hz=-1.0)
+    with pytest.raises(PlanError, match=r"channel 2 \(acc1\): highpass_hz -1"):
+        TestPlan.from_dict(d)
+    d["channels"][1].update(highpass_hz=1.6, iepe=False)
+    with pytest.raises(PlanError, match="iepe = false"):
+        TestPlan.from_dict(d)
+    d["channels"][1]["highpass_hz"] = "1.6"
+    with pytest.raises(PlanError, match="highpass_hz = '1.6' is not a valid number"):
+        TestPlan.from_dict(d)
+
+
 def test_range_below_expected_force():
     d = copy.deepcopy(BASE)
     d["hammer"] = {"url": "simhammer://x", "force_n": 800.0}
