@@ -17,7 +17,7 @@ import numpy as np
 
 from acquisition.reciprocity import reorder_by_reciprocity
 from modalab.core.errors import ModalabValueError, fmt_error
-from modalab.core.frf import FRF
+from modalab.core.frf import FRF, ROVING_RATIO, roving_hammer_layout as _roving_layout
 from modalab.core.modes import ModeSet
 from .lsfd import LSFDResult
 from .plots import plot_automac, plot_stabilisation, plot_synthesis
@@ -30,9 +30,6 @@ log = logging.getLogger(__name__)
 __all__ = ["identify", "IdentificationReport", "default_max_order", "roving_hammer_layout", "resolve_window",
            "ROVING_RATIO"]
 
-#: an FRF with at least this many times more references than responses (and at least 2 references)
-#: is a roving-hammer export: fixed accelerometers as responses, the hammer points as references
-ROVING_RATIO = 2
 
 #: with the default order, a mode that still resolves into a close pair at the top orders
 #: (:func:`~identification.selection.unresolved_modes`) is identified again up to this times the order
@@ -105,9 +102,10 @@ def roving_hammer_layout(frf: FRF) -> bool:
     points as references (e.g. 3 x 74).  Poly-reference identification wants the opposite: few
     references (the accelerometers) and many responses, which Maxwell–Betti reciprocity gives by
     transposing (thesis section 5.3).  The test: ``n_in >= ROVING_RATIO · n_out`` and ``n_in >= 2`` (3 hit
-    points x 1 accelerometer is a roving-hammer test too); ``modalab info`` applies the same rule.
+    points x 1 accelerometer is a roving-hammer test too): :func:`modalab.core.frf.roving_hammer_layout`, the rule
+    ``modalab info`` and ``modalab correlate`` apply too.
     """
-    return frf.n_in >= ROVING_RATIO * frf.n_out and frf.n_in >= 2
+    return _roving_layout(frf.n_in, frf.n_out)
 
 
 def resolve_window(frf: FRF, exp_beta: float | None = None, *, force: bool = False) -> tuple[float, str]:

@@ -3,12 +3,11 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from types import SimpleNamespace
 
-from identification.api import ROVING_RATIO, roving_hammer_layout
 from modalab.app._cli_console import _print
 from modalab.app.stages._common import sniff_kind
 from modalab.core import uff
+from modalab.core.frf import ROVING_RATIO, roving_hammer_layout
 from modalab.core.errors import PlanError
 
 
@@ -72,7 +71,7 @@ def info_table(info: dict) -> list[str]:
     if f:
         roving = (f"at least {ROVING_RATIO} x more references than responses: a roving-hammer export; "
                   "identify transposes it by reciprocity so that the accelerometers are the references"
-                  if roving_hammer_layout(SimpleNamespace(n_in=len(f["references"]), n_out=len(f["responses"])))
+                  if roving_hammer_layout(len(f["references"]), len(f["responses"]))
                   else "")
         rows.append(("FRFs", f"{len(f['responses'])} responses x {len(f['references'])} references, {f['quantity']} "
                              f"[{f['units']}], {'with' if f['coherence'] else 'without'} coherence"))

@@ -36,7 +36,19 @@ from .dof import Dof, locate, parse_dofs
 from .errors import ShapeError, ModalabValueError
 from .units import QUANTITY_UNITS, check_quantity
 
-__all__ = ["FRF", "concat", "check_window_beta"]
+__all__ = ["FRF", "concat", "check_window_beta", "ROVING_RATIO", "roving_hammer_layout"]
+
+#: an FRF with at least this many times more references than responses (and at least 2 references)
+#: is a roving-hammer export: fixed accelerometers as responses, the hammer points as references
+ROVING_RATIO = 2
+
+
+def roving_hammer_layout(n_references: int, n_responses: int) -> bool:
+    """True when ``n_references`` references (inputs) and ``n_responses`` responses (outputs) are a roving-hammer
+    export's layout: ``n_references >= ROVING_RATIO · n_responses`` and ``n_references >= 2`` (3 hit points x 1
+    accelerometer is a roving-hammer test too).  The one rule of ``identify`` (which transposes such a file by
+    reciprocity), ``info`` and ``correlate`` (modes identified from such a file without transposing it)."""
+    return n_references >= ROVING_RATIO * n_responses and n_references >= 2
 
 _ORDER = {"receptance": 0, "mobility": 1, "accelerance": 2}
 #: former metadata keys -> typed FRF attributes

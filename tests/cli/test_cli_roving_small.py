@@ -67,6 +67,35 @@ def test_correlate_warns_when_the_mac_rests_on_fewer_dofs_than_pairs(roving, cap
     assert "WARNING: the MAC rests on 1 measured DOF for 3 paired modes" in out, out
     s = json.loads((roving / "c.json").read_text())["summary"]
     assert s["n_test_dofs"] == 1 and "1 measured DOF for 3 paired modes" in s["mac_warning"]
+    # modes.uff keeps no references: the advice names both causes (it said only "measure more DOFs" first)
+    assert "measure more response DOFs; if the modes come from a roving-hammer file" in out
+    assert "identify it without --no-reciprocity" in out, out
+
+
+def test_correlate_names_the_fix_for_modes_of_an_untransposed_roving_hammer_file(roving, capsys):
+    """modes.json keeps the references: shapes on the 1 accelerometer, participation at the 3 hit points is a
+    roving-hammer file identified with --no-reciprocity; the advice is to identify it again with the transpose,
+    not to measure more DOFs (the hit points are the DOFs already measured)."""
+    assert main(["identify", str(roving / "roving.uff"), "--band", "5", "70", "--no-reciprocity", "-o",
+                 str(roving / "nr.uff"), "--json", str(roving / "nr.json")]) == 0
+    capsys.readouterr()
+    assert main(["correlate", str(roving / "model.bdf"), str(roving / "nr.json"), "--json",
+                 str(roving / "nr_c.json")]) == 0
+    out = capsys.readouterr().out
+    assert ("these modes have their shapes at the 1 response DOF (3+Z) and their participation at 3 references, "
+            "the hit points of a roving-hammer test: identify the FRF file again without --no-reciprocity") in out, out
+    assert "measure more" not in out
+    warn = json.loads((roving / "nr_c.json").read_text())["summary"]["mac_warning"]
+    assert "identify the FRF file again without --no-reciprocity" in warn
+
+
+def test_correlate_given_the_roving_hammer_frf_file_says_to_identify_it_first(roving, capsys):
+    capsys.readouterr()
+    assert main(["correlate", str(roving / "model.bdf"), str(roving / "roving.uff")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert "holds FRFs (1 response x 3 references), not modes: identify them first" in err, err
+    assert "roving-hammer file (its 3 hit points are its references)" in err and "--no-reciprocity" in err, err
 
 
 def test_correlate_names_where_the_coordinates_of_a_json_come_from(roving, capsys):

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from modalab.core.errors import ModalabValueError
+from modalab.core.frf import roving_hammer_layout
 from modalab.core.modes import ModeSet
 from modalab.core.structure import Structure
 
@@ -144,10 +145,22 @@ class CorrelationResult:
         n_dof, n_pairs = len(self.test.dofs), len(self.pairs)
         if not self.has_shapes or n_dof >= n_pairs:
             return None
-        return (f"the MAC rests on {n_dof} measured DOF{'s' if n_dof != 1 else ''} for {n_pairs} paired modes: "
-                "so few DOFs cannot tell the shapes apart (on one DOF every MAC is 1), the pairs stand on "
-                "frequency alone; measure more DOFs (a roving-hammer file is transposed by identify so that the "
-                "hit points become the DOFs)")
+        s = "s" if n_dof != 1 else ""
+        head = (f"the MAC rests on {n_dof} measured DOF{s} for {n_pairs} paired modes: so few DOFs cannot tell the "
+                "shapes apart (on one DOF every MAC is 1), the pairs stand on frequency alone; ")
+        refs = list(self.test.references or [])
+        if roving_hammer_layout(len(refs), n_dof):
+            # shapes at the accelerometers, participation at the hit points: identified from a roving-hammer file
+            # without the reciprocity transposition (identify --no-reciprocity)
+            return head + (f"these modes have their shapes at the {n_dof} response DOF{s} "
+                           f"({', '.join(str(d) for d in self.test.dofs[:3])}{' ...' if n_dof > 3 else ''}) and "
+                           f"their participation at {len(refs)} references, the hit points of a roving-hammer test: "
+                           "identify the FRF file again without --no-reciprocity (identify transposes it by "
+                           f"reciprocity, so the {len(refs)} hit points become the shapes' DOFs) and correlate "
+                           "those modes")
+        return head + ("measure more response DOFs; if the modes come from a roving-hammer file (the hit points as its "
+                       "references, more of them than responses), identify it without --no-reciprocity: identify "
+                       "transposes it so that the hit points become the DOFs")
 
     def to_dict(self) -> dict:
         """JSON-ready dict; mode numbers are 1-based."""

@@ -8,7 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from modalab.core.errors import ModalabValueError, PlanError
+from modalab.core import uff
+from modalab.core.errors import ModalabError, ModalabValueError, PlanError, UffError
+from modalab.core.frf import roving_hammer_layout
 from updating.fe.bulk import build_model, read_bdf
 from updating.fe.parameters import ParametricFEModel
 from modalab.core.modes import ModeSet
@@ -87,6 +89,22 @@ def load_model(path, ignore_unsupported: bool = False):
     return build_model(read_bdf(p, whole_model=True), ignore_unsupported=ignore_unsupported)
 
 
+def _frfs_not_modes(path: Path) -> PlanError | None:
+    """The error for a UFF of FRFs given where modes belong (what to run first, and for a roving-hammer file that
+    identify transposes it); None when the file holds no FRFs either."""
+    try:
+        frf = uff.read_frf(path)
+    except ModalabError:
+        return None                          # neither modes nor FRFs: the modes reader's own error stands
+    n_out, n_in = frf.n_out, frf.n_in
+    roving = (f"; it is a roving-hammer file (its {n_in} hit points are its references): keep identify's "
+              f"reciprocity (no --no-reciprocity), which transposes it so that the hit points become the shapes' "
+              "DOFs" if roving_hammer_layout(n_in, n_out) else "")
+    return PlanError(f"'{path}' holds FRFs ({n_out} response{'s' * (n_out != 1)} x {n_in} "
+                     f"reference{'s' * (n_in != 1)}), not modes: identify them first, e.g. modalab identify {path} "
+                     f"--band LOW HIGH -o modes.uff --json modes.json, and give modes.json here{roving}")
+
+
 def load_modes(path):
     """Test modes from a UFF (dataset 55) or a ``modes.json`` written by ``modalab identify``."""
 
@@ -97,7 +115,10 @@ def load_modes(path):
         if p.is_file():
             _expect(p, "uff", "test modes (UFF dataset 55, or modes.json from 'modalab identify')",
                     "check the order of the arguments")
-        ms = ModeSet.from_uff(p)
+        try:
+            ms = ModeSet.from_uff(p)
+        except UffError as e:
+            raise _frfs_not_modes(p) or e from None
     f = np.asarray(ms.freq_hz, float)
     if f.size == 0:
         raise PlanError(f"'{path}' holds no modes; expected the modes of 'modalab identify' (at least one)")
