@@ -156,13 +156,13 @@ def damping_screen(pm, p, candidates, data) -> list:
         if not np.any(np.abs(Ac) > 0):
             continue
         up = getattr(c, "upper", 1.0)
-        E, lo, hi = np.stack([Ac] + A), np.r_[0.0, -inf], np.r_[up, inf]
-        x, e = mc.fit(E, lo, hi, np.r_[0.05 * min(1.0, up), np.zeros(len(A))], iters=2)
-        first.append((e, c, E, lo, hi, x))
+        lo, hi = np.r_[0.0, -inf], np.r_[up, inf]
+        x, e = mc.fit(np.stack([Ac] + A), lo, hi, np.r_[0.05 * min(1.0, up), np.zeros(len(A))], iters=2)
+        first.append((e, c, lo, hi, x))  # not the stacked terms: (1 + n_p) x lines x modes² each, rebuilt below
     out = []
-    for k, (e, c, E, lo, hi, x) in enumerate(sorted(first, key=lambda t: t[0])):
+    for k, (e, c, lo, hi, x) in enumerate(sorted(first, key=lambda t: t[0])):
         if k < FITTED:
-            x, e = mc.fit(E, lo, hi, x)
+            x, e = mc.fit(np.stack([mc.term(D=c.G)] + A), lo, hi, x)
         if e < e_base and x[0] > 0:
             out.append((c, float(x[0]), 1.0 - e / e_base))
     out.sort(key=lambda t: -t[2])
