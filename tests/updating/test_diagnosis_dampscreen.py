@@ -51,3 +51,36 @@ def test_an_exact_model_gains_nothing():
     pm, lib, data = _case(None, 0.0)
     ranked = damping_screen(pm, [0.01], lib, data)
     assert all(g < 1e-3 for _, _, g in ranked), ranked[:3]
+
+
+def test_the_factored_terms_give_the_residual_and_jacobian_of_the_full_arrays():
+    """The modal change keeps each term as two m x m parts, ``A(s) = A0 + s² A2``, never the (lines x m x m)
+    array (one per candidate and parameter, kept for a fit, made the demo's diagnosis peak at 20 GB).  On the
+    beam, with a local loss factor and a mass-and-stiffness parameter at once, its residual and Jacobian are
+    those of the full arrays (the formula of the module docstring, formed line by line here), and the Jacobian
+    is the residual's derivative (central differences)."""
+    from updating.diagnosis.dampscreen import _ModalChange, _projected
+    pm, lib, data = _case(5, 0.2)
+    st = pm.structure([0.013])
+    mc = _ModalChange(st, data)
+    c = next(c for c in lib if c.matrix == "D" and c.elements == (5,))
+    K, M = st.K.tocsr(), st.M.tocsr()
+    terms = [(None, None, c.G), (0.3 * K, -0.2 * M, 0.01 * K)]          # (K, M, D) of each term
+    E = mc.stack([mc.term(dK, dM, dD) for dK, dM, dD in terms])
+    x = np.array([0.15, 0.02])
+    s2 = data.s ** 2
+    full = np.stack([(_projected(dK, mc.phi) + 1j * _projected(dD, mc.phi))[None]
+                     + s2[:, None, None] * _projected(dM, mc.phi)[None] for dK, dM, dD in terms])   # (n_x, n_s, m, m)
+    Zi = np.linalg.inv(mc.Z0 + np.einsum("j,jfab->fab", x.astype(complex), full))
+    H = mc.pm[None] @ Zi @ mc.pr.T[None]
+    r_full = (mc.r0 + (H - mc.H00) * mc.scale).ravel()
+    J_full = np.stack([(-(mc.pm[None] @ Zi @ full[j] @ Zi @ mc.pr.T[None]) * mc.scale).ravel()
+                       for j in range(x.size)])
+    r, J = mc.residual(x, E), mc.jacobian(x, E)
+    assert np.abs(r - r_full).max() <= 1e-12 * np.abs(r_full).max()
+    assert np.abs(J - J_full).max() <= 1e-12 * np.abs(J_full).max()
+    for j in range(x.size):
+        h = 1e-6 * np.eye(x.size)[j]
+        fd = (mc.residual(x + h, E) - mc.residual(x - h, E)) / 2e-6
+        assert np.abs(fd - J[j]).max() <= 1e-5 * np.abs(J[j]).max()
+    assert abs(np.linalg.norm(r) - np.linalg.norm(mc.r0)) > 1e-3 * np.linalg.norm(mc.r0)   # the change shows

@@ -85,20 +85,29 @@ class _ModalChange:
     def n_modes(self) -> int:
         return self.phi.shape[1]
 
-    def term(self, K=None, M=None, D=None) -> np.ndarray:
-        """``A(s) = Φᵀ(K + iD + s²M)Φ`` at the data's lines, (n_s, m, m)."""
-        s2 = self.data.s ** 2
-        return (_projected(K, self.phi) + 1j * _projected(D, self.phi))[None] + s2[:, None, None] * \
-            _projected(M, self.phi)[None]
+    def term(self, K=None, M=None, D=None) -> tuple:
+        """``A(s) = Φᵀ(K + iD + s²M)Φ`` as its two (m, m) parts ``(Φᵀ(K + iD)Φ, ΦᵀMΦ)``: ``A(s) = A0 + s² A2``.
+        The (lines × m × m) array is never formed: one per candidate and parameter, kept for a fit, is what
+        made the demo's diagnosis peak at 20 GB."""
+        return _projected(K, self.phi) + 1j * _projected(D, self.phi), _projected(M, self.phi)
+
+    @staticmethod
+    def stack(terms) -> tuple:
+        """Terms of :meth:`term` as the pair of stacks ``(A0 (n_x, m, m), A2 (n_x, m, m))`` the fits take."""
+        return np.stack([a for a, _ in terms]), np.stack([b for _, b in terms])
 
     def _reduced(self, Zi):
         return self.pm[None] @ Zi @ self.pr.T[None]
 
     def _inverse(self, x, A):
-        return np.linalg.inv(self.Z0 + (x.astype(complex) @ A.reshape(A.shape[0], -1)).reshape(A.shape[1:]))
+        A0, A2 = A
+        m = A0.shape[1]
+        z0 = (x.astype(complex) @ A0.reshape(A0.shape[0], -1)).reshape(m, m)
+        z2 = (x @ A2.reshape(A2.shape[0], -1)).reshape(m, m)
+        return np.linalg.inv(self.Z0 + z0[None] + (self.data.s ** 2)[:, None, None] * z2[None])
 
     def residual(self, x, A) -> np.ndarray:
-        """The weighted complex residual (flat) of the model changed by ``Σ x_j A_j``."""
+        """The weighted complex residual (flat) of the model changed by ``Σ x_j A_j`` (``A``: :meth:`stack`)."""
         return (self.r0 + (self._reduced(self._inverse(x, A)) - self.H00) * self.scale).ravel()
 
     def jacobian(self, x, A) -> np.ndarray:
@@ -106,7 +115,12 @@ class _ModalChange:
         Zi = self._inverse(x, A)
         Y = self.pm[None] @ Zi                                                           # (n_s, n_m, m)
         X = Zi @ self.pr.T[None]                                                         # (n_s, m, n_r)
-        return (-(Y[None] @ (A @ X[None])) * self.scale[None]).reshape(A.shape[0], -1)
+        A0, A2 = A
+        s2 = (self.data.s ** 2)[:, None, None]
+        J = np.empty((A0.shape[0],) + self.scale.shape, complex)                         # (n_x, n_s, n_m, n_r)
+        for j in range(A0.shape[0]):                     # A_j(s) X = A0_j X + s² A2_j X, one parameter at a time
+            J[j] = -(Y @ (A0[j] @ X + s2 * (A2[j] @ X))) * self.scale
+        return J.reshape(A0.shape[0], -1)
 
     def fit(self, A, lower, upper, x0, iters: int = 15):
         """Levenberg-Marquardt over real ``x`` projected on ``lower``..``upper`` (a handful of values: the
@@ -148,25 +162,25 @@ def damping_screen(pm, p, candidates, data) -> list:
         return []
     A = [mc.term(d.dK, d.dM, d.dD) for d in pm.derivatives(p)]
     inf = np.full(len(A), np.inf)
-    e_base = mc.fit(np.stack(A), -inf, inf, np.zeros(len(A)))[1] if A else \
+    e_base = mc.fit(mc.stack(A), -inf, inf, np.zeros(len(A)))[1] if A else \
         float(np.linalg.norm(mc.r0))
     first = []
     for c in cands:                      # two steps for every candidate, then the best :data:`FITTED` to the end
         Ac = mc.term(D=c.G)
-        if not np.any(np.abs(Ac) > 0):
+        if not np.any(np.abs(Ac[0]) > 0):
             continue
         up = getattr(c, "upper", 1.0)
-        lo, hi = np.r_[0.0, -inf], np.r_[up, inf]
-        x, e = mc.fit(np.stack([Ac] + A), lo, hi, np.r_[0.05 * min(1.0, up), np.zeros(len(A))], iters=2)
-        first.append((e, c, lo, hi, x))  # not the stacked terms: (1 + n_p) x lines x modes² each, rebuilt below
+        E, lo, hi = mc.stack([Ac] + A), np.r_[0.0, -inf], np.r_[up, inf]          # (1 + n_p) x m x m, twice
+        x, e = mc.fit(E, lo, hi, np.r_[0.05 * min(1.0, up), np.zeros(len(A))], iters=2)
+        first.append((e, c, E, lo, hi, x))
     out = []
-    for k, (e, c, lo, hi, x) in enumerate(sorted(first, key=lambda t: t[0])):
+    for k, (e, c, E, lo, hi, x) in enumerate(sorted(first, key=lambda t: t[0])):
         if k < FITTED:
-            x, e = mc.fit(np.stack([mc.term(D=c.G)] + A), lo, hi, x)
+            x, e = mc.fit(E, lo, hi, x)
         if e < e_base and x[0] > 0:
             out.append((c, float(x[0]), 1.0 - e / e_base))
     out.sort(key=lambda t: -t[2])
-    log.info("damping screening of %d candidates on %d modes with the parameters re-fitted (error %.4g so, %.1f s): "
-             "best %s", len(cands), mc.n_modes, e_base, time.perf_counter() - t0,
+    log.info("damping screening of %d candidates on %d modes and %d lines with the %d parameters re-fitted (error %.4g "
+             "so, %.1f s): best %s", len(cands), mc.n_modes, data.s.size, len(A), e_base, time.perf_counter() - t0,
              ", ".join(f"{c.label} ({100 * g:.0f} %)" for c, _, g in out[:3]))
     return out
