@@ -48,7 +48,7 @@ class _Acceptance:
             return False, (f"a further term lowering the training FRF error by less than "
                            f"{100 * cfg.min_extra_gain:.0f} % ({100 * (1 - np.sqrt(best[1] / rss_cur)):.2g} %)")
         ok, why = _term_holds(self.pm_cur, self.p_cur, best[2], best[3], self.train, self.held, cfg.penalty,
-                              cfg.min_holdout_gain)
+                              cfg.min_holdout_gain, folds_decide=not self.use_mci)
         ok, why = self._effect_ok(ok, why, best[2], best[3], best[0])
         if ok and not self.use_mci:
             ok, cv = self._cross_validated((self.pm_cur, self.p_cur, self.lo_cur, self.hi_cur), best[2:6])
@@ -416,7 +416,8 @@ class _Acceptance:
             return False, (f"a further term lowering the training FRF error by less than "
                            f"{100 * cfg.min_extra_gain:.0f} % ({100 * (1 - err / ref.error):.2g} %)")
         self._pick_held = True                 # past the information criterion
-        ok, why = _term_holds(pm_ref, ref.p, pm_aug, fr.p, self.train, self.held, penalty, cfg.min_holdout_gain)
+        ok, why = _term_holds(pm_ref, ref.p, pm_aug, fr.p, self.train, self.held, penalty, cfg.min_holdout_gain,
+                              folds_decide=True)
         red = left = np.inf
         red0 = 0.0
         if ok:
