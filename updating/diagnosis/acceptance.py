@@ -364,7 +364,10 @@ class _Acceptance:
             pm_aug = ParametricFEModel(m_aug, self.params + cpar)
             clo = np.concatenate([self.lo, np.zeros(len(cpar))])
             chi = np.concatenate([self.hi, _upper(self.current + [o], scales)])
-            start = np.concatenate([p_scr[:n], self.p_cur[n:-1], [min(v, getattr(o, "upper", np.inf)) / scales[-1]]])
+            # the current terms' values, then the competitor's (the accepted pick's, one or two — a completed
+            # support release — at the end of p_cur, are left out)
+            start = np.concatenate([p_scr[:n], self.p_cur[n:n + len(cpar) - 1],
+                                    [min(v, getattr(o, "upper", np.inf)) / scales[-1]]])
             fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
                            max_nfev=max(8, cfg.max_nfev // 2))
             log.info("competitor %s of %s fitted on the FRFs: error %.4g (%.4g)", o.label, c.label, fr.error, err_c)
