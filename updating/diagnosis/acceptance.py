@@ -127,6 +127,7 @@ class _Acceptance:
             tried.append((fr.error, c, pm_aug, fr, clo, chi, k, scale))
         tried += self._runners_up(min(tried, key=lambda t: t[0]), tried, have)
         tried += self._nearby_places(min(tried, key=lambda t: t[0]), tried, have)
+        n_before_siblings = len(tried)
         tried += self._support_siblings(tried, have)
         err, c, pm_aug, fr, clo, chi, k, _ = min(tried, key=lambda t: t[0])
         n_eq = n_obs(self.train)
@@ -159,7 +160,12 @@ class _Acceptance:
         self._route[c.key] = (g_c or 0.0, False, [(o, v, g) for o, v, g in scr if set(o.nodes) & set(c.nodes)
                                             and o.key != c.key])
         m_now = pm_aug.model_at(fr.p)
-        alts = self._screened_alternatives(c, err, g_c, scr, have, tried, m_now, n_eq) if g_c is not None else []
+        # the screening names alternatives by single-term gains within the margin of the pick's own; a support's
+        # other components (_support_siblings) were fitted for what they are, not for their screening gain, which
+        # can be far below the screening's best: there only fitted competitors are alternatives
+        sibling = c.key in {t[1].key for t in tried[n_before_siblings:]}
+        alts = self._screened_alternatives(c, err, g_c, scr, have, tried, m_now, n_eq) \
+            if g_c is not None and not sibling else []
         return c, alts + self._fitted_alternatives(c, err, k, tried, alts, m_now, n_eq)
 
     def _runners_up(self, best, tried: list, have: set) -> list:
