@@ -202,13 +202,9 @@ def pair_modes(mac_matrix=None, freq_a_hz=None, freq_x_hz=None, *, mac_min: floa
 
     used_a = {a for a, _ in pairs} | {a for a, _ in rigid_pairs}
     used_x = {x for _, x in pairs} | {x for _, x in rigid_pairs}
-    partner_of_a = {a: x for a, x in pairs}
-    reasons: dict[int, str] = {}
-    for j in range(nx):
-        if j in used_x:
-            continue
-        reasons[j] = merged[j] if j in merged else _unpaired_reason(j, Mc, rel, fa, fx, elastic, excluded,
-                                                                       partner_of_a, mac_min, window, shapes)
+    reasons = {j: merged[j] if j in merged else _unpaired_reason(j, Mc, rel, fa, fx, elastic, excluded,
+                                                                 dict(pairs), mac_min, window, shapes)
+               for j in range(nx) if j not in used_x}
     ooo = [p for p in pairs if any((q[1] - p[1]) * (q[0] - p[0]) < 0 for q in pairs)]
     how = _method_text(shapes, freq_weight, mac_min, window, excluded, rigid_a, rigid)
     res = Pairing(pairs=pairs, mac=np.asarray([Mc[i, j] for i, j in pairs], float),

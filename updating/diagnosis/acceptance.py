@@ -120,15 +120,7 @@ class _Acceptance:
         if not picks:
             return None
         pm_ref, ref = self._frf_ref()
-        tried = []
-        for c, v, p_scr, k in picks:
-            pm_aug, fr, clo, chi, scale = self._fit_pick(c, v, p_scr)
-            log.info("screening pick %s fitted on the FRFs: error %.4g (current %.4g)", c.label, fr.error, ref.error)
-            tried.append((fr.error, c, pm_aug, fr, clo, chi, k, scale))
-        tried += self._runners_up(min(tried, key=lambda t: t[0]), tried, have)
-        tried += self._nearby_places(min(tried, key=lambda t: t[0]), tried, have)
-        n_before_siblings = len(tried)
-        tried += self._support_siblings(tried, have)
+        tried, siblings = self._fitted_picks(picks, have, ref.error)
         err, c, pm_aug, fr, clo, chi, k, _ = min(tried, key=lambda t: t[0])
         n_eq = n_obs(self.train)
         if rival is not None:
@@ -163,10 +155,23 @@ class _Acceptance:
         # the screening names alternatives by single-term gains within the margin of the pick's own; a support's
         # other components (_support_siblings) were fitted for what they are, not for their screening gain, which
         # can be far below the screening's best: there only fitted competitors are alternatives
-        sibling = c.key in {t[1].key for t in tried[n_before_siblings:]}
         alts = self._screened_alternatives(c, err, g_c, scr, have, tried, m_now, n_eq) \
-            if g_c is not None and not sibling else []
+            if g_c is not None and c.key not in siblings else []
         return c, alts + self._fitted_alternatives(c, err, k, tried, alts, m_now, n_eq)
+
+    def _fitted_picks(self, picks: list, have: set, e_ref: float) -> tuple[list, set]:
+        """The picks fitted on the training FRFs (:meth:`_fit_pick`), then the best one's runners-up and
+        neighbouring places and the supports' other components: ``(tried, keys of the supports' other
+        components)``, ``tried`` as ``[(error, candidate, pm, FitResult, lower, upper, screening index, scale)]``."""
+        tried = []
+        for c, v, p_scr, k in picks:
+            pm_aug, fr, clo, chi, scale = self._fit_pick(c, v, p_scr)
+            log.info("screening pick %s fitted on the FRFs: error %.4g (current %.4g)", c.label, fr.error, e_ref)
+            tried.append((fr.error, c, pm_aug, fr, clo, chi, k, scale))
+        tried += self._runners_up(min(tried, key=lambda t: t[0]), tried, have)
+        tried += self._nearby_places(min(tried, key=lambda t: t[0]), tried, have)
+        siblings = self._support_siblings(tried, have)
+        return tried + siblings, {t[1].key for t in siblings}
 
     def _runners_up(self, best, tried: list, have: set) -> list:
         """The candidates of the same kind elsewhere that the best fitted pick's screening ranks next (gain at
