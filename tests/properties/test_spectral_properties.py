@@ -143,7 +143,10 @@ def test_reciprocity_of_a_symmetric_structure_holds_to_noise(m, k, seed):
     rep = reciprocity_check(frf, band_hz=band, min_coherence=0.99)
     assert len(rep) == 1
     pair = rep.worst
-    assert pair.n_lines > 0.4 * np.sum((frf.freq_hz >= band[0]) & (frf.freq_hz <= band[1]))
+    # enough lines pass the coherence gate for the check to mean something: 35 % of the band at the heaviest and
+    # softest chain drawn (m = 2 kg, k = 1e4 N/m everywhere; a grid of 729 chains over the drawn box, 36 % for the
+    # next), so 30 % (0.4 failed there, deterministically, whatever the seed)
+    assert pair.n_lines > 0.3 * np.sum((frf.freq_hz >= band[0]) & (frf.freq_hz <= band[1]))
     # channel noise of 1e-4 of the peak leaves differences of a few 1e-3 (amplitude-weighted) and
     # about 1 % (line-averaged, low-coherence lines dominate); 1e-5 noise gives ten times less.
     assert pair.norm_rel_diff < 1e-2
