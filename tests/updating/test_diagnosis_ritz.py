@@ -71,17 +71,21 @@ def test_ritz_jacobian_matches_finite_differences(frame):
         assert np.linalg.norm(an - fd) < 1e-3 * np.linalg.norm(fd)
 
 
-def test_reduced_fit_recovers_the_parameter_and_reports_the_exact_error(frame):
-    truth = frame.copy()
+def _wing_modulus_case(frame):
+    """The frame's wing modulus as the one parameter, and noise-free receptances of the frame with it at 1.06
+    (12 Z responses, 2 references, 2-90 Hz): ``(pm, data)``."""
     pm = ParametricFEModel(frame, [Parameter("E_wing", "E", properties=("wing",))])
-    pt = ParametricFEModel(truth, [Parameter("E_wing", "E", properties=("wing",))])
-    st_t = pt.structure([1.06])
+    st_t = ParametricFEModel(frame.copy(), [Parameter("E_wing", "E", properties=("wing",))]).structure([1.06])
     labels = [str(st_t.dofs[i]) for i in _rows(st_t, 12, seed=2, axes=(3,))]
     f = np.linspace(2.0, 90.0, 300)
     H = st_t.frf(f, labels, labels[:2], quantity="receptance")
     meas = FRF(freq_hz=f, H=H.H, responses=H.responses, references=H.references,
                coherence=np.ones(H.H.shape), quantity="receptance")
-    data = frf_data(meas, max_lines=100)
+    return pm, frf_data(meas, max_lines=100)
+
+
+def test_reduced_fit_recovers_the_parameter_and_reports_the_exact_error(frame):
+    pm, data = _wing_modulus_case(frame)
     res = fit_frf(pm, data, [1.0], lower=[0.5], upper=[2.0], reduced=True)
     assert "Ritz" in res.message
     assert res.p[0] == pytest.approx(1.06, rel=2e-3)
@@ -167,15 +171,7 @@ def test_reduced_fit_keeps_its_start_when_the_basis_leads_every_step_astray(fram
         def __init__(self, structure, cols, f_max_hz, **kw):
             super().__init__(structure, cols, f_max_hz, mode_factor=0.3, min_modes=2)
 
-    truth = frame.copy()
-    pm = ParametricFEModel(frame, [Parameter("E_wing", "E", properties=("wing",))])
-    st_t = ParametricFEModel(truth, [Parameter("E_wing", "E", properties=("wing",))]).structure([1.06])
-    labels = [str(st_t.dofs[i]) for i in _rows(st_t, 12, seed=2, axes=(3,))]
-    f = np.linspace(2.0, 90.0, 300)
-    H = st_t.frf(f, labels, labels[:2], quantity="receptance")
-    meas = FRF(freq_hz=f, H=H.H, responses=H.responses, references=H.references,
-               coherence=np.ones(H.H.shape), quantity="receptance")
-    data = frf_data(meas, max_lines=100)
+    pm, data = _wing_modulus_case(frame)
     start_error = frf_error(model_frf(pm.structure([1.06]), data), data)
 
     # the same basis class, configured too poor for the band: the reduced model is wrong, not faked
