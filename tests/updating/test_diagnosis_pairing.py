@@ -77,7 +77,8 @@ CONTROL = pathlib.Path(__file__).resolve().parents[2] / "examples" / "concealed"
 def test_a_diagnosis_says_a_test_mode_without_partner_once_not_once_per_fit_block(caplog):
     """The concealed set's control case with a test mode no model has (the first mode's shape at 5x the highest
     frequency): the proof pairs each of the three fit blocks (and the overlays pair again), and the note that
-    the mode has no partner was logged by the pairing each time, 8 times in all; now once, naming the blocks."""
+    the mode has no partner was logged by the pairing each time, 8 times in all; now once, naming the blocks.
+    The one-line summary of the candidate library was logged twice (the observability check builds it too)."""
     from modalab.core import uff
     from updating.diagnosis import diagnose
     from updating.diagnosis.testmodes import peak_modes
@@ -93,6 +94,7 @@ def test_a_diagnosis_says_a_test_mode_without_partner_once_not_once_per_fit_bloc
         d = diagnose(model, frf, test_modes=tm)
     said = [r.getMessage() for r in caplog.records if "partner" in r.getMessage()]
     assert len(said) == 1, said
+    assert sum(r.getMessage().startswith("candidate library") for r in caplog.records) == 1
     assert "fit blocks nominal, parameters_only and with_physics" in said[0], said
     assert f"{tm.n_modes} ({far:.4g} Hz)" in said[0], said
     for block in ("nominal", "parameters_only", "with_physics"):

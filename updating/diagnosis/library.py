@@ -216,7 +216,7 @@ def validate_kinds(kinds) -> frozenset:
 
 
 def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, group_size: int = 2,
-                  stiffness_scale: float | None = None) -> list[Candidate]:
+                  stiffness_scale: float | None = None, log_level: int = logging.INFO) -> list[Candidate]:
     """All candidates of the requested ``kinds`` for ``model``.
 
     nodes : restrict DOF-wise candidates to these nodes (default: every node).
@@ -224,6 +224,7 @@ def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, g
         links, and nodes where elements of different properties meet).
     group_size : element groups for local damping are single elements and runs of this many
         neighbouring elements sharing a node.
+    log_level : of the one-line summary (a caller that only looks at part of the library lowers it).
 
     The unit matrices ``G`` of shared candidates are :class:`LocalMatrix` (indices and a small block).
     """
@@ -239,7 +240,7 @@ def build_library(model: FEModel, *, kinds=None, nodes=None, joint_nodes=None, g
     if "joint_flexibility" in kinds:
         jnodes = set(joint_nodes) if joint_nodes is not None else None
         cands += _link_candidates(ctx, jnodes) + _member_end_candidates(ctx, jnodes)
-    log.info("candidate library: %d candidates (%s)", len(cands),
+    log.log(log_level, "candidate library: %d candidates (%s)", len(cands),
              ", ".join(f"{k}={sum(c.physics == k for c in cands)}" for k in sorted(kinds)))
     return cands
 

@@ -229,7 +229,7 @@ class Diagnoser(_Acceptance, _Refine, _Proof):
         any term must show (:func:`_term_holds`) — so neither a finding nor its absence says anything about
         them (:func:`~updating.diagnosis.release.release_visibility`).  They are not screened, and the
         diagnosis lists them (``unobservable``) and says so in its statement."""
-        lib = build_library(self.model0, kinds=self.config.kinds)
+        lib = build_library(self.model0, kinds=self.config.kinds, log_level=logging.DEBUG)
         rel = [c for c in lib if c.release is not None]
         self.unobservable, self._hidden = [], set()
         if not rel:
