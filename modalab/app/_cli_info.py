@@ -57,6 +57,11 @@ def _dof_rows(f: dict, h: dict, limit: int = 30) -> list[tuple[str, str]]:
     return rows
 
 
+def _count(n: int, noun: str) -> str:
+    """``1 response``, ``3 responses``."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
 def info_table(info: dict) -> list[str]:
     """The lines ``modalab info`` prints for a :func:`modalab.core.uff.info` dict (``session``: the line saying
     which acquisition session the file was exported by, when ``info`` was given the session)."""
@@ -73,7 +78,8 @@ def info_table(info: dict) -> list[str]:
                   "identify transposes it by reciprocity so that the accelerometers are the references"
                   if roving_hammer_layout(len(f["references"]), len(f["responses"]))
                   else "")
-        rows.append(("FRFs", f"{len(f['responses'])} responses x {len(f['references'])} references, {f['quantity']} "
+        rows.append(("FRFs", f"{_count(len(f['responses']), 'response')} x {_count(len(f['references']), 'reference')}, "
+                             f"{f['quantity']} "
                              f"[{f['units']}], {'with' if f['coherence'] else 'without'} coherence"))
         if not h:
             rows += [("responses", _join(f["responses"])),
@@ -88,7 +94,7 @@ def info_table(info: dict) -> list[str]:
     if h:
         rows.append(("hits", f"{h['hits']} hits, {_join(h['channels_per_hit'])} channels each"))
         if not f:
-            rows += [("hammer points", _join(f"{d} ({n} hit{'s' if n != 1 else ''})"
+            rows += [("hammer points", _join(f"{d} ({_count(n, 'hit')})"
                                              for d, n in h["hits_per_point"].items())),
                      ("responses", _join(h["responses"]))]
         rows += [("sampling", f"{_join(_g(v) for v in h['sample_rate_hz'])} Hz, {_join(h['samples'])} samples, "

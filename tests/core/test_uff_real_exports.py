@@ -300,7 +300,7 @@ def test_info_table_of_frfs_has_no_python_reprs(tmp_path, capsys):
     out = capsys.readouterr().out
     for repr_mark in ("None", "{", "[", "'"):
         assert repr_mark not in out.replace("[m/s/N]", ""), out
-    assert "1 responses x 2 references, mobility" in out and "2-Z" in out
+    assert "1 response x 2 references, mobility" in out and "2-Z" in out
     assert "roving-hammer export" in out
 
 
