@@ -15,7 +15,7 @@ import pytest
 from modalab.core.frf import FRF
 from updating.diagnosis import findings
 from updating.diagnosis import workflow as wf
-from updating.diagnosis.frfscreen import _updated_errors
+from updating.diagnosis.frfscreen import _singular, _updated_errors
 from updating.fe import Spring
 from updating.fe.models.beams import beam_model
 
@@ -84,6 +84,25 @@ def test_the_rank_r_update_is_woodbury_and_infinite_where_singular():
     inv[0, 2] = 0.0
     got = _updated_errors(inv, Hll, Hm, Hr, H0, sign, H, w, den2, float(w.sum()))
     assert got[0] == np.inf and np.isfinite(got[1])
+
+
+def test_a_rank_one_update_is_infinite_exactly_where_its_scalar_system_vanishes():
+    """Rank 1 (most candidates) skips the SVD per line: the same verdicts as the condition number."""
+    rng = np.random.default_rng(1)
+    n_m, n_r, n_s = 3, 2, 5
+    c = lambda *sh: rng.standard_normal(sh) + 1j * rng.standard_normal(sh)  # noqa: E731
+    Hm, Hr, H0, H, Hll, inv = c(n_m, 1, n_s), c(1, n_r, n_s), c(n_m, n_r, n_s), c(n_m, n_r, n_s), c(1, 1, n_s), c(3, n_s)
+    sign, w, den2 = np.ones((n_m, n_r, 1)), np.ones((n_m, n_r, n_s)), np.ones((n_m, n_r, n_s))
+    inv[0, 3] = -Hll[0, 0, 3]                       # 1/(θ f) + H_ll = 0 at one line: unbounded there
+    inv[1, 1] = -Hll[0, 0, 1] * (1 + 1e-12)         # nearly, not exactly: finite
+    got = _updated_errors(inv, Hll, Hm, Hr, H0, sign, H, w, den2, float(w.sum()))
+    assert got[0] == np.inf and np.isfinite(got[1:]).all()
+    for t in (1, 2):
+        dH = np.einsum("mf,rf->mrf", Hm[:, 0], Hr[0]) / (inv[t] + Hll[0, 0])
+        want = np.sqrt(np.sum(np.abs(H0 - dH - H) ** 2) / w.sum())
+        assert got[t] == pytest.approx(want, rel=1e-9)
+    A = (inv[:, :, None, None] + Hll[0, 0][None, :, None, None])
+    assert np.array_equal(_singular(A), ~(np.linalg.cond(A) < 1 / np.finfo(float).eps))
 
 
 def test_candidates_not_evaluated_are_named_in_the_statement():

@@ -74,6 +74,17 @@ def _value_grid(c, K, M, rows, L, n: int = 13) -> np.ndarray:
     return np.geomspace(lo, hi, max(int(round(n * np.log10(hi / lo) / 6.0)), 3))
 
 
+def _singular(A: np.ndarray) -> np.ndarray:
+    """Which of the stacked square matrices ``A`` (..., r, r) are singular to working precision (condition
+    number not below 1/eps).  A finite 1 × 1 matrix's condition number is 1 unless its entry is zero (then
+    not a number): tested directly, without the SVD per line that :func:`numpy.linalg.cond` takes (most
+    candidates are rank 1; the SVDs took a tenth of a frame's diagnosis).  Entries that are not finite go to
+    :func:`numpy.linalg.cond` as before (its SVD does not converge: an error, not a verdict)."""
+    if A.shape[-1] == 1 and np.isfinite(A).all():
+        return A[..., 0, 0] == 0
+    return ~(np.linalg.cond(A) < 1.0 / np.finfo(float).eps)
+
+
 def _updated_errors(inv, Hll, Hm, Hr, H0, sign, H, w, den2, wsum) -> np.ndarray:
     """Weighted FRF errors of the model updated by a rank-r term, one per candidate value (Woodbury):
     ``H0 − Hm [I/(θ f) + Hll]⁻¹ Hr`` with ``inv = 1/(θ f)`` (n_t, n_s), ``Hll`` (r, r, n_s), ``Hm`` (n_m, r,
@@ -82,7 +93,7 @@ def _updated_errors(inv, Hll, Hm, Hr, H0, sign, H, w, den2, wsum) -> np.ndarray:
     answer, never a skipped candidate."""
     r = Hll.shape[0]
     A = np.eye(r)[None, None] * inv[:, :, None, None] + Hll.transpose(2, 0, 1)[None]     # (n_t, n_s, r, r)
-    bad = ~(np.linalg.cond(A) < 1.0 / np.finfo(float).eps)                                # (n_t, n_s)
+    bad = _singular(A)                                                                    # (n_t, n_s)
     A = np.where(bad[:, :, None, None], np.eye(r)[None, None], A)
     X = np.linalg.solve(A, np.broadcast_to(Hr.transpose(2, 0, 1)[None], A.shape[:2] + Hr.shape[:2]))
     dH = np.einsum("mkf,tfkr->tmrf", Hm, X, optimize=True)
