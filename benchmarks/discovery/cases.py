@@ -349,7 +349,11 @@ def make_case(seed: int) -> Case:
     noise = float(rng.uniform(0.0005, 0.0008))
     binary = bool(rng.random() < 0.5)
     name = f"case{seed:03d}_{topo}"
+    # the truth's natural frequencies without the concealed effect (what the nominal should match after its
+    # parameters) and with it (what the test measured)
+    f1 = f0 if physics is None else build_truth(frame, refine, errors, eta, physics).frequencies(30)
     info = {"truth_frequencies_hz": [_sig(v, 6) for v in f0 if v <= fmax * 1.2],
+            "truth_frequencies_with_effect_hz": [_sig(v, 6) for v in f1 if v <= fmax * 1.2],
             "n_modes_in_band": int(np.sum((f0 > 0.5) & (f0 <= fmax))), "total_mass_kg": _sig(mtot, 4)}
     return Case(seed, name, frame, refine, errors, eta, physics, element_card, nominal_damping, (0.0, fmax),
                 n_lines, hits, sensors, noise, 5, binary, info)

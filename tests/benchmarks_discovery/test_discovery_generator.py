@@ -126,6 +126,21 @@ def test_a_written_case_reads_back_through_modalab(control_case, control_sim):
     assert 0.3 < np.median(rel) / np.median(pred) < 3.0
 
 
+def test_truth_json_gives_the_truth_s_frequencies_without_and_with_the_concealed_effect(control_case):
+    """A ground spring (seed 1251) raises a bending mode 2.7 %: truth.json gives both spectra (it gave the one
+    without the effect only, under a name that read as what the test measured); a control's are the same."""
+    case = make_case(1251)
+    info = case.info
+    with_effect = build_truth(case.frame, case.refine, case.errors, case.eta, case.physics).frequencies(30)
+    without = build_truth(case.frame, case.refine, case.errors, case.eta, None).frequencies(30)
+    n = len(info["truth_frequencies_hz"])
+    np.testing.assert_allclose(info["truth_frequencies_with_effect_hz"][:n], with_effect[:n], rtol=1e-5)
+    np.testing.assert_allclose(info["truth_frequencies_hz"], without[:n], rtol=1e-5)
+    assert info["truth_frequencies_with_effect_hz"][1] / info["truth_frequencies_hz"][1] == pytest.approx(1.027, abs=1e-3)
+    ctl = json.loads((control_case / "truth.json").read_text())
+    assert ctl["control"] and ctl["truth_frequencies_with_effect_hz"] == ctl["truth_frequencies_hz"]
+
+
 def test_same_seed_gives_byte_identical_files(control_case, tmp_path):
     r = generate_one(CONTROL_SEED, tmp_path)
     for name in ("nominal.bdf", "measured.uff", "truth.json", "params.toml"):
