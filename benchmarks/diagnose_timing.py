@@ -17,6 +17,13 @@ localise+name 18-28 s, model 1.8 s, proof 0.8 s, total 23-33 s (ratio 0.38-0.55)
 at 204+Z of 19 999.9 N/m (truth 2×10⁴), held-out FRF error 62 % (parameters only) → 0.4 %.  The time goes
 to the FRF screening of 1290 candidates (~4 s per screen, two screens in the first round) and to FRF fits of
 the few best candidates in a Ritz basis.
+
+Measured 2026-11-30 (same machine, quiet, BLAS on both cores), after the diagnosis gained the damping screen, the
+fitted runners-up and neighbouring places, priors and cross-validation: total 82.2 s at 399752a (ratio 1.37; user
+CPU 149 s), 75.2 s after the screening's singularity test became a determinant bound (ratio 1.25; localise+name
+67 s of it): over the budget.  Same finding both times: spring to ground at 204+Z of 19 990 N/m, held-out FRF
+error 289 % (parameters only) -> 1.8 %.  Under profile the time goes to the FRF fits of options and picks
+(least squares in a Ritz basis, ~50 %), the complex-step parameter derivatives (~18 %) and the screenings (~17 %).
 """
 from __future__ import annotations
 

@@ -86,8 +86,8 @@ def test_the_rank_r_update_is_woodbury_and_infinite_where_singular():
     assert got[0] == np.inf and np.isfinite(got[1])
 
 
-def test_a_rank_one_update_is_infinite_exactly_where_its_scalar_system_vanishes():
-    """Rank 1 (most candidates) skips the SVD per line: the same verdicts as the condition number."""
+def test_an_update_is_infinite_exactly_where_its_system_is_singular():
+    """The singularity test (a determinant bound before the SVD per line) gives the condition number's verdicts."""
     rng = np.random.default_rng(1)
     n_m, n_r, n_s = 3, 2, 5
     c = lambda *sh: rng.standard_normal(sh) + 1j * rng.standard_normal(sh)  # noqa: E731
@@ -103,6 +103,17 @@ def test_a_rank_one_update_is_infinite_exactly_where_its_scalar_system_vanishes(
         assert got[t] == pytest.approx(want, rel=1e-9)
     A = (inv[:, :, None, None] + Hll[0, 0][None, :, None, None])
     assert np.array_equal(_singular(A), ~(np.linalg.cond(A) < 1 / np.finfo(float).eps))
+    for r in (2, 3, 6):                 # exactly, nearly and far from singular, and tiny but regular
+        A = c(8, 20, r, r)
+        A[0, 0, 0] = A[0, 0, 1]
+        A[1, 1, 0] = A[1, 1, 1] + 1e-17 * c(r)
+        A[2, 2, 0] = A[2, 2, 1] + 1e-14 * c(r)
+        A[3, 3, 0] = A[3, 3, 1] + 1e-10 * c(r)
+        A[4, 4] *= 1e-200
+        A[5, 5] = 0.0
+        want = ~(np.linalg.cond(A) < 1 / np.finfo(float).eps)
+        assert want[0, 0] and want[5, 5] and not want[3, 3] and not want[4, 4]
+        assert np.array_equal(_singular(A), want)
 
 
 def test_candidates_not_evaluated_are_named_in_the_statement():
