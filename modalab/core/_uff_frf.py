@@ -193,10 +193,15 @@ def read_frf(path, *, quantity: str | None = None, responses=None, references=No
                    window_beta_per_s=0.0 if beta is None else beta)
 
 
+def held_functions(blocks, cur) -> Counter:
+    """How many functions (dataset 58) of each kind the file holds, by :data:`FUNC_TYPES` name."""
+    return Counter(FUNC_TYPES.get(f.func_type, str(f.func_type)) for f in
+                   _functions(blocks, cur, range(100), header_only=True))
+
+
 def _no_frfs(blocks, cur, path):
     """Raise the error for a file without FRFs, saying what it holds instead."""
-    kinds = Counter(FUNC_TYPES.get(f.func_type, str(f.func_type)) for f in
-                    _functions(blocks, cur, range(100), header_only=True))
+    kinds = held_functions(blocks, cur)
     hint = (" (raw hits: make FRFs of them with 'modalab frf', or uff.read_records in Python)"
             if "time response" in kinds else "")
     held = ", ".join(f"{v} {k}" for k, v in kinds.items()) or "no dataset 58"

@@ -198,8 +198,25 @@ def _mode_sets(blocks, cur, path) -> list[dict]:
     cur.block = None
     check_groups(all55, path, "mode", "m")
     if not sets:
-        raise UffError("no mode shapes (dataset 55, analysis type 2, 3 or 7) in the file", path=path)
+        raise UffError(f"no mode shapes (dataset 55, analysis type 2, 3 or 7) in the file{_what_instead(blocks, cur)}",
+                       path=path)
     return sets
+
+
+def _what_instead(blocks, cur) -> str:
+    """What a file without mode shapes holds, and the command that makes modes of it: '' when it holds no
+    function (dataset 58) either."""
+    from ._uff_frf import held_functions
+
+    kinds = held_functions(blocks, cur)
+    if not kinds:
+        return ""
+    held = ", ".join(f"{v} {k}" for k, v in kinds.items())
+    if "FRF" in kinds:
+        return f"; it holds {held}: identify modes from them with 'modalab identify'"
+    if "time response" in kinds:
+        return f"; it holds {held} (raw hits): make FRFs with 'modalab frf', then modes with 'modalab identify'"
+    return f"; it holds {held}"
 
 
 def _frequency_damping(s: dict, path) -> tuple[float, float, float]:

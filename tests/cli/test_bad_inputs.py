@@ -144,6 +144,14 @@ def test_bad_input_is_one_line_exit_2_nothing_left(command, kind, argv, variant,
     assert _tree(bad_dir) == before_in and _tree(good["hits"].parent) == before_good
 
 
+def test_modes_asked_of_raw_hits_say_which_commands_make_them(good, capsys):
+    """correlate given the raw hits where modes belong: the error says what the file holds and what to run."""
+    assert main(["correlate", str(good["model"]), str(good["hits"])]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and good["hits"].name in err[0], err
+    assert "time response (raw hits)" in err[0] and "'modalab frf'" in err[0] and "'modalab identify'" in err[0], err
+
+
 @pytest.mark.parametrize("argv,needle", [
     (lambda g, o: ["frf", str(g["hits"]), "-o", str(o)], "is a folder"),
     (lambda g, o: ["identify", str(g["frf"]), "-o", str(o / "m.uff"), "--json", str(o)], "is a folder"),
