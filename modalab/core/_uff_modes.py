@@ -11,6 +11,7 @@ import numpy as np
 from ._uff_common import _blocks, _guard, _open_out
 from ._uff_core import (Block, check_groups, date_line, e13, id_line, parse_floats, parse_ints, parse_tags,
                         tokens_exact)
+from ._uff_frf import held_functions
 from ._uff_geometry import _global_nodes, _node_rotations, write_geometry
 from .dof import Dof
 from .errors import UffError
@@ -206,8 +207,6 @@ def _mode_sets(blocks, cur, path) -> list[dict]:
 def _what_instead(blocks, cur) -> str:
     """What a file without mode shapes holds, and the command that makes modes of it: '' when it holds no
     function (dataset 58) either."""
-    from ._uff_frf import held_functions
-
     kinds = held_functions(blocks, cur)
     if not kinds:
         return ""
