@@ -14,7 +14,7 @@ import numpy as np
 from updating.fe import ParametricFEModel
 from updating.diagnosis.mesh import mesh_error, shift_beyond_mesh
 from updating.diagnosis.screen import mci_update
-from updating.diagnosis.terms import _another_explanation, _same_kind_nearby, NEARBY_PLACES, MIN_FREQ_EFFECT, FRF_PICKS, PICK_EXPLAINS, MIN_DAMPING_EFFECT, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, CV_NFEV, _residual, inflation, significant_gain, n_obs, _upper, _augment
+from updating.diagnosis.terms import _another_explanation, _is_support, _same_kind_nearby, NEARBY_PLACES, MIN_FREQ_EFFECT, FRF_PICKS, PICK_EXPLAINS, MIN_DAMPING_EFFECT, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, CV_NFEV, _residual, inflation, significant_gain, n_obs, _upper, _augment
 
 log = logging.getLogger(__name__)
 
@@ -143,8 +143,7 @@ class _Acceptance:
             # a support release among the other picks that lowered the error: judged next (a clamp elastic in
             # all its components; the best pick was an inertia absorbing part of it)
             sup = sorted((t for t in tried + self._support_picks(tried, have) if t[1].key != c.key
-                          and t[1].release is not None and t[1].release[0] == "support" and t[0] < ref.error),
-                         key=lambda t: t[0])
+                          and _is_support(t[1]) and t[0] < ref.error), key=lambda t: t[0])
             judged = self._judge_or_complete(sup[0][:7], supported, "support pick") if sup else None
         if judged is None:
             return None
@@ -222,11 +221,7 @@ class _Acceptance:
         even case 1456's 0.255 kg at node 30 screened below node 31, where the fitted mass leaves χ²/N 72
         against 0.21 at node 30.  Releases are screened exactly at every place and are not repeated."""
         listed = {c.key for c, _ in options} | {c.key for c in self.current} | set(self._hidden)
-        value: dict = {}
-        for scr, _ in self._screens:
-            for o, v, g in scr:
-                if g > value.get(o.key, (None, -1.0))[1]:
-                    value[o.key] = (o, g, v)
+        value = {key: (o, g, v) for key, (g, o, v, _, _) in self._best_screened(floor=-1.0).items()}
         m_now = self.pm_cur.model_at(self.p_cur)
         out, kinds = [], []
         for c, crit, _ in sorted(evaluated, key=lambda t: t[1]):
@@ -272,7 +267,7 @@ class _Acceptance:
         which fitted with the parameters left the error where it was (2.64 % against 2.69 %), while its
         translations, never picked, fit to 0.83 % (a rotational spring two nodes up took 1.46 %)."""
         def group(o):                        # a support release of two or more components
-            return o.release is not None and o.release[0] == "support" and len(o.release[2]) >= 2
+            return _is_support(o) and len(o.release[2]) >= 2
 
         done = {t[1].key for t in tried} | have
         out = []
@@ -299,17 +294,12 @@ class _Acceptance:
         (parameters fixed) is small beside a mass that absorbs part of it; fitted with the parameters the
         clamp's rotations can leave half the mass's residual (even case 1526: 6 % screened against the
         mass's 34 %; fitted, error 5.8 % against 8.0 %)."""
-        if any(t[1].release is not None and t[1].release[0] == "support" for t in tried):
+        if any(_is_support(t[1]) for t in tried):
             return []
         done = {t[1].key for t in tried} | have | set(self._hidden)
-        best: dict = {}
-        for k, (scr, p_scr) in enumerate(self._screens):
-            for o, v, g in scr:
-                if o.release is not None and o.release[0] == "support" and o.key not in done and g > 0 \
-                        and g > best.get(o.key, (-1.0,))[0]:
-                    best[o.key] = (g, o, v, p_scr, k)
+        best = [t for key, t in self._best_screened(floor=0.0).items() if _is_support(t[1]) and key not in done]
         out = []
-        for g, o, v, p_scr, k in sorted(best.values(), key=lambda t: -t[0])[:SUPPORT_PICKS]:
+        for g, o, v, p_scr, k in sorted(best, key=lambda t: -t[0])[:SUPPORT_PICKS]:
             pm_aug, fr, clo, chi, scale = self._fit_pick(o, v, p_scr)
             log.info("support release %s (screened %.2g %%) fitted on the FRFs: error %.4g", o.label, 100 * g,
                      fr.error)
@@ -326,7 +316,7 @@ class _Acceptance:
         err, c, pm_aug, fr, clo, chi, k = t
         ok, why = self._judge_pick(c, pm_aug, fr, clo, chi, supported=supported)
         log.info("%s %s on the FRFs: %s", what, c.label, why)
-        if not ok and self._pick_held and c.release is not None and c.release[0] == "support":
+        if not ok and self._pick_held and _is_support(c):
             done = self._completed_pick(c, fr)
             if done is not None:
                 o, c, pm_aug, fr, clo, chi, why = done
@@ -357,9 +347,19 @@ class _Acceptance:
     def _screened(self, c):
         """``(c, value, screening parameters, screening index)`` of ``c`` in the exact FRF screening where it
         gains most, or None when no screening holds it."""
-        found = [(g, (o, v, p_scr, k)) for k, (scr, p_scr) in enumerate(self._screens) for o, v, g in scr
-                 if o.key == c.key]
-        return max(found, key=lambda t: t[0])[1] if found else None
+        t = self._best_screened().get(c.key)
+        return None if t is None else t[1:]
+
+    def _best_screened(self, floor: float = -np.inf) -> dict:
+        """``{key: (gain, candidate, value, screening parameters, screening index)}``: each candidate of the
+        exact screenings where it gains most (the first screening on a tie), among gains above ``floor``; in the
+        order the candidates first pass ``floor``."""
+        best: dict = {}
+        for k, (scr, p_scr) in enumerate(self._screens):
+            for o, v, g in scr:
+                if g > best.get(o.key, (floor,))[0]:
+                    best[o.key] = (g, o, v, p_scr, k)
+        return best
 
     def _screening_picks(self, have: set) -> list:
         """``[(candidate, value, screening parameters, screening index)]``: the best candidate of each exact

@@ -11,7 +11,7 @@ import numpy as np
 
 from updating.fe import ParametricFEModel
 from updating.diagnosis.screen import mci_update
-from updating.diagnosis.terms import _augment, _upper
+from updating.diagnosis.terms import _augment, _is_support, _upper
 
 log = logging.getLogger(__name__)
 
@@ -32,7 +32,7 @@ class _Refine:
         comes out as one finding with its translational and rotational stiffness, instead of the rotations
         alone absorbing what the translations miss."""
         for c in list(self.current):
-            if c.release is None or c.release[0] != "support":
+            if not _is_support(c):
                 continue
             o = self._complement(c)
             if o is None:
@@ -96,14 +96,14 @@ class _Refine:
     def _support_releases(self, node) -> list:
         """The library's support releases at ``node`` not yet accepted nor hidden."""
         have = {x.key for x in self.current}
-        return [o for o in self._library(self.model0) if o.release is not None and o.release[0] == "support"
-                and o.release[1] == node and o.key not in have and o.key not in self._hidden]
+        return [o for o in self._library(self.model0) if _is_support(o) and o.release[1] == node
+                and o.key not in have and o.key not in self._hidden]
 
     def _complement(self, c):
         """The library's release of the other components of ``c``'s constraint (the largest group of the other
         kind, translations or rotations), not yet accepted; None when the constraint has none."""
         node, comps = c.release[1], set(c.release[2])
-        if any(x.release is not None and x.release[0] == "support" and x.release[1] == node and
+        if any(_is_support(x) and x.release[1] == node and
                _is_translation(x.release[2]) != _is_translation(tuple(comps)) for x in self.current):
             return None                       # the other kind is accepted already
         other = [o for o in self._support_releases(node) if not set(o.release[2]) & comps

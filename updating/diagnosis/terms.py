@@ -47,6 +47,11 @@ def _same_kind_nearby(a: Candidate, b: Candidate, model: FEModel) -> bool:
 NEARBY_PLACES = 4
 
 
+def _is_support(c: Candidate) -> bool:
+    """Whether ``c`` releases (part of) a support's constraint."""
+    return c.release is not None and c.release[0] == "support"
+
+
 def _another_explanation(a: Candidate, b: Candidate, model: FEModel) -> bool:
     """Whether ``a`` is a different explanation from ``b``: elsewhere, or the same place with other physics (a
     joint's flexibility and a rotary inertia at one node are two explanations; the same kind one node over is a
