@@ -385,9 +385,13 @@ class Diagnoser(_Acceptance, _Refine, _Proof):
         # FRF-screen picks: the best two overall, the best of each kind of matrix and the best release of each
         # kind (joint, support): a release changes the DOF set, which no other candidate can imitate exactly
         listed = {c.key for c, _ in options}
-        # local damping ranked with the parameters (loss factors among them) re-fitted: updating.diagnosis.dampscreen
-        dscr = damping_screen(pm_cur, p_cur, [c for c in lib if c.key not in have], self.train)
-        self._screens.append((dscr, np.asarray(p_cur, float)))          # its best is a pick too (_judge_picks)
+        # local damping ranked with the parameters (loss factors among them) re-fitted: updating.diagnosis.dampscreen.
+        # It measures the training FRF error, so it starts from the current model's FRF fit, as its picks do: the
+        # MCI's minimiser can sit at the parameters' bounds with a negative loss factor (seed 1305: E -15 %,
+        # ρ -9 %), where the linear re-fit ranks well but the pick's fit from there stops in a poor optimum
+        pm_d, fr_d = self._frf_ref()
+        dscr = damping_screen(pm_d, fr_d.p, [c for c in lib if c.key not in have], self.train)
+        self._screens.append((dscr, np.asarray(fr_d.p, float)))        # its best is a pick too (_judge_picks)
         for scr in screens + [dscr]:
             by_kind: dict = {}
             for c, v, g in scr:
