@@ -35,11 +35,12 @@ import os
 import subprocess
 import sys
 import tempfile
-import threading
-import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from benchmarks._baseline import ROOT, checkout, measure  # noqa: E402
+
 DEMO = ROOT / "examples" / "demo_project"
 POINTS = "200+Z 204+Z 208+Z 213+Z 217+Z 218+Z 100+Z 115+Z 308+Z 408+Z 508+Y 600+Z 608+Z".split()
 REFS = "218+Z 200+Z 508+Y".split()
@@ -48,43 +49,9 @@ BEFORE_REV = "b55df4c"
 _MAIN = "import sys; from modalab.app.cli import main; sys.exit(main(sys.argv[1:]))"
 
 
-def _rss_kb(pid: int) -> int:
-    try:
-        with open(f"/proc/{pid}/status") as f:
-            for line in f:
-                if line.startswith("VmRSS"):
-                    return int(line.split()[1])
-    except OSError:
-        pass
-    return 0
-
-
 def run(src: Path, args: list, cwd: Path, cap_gb: float) -> dict:
-    """``modalab ARGS`` on the code in ``src``: peak RSS (GB), CPU and wall time (s), exit code, stopped at the cap."""
-    env = dict(os.environ, PYTHONPATH=str(src), MODALAB_BLAS_THREADS=os.environ.get("MODALAB_BLAS_THREADS", "1"))
-    t0 = time.perf_counter()
-    p = subprocess.Popen([sys.executable, "-c", _MAIN, *args], cwd=cwd, env=env, stdout=subprocess.DEVNULL,
-                         stderr=subprocess.PIPE, text=True)
-    peak, capped = [0], [False]
-
-    def watch():
-        while p.poll() is None:
-            peak[0] = max(peak[0], _rss_kb(p.pid))
-            if peak[0] > cap_gb * 2 ** 20:
-                capped[0] = True
-                p.kill()
-                return
-            time.sleep(0.05)
-
-    th = threading.Thread(target=watch, daemon=True)
-    th.start()
-    err = p.stderr.read()
-    _, status, ru = os.wait4(p.pid, 0)
-    p.returncode = os.waitstatus_to_exitcode(status)
-    th.join()
-    return {"peak_gb": max(peak[0], ru.ru_maxrss) / 2 ** 20, "cpu_s": ru.ru_utime + ru.ru_stime,
-            "sys_s": ru.ru_stime, "wall_s": time.perf_counter() - t0, "rc": p.returncode, "capped": capped[0],
-            "err": err.strip().splitlines()[-1:] if p.returncode else []}
+    """``modalab ARGS`` on the code in ``src``, measured by :func:`benchmarks._baseline.measure`."""
+    return measure(src, ["-c", _MAIN, *args], cwd, cap_gb)
 
 
 def demo_chain(d: Path) -> list:
@@ -121,10 +88,7 @@ def main():
     a = ap.parse_args()
     with tempfile.TemporaryDirectory(prefix="diagmem_") as tmp:
         tmp = Path(tmp)
-        base_src = tmp / "baseline"
-        base_src.mkdir()
-        arch = subprocess.run(["git", "-C", str(ROOT), "archive", a.baseline], check=True, capture_output=True)
-        subprocess.run(["tar", "-x", "-C", str(base_src)], input=arch.stdout, check=True)
+        base_src = checkout(a.baseline, tmp / "baseline")
         cases = []
         if not a.no_demo:
             (tmp / "demo").mkdir()

@@ -6,8 +6,12 @@ suspension; truth = the same frame with 3 % stiffer wing, PARAM G = 0.02 and a c
 the wing tips and the fin tip, 2000 lines 1–100 Hz, 1 % complex noise.  Nominal: the frame without the extra
 spring, default parameters (E and ρ per property group) plus the background loss factor.
 
-Prints the time of each step of :func:`updating.diagnosis.diagnose` and the total against the issue's
-budget of 60 s (ratio < 1 is within budget).  Run: ``python benchmarks/diagnose_timing.py``.
+Runs the diagnosis of this case on the code of this checkout and, beside it, on the code of ``--baseline``
+(``git archive`` of that revision, default :data:`BEFORE_REV`), each in a child process, one after the other
+(``benchmarks/_baseline.py``), and prints side by side the time of each step of
+:func:`updating.diagnosis.diagnose`, the children's CPU and wall times with their ratios (now / baseline), the
+total against the issue's budget of 60 s, and both findings.  Nothing is asserted.  Run:
+``python benchmarks/diagnose_timing.py [--baseline REV]``.
 
 Measured 2026-11-22 on the shared 2-core machine (load 4-8), before the Ritz basis and the FRF screening:
 total 379 s (ratio 6.3), and the finding was wrong (a 480 kg point mass at node 200).
@@ -27,17 +31,20 @@ error 289 % (parameters only) -> 1.8 %.  Under profile the time goes to the FRF 
 """
 from __future__ import annotations
 
+import argparse
 import dataclasses
+import json
+import os
 import sys
-import time
+import tempfile
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from benchmarks._baseline import ROOT, checkout, measure  # noqa: E402
 from modalab.core.frf import FRF  # noqa: E402
-from updating.diagnosis import diagnose  # noqa: E402
 from updating.fe import Spring  # noqa: E402
 from updating.fe.models.garteur import garteur_model  # noqa: E402
 
@@ -74,21 +81,62 @@ def case(n_lines=2000, noise=0.01, seed=0):
     return nominal, meas, spring_node
 
 
-def main():
-    t0 = time.perf_counter()
-    nominal, meas, node = case()
-    t_case = time.perf_counter() - t0
-    print(f"case: {nominal.structure().n_dof} DOFs, FRF {meas.shape} (built in {t_case:.1f} s); "
-          f"concealed: grounded spring at {node}+Z")
+#: the default baseline: the code at the start of the fifteenth session (2026-11-30)
+BEFORE_REV = "a1b66d7"
+#: what each child runs on its own code (``PYTHONPATH``): the case of that code's :func:`case`, one diagnosis, with
+#: BLAS limited to ``MODALAB_BLAS_THREADS`` threads (default 1) as the CLI limits it
+_DRIVER = """
+import json, os, sys
+from threadpoolctl import threadpool_limits
+from benchmarks.diagnose_timing import case
+from updating.diagnosis import diagnose
+nominal, meas, node = case()
+with threadpool_limits(limits=int(os.environ["MODALAB_BLAS_THREADS"])):      # as `modalab diagnose` runs
     diag = diagnose(nominal, meas, progress=lambda m: None)
-    for k, v in diag.timings.items():
-        print(f"  {k:<22s} {v:7.2f} s")
-    total = diag.timings["total"]
-    print(f"total {total:.1f} s  ratio to the {BUDGET_S:.0f} s budget: {total / BUDGET_S:.2f}")
-    print("findings:", [(f.candidate.label, round(f.value, 1)) for f in diag.findings])
-    print("held-out FRF error: parameters only {:.3f}, with physics {:.3f}".format(
-        diag.fit["parameters_only"]["frf_error_held_out"], diag.fit["with_physics"]["frf_error_held_out"]))
+json.dump({"timings": diag.timings, "findings": [[f.candidate.label, float(f.value)] for f in diag.findings],
+           "held_out": [diag.fit["parameters_only"]["frf_error_held_out"],
+                        diag.fit["with_physics"]["frf_error_held_out"]]}, open(sys.argv[1], "w"))
+"""
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--baseline", default=BEFORE_REV, help="git revision of the baseline (default %(default)s)")
+    a = ap.parse_args()
+    with tempfile.TemporaryDirectory(prefix="diagtime_") as tmp:
+        tmp = Path(tmp)
+        srcs = {"baseline": checkout(a.baseline, tmp / "baseline"), "now": ROOT}
+        print(f"baseline {a.baseline} against this checkout; MODALAB_BLAS_THREADS="
+              f"{os.environ.get('MODALAB_BLAS_THREADS', '1')}; one diagnosis at a time")
+        res, out = {}, {}
+        for code, src in srcs.items():
+            js = tmp / f"{code}.json"
+            res[code] = measure(src, ["-c", _DRIVER, str(js)], tmp)
+            if res[code]["rc"]:                   # said, and the other run's times shown alone
+                print(f"{code}: exit {res[code]['rc']} after {res[code]['wall_s']:.1f} s: {res[code]['err']}")
+            out[code] = json.loads(js.read_text()) if js.exists() else {"timings": {}, "findings": None}
+        if out["now"]["findings"] is None:
+            return 1
+        b, n = out["baseline"]["timings"], out["now"]["timings"]
+        print(f"{'step':<22} {'baseline s':>10} {'now s':>8} {'ratio':>6}")
+        for k in list(dict.fromkeys([*b, *n])):
+            tb, tn = b.get(k), n.get(k)
+            ratio = f"{tn / tb:6.2f}" if tb and tn is not None else f"{'-':>6}"
+            print(f"{k:<22} {'-' if tb is None else format(tb, '.2f'):>10} {'-' if tn is None else format(tn, '.2f'):>8} "
+                  f"{ratio}")
+        rb, rn = res["baseline"], res["now"]
+        for what, key in (("process CPU (s)", "cpu_s"), ("process wall (s)", "wall_s")):
+            ratio = f"{rn[key] / rb[key]:6.2f}" if not rb["rc"] else f"{'-':>6}"
+            print(f"{what:<22} {rb[key]:>10.1f} {rn[key]:>8.1f} {ratio}")
+        print(f"now: total {n['total']:.1f} s, {n['total'] / BUDGET_S:.2f} of the {BUDGET_S:.0f} s budget")
+        for code in (c for c in srcs if out[c]["findings"] is not None):
+            o = out[code]
+            print(f"{code}: findings {[(lab, round(v, 1)) for lab, v in o['findings']]}; held-out FRF error "
+                  f"parameters only {o['held_out'][0]:.3f}, with physics {o['held_out'][1]:.3f}")
+        if out["baseline"]["findings"] is not None:
+            print("findings", "same" if out["baseline"]["findings"] == out["now"]["findings"] else "DIFFER")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())
