@@ -28,6 +28,15 @@ CPU 149 s), 75.2 s after the screening's singularity test became a determinant b
 67 s of it): over the budget.  Same finding both times: spring to ground at 204+Z of 19 990 N/m, held-out FRF
 error 289 % (parameters only) -> 1.8 %.  Under profile the time goes to the FRF fits of options and picks
 (least squares in a Ritz basis, ~50 %), the complex-step parameter derivatives (~18 %) and the screenings (~17 %).
+
+Measured 2026-11-30, fifteenth session (quiet machine), each diagnosis run as the CLI runs it (BLAS on one
+thread): at 34fc930 total 37.4 s (ratio 0.62; CPU 39.5 s; localise+name 33.4 s), the same finding (spring to
+ground at 204+Z, 19 990 N/m; held-out FRF error 289 % -> 1.8 %); the baseline a1b66d7 stopped after 33 s with
+'K + σM is singular': a joint at the link 101-500 fitted from 2.4e12 to 4.7e29 N/m in a Ritz basis (two BLAS
+threads round otherwise and never got there; 34fc930 reports such a candidate as not evaluated).  With
+``MODALAB_BLAS_THREADS=2`` (BLAS on both cores, how this script ran the diagnosis before): a1b66d7 67.9 s, 34fc930
+74.6 s (ratio 1.10; CPU 130 s against 143 s), the same finding: the 75-82 s above were two-thread BLAS, twice the
+time of one thread for this work of many small dense solves.
 """
 from __future__ import annotations
 
