@@ -165,7 +165,7 @@ def test_reduced_fit_keeps_its_start_when_the_basis_leads_every_step_astray(fram
     """The guard of :func:`fit_frf`: a Ritz basis too poor for the band (modes to 0.3x its top only) moves the
     reduced optimum off the truth; started at the truth on noise-free data, every round raises the exact error,
     so the start is returned, with its exact error and finite standard deviation, and the message says so."""
-    import updating.diagnosis.fit as fitmod
+    import updating.diagnosis.ritz as ritzmod          # where the fit builds each round's basis (round_basis)
 
     class PoorBasis(RitzBasis):
         def __init__(self, structure, cols, f_max_hz, **kw):
@@ -175,7 +175,7 @@ def test_reduced_fit_keeps_its_start_when_the_basis_leads_every_step_astray(fram
     start_error = frf_error(model_frf(pm.structure([1.06]), data), data)
 
     # the same basis class, configured too poor for the band: the reduced model is wrong, not faked
-    monkeypatch.setattr(fitmod, "RitzBasis", PoorBasis)
+    monkeypatch.setattr(ritzmod, "RitzBasis", PoorBasis)
     res = fit_frf(pm, data, [1.06], lower=[0.5], upper=[2.0], reduced=True)
     assert "start kept" in res.message
     assert res.p[0] == 1.06

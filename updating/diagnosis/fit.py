@@ -25,12 +25,12 @@ import scipy.sparse as sp
 from scipy.linalg import solve_banded
 
 from modalab.core.dof import locate
-from modalab.core.errors import ConvergenceError, ModalabValueError
+from modalab.core.errors import ConvergenceError
 
 from updating.correlation.condensation import solve_columns
 from updating.correlation.receptance import LOCAL_BAND, FRFData, leakage_bias  # noqa: F401 (re-exported)
 from updating.correlation.receptance import frf_data as _frf_data
-from updating.diagnosis.ritz import RitzBasis
+from updating.diagnosis.ritz import RitzBasis, round_basis
 from updating.diagnosis.truncation import RESTORED_SHARE, peak_poles, restore_tails
 from updating.methods.mci_condensed import derivatives
 
@@ -326,13 +326,8 @@ def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None
         if reduced:
             st = st0 if rnd == 0 else pmodel.structure(p_cur)
             mi, _, ri, _ = _indices(st.dofs, data)
-            try:
-                basis = RitzBasis(st, np.concatenate([mi, ri, local]), float(np.max(np.abs(data.s))) / (2 * np.pi))
-            except ModalabValueError as e:
-                # the last round's step made K + σM singular (at the start it is a fault of the model: raised)
-                if rnd == 0:
-                    raise
-                raise SingularStepError(_singular_step(pmodel, p_start, p_cur, free)) from e
+            basis = round_basis(st, np.concatenate([mi, ri, local]), float(np.max(np.abs(data.s))) / (2 * np.pi),
+                                pmodel, p_start, p_cur, free, rnd)
         sol = _least_squares(pmodel, data, p_cur, free, lo, hi, max_nfev, x_scale, history, basis, prior)
         total_nfev += sol.nfev
         p = p_cur.copy()
@@ -366,23 +361,6 @@ def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None
     std[free] = correlated_std(fun, jac, data.H.shape, prior_scale=prior.scale if prior is not None else 0.0)
     return FitResult(p, std, err, history, bool(sol.success), message + (
         f" ({total_nfev} evaluations in a Ritz basis)" if reduced else ""))
-
-
-class SingularStepError(ConvergenceError, np.linalg.LinAlgError):
-    """An FRF fit in a Ritz basis stepped to parameters at which the structure's K + σM cannot be factorised
-    (a spring run to a stiffness ~10¹⁶ times the structure's: a rigid connection the arithmetic cannot hold
-    beside it).  A :class:`~numpy.linalg.LinAlgError`, so that the diagnosis reports the candidate being fitted
-    as not evaluated (:meth:`~updating.diagnosis.workflow.Diagnoser._try`), and a
-    :class:`~modalab.core.errors.ConvergenceError` wherever it is not expected."""
-
-
-def _singular_step(pmodel, p_start, p, free) -> str:
-    """What :class:`SingularStepError` says: the free parameters that moved most (by their ratio to the start)."""
-    ratio = np.abs(p) / np.maximum(np.abs(p_start), 1e-300)
-    idx = [i for i in np.argsort(-ratio) if free[i]][:2]
-    moved = ", ".join(f"{pmodel.parameter_names[i]} {p_start[i]:.3g} -> {p[i]:.3g}" for i in idx)
-    return (f"an FRF fit in a Ritz basis stepped to parameters at which K + σM is singular ({moved}): a value "
-            f"run far beyond the structure's own stiffness (a rigid connection); the fit stops")
 
 
 def _exact_rows(pmodel, p, data: FRFData, free, prior):

@@ -32,7 +32,7 @@ import scipy.sparse.linalg as spla
 
 from modalab.core.eigen import drop_mechanisms, lanczos_modes, massless_dofs, massless_mechanisms, restore
 from modalab.core.dense import use_dense
-from modalab.core.errors import ModalabValueError
+from modalab.core.errors import ConvergenceError, ModalabValueError
 
 log = logging.getLogger(__name__)
 __all__ = ["RitzBasis"]
@@ -182,3 +182,29 @@ class RitzBasis:
             A += PY if fac is None else PY * fac[:, None, None]
         out = -np.matmul(Ym.transpose(2, 1, 0), A).transpose(1, 2, 0)
         return out
+
+
+class SingularStepError(ConvergenceError, np.linalg.LinAlgError):
+    """An FRF fit in a Ritz basis stepped to parameters at which the structure's K + σM cannot be factorised
+    (a spring run to a stiffness ~10¹⁶ times the structure's: a rigid connection the arithmetic cannot hold
+    beside it).  A :class:`~numpy.linalg.LinAlgError`, so that the diagnosis reports the candidate being fitted
+    as not evaluated (:meth:`~updating.diagnosis.workflow.Diagnoser._try`), and a
+    :class:`~modalab.core.errors.ConvergenceError` wherever it is not expected."""
+
+
+def round_basis(structure, cols, f_max_hz: float, pmodel, p_start, p, free, rnd: int) -> RitzBasis:
+    """The :class:`RitzBasis` of round ``rnd`` of an FRF fit (:func:`~updating.diagnosis.fit.fit_frf`), at the
+    parameters ``p`` its last round reached from ``p_start`` (``structure`` is the model there).  Where K + σM
+    cannot be factorised: at the start a fault of the model (the basis' own error), after a round the fit's step
+    (:class:`SingularStepError`, naming the free parameters that moved most by their ratio to the start)."""
+    try:
+        return RitzBasis(structure, cols, f_max_hz)
+    except ModalabValueError as e:
+        if rnd == 0:
+            raise
+        ratio = np.abs(p) / np.maximum(np.abs(p_start), 1e-300)
+        moved = ", ".join(f"{pmodel.parameter_names[i]} {p_start[i]:.3g} -> {p[i]:.3g}"
+                          for i in [i for i in np.argsort(-ratio) if free[i]][:2])
+        raise SingularStepError(f"an FRF fit in a Ritz basis stepped to parameters at which K + σM is singular "
+                                f"({moved}): a value run far beyond the structure's own stiffness (a rigid "
+                                f"connection); the fit stops") from e
