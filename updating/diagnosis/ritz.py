@@ -185,18 +185,19 @@ class RitzBasis:
 
 
 class SingularStepError(ConvergenceError, np.linalg.LinAlgError):
-    """An FRF fit in a Ritz basis stepped to parameters at which the structure's K + σM cannot be factorised
-    (a spring run to a stiffness ~10¹⁶ times the structure's: a rigid connection the arithmetic cannot hold
-    beside it).  A :class:`~numpy.linalg.LinAlgError`, so that the diagnosis reports the candidate being fitted
-    as not evaluated (:meth:`~updating.diagnosis.workflow.Diagnoser._try`), and a
+    """An FRF fit in a Ritz basis stepped to parameters at which the model's basis cannot be built (K + σM or M
+    singular: typically a spring run to a stiffness ~10¹⁶ times the structure's, a rigid connection the
+    arithmetic cannot hold beside it).  A :class:`~numpy.linalg.LinAlgError`, so that the diagnosis reports the
+    candidate being fitted as not evaluated (:meth:`~updating.diagnosis.workflow.Diagnoser._try`), and a
     :class:`~modalab.core.errors.ConvergenceError` wherever it is not expected."""
 
 
 def round_basis(structure, cols, f_max_hz: float, pmodel, p_start, p, free, rnd: int) -> RitzBasis:
     """The :class:`RitzBasis` of round ``rnd`` of an FRF fit (:func:`~updating.diagnosis.fit.fit_frf`), at the
-    parameters ``p`` its last round reached from ``p_start`` (``structure`` is the model there).  Where K + σM
-    cannot be factorised: at the start a fault of the model (the basis' own error), after a round the fit's step
-    (:class:`SingularStepError`, naming the free parameters that moved most by their ratio to the start)."""
+    parameters ``p`` its last round reached from ``p_start`` (``structure`` is the model there).  Where it cannot
+    be built (K + σM or M singular): at the start a fault of the model (the basis' own error), after a round the
+    fit's step (:class:`SingularStepError`, naming the free parameters that moved most by their ratio to the
+    start)."""
     try:
         return RitzBasis(structure, cols, f_max_hz)
     except ModalabValueError as e:
@@ -205,6 +206,6 @@ def round_basis(structure, cols, f_max_hz: float, pmodel, p_start, p, free, rnd:
         ratio = np.abs(p) / np.maximum(np.abs(p_start), 1e-300)
         moved = ", ".join(f"{pmodel.parameter_names[i]} {p_start[i]:.3g} -> {p[i]:.3g}"
                           for i in [i for i in np.argsort(-ratio) if free[i]][:2])
-        raise SingularStepError(f"an FRF fit in a Ritz basis stepped to parameters at which K + σM is singular "
-                                f"({moved}): a value run far beyond the structure's own stiffness (a rigid "
+        raise SingularStepError(f"an FRF fit in a Ritz basis stepped to parameters at which the model is singular "
+                                f"({moved}), typically a stiffness run far beyond the structure's own (a rigid "
                                 f"connection); the fit stops") from e
