@@ -199,12 +199,17 @@ def held_functions(blocks, cur) -> Counter:
                    _functions(blocks, cur, range(100), header_only=True))
 
 
+def held_text(kinds: Counter) -> str:
+    """:func:`held_functions` as the error messages say it ('3 FRF, 1 time response'; '' for none)."""
+    return ", ".join(f"{v} {k}" for k, v in kinds.items())
+
+
 def _no_frfs(blocks, cur, path):
     """Raise the error for a file without FRFs, saying what it holds instead."""
     kinds = held_functions(blocks, cur)
     hint = (" (raw hits: make FRFs of them with 'modalab frf', or uff.read_records in Python)"
             if "time response" in kinds else "")
-    held = ", ".join(f"{v} {k}" for k, v in kinds.items()) or "no dataset 58"
+    held = held_text(kinds) or "no dataset 58"
     raise UffError(f"no FRFs (dataset 58, function type 4) in the file; it holds {held}{hint}", path=path)
 
 

@@ -11,7 +11,7 @@ import numpy as np
 from ._uff_common import _blocks, _guard, _open_out
 from ._uff_core import (Block, check_groups, date_line, e13, id_line, parse_floats, parse_ints, parse_tags,
                         tokens_exact)
-from ._uff_frf import held_functions
+from ._uff_frf import held_functions, held_text
 from ._uff_geometry import _global_nodes, _node_rotations, write_geometry
 from .dof import Dof
 from .errors import UffError
@@ -210,7 +210,7 @@ def _what_instead(blocks, cur) -> str:
     kinds = held_functions(blocks, cur)
     if not kinds:
         return ""
-    held = ", ".join(f"{v} {k}" for k, v in kinds.items())
+    held = held_text(kinds)
     if "FRF" in kinds:
         return f"; it holds {held}: identify modes from them with 'modalab identify'"
     if "time response" in kinds:
