@@ -4,6 +4,7 @@ elements; a term whose frequency shift is no larger than that error, in its dire
 beyond it (a few grams near a clamp on a control case), a shift the other way counts in full."""
 from __future__ import annotations
 
+import dataclasses
 from types import SimpleNamespace
 
 import numpy as np
@@ -97,3 +98,44 @@ def test_a_refined_mode_that_does_not_move_the_model_dofs_is_left_out_of_the_pai
     np.testing.assert_allclose(me.f_hz, ref.f_hz, rtol=1e-9)
     # relative errors of 1e-6 are differences of eigenvalues good to ~1e-12: agree to 1e-8 of a frequency
     np.testing.assert_allclose(me.rel, ref.rel, rtol=1e-6, atol=1e-8)
+
+
+def _receptance_data(structure, f):
+    from modalab.core.frf import FRF
+    from updating.diagnosis.fit import frf_data
+    resp, refs = ["2+Z", "3+Z", "4+Z", "5+Z", "2+Y", "3+Y", "4+Y", "5+Y"], ["5+Z", "4+Y"]
+    H = structure.frf(f, resp, refs, quantity="receptance")
+    meas = FRF(freq_hz=f, H=H.H, responses=H.responses, references=H.references, coherence=np.ones(H.H.shape),
+               quantity="receptance")
+    return frf_data(meas, max_lines=len(f))
+
+
+def test_the_mesh_discrepancy_is_taken_out_where_the_data_show_it_and_only_there():
+    """A cantilever of four beam elements measured on a structure meshed four times finer (the same elements and
+    parameters: the continuum the coarse mesh stands for): the model cut in two fits better, and the data less
+    the discrepancy ``D`` are much closer to the coarse model, which then fits them to a fraction of the error.
+    Data simulated from the coarse model itself: no correction (an exact model stays exact)."""
+    from updating.diagnosis.fit import fit_frf, frf_error, model_frf
+    from updating.diagnosis.mesh import mesh_discrepancy
+
+    coarse = _cantilever(4)
+    coarse.global_ge = 0.01
+    fine4, _ = refine_beams(coarse, 4)
+    f = np.linspace(5.0, 320.0, 300)
+    p = np.array([1.0, 1.0])
+
+    def fit(pm, d, p0):
+        return fit_frf(pm, d, p0, lower=[0.8, 0.8], upper=[1.2, 1.2], max_nfev=20)
+
+    pm = ParametricFEModel(coarse, PARAMS)
+    for truth, corrected in ((fine4, True), (coarse, False)):
+        data = _receptance_data(ParametricFEModel(truth, PARAMS).structure(p), f)
+        train, held = data.take(rows=[0, 1, 2, 3, 5, 6, 7]), data.take(rows=[4])
+        p_upd = fit(pm, train, p).p
+        D, why = mesh_discrepancy(fit, coarse, PARAMS, p_upd, data, train, held, penalty=10.0)
+        assert (D is not None) == corrected, why
+        if corrected:
+            before = frf_error(model_frf(pm.structure(p_upd), data), data)
+            fixed = dataclasses.replace(data, H=data.H - D, _den=data.den)
+            after = frf_error(model_frf(pm.structure(fit(pm, fixed, p_upd).p), fixed), fixed)
+            assert after < 0.2 * before, (before, after)

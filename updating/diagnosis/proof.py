@@ -110,12 +110,12 @@ class _Proof:
             curves, freqs = {}, {}
         diag = Diagnosis(findings=findings, parameters=self._parameters(), fit=fit_blocks,
                          statement=statement(findings, fit_blocks, self.held_desc, self.not_evaluated,
-                                             self.unobservable),
+                                             self.unobservable, self.mesh_note),
                          model=final_model, not_evaluated=list(self.not_evaluated),
                          unobservable=list(self.unobservable), decisions=list(self.decisions),
                          parametric=self.best_pm, p=self.best_fit.p,
                          steps={"held_out": self.held_desc, "band_hz": self.band, "hot_nodes": self.hot_nodes,
-                                "suspension_below_hz": self.suspension_hz,
+                                "suspension_below_hz": self.suspension_hz, "mesh_correction": self.mesh_note,
                                 "n_candidates": self.n_lib, **steps_modes},
                          maps=maps, timings=self.timings, ranking=self.ranking or [], curves=curves, frequencies=freqs,
                          pairing=pairing)

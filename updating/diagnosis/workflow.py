@@ -7,7 +7,9 @@
    coherence and number of averages, the leakage bound of spectral lines, a 1 % floor), split into training
    and held-out parts (response rows, else reference columns, else blocks of lines); the nominal model with
    its loss factor fitted; parameter-only updating as a maximum a posteriori fit with priors on the
-   parameters (E, G ±5 %, density ±3 %, sections ±5 %, damping free; :func:`parameter_priors`);
+   parameters (E, G ±5 %, density ±3 %, sections ±5 %, damping free; :func:`parameter_priors`); where the
+   model with its beams cut in two fits the data better by the information criterion, the nominal mesh's own
+   error is taken out of the data (:func:`~updating.diagnosis.mesh.mesh_discrepancy`) and steps 1-2 repeated;
 2. **localise** — the condensed force residual (MCI, thesis 3.2.4) of the model for models up to
    :data:`~updating.diagnosis.fit.RITZ_LIMIT` DOFs, or the training FRF error above (``criterion``);
 3. **screen** — one term at a time: every candidate of the library (:mod:`~updating.diagnosis.library`) is
@@ -56,16 +58,18 @@ from updating.fe import FEModel, ParametricFEModel
 from updating.diagnosis.fit import RITZ_LIMIT, Prior, fit_frf, fit_std, frf_data, frf_error, model_frf, quick_frf_error
 from updating.diagnosis.dampscreen import damping_screen
 from updating.diagnosis.frfscreen import frf_screen
-from updating.diagnosis.library import _nodes_of, build_library, loss_of as _loss_of, spring_loss_candidates, validate_kinds
+from updating.diagnosis.library import _nodes_of, build_library, spring_loss_candidates, validate_kinds
 from updating.diagnosis.release import release_screen, release_visibility
 from updating.diagnosis.screen import mci_update, rank_candidates, residual_system
 from updating.diagnosis.priors import default_parameters, PRIOR_BOUND, parameter_priors, _with_damping, _split, _bounds, _fit_continued, nonnegative_loss_factors
 from updating.diagnosis.terms import _another_explanation, DAMPING_PLACES, _distinct_places, cv_folds, n_obs, promote_measured, _on_model_dofs, _dof_stiffness, _upper, _augment
 from updating.diagnosis.testmodes import suspension_band
+from updating.diagnosis.mesh import mesh_discrepancy
 from updating.diagnosis.findings import Finding, Diagnosis, or_labels
 from updating.diagnosis.acceptance import IC_FAILED, _Acceptance
 from updating.diagnosis.proof import _Proof
 from updating.diagnosis.refine import _Refine
+from updating.diagnosis.eliminate import _Eliminate
 
 log = logging.getLogger(__name__)
 
@@ -92,6 +96,7 @@ class DiagnoserConfig:
     criterion: str = "auto"
     min_extra_gain: float = 0.25
     priors: dict | None = None            # parameter name -> relative prior σ or 'free'
+    mesh_correction: bool = True          # the beam mesh's own error out of the data where they show it
 
     def __post_init__(self):
         self.kinds = validate_kinds(self.kinds)
@@ -101,7 +106,7 @@ class DiagnoserConfig:
             raise ModalabValueError(f"holdout={self.holdout!r}: expected 'rows', 'columns', 'lines' or None")
 
 
-class Diagnoser(_Acceptance, _Refine, _Proof):
+class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
     """Missing-physics diagnosis as an estimator: ``Diagnoser(config).fit(model, frf)`` runs the steps
     :meth:`baseline`, :meth:`localise`, :meth:`screen` (one term at a time), :meth:`model` and :meth:`prove`
     (module docstring) and exposes ``findings_`` (list of :class:`Finding`), ``fit_`` (the fit blocks),
@@ -149,6 +154,7 @@ class Diagnoser(_Acceptance, _Refine, _Proof):
         params = list(cfg.parameters) if cfg.parameters is not None else default_parameters(model)
         damp, dstart = _with_damping(model, params)
         self.params = params = params + damp
+        self.n_damp = len(damp)
         self.pm = pm = ParametricFEModel(model, params)
         self.p_nom = np.array(pm.p0, float)
         self.p_nom[len(params) - len(damp):] = dstart
@@ -169,9 +175,29 @@ class Diagnoser(_Acceptance, _Refine, _Proof):
         self._folds = cv_folds(self.data, cfg.holdout)
         self.band = (float(self.data.freq_hz.min()), float(self.data.freq_hz.max()))
         self._say("step 1/6: correlating the nominal model")
+        self._fit_baseline()
+        self.mesh_note = None
+        if not cfg.mesh_correction:
+            return
+        # the nominal beam mesh's own error taken out of the data, where the data show it (mesh_discrepancy)
+        D, why = mesh_discrepancy(lambda pm_, d, p0: self._fit(pm_, d, p0, lower=self.lo, upper=self.hi,
+                                                               max_nfev=cfg.max_nfev),
+                                  model, params, self.upd.p, self.data, self.train, self.held, cfg.penalty)
+        log.info("mesh: %s%s", why, ": the refined mesh's difference is taken out of the data" if D is not None
+                 else "")
+        if D is not None:
+            self.mesh_note = why
+            self.data = dataclasses.replace(self.data, H=self.data.H - D, _den=self.data.den)
+            self.train, self.held, self.held_desc = _split(self.data, cfg.holdout)
+            self._folds = cv_folds(self.data, cfg.holdout)
+            self._fit_baseline(say=False)
+
+    def _fit_baseline(self, say: bool = True):
+        """Steps 1-2 on the data: the nominal with fitted damping, the priors' scale, parameter updating."""
+        cfg, pm, params, model = self.config, self.pm, self.params, self.model0
         # 1. nominal (damping fitted so that errors compare like with like)
         self.free_d = np.zeros(len(params), bool)
-        self.free_d[len(params) - len(damp):] = True
+        self.free_d[len(params) - self.n_damp:] = True
         self.nom = fit_frf(pm, self.train, self.p_nom, lower=self.lo, upper=self.hi, free=self.free_d,
                            max_nfev=cfg.max_nfev)
         self.nom, _ = nonnegative_loss_factors(pm, self.train, self.nom, self.lo, self.hi, free=self.free_d,
@@ -185,7 +211,8 @@ class Diagnoser(_Acceptance, _Refine, _Proof):
                            float(self.nom.error * np.sqrt(np.sum(self.train.quality ** 2) / n_eff)))
         self.timings["1 nominal"] = time.perf_counter() - self._t0
         # 2. parameter-only updating
-        self._say("step 2/6: updating the declared parameters (baseline)")
+        if say:
+            self._say("step 2/6: updating the declared parameters (baseline)")
         t1 = time.perf_counter()
         self.upd = _fit_continued(pm, self.train, self.p_nomd, self.free_d, self.lo, self.hi, cfg.max_nfev,
                                   prior=self.prior)
@@ -533,50 +560,6 @@ class Diagnoser(_Acceptance, _Refine, _Proof):
         if not self.current:
             self.best_fit, self.best_pm, self.best_scales = self.upd, self.pm, []
         self.timings["5 model"] = time.perf_counter() - t1
-
-    def _eliminate(self) -> bool:
-        """Backward elimination: the term whose removal (value 0, the rest as fitted) changes the training FRF
-        error least is refitted away; dropped (True) when the error rises by less than ``min_term_gain``."""
-        cfg, current, best_fit, n0 = self.config, self.current, self.best_fit, len(self.params)
-        worst, worst_err = None, np.inf
-        for k in range(len(current)):
-            pz = best_fit.p.copy()
-            pz[n0 + k] = 0.0
-            try:
-                ek = frf_error(model_frf(self.best_pm.structure(pz), self.train), self.train)
-            except (np.linalg.LinAlgError, ModalabValueError) as e:
-                log.info("term %s cannot be removed (%s): kept", current[k].label, e)
-                continue
-            if ek < worst_err:
-                worst, worst_err = k, ek
-        if worst is None:
-            return False
-        # a spring's own loss (library.spring_loss_candidates) goes with its spring
-        gone = {worst} | {k for k, t in enumerate(current) if _loss_of(t, current[worst])}
-        rest = [t for k, t in enumerate(current) if k not in gone]
-        m_aug, cpar, sc = _augment(self.model0, rest)
-        pm_rest = ParametricFEModel(m_aug, self.params + cpar)
-        keep = np.r_[np.arange(n0), n0 + np.array([k for k in range(len(current)) if k not in gone], int)]
-        clo_r = np.concatenate([self.lo, np.zeros(len(cpar))])
-        chi_r = np.concatenate([self.hi, _upper(rest, sc)])
-        refit = self._fit(pm_rest, self.train, best_fit.p[keep], lower=clo_r, upper=chi_r, max_nfev=cfg.max_nfev)
-        # also from the MCI solution of the reduced set (the removed term may have dragged the others), and from
-        # the nominal parameters
-        starts = [np.concatenate([self.p_nomd, best_fit.p[keep][n0:]])]
-        if self.use_mci:
-            p_r, _, _ = mci_update(pm_rest, np.concatenate([self.p_mci, best_fit.p[keep][n0:]]), self.train,
-                                   clo_r, chi_r, weights=self.W)
-            starts.insert(0, p_r)
-        for s0 in starts:
-            r2 = self._fit(pm_rest, self.train, s0, lower=clo_r, upper=chi_r, max_nfev=cfg.max_nfev)
-            if r2.error < refit.error:
-                refit = r2
-        if refit.error > best_fit.error * (1 + cfg.min_term_gain):
-            return False
-        self._decide("dropped", current[worst], f"backward elimination: without it the training FRF error is "
-                                                f"{refit.error:.4g} (with it {best_fit.error:.4g})")
-        self.current, self.best_pm, self.best_fit, self.best_scales = rest, pm_rest, refit, sc
-        return True
 
     # ------------------------------------------------------------------ step 6
 def diagnose(model: FEModel, measured: FRF, **kw) -> Diagnosis:
