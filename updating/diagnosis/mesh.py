@@ -14,7 +14,7 @@ full.  This is the frequency form of the updating residual of thesis eq. (3.60)-
 
 Where the data show the mesh's error (the model cut in two fits them better by the information criterion, on
 the training and on the held-out FRFs), :func:`mesh_discrepancy` gives its FRF form, which the diagnosis takes
-out of the data before it screens anything: on a clamped post of seven elements the mesh leaves χ²/N 19 after
+out of the data before it screens anything: on a clamped post with an arm (eight CBARs) the mesh leaves χ²/N 19 after
 the parameters and hides a 10 g mass; on data simulated from the model itself nothing is taken out.
 """
 from __future__ import annotations

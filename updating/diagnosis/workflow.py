@@ -187,6 +187,7 @@ class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
                  else "")
         if D is not None:
             self.mesh_note = why
+            self._say(f"  the nominal beam mesh's own error taken out of the data: {why}")
             self.data = dataclasses.replace(self.data, H=self.data.H - D, _den=self.data.den)
             self.train, self.held, self.held_desc = _split(self.data, cfg.holdout)
             self._folds = cv_folds(self.data, cfg.holdout)
