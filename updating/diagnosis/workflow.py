@@ -170,9 +170,7 @@ class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
             self._say(f"  lines below {self.suspension_hz:.3g} Hz left out: the free model's test article hung on a "
                       "suspension")
             band = (max(self.suspension_hz, band[0] if band else 0.0), band[1] if band else None)
-        self.data = frf_data(measured, max_lines=cfg.max_lines, band_hz=band)
-        self.train, self.held, self.held_desc = _split(self.data, cfg.holdout)
-        self._folds = cv_folds(self.data, cfg.holdout)
+        self._use_data(frf_data(measured, max_lines=cfg.max_lines, band_hz=band))
         self.band = (float(self.data.freq_hz.min()), float(self.data.freq_hz.max()))
         self._say("step 1/6: correlating the nominal model")
         self._fit_baseline()
@@ -183,15 +181,19 @@ class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
         D, why = mesh_discrepancy(lambda pm_, d, p0: self._fit(pm_, d, p0, lower=self.lo, upper=self.hi,
                                                                max_nfev=cfg.max_nfev),
                                   model, params, self.upd.p, self.data, self.train, self.held, cfg.penalty)
-        log.info("mesh: %s%s", why, ": the refined mesh's difference is taken out of the data" if D is not None
-                 else "")
-        if D is not None:
-            self.mesh_note = why
-            self._say(f"  the nominal beam mesh's own error taken out of the data: {why}")
-            self.data = dataclasses.replace(self.data, H=self.data.H - D, _den=self.data.den)
-            self.train, self.held, self.held_desc = _split(self.data, cfg.holdout)
-            self._folds = cv_folds(self.data, cfg.holdout)
-            self._fit_baseline(say=False)
+        if D is None:
+            log.info("mesh: %s: the data are used as measured", why)
+            return
+        self.mesh_note = why
+        self._say(f"  the nominal beam mesh's own error taken out of the data: {why}")
+        self._use_data(dataclasses.replace(self.data, H=self.data.H - D, _den=self.data.den))
+        self._fit_baseline(say=False)
+
+    def _use_data(self, data):
+        """``data`` as the diagnosis' FRFs, with their training and held-out parts and the cross-validation folds."""
+        self.data = data
+        self.train, self.held, self.held_desc = _split(data, self.config.holdout)
+        self._folds = cv_folds(data, self.config.holdout)
 
     def _fit_baseline(self, say: bool = True):
         """Steps 1-2 on the data: the nominal with fitted damping, the priors' scale, parameter updating."""
