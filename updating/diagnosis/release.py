@@ -252,8 +252,59 @@ def _releases(model, structure, data, candidates, what: str):
     return work, _Blocks(structure, data, [rv.rows for _, rv in work])
 
 
+class _ReleaseMisfit:
+    """The current model's misfit on the data that each release's Woodbury update is scored against (as
+    :class:`~updating.diagnosis.frfscreen._Misfit` for the shared candidates), with the parameters re-fitted
+    to first order when a :class:`~updating.diagnosis.frfscreen.ParameterRefit` is given."""
+
+    def __init__(self, B, data: FRFData, refit=None):
+        self.sign, self.refit = B.sign, refit
+        H0 = B.H0()
+        w = data.quality ** 2
+        self.Wt = w / data.den ** 2
+        self.wsum = max(float(np.sum(w)), 1e-300)
+        self.E0 = H0 * B.sign - data.H
+        self.c0 = float(np.sum(self.Wt * np.abs(self.E0) ** 2))
+        self.e0 = frf_error(H0 * B.sign, data)
+        if refit is not None:
+            self.g0 = refit.g(np.sqrt(self.Wt) * self.E0)
+            self.e0 = float(refit.error(self.c0, self.g0, self.wsum))
+
+    def _error(self, tot, g):
+        return np.sqrt(np.clip(tot, 0, None) / self.wsum) if self.refit is None else \
+            self.refit.error(tot, g, self.wsum)
+
+    def errors(self, Hm, Hr, A0, g, r: int):
+        """``errors(ks)``: the weighted FRF error of the model with a rank-``r`` release (blocks ``Hm``, ``Hr``,
+        the denominator ``A0`` without the spring) at each spring value ``ks``, the spring carrying ``g``."""
+        Wt, E0, c0, refit = self.Wt, self.E0, self.c0, self.refit
+        if r == 1:
+            U = Hm[:, 0, None, :] * Hr[None, 0, :, :] * self.sign     # (n_m, n_r, n_s)
+            P = np.sum(Wt * np.conj(E0) * U, axis=(0, 1))
+            S = np.sum(Wt * np.abs(U) ** 2, axis=(0, 1))
+            a0 = A0[:, 0, 0]
+            T = None if refit is None else refit.projections(np.sqrt(Wt) * U)
+
+            def errors(ks):
+                d = a0[None, :] + ks[:, None] * g
+                tot = c0 + 2 * np.sum((P[None] / d).real, axis=1) + np.sum(S[None] / np.abs(d) ** 2, axis=1)
+                return self._error(tot, None if T is None else self.g0[None] + ((1.0 / d) @ T.T).real)
+            return errors
+        HrT = Hr.transpose(2, 0, 1)                                   # (n_s, r, n_r)
+
+        def errors(ks):
+            res = []
+            for kv in ks:
+                X = np.linalg.solve(A0 + kv * g * np.eye(r)[None], HrT)
+                dH = np.einsum("mkf,fkq->mqf", Hm, X) * self.sign
+                rc = np.sqrt(Wt) * (E0 + dH)
+                res.append(self._error(float(np.sum(np.abs(rc) ** 2)), None if refit is None else refit.g(rc)))
+            return np.array(res)
+        return errors
+
+
 def release_screen(structure, model, candidates, data: FRFData, *, loss_factor: float = 0.0,
-                   n_values: int = 57, top: int | None = None) -> list:
+                   n_values: int = 57, top: int | None = None, refit=None) -> list:
     """Rank release candidates (joint and support flexibility; the others are skipped) by the training FRF
     error each alone leaves at its best spring value, exactly (module docstring).
 
@@ -262,18 +313,14 @@ def release_screen(structure, model, candidates, data: FRFData, *, loss_factor: 
     Values are searched on ``n_values`` log-spaced points over seven decades around the released stiffness
     (from 10⁻⁴ of it), refined by Brent's method for rank-one releases.  Returns ``[(candidate, k, gain)]``
     best first, ``gain`` the relative drop of :func:`~updating.diagnosis.fit.frf_error` (only candidates that
-    lower it).  Raises :class:`~modalab.core.errors.ModalabValueError` when the model and the structure have
-    different DOFs."""
+    lower it).  With a :class:`~updating.diagnosis.frfscreen.ParameterRefit` the parameters of the fit
+    ``structure`` are re-fitted to first order alongside each value, as in the FRF screening.  Raises
+    :class:`~modalab.core.errors.ModalabValueError` when the model and the structure have different DOFs."""
     work, B = _releases(model, structure, data, candidates, "release screening")
     if not work:
         return []
-    H0 = B.H0()
-    w = data.quality ** 2
-    Wt = w / data.den ** 2
-    wsum = max(float(np.sum(w)), 1e-300)
-    E0 = H0 * B.sign - data.H
-    c0 = float(np.sum(Wt * np.abs(E0) ** 2))
-    e0 = frf_error(H0 * B.sign, data)
+    mis = _ReleaseMisfit(B, data, refit)
+    e0 = mis.e0
     g = 1 + 1j * loss_factor
     out = []
     for i, (c, rv) in enumerate(work):
@@ -281,26 +328,7 @@ def release_screen(structure, model, candidates, data: FRFData, *, loss_factor: 
         Hm, Hr, Hs = _support_blocks(B.candidate(i, rv.rows), Wf)
         A0 = Cf - Hs                                                  # (n_s, r, r): the denominator without k
         r = rv.rank
-        if r == 1:
-            U = Hm[:, 0, None, :] * Hr[None, 0, :, :] * B.sign        # (n_m, n_r, n_s)
-            P = np.sum(Wt * np.conj(E0) * U, axis=(0, 1))
-            S = np.sum(Wt * np.abs(U) ** 2, axis=(0, 1))
-            a0 = A0[:, 0, 0]
-
-            def errors(ks):
-                d = a0[None, :] + ks[:, None] * g
-                tot = c0 + 2 * np.sum((P[None] / d).real, axis=1) + np.sum(S[None] / np.abs(d) ** 2, axis=1)
-                return np.sqrt(np.clip(tot, 0, None) / wsum)
-        else:
-            HrT = Hr.transpose(2, 0, 1)                               # (n_s, r, n_r)
-
-            def errors(ks):
-                res = []
-                for kv in ks:
-                    X = np.linalg.solve(A0 + kv * g * np.eye(r)[None], HrT)
-                    dH = np.einsum("mkf,fkq->mqf", Hm, X) * B.sign
-                    res.append(np.sqrt(np.sum(Wt * np.abs(E0 + dH) ** 2) / wsum))
-                return np.array(res)
+        errors = mis.errors(Hm, Hr, A0, g, r)
         k_ref = rv.stiffness
         grid = k_ref * np.logspace(-4, 3, n_values if r == 1 else max(n_values // 3, 8))
         err = errors(grid)
@@ -322,7 +350,8 @@ def release_screen(structure, model, candidates, data: FRFData, *, loss_factor: 
         if ebest < e0:
             out.append((c, kbest, 1.0 - ebest / e0))
     out.sort(key=lambda t: -t[2])
-    log.info("release screening of %d joint/support candidates (error %.4g now): best %s", len(work), e0,
+    log.info("release screening of %d joint/support candidates (error %.4g now%s): best %s", len(work), e0,
+             "" if refit is None else ", the parameters re-fitted to first order",
              ", ".join(f"{c.label} ({100 * gn:.1f} %)" for c, _, gn in out[:3]))
     return out[:top] if top else out
 

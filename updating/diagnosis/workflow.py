@@ -57,7 +57,7 @@ from modalab.core.frf import FRF
 from updating.fe import FEModel, ParametricFEModel
 from updating.diagnosis.fit import RITZ_LIMIT, Prior, fit_frf, fit_std, frf_data, frf_error, model_frf, quick_frf_error
 from updating.diagnosis.dampscreen import damping_screen
-from updating.diagnosis.frfscreen import frf_screen
+from updating.diagnosis.frfscreen import ParameterRefit, frf_screen
 from updating.diagnosis.library import _nodes_of, build_library, spring_loss_candidates, validate_kinds
 from updating.diagnosis.release import release_screen, release_visibility
 from updating.diagnosis.screen import mci_update, rank_candidates, residual_system
@@ -97,6 +97,7 @@ class DiagnoserConfig:
     min_extra_gain: float = 0.25
     priors: dict | None = None            # parameter name -> relative prior σ or 'free'
     mesh_correction: bool = True          # the beam mesh's own error out of the data where they show it
+    screen_refit: bool = True             # the exact FRF screening around a fit re-fits the parameters (1st order)
 
     def __post_init__(self):
         self.kinds = validate_kinds(self.kinds)
@@ -385,12 +386,16 @@ class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
         releases = [c for c in lib if c.release is not None and c.key not in have and c.key not in self._hidden]
         screens = []
         self._screens = []
-        for p_scr in ([self.p_nomd, self.upd.p] if it == 0 else [p_cur]):
+        # around a fit, the parameters re-fitted alongside each candidate to first order (ParameterRefit): they
+        # have absorbed part of what is missing, and held there they hide it (seed 1543)
+        for p_scr, fitted in ([(self.p_nomd, False), (self.upd.p, True)] if it == 0 else [(p_cur, True)]):
             st_scr, m_scr = pm_cur.structure(p_scr), pm_cur.model_at(p_scr)
             g_scr = float(m_scr.global_ge or 0.0)
-            scr = frf_screen(st_scr, lib, self.train, loss_factor=g_scr)
+            refit = ParameterRefit(pm_cur, p_scr, self.train, self.prior) if fitted and cfg.screen_refit else None
+            scr = frf_screen(st_scr, lib, self.train, loss_factor=g_scr, refit=refit)
             if releases:
-                scr = sorted(scr + release_screen(st_scr, m_scr, releases, self.train, loss_factor=g_scr),
+                scr = sorted(scr + release_screen(st_scr, m_scr, releases, self.train, loss_factor=g_scr,
+                                                  refit=refit),
                              key=lambda t: -t[2])
             screens.append(scr)
             self._screens.append((scr, np.asarray(p_scr, float)))
