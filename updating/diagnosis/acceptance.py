@@ -163,9 +163,10 @@ class _Acceptance:
         # the screening names alternatives by single-term gains within the margin of the pick's own; a support's
         # other components (_support_siblings) were fitted for what they are, not for their screening gain, which
         # can be far below the screening's best: there only fitted competitors are alternatives
-        alts = self._screened_alternatives(c, err, g_c, scr, have, tried, m_now, n_eq) \
+        margin = self._margin(pm_aug, fr)
+        alts = self._screened_alternatives(c, g_c, scr, have, tried, m_now, n_eq, margin) \
             if g_c is not None and c.key not in siblings else []
-        return c, alts + self._fitted_alternatives(c, err, k, tried, alts, m_now, n_eq)
+        return c, alts + self._fitted_alternatives(c, err, k, tried, alts, m_now, n_eq, margin)
 
     def _fitted_picks(self, picks: list, have: set, e_ref: float) -> tuple[list, set]:
         """The picks fitted on the training FRFs (:meth:`_fit_pick`), then the best one's runners-up and
@@ -327,21 +328,38 @@ class _Acceptance:
             return None
         return t
 
-    def _screened_alternatives(self, c, err: float, g_c: float, scr, have: set, tried: list, m_now,
-                               n_eq: int) -> list:
+    def _margin(self, pm_aug, fr):
+        """The accepted pick's fit (``pm_aug`` at ``fr.p``) as the measure of an equally good explanation: a
+        function ``worse(pm_o, p_o) -> bool`` telling whether another explanation, fitted with the parameters,
+        fits the training FRFs significantly worse by the one significance test of a term
+        (:func:`~updating.diagnosis.terms.significant_gain` on χ² in noise units: scaled by the reduced χ² the
+        pick leaves when above the noise, and by its residual's correlation over lines, as when the pick was
+        accepted).  Where model-form error dominates the residual (χ²/N 8 after a right spring on a T-joint,
+        even seed 1598), a fraction of a percent of FRF error between two places is no evidence: the finding is
+        ambiguous between them, not a choice of the first.  Also ``infl``, the pick residual's inflation."""
+        r_c = _residual(pm_aug.structure(fr.p), self.train)
+        c_c, n, infl = float(np.sum(np.abs(r_c) ** 2)), n_obs(self.train), inflation(r_c)
+
+        def worse(pm_o, p_o) -> bool:
+            return significant_gain(_chi2(pm_o.structure(p_o), self.train)[0], c_c, n, infl, self.config.penalty)[0]
+
+        worse.infl = infl
+        return worse
+
+    def _screened_alternatives(self, c, g_c: float, scr, have: set, tried: list, m_now, n_eq: int, margin) -> list:
         """Equally good single-term explanations elsewhere in ``c``'s screening (χ² within the information
         criterion's margin, parameters fixed), less those fitted on the FRFs as picks (``tried``) and worse there
-        than ``c`` (error ``err``) by the information criterion.  Returns ``[(candidate, value)]``."""
+        than ``c`` by the significance test of a term (``margin``, :meth:`_margin`).  Returns
+        ``[(candidate, value)]``."""
         need = self.config.penalty * np.log(n_eq)
         e_c = (1 - g_c) ** 2
         alts = [(o, v) for o, v, g in scr if o.key != c.key and o.key not in have
                 and (1 - g) ** 2 - e_c <= e_c * need / n_eq and _another_explanation(o, c, m_now)]
-        fitted = {o.key: e for e, o, *_ in tried}
-        worse = [o for o, _ in alts if o.key in fitted
-                 and n_eq * np.log(max(fitted[o.key], 1e-300) ** 2 / max(err, 1e-300) ** 2) > need]
+        fitted = {o.key: (e, pm, fr) for e, o, pm, fr, *_ in tried}
+        worse = [o for o, _ in alts if o.key in fitted and margin(fitted[o.key][1], fitted[o.key][2].p)]
         for o in worse:
-            log.info("%s is no alternative to %s: fitted on the FRFs its error is %.4g against %.4g", o.label,
-                     c.label, fitted[o.key], err)
+            log.info("%s is no alternative to %s: fitted on the FRFs its error is %.4g, significantly worse", o.label,
+                     c.label, fitted[o.key][0])
         return [(o, v) for o, v in alts if o not in worse]
 
     def _screened(self, c):
@@ -382,29 +400,32 @@ class _Acceptance:
             picks.append((c, v, p_scr, k))
         return picks
 
-    def _fitted_alternatives(self, c, err_c: float, k: int, tried: list, alts: list, m_now, n_eq: int) -> list:
+    def _fitted_alternatives(self, c, err_c: float, k: int, tried: list, alts: list, m_now, n_eq: int,
+                             margin) -> list:
         """Explanations elsewhere that fit the FRFs as well as the accepted pick ``c`` once the parameters are
-        re-fitted with them (training error within the information criterion's margin: ``n_eq`` ln(e_o²/e_c²)
-        ≤ ``penalty`` ln ``n_eq``): the other picks already fitted (``tried``), and the competitors of
-        ``c``'s screening whose single-term error (parameters fixed) is within four margins of ``c``'s, at most
+        re-fitted with them (not significantly worse on the training FRFs by the test of a term: ``margin``,
+        :meth:`_margin`): the other picks already fitted (``tried``), and the competitors of
+        ``c``'s screening whose single-term error (parameters fixed) is within four information-criterion
+        margins of ``c``'s (``n_eq`` ln(e_o²/e_c²) ≤ 4 ``penalty`` ln ``n_eq``, both over the residual's
+        inflation), at most
         :data:`FRF_PICKS` − 1 of them, fitted like the pick.  The screening alone cannot tell: parameters
         re-fitted with a term absorb part of what separated it from its neighbours (the same release at the two
         ends of a symmetric frame's rail differs by a fraction of a percent once the moduli are free).
         Returns ``[(candidate, value)]``."""
         cfg, n = self.config, len(self.params)
-        need = cfg.penalty * np.log(n_eq)
+        infl = max(margin.infl, 1.0)
+        need = cfg.penalty * np.log(max(n_eq / infl, 2.0))
         seen = {o.key for o, _ in alts} | {c.key} | {x.key for x in self.current}
         out = []
-        for err, o, _, fr, *_, scale in tried:
-            if o.key not in seen and n_eq * np.log(max(err, 1e-300) ** 2 / max(err_c, 1e-300) ** 2) <= need \
-                    and _another_explanation(o, c, m_now):
+        for err, o, pm_o, fr, *_, scale in tried:
+            if o.key not in seen and _another_explanation(o, c, m_now) and not margin(pm_o, fr.p):
                 out.append((o, float(fr.p[-1] * scale)))
         seen |= {o.key for _, o, *_ in tried}          # fitted once already: not again as a competitor
         scr, p_scr = self._screens[k]
         g_c = next((g for o, _, g in scr if o.key == c.key), None)     # None: a completed group, not screened here
         close = [] if g_c is None else [
             (o, v) for o, v, g in scr if o.key not in seen and _another_explanation(o, c, m_now)
-            and n_eq * np.log(max(1 - g, 1e-300) ** 2 / max(1 - g_c, 1e-300) ** 2) <= 4 * need]
+            and n_eq * np.log(max(1 - g, 1e-300) ** 2 / max(1 - g_c, 1e-300) ** 2) / infl <= 4 * need]
         for o, v in close[:FRF_PICKS - 1]:
             m_aug, cpar, scales = _augment(self.model0, self.current + [o])
             pm_aug = ParametricFEModel(m_aug, self.params + cpar)
@@ -417,7 +438,7 @@ class _Acceptance:
             fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
                            max_nfev=max(8, cfg.max_nfev // 2))
             log.info("competitor %s of %s fitted on the FRFs: error %.4g (%.4g)", o.label, c.label, fr.error, err_c)
-            if n_eq * np.log(max(fr.error, 1e-300) ** 2 / max(err_c, 1e-300) ** 2) <= need:
+            if not margin(pm_aug, fr.p):
                 out.append((o, float(fr.p[-1] * scales[-1])))
         return out
 
