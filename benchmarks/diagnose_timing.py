@@ -42,6 +42,9 @@ Measured 2026-11-30, sixteenth session, after the nominal mesh's own error is ta
 show it (``updating.diagnosis.mesh.mesh_discrepancy``: one more fit, of the model with its beams cut in two):
 total 38.6 s (0.64 of the budget; CPU 40.8 s; localise+name 33.9 s), the same finding (spring to ground at 204+Z,
 19 990 N/m; held-out FRF error 289 % -> 1.8 %); the baseline a1b66d7 stopped as above after 34 s.
+
+Measured 2026-11-30 (quiet machine, one BLAS thread) after the screenings re-fit the parameters to first order
+(0981941): 41.2 s against 41.3 s at 30f4fb3 (ratio 1.00), the same finding.
 """
 from __future__ import annotations
 
