@@ -21,7 +21,8 @@ portal with a 1.6e5 N/m spring at 3+X (odd seed 1543, an analysed miss) that spr
 parameter fit's values (0.16 against 0.052) and the screening's first was a rotational spring ten nodes away,
 yet fitted with the parameters the spring leaves χ²/N 0.35 against 2.5 for the first.  With a
 :class:`ParameterRefit` the parameters are re-fitted alongside every candidate value to first order — the
-linearised MAP step of thesis eq. (3.69)-(3.70) with the priors' rows, exact in the candidate:
+first-order sensitivity step of thesis eq. (3.44)-(3.47) taken on the FRFs and solved in the least-squares sense of
+eq. (3.32), with the priors' rows (a linearised MAP step), exact in the candidate:
 
     min_δ ‖r(θ) + J δ‖² + ‖r_p + J_p δ‖² = ‖r(θ)‖² + ‖r_p‖² − ‖Wᵀ(Jᵀ r(θ) + J_pᵀ r_p)‖²,   W Wᵀ = (JᵀJ + J_pᵀJ_p)⁺,
 
