@@ -80,13 +80,13 @@ def test_refit_errors_are_the_linearised_map_step_solved_directly(label, thetas,
     refit = ParameterRefit(pm, p, data, prior)
     R = _Receptance(st_, data)
     rows, L = _low_rank(cand.G)
-    errors = _Misfit(R, data, refit).errors(R.meas_cols(L, rows), R.rows_refs(L, rows), R.rows_rows(L, rows),
+    errors = _Misfit(R.meas_refs(), R.sign, data, refit).errors(R.meas_cols(L, rows), R.rows_refs(L, rows), R.rows_rows(L, rows),
                                             _FACTOR[cand.matrix](data.s))
     got = errors(np.asarray(thetas, float))
     want = [_explicit_error(pm, p, data, cand, t, prior) for t in thetas]
     np.testing.assert_allclose(got, want, rtol=1e-7)
     # without a candidate: the step from p alone (the base the gains are measured against)
-    zero = _Misfit(R, data, refit).e0
+    zero = _Misfit(R.meas_refs(), R.sign, data, refit).e0
     assert zero == pytest.approx(_explicit_error(pm, p, data, cand, 0.0, prior), rel=1e-7)
 
 

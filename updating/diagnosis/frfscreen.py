@@ -220,32 +220,39 @@ class _Receptance:
 
 class _Misfit:
     """The current model's misfit on the data, which every candidate's Woodbury update is scored against:
-    the receptance ``H0`` between measured rows and references, the weights and the current error ``e0`` (with
-    a :class:`ParameterRefit`: the error with the parameters re-fitted to first order, and so every value's)."""
+    the receptance ``H0`` between measured rows and references (with the DOF signs ``sign``), the weights and
+    the current error ``e0`` (with a :class:`ParameterRefit`: the error with the parameters re-fitted to first
+    order, and so every value's).  The release screening's misfit is one too
+    (:class:`~updating.diagnosis.release._ReleaseMisfit`)."""
 
-    def __init__(self, R: _Receptance, data: FRFData, refit: ParameterRefit | None = None):
-        self.R, self.data, self.refit = R, data, refit
-        self.H0 = R.meas_refs()                                           # (n_m, n_r, n_s)
+    def __init__(self, H0, sign, data: FRFData, refit: ParameterRefit | None = None):
+        self.H0, self.sign, self.data, self.refit = H0, sign, data, refit       # H0: (n_m, n_r, n_s)
         self.w = data.quality ** 2
         self.den2 = data.den ** 2
         self.wsum = max(float(np.sum(self.w)), 1e-300)
-        self.E0 = self.H0 * R.sign - data.H                               # current misfit
+        self.E0 = self.H0 * sign - data.H                                 # current misfit
         self.Wt = self.w / self.den2
         self.c0 = float(np.sum(self.Wt * np.abs(self.E0) ** 2))
-        self.e0 = frf_error(self.H0 * R.sign, data)
+        self.e0 = frf_error(self.H0 * sign, data)
         if refit is not None:
             self.g0 = refit.g(np.sqrt(self.Wt) * self.E0)
-            self.e0 = refit.error(self.c0, self.g0, self.wsum)
+            self.e0 = float(self.error(self.c0, self.g0))
+
+    def error(self, tot, g=None):
+        """The FRF error from the weighted squared residual ``tot`` (with the refit: and its projections ``g``)."""
+        if self.refit is not None:
+            return self.refit.error(tot, g, self.wsum)
+        return np.sqrt(np.clip(tot, 0, None) / self.wsum)
 
     def errors(self, Hm, Hr, Hll, fac):
         """``errors(thetas)``: the weighted FRF error of the model with the candidate (blocks ``Hm``, ``Hr``,
         ``Hll`` of the receptance at its DOFs, frequency factor ``fac``) added at each value."""
-        R, c0, wsum, refit = self.R, self.c0, self.wsum, self.refit
+        c0, wsum, refit = self.c0, self.wsum, self.refit
         if Hll.shape[0] == 1:
             # rank one: dH = u / d(θ) with u = H[m, j] H[j, r] fixed, so the weighted error is a sum over lines
             # c0 − 2 Re Σ_f P_f / d_f + Σ_f S_f / |d_f|²  (O(n_s) per value); with the refit, its projections
             # g(θ) = g0 − Re Σ_f T_f / d_f the same way
-            u = Hm[:, 0, None, :] * Hr[None, 0, :, :] * R.sign
+            u = Hm[:, 0, None, :] * Hr[None, 0, :, :] * self.sign
             P = np.sum(self.Wt * np.conj(self.E0) * u, axis=(0, 1))
             S = np.sum(self.Wt * np.abs(u) ** 2, axis=(0, 1))
             if refit is not None:
@@ -261,10 +268,9 @@ class _Misfit:
                 bad = ~(np.abs(d) > 0)
                 d = np.where(bad, 1.0, d)
                 tot = c0 - 2 * np.sum((P[None] / d).real, axis=1) + np.sum(S[None] / np.abs(d) ** 2, axis=1)
-                out = np.sqrt(np.clip(tot, 0, None) / wsum) if refit is None else \
-                    refit.error(tot, self.g0[None] - ((1.0 / d) @ T.T).real, wsum)
+                out = self.error(tot, None if refit is None else self.g0[None] - ((1.0 / d) @ T.T).real)
                 return np.where(bad.any(axis=1), np.inf, out)
-            return _updated_errors(inv, Hll, Hm, Hr, self.H0, R.sign, self.data.H, self.w, self.den2, wsum, refit)
+            return _updated_errors(inv, Hll, Hm, Hr, self.H0, self.sign, self.data.H, self.w, self.den2, wsum, refit)
 
         return errors
 
@@ -322,7 +328,7 @@ def frf_screen(structure, candidates, data: FRFData, *, loss_factor: float = 0.0
         return []
     R = _Receptance(structure, data)
     K, M = sp.csr_matrix(structure.K), sp.csr_matrix(structure.M)
-    fit = _Misfit(R, data, refit)
+    fit = _Misfit(R.meas_refs(), R.sign, data, refit)
     e0 = fit.e0
     out = []
     for c, (rows, L) in work:

@@ -42,7 +42,8 @@ from modalab.core.errors import ModalabValueError
 from updating.fe.assembly import assemble
 from modalab.core.dense import use_dense
 from updating.correlation.condensation import dynamic_stiffness
-from updating.diagnosis.fit import FRFData, _indices, frf_error
+from updating.diagnosis.fit import FRFData, _indices
+from updating.diagnosis.frfscreen import _Misfit
 
 log = logging.getLogger(__name__)
 __all__ = ["release_screen", "release_vectors", "released_receptance", "release_visibility", "ReleaseVectors"]
@@ -252,27 +253,14 @@ def _releases(model, structure, data, candidates, what: str):
     return work, _Blocks(structure, data, [rv.rows for _, rv in work])
 
 
-class _ReleaseMisfit:
-    """The current model's misfit on the data that each release's Woodbury update is scored against (as
-    :class:`~updating.diagnosis.frfscreen._Misfit` for the shared candidates), with the parameters re-fitted
-    to first order when a :class:`~updating.diagnosis.frfscreen.ParameterRefit` is given."""
+class _ReleaseMisfit(_Misfit):
+    """The current model's misfit on the data that each release's Woodbury update is scored against (the
+    :class:`~updating.diagnosis.frfscreen._Misfit` of the shared candidates, on the release blocks ``B``), with
+    the parameters re-fitted to first order when a :class:`~updating.diagnosis.frfscreen.ParameterRefit` is
+    given."""
 
     def __init__(self, B, data: FRFData, refit=None):
-        self.sign, self.refit = B.sign, refit
-        H0 = B.H0()
-        w = data.quality ** 2
-        self.Wt = w / data.den ** 2
-        self.wsum = max(float(np.sum(w)), 1e-300)
-        self.E0 = H0 * B.sign - data.H
-        self.c0 = float(np.sum(self.Wt * np.abs(self.E0) ** 2))
-        self.e0 = frf_error(H0 * B.sign, data)
-        if refit is not None:
-            self.g0 = refit.g(np.sqrt(self.Wt) * self.E0)
-            self.e0 = float(refit.error(self.c0, self.g0, self.wsum))
-
-    def _error(self, tot, g):
-        return np.sqrt(np.clip(tot, 0, None) / self.wsum) if self.refit is None else \
-            self.refit.error(tot, g, self.wsum)
+        super().__init__(B.H0(), B.sign, data, refit)
 
     def errors(self, Hm, Hr, A0, g, r: int):
         """``errors(ks)``: the weighted FRF error of the model with a rank-``r`` release (blocks ``Hm``, ``Hr``,
@@ -288,7 +276,7 @@ class _ReleaseMisfit:
             def errors(ks):
                 d = a0[None, :] + ks[:, None] * g
                 tot = c0 + 2 * np.sum((P[None] / d).real, axis=1) + np.sum(S[None] / np.abs(d) ** 2, axis=1)
-                return self._error(tot, None if T is None else self.g0[None] + ((1.0 / d) @ T.T).real)
+                return self.error(tot, None if T is None else self.g0[None] + ((1.0 / d) @ T.T).real)
             return errors
         HrT = Hr.transpose(2, 0, 1)                                   # (n_s, r, n_r)
 
@@ -298,7 +286,7 @@ class _ReleaseMisfit:
                 X = np.linalg.solve(A0 + kv * g * np.eye(r)[None], HrT)
                 dH = np.einsum("mkf,fkq->mqf", Hm, X) * self.sign
                 rc = np.sqrt(Wt) * (E0 + dH)
-                res.append(self._error(float(np.sum(np.abs(rc) ** 2)), None if refit is None else refit.g(rc)))
+                res.append(self.error(float(np.sum(np.abs(rc) ** 2)), None if refit is None else refit.g(rc)))
             return np.array(res)
         return errors
 

@@ -97,7 +97,7 @@ class DiagnoserConfig:
     min_extra_gain: float = 0.25
     priors: dict | None = None            # parameter name -> relative prior σ or 'free'
     mesh_correction: bool = True          # the beam mesh's own error out of the data where they show it
-    screen_refit: bool = True             # the exact FRF screening around a fit re-fits the parameters (1st order)
+    screen_refit: bool = True             # screenings around the parameter-only fit re-fit the parameters (1st order)
 
     def __post_init__(self):
         self.kinds = validate_kinds(self.kinds)
