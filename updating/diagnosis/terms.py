@@ -42,8 +42,8 @@ def _same_kind_nearby(a: Candidate, b: Candidate, model: FEModel) -> bool:
 
 
 #: a fitted candidate's kind in the same direction at this many neighbouring places is fitted too (the screening
-#: holds the parameters, which biases the place within a localisation spread): :meth:`_Acceptance._nearby_options`,
-#: :meth:`_Acceptance._nearby_places`
+#: holds the parameters, which biases the place within a localisation spread): :meth:`_Picks._nearby_options`,
+#: :meth:`_Picks._nearby_places`
 NEARBY_PLACES = 4
 
 
