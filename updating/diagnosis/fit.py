@@ -10,7 +10,7 @@ The fit minimises the coherence-weighted relative complex FRF difference
 
 over the parameters of a :class:`~updating.fe.parametric.ParametricModel`
 (``scipy.optimize.least_squares``, bounded, with the analytic Jacobian
-``∂H/∂p = −H ∂Z/∂p H`` — the response-function sensitivity of thesis eq. (3.69)).
+``∂H/∂p = −H ∂Z/∂p H`` — the first-order limit of the response function method, thesis eq. (3.54)-(3.55)).
 The same measure, as an RMS, is the ``frf_error`` reported for training and
 held-out data.
 """
@@ -197,7 +197,8 @@ def _residual(pmodel, p, data: FRFData):
 
 
 def _jacobian(pmodel, p, data: FRFData, free, ctx):
-    """∂(residual)/∂p for the free parameters: ``∂H/∂p = −H ∂Z/∂p H`` (thesis eq. 3.69)."""
+    """∂(residual)/∂p for the free parameters: ``∂H/∂p = −H ∂Z/∂p H`` (the first-order limit of the response
+    function method, thesis eq. 3.54-3.55)."""
     Xj, Xm, w = ctx
     ders = derivatives(pmodel, p)
     n, nr, ns = Xj.shape

@@ -14,7 +14,8 @@ parameter vector the full matrices are projected (``Vᵀ K(p) V`` …), the smal
     H(s) = Q_m G(s) Q_rᵀ,   G(s) = [diag(ω² + s²) + s Qᵀ C Q + i Qᵀ D Q]⁻¹,   Q = V Ψ(p)
 
 (diagonal when the damping is proportional to the modes, e.g. a global loss factor; one small dense solve
-per line otherwise), and the Jacobian from ``∂H/∂p = −H ∂Z/∂p H`` (thesis eq. 3.69) in the same basis:
+per line otherwise), and the Jacobian from ``∂H/∂p = −H ∂Z/∂p H`` (thesis eq. 3.54-3.55 to first order) in the
+same basis:
 ``∂H/∂p = −(G Q_mᵀ)ᵀ (Qᵀ ∂Z/∂p Q) (G Q_rᵀ)``.
 
 The basis is built at one parameter vector and kept while the parameters move; a fit using it
