@@ -22,3 +22,21 @@ def test_kinds_that_did_not_lower_the_error_are_left_but_the_best_is_always_kept
              _t(0.05, "added_mass", "J", "J@4")]
     assert [t[1].label for t in _Picks._kind_bests(tried, 0.09)] == ["J@4"]
     assert [t[1].label for t in _Picks._kind_bests(tried[:2], 0.09)] == ["m@2"]
+
+
+def _c(key: str, physics: str, value_name: str, release=None):
+    return SimpleNamespace(key=key, physics=physics, value_name=value_name, release=release, label=key)
+
+
+def test_further_picks_are_each_other_kind_best_screened_at_most_kind_picks_each():
+    from updating.diagnosis.picks import KIND_PICKS
+    failed = _c("J@11", "added_mass", "J")
+    masses = [(0.30 - 0.01 * i, _c(f"m@{i}", "added_mass", "m"), 0.1, None, 0) for i in range(KIND_PICKS + 2)]
+    screened = masses + [
+        (0.40, _c("J@15", "added_mass", "J"), 1e-3, None, 0),                  # the failed pick's kind
+        (0.35, _c("k@14", "ground_spring", "k"), 1e4, None, 1),
+        (0.33, _c("clamp@1", "boundary_flexibility", "k", ("support", 1, (0, 1, 2))), 1e6, None, 1),
+        (0.31, _c("k@5", "ground_spring", "k"), 2e4, None, 0),
+        (0.20, _c("eta@4", "local_damping", "eta"), 0.02, None, 2)]
+    got = [o.key for o, *_ in _Picks._per_kind(screened, {"k@5"}, failed)]
+    assert got == ["k@14"] + [f"m@{i}" for i in range(KIND_PICKS)] + ["eta@4"]

@@ -131,12 +131,9 @@ class _Acceptance(_Picks):
                 return None
         supported = rival is not None or (mci_best is not None and c.key == mci_best.key)
         judged = self._judge_or_complete((err, c, pm_aug, fr, clo, chi, k), supported, "screening pick")
-        if judged is None and (rival is None and self._pick_left):
-            # a support release among the other picks that lowered the error: judged next (a clamp elastic in
-            # all its components; the best pick was an inertia absorbing part of it)
-            sup = sorted((t for t in tried + self._support_picks(tried, have) if t[1].key != c.key
-                          and _is_support(t[1]) and t[0] < ref.error), key=lambda t: t[0])
-            judged = self._judge_or_complete(sup[0][:7], supported, "support pick") if sup else None
+        further = set()
+        if judged is None and rival is None and self._pick_left:
+            judged, tried, further = self._after_residual_left(tried, have, (err, c), ref.error, supported)
         if judged is None:
             return None
         err, c, pm_aug, fr, clo, chi, k = judged
@@ -153,12 +150,31 @@ class _Acceptance(_Picks):
                                             and o.key != c.key])
         m_now = pm_aug.model_at(fr.p)
         # the screening names alternatives by single-term gains within the margin of the pick's own; a support's
-        # other components (_support_siblings) were fitted for what they are, not for their screening gain, which
-        # can be far below the screening's best: there only fitted competitors are alternatives
+        # other components (_support_siblings) and a further pick (_kind_picks) were fitted for what they are, not
+        # for their screening gain, which can be far below the screening's best: there only fitted competitors
+        # are alternatives
         margin = self._margin(pm_aug, fr)
         alts = self._screened_alternatives(c, g_c, scr, have, tried, m_now, n_eq, margin) \
-            if g_c is not None and c.key not in siblings else []
+            if g_c is not None and c.key not in siblings | further else []
         return c, alts + self._fitted_alternatives(c, err, k, tried, alts, m_now, n_eq, margin)
+
+    def _after_residual_left(self, tried: list, have: set, best, e_ref: float, supported: bool):
+        """The best fitted pick ``best = (error, candidate)`` failed only by the residual it leaves: a support
+        release among the picks that lowered the error ``e_ref`` (or the best screened ones,
+        :meth:`_support_picks`) is judged next — a clamp elastic in all its components, the best pick an inertia
+        absorbing part of it — then the best of the screenings' further candidates of the other kinds
+        (:meth:`_kind_picks`) that leaves less than the best pick.  Returns ``(judged or None, tried, keys of
+        the further picks)``."""
+        err, c = best
+        sup = sorted((t for t in tried + self._support_picks(tried, have) if t[1].key != c.key
+                      and _is_support(t[1]) and t[0] < e_ref), key=lambda t: t[0])
+        judged = self._judge_or_complete(sup[0][:7], supported, "support pick") if sup else None
+        if judged is not None:
+            return judged, tried, set()
+        deep = self._kind_picks(tried, have, c)
+        better = sorted((t for t in deep if t[0] < err), key=lambda t: t[0])
+        judged = self._judge_or_complete(better[0][:7], supported, "further pick") if better else None
+        return judged, tried + deep, {t[1].key for t in deep}
 
     def _judge_or_complete(self, t, supported: bool, what: str):
         """The pick ``t = (error, candidate, pm, FitResult, lower, upper, screening index)`` judged on the FRFs
