@@ -1,7 +1,8 @@
 """The candidates fitted on the FRFs around the exact screenings' picks (part of step 3 of
 :mod:`~updating.diagnosis.workflow`): the picks themselves, the runners-up of the best one's kind, the
-neighbouring places of the best pick of each kind, a support's other components and, when the best pick fails,
-the support releases the screenings rank best; and for the MCI's route, the neighbouring places of the best
+neighbouring places of the best pick of each kind, a support's other components and, when the best pick fails
+by the residual it leaves, the support releases the screenings rank best and the best few of each other kind;
+and for the MCI's route, the neighbouring places of the best
 options.  Split out of ``acceptance.py`` as a mixin of :class:`~updating.diagnosis.workflow.Diagnoser`: the
 methods read the diagnoser's state and return ``tried``-style tuples
 ``(error, candidate, pm, FitResult, lower, upper, screening index, scale)``."""
