@@ -135,6 +135,7 @@ def test_the_frf_diagnosis_leaves_the_exact_model_at_nominal(identified, tmp_pat
             assert abs(v["updated"] - 1.0) < 0.004 and abs(v["updated"] - 1.0) < 5 * v["std"], (name, v)
 
 
+@pytest.mark.slow
 def test_the_frf_diagnosis_of_unwindowed_data_warns_of_the_leakage(hits, tmp_path, caplog):
     """The same exact data without the window: the bungee and first elastic modes (ζ = 1 %) outlive the 4 s
     record, 25 % leakage below 14 Hz: the diagnosis says so and how to measure instead; no finding either way,

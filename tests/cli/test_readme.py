@@ -97,3 +97,29 @@ def _exact_model_stays_exact(d):
             assert abs(v["updated"] - 1.0) < 0.003, (name, v)
     f = [p["test_hz"] for p in d["pairing"]["nominal"]["pairs"]]
     assert len(f) >= 10 and all(abs(x / 0.25 - round(x / 0.25)) > 1e-3 for x in f), f
+
+
+def test_the_slow_tier_command_selects_the_tests_left_out_of_the_default_run():
+    """Development's ``python -m pytest -q -n auto -m slow`` (collected only, not run: it takes about 25 minutes)
+    selects every test marked ``slow`` and nothing else: the benchmark's tuning seeds but for its two controls,
+    which the default run keeps."""
+    import ast
+    import subprocess
+    import sys
+
+    cmd = "python -m pytest -q -n auto -m slow"
+    assert any(ln.split("#")[0].strip() == cmd for b in _blocks("bash") for ln in b.splitlines()), cmd
+    marked = set()
+    for path in (ROOT / "tests").rglob("test_*.py"):
+        for node in ast.parse(path.read_text()).body:
+            if isinstance(node, ast.FunctionDef) and any(ast.unparse(d) == "pytest.mark.slow"
+                                                          for d in node.decorator_list):
+                marked.add(node.name)
+    seeds = ast.parse((ROOT / "tests" / "benchmarks_discovery" / "test_discovery_seeds.py").read_text())
+    tests = {n.name for n in seeds.body if isinstance(n, ast.FunctionDef) and n.name.startswith("test_")}
+    controls = {n for n in tests if "_control_" in n}
+    assert len(controls) == 2 and not controls & marked and tests - controls <= marked
+    out = subprocess.run([sys.executable, "-m", "pytest", "--collect-only", "-q", "-m", "slow", "-p", "no:cacheprovider",
+                          "-p", "no:xdist"], cwd=ROOT, capture_output=True, text=True, check=True).stdout
+    collected = {ln.split("::")[-1].split("[")[0] for ln in out.splitlines() if "::" in ln}
+    assert collected == marked, (collected ^ marked)

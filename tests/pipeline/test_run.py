@@ -203,7 +203,6 @@ def _conclusions(out: Path) -> dict:
             "statement": d["statement"]}
 
 
-@pytest.mark.slow
 def test_the_same_demo_twice_gives_the_same_conclusions(demo, tmp_path):
     """Deterministic: ``modalab demo --quick`` run again from scratch (here against the shared run, which was
     interrupted and resumed) gives the same modes, pairs, parameters and findings — nodes and values to the

@@ -38,7 +38,6 @@ def _run(k):
     return _cache[k]
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("k", [100.0, 1000.0])
 def test_thesis_beam_cords_are_named(k):
     diag, meas = _run(k)

@@ -18,7 +18,6 @@ from updating.diagnosis import diagnose
 
 ROOT = Path(__file__).resolve().parents[2] / "examples" / "concealed"
 CASES = sorted(p.name for p in ROOT.iterdir() if (p / "truth.json").exists()) if ROOT.exists() else []
-SLOW = {"stepped_joint_flexibility", "strip_boundary_flexibility", "bar_added_mass"}
 
 _cache: dict = {}
 
@@ -48,7 +47,7 @@ def test_the_set_has_every_category_and_a_control():
     assert len(CASES) >= 7
 
 
-@pytest.mark.parametrize("name", [pytest.param(c, marks=pytest.mark.slow) if c in SLOW else c for c in CASES])
+@pytest.mark.parametrize("name", CASES)
 def test_concealed_case(name):
     diag, truth = _run(name)
     d = diag.to_dict()

@@ -55,6 +55,7 @@ def _case(effect, seed=7, n_lines=600, replace=None):
     return nominal, meas
 
 
+@pytest.mark.slow
 def test_a_concealed_fin_spring_is_named_located_and_sized():
     nominal, meas = _case(lambda t: t.add_element(Spring(99001, (505, 2), None, 3.0e3)))
     d = diagnose(nominal, meas)
@@ -65,6 +66,7 @@ def test_a_concealed_fin_spring_is_named_located_and_sized():
     assert d.fit["with_physics"]["frf_error_held_out"] < d.fit["parameters_only"]["frf_error_held_out"] / 3
 
 
+@pytest.mark.slow
 def test_a_concealed_fuselage_mass_is_named_located_and_sized():
     nominal, meas = _case(lambda t: t.add_element(LumpedMass(99001, 112, mass=1.5)))
     d = diagnose(nominal, meas)
@@ -81,6 +83,7 @@ def test_parameter_error_only_gives_no_finding_on_the_large_model():
     assert d.fit["parameters_only"]["frf_error_held_out"] < 0.03          # the baseline itself fits
 
 
+@pytest.mark.slow
 def test_a_sensor_on_a_rigid_link_node_is_used_and_the_mass_there_found():
     # 304 (drum centre) is the dependent node of a rigid link in the nominal model: the diagnosis reverses
     # the link so that the measured node has DOFs of its own
@@ -106,6 +109,7 @@ def test_a_sensor_on_both_ends_of_a_rigid_link_is_left_out_with_a_warning(caplog
     assert "304+Z" in caplog.text
 
 
+@pytest.mark.slow
 def test_the_timing_case_as_the_cli_runs_it_completes_and_names_the_spring():
     """``benchmarks/diagnose_timing.py``'s case (30 x 3 x 2000 lines, 1 % noise, a 2e4 N/m spring to ground at a
     wing node) with BLAS on one thread, as ``modalab diagnose`` runs it.  At a1b66d7 it stopped with 'K + σM is

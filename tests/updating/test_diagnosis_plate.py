@@ -32,6 +32,7 @@ def _plate(E=70e9, rho=2700.0, nx=8, ny=6):
     return m, nid
 
 
+@pytest.mark.slow
 def test_a_mass_on_a_shell_plate_is_named_located_and_sized():
     nominal, nid = _plate()
     truth, _ = _plate(E=70e9 * 1.03, rho=2700.0 * 0.99)

@@ -107,6 +107,7 @@ def _quiet_hits(path: Path, n_samples: int = 8192, points=POINTS):
     uff.write_records(path, recs, append=True)
 
 
+@pytest.mark.slow
 def test_the_frf_diagnosis_of_exact_unwindowed_data_leaves_e_and_rho_at_nominal(tmp_path, caplog):
     """Exact hits without noise, ``frf`` without a window, ``diagnose``: every E and ρ within 0.03 % and 2 of
     its stated standard deviations of nominal (measured: −0.001..+0.005 %, at most 0.7 std; before the tails
@@ -126,6 +127,7 @@ def test_the_frf_diagnosis_of_exact_unwindowed_data_leaves_e_and_rho_at_nominal(
             assert abs(v["updated"] - 1.0) < 3e-4 and abs(v["updated"] - 1.0) < 2 * v["std"], (name, v)
 
 
+@pytest.mark.slow
 def test_a_16_s_record_of_the_exact_demo_leaves_diagnose_and_update_at_nominal(tmp_path):
     """Exact hits without noise in 16 s records (``--samples 32768``), ``frf`` without a window, then
     ``diagnose`` and ``identify --band 5 700`` + ``update`` with the demo's parameter file: no finding, E and ρ
