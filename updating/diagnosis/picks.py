@@ -29,15 +29,19 @@ SUPPORT_PICKS = 2
 class _Picks:
     """The fitted picks of :class:`~updating.diagnosis.workflow.Diagnoser` (a mixin)."""
 
+    def _fitted(self, o, v, p_scr, k: int, what: str) -> tuple:
+        """Candidate ``o`` fitted on the training FRFs from value ``v`` and the screening's parameters ``p_scr``
+        (:meth:`_fit_pick`), logged as ``what``: the ``tried``-style tuple, ``k`` its screening's index."""
+        pm_aug, fr, clo, chi, scale = self._fit_pick(o, v, p_scr)
+        log.info("%s %s fitted on the FRFs: error %.4g", what, o.label, fr.error)
+        return fr.error, o, pm_aug, fr, clo, chi, k, scale
+
     def _fitted_picks(self, picks: list, have: set, e_ref: float) -> tuple[list, set]:
         """The picks fitted on the training FRFs (:meth:`_fit_pick`), then the best one's runners-up and
         neighbouring places and the supports' other components: ``(tried, keys of the supports' other
         components)``, ``tried`` as ``[(error, candidate, pm, FitResult, lower, upper, screening index, scale)]``."""
-        tried = []
-        for c, v, p_scr, k in picks:
-            pm_aug, fr, clo, chi, scale = self._fit_pick(c, v, p_scr)
-            log.info("screening pick %s fitted on the FRFs: error %.4g (current %.4g)", c.label, fr.error, e_ref)
-            tried.append((fr.error, c, pm_aug, fr, clo, chi, k, scale))
+        tried = [self._fitted(c, v, p_scr, k, f"screening pick (current error {e_ref:.4g})")
+                 for c, v, p_scr, k in picks]
         tried += self._runners_up(min(tried, key=lambda t: t[0]), tried, have)
         for b in self._kind_bests(tried, e_ref):
             tried += self._nearby_places(b, tried, have)
@@ -76,12 +80,7 @@ class _Picks:
         done = {t[1].key for t in tried} | have
         near = [(o, v) for o, v, g in scr if o.physics == c.physics and o.key not in done and g >= RUNNER_UP * g_c
                 and _another_explanation(o, c, m_now)][:FRF_PICKS - 1]
-        out = []
-        for o, v in near:
-            pm_aug, fr, clo, chi, scale = self._fit_pick(o, v, p_scr)
-            log.info("runner-up %s of %s fitted on the FRFs: error %.4g (%.4g)", o.label, c.label, fr.error, best[0])
-            out.append((fr.error, o, pm_aug, fr, clo, chi, k, scale))
-        return out
+        return [self._fitted(o, v, p_scr, k, f"runner-up of {c.label} ({best[0]:.4g})") for o, v in near]
 
     def _run_option(self, c, th, it: int, best, evaluated: list):
         """:meth:`~updating.diagnosis.workflow.Diagnoser._try` of ``c`` from ``th``, recorded in ``evaluated``
@@ -129,13 +128,7 @@ class _Picks:
         m_now = self.pm_cur.model_at(self.p_cur)
         done = {t[1].key for t in tried} | have
         near = [(o, v) for o, v, _ in scr if o.key not in done and _same_kind_nearby(o, c, m_now)][:NEARBY_PLACES]
-        out = []
-        for o, v in near:
-            pm_aug, fr, clo, chi, scale = self._fit_pick(o, v, p_scr)
-            log.info("nearby place %s of %s fitted on the FRFs: error %.4g (%.4g)", o.label, c.label, fr.error,
-                     best[0])
-            out.append((fr.error, o, pm_aug, fr, clo, chi, k, scale))
-        return out
+        return [self._fitted(o, v, p_scr, k, f"nearby place of {c.label} ({best[0]:.4g})") for o, v in near]
 
     def _kind_picks(self, tried: list, have: set, failed) -> list:
         """When the best fitted pick ``failed`` by the residual it leaves (model-form error it would absorb): the
@@ -147,12 +140,8 @@ class _Picks:
         ladder frame screened 18th and 26th (gains 0.19 and 0.14, masses at four other nodes ahead), while
         fitted with the parameters it leaves error 0.0064 against a rotary inertia's 0.041."""
         done = {t[1].key for t in tried} | have | set(self._hidden)
-        out = []
-        for o, v, p_scr, k in self._per_kind(self._best_screened(floor=0.0).values(), done, failed):
-            pm_aug, fr, clo, chi, scale = self._fit_pick(o, v, p_scr)
-            log.info("further pick %s fitted on the FRFs: error %.4g", o.label, fr.error)
-            out.append((fr.error, o, pm_aug, fr, clo, chi, k, scale))
-        return out
+        return [self._fitted(o, v, p_scr, k, "further pick")
+                for o, v, p_scr, k in self._per_kind(self._best_screened(floor=0.0).values(), done, failed)]
 
     @staticmethod
     def _per_kind(screened, done: set, failed) -> list:
@@ -190,10 +179,7 @@ class _Picks:
                     and o.release[1] == c.release[1] and not set(o.release[2]) & set(c.release[2])}
             for o in sibs.values():
                 _, v, p_scr, k = self._screened(o)
-                pm_aug, fr, clo, chi, scale = self._fit_pick(o, v, p_scr)
-                log.info("the other components %s of %s fitted on the FRFs: error %.4g (%.4g)", o.label, c.label,
-                         fr.error, t[0])
-                out.append((fr.error, o, pm_aug, fr, clo, chi, k, scale))
+                out.append(self._fitted(o, v, p_scr, k, f"other components of {c.label} ({t[0]:.4g})"))
                 done.add(o.key)
         return out
 
@@ -209,10 +195,5 @@ class _Picks:
             return []
         done = {t[1].key for t in tried} | have | set(self._hidden)
         best = [t for key, t in self._best_screened(floor=0.0).items() if _is_support(t[1]) and key not in done]
-        out = []
-        for g, o, v, p_scr, k in sorted(best, key=lambda t: -t[0])[:SUPPORT_PICKS]:
-            pm_aug, fr, clo, chi, scale = self._fit_pick(o, v, p_scr)
-            log.info("support release %s (screened %.2g %%) fitted on the FRFs: error %.4g", o.label, 100 * g,
-                     fr.error)
-            out.append((fr.error, o, pm_aug, fr, clo, chi, k, scale))
-        return out
+        return [self._fitted(o, v, p_scr, k, f"support release (screened {100 * g:.2g} %)")
+                for g, o, v, p_scr, k in sorted(best, key=lambda t: -t[0])[:SUPPORT_PICKS]]
