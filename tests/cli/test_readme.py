@@ -100,7 +100,7 @@ def _exact_model_stays_exact(d):
 
 
 def test_the_slow_tier_command_selects_the_tests_left_out_of_the_default_run():
-    """Development's ``python -m pytest -q -n auto -m slow`` (collected only, not run: it takes about 25 minutes)
+    """Development's ``python -m pytest -q -n auto -m slow`` (collected only, not run: it takes about half an hour)
     selects every test marked ``slow`` and nothing else: the benchmark's tuning seeds but for its two controls,
     which the default run keeps."""
     import ast
