@@ -89,6 +89,7 @@ class _Picks:
         if r is None:
             return best
         evaluated.append((c, r[1], float(r[3][-1] * r[6])))
+        self._option_fits[c.key] = r[:6]
         return r[:6] if best is None or r[1] < best[1] else best
 
     def _nearby_options(self, evaluated: list, options: list) -> list:

@@ -291,7 +291,7 @@ class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
         act through unmeasured DOFs or that mainly move rigid-body and suspension modes (a spring to ground on
         a free frame), which the exact screening sees."""
         cfg = self.config
-        self._rival_fit = None
+        self._rival_fit, self._option_fits = None, {}
         options = self._options(it)
         best, evaluated = None, []
         for c, th in options:
@@ -302,6 +302,9 @@ class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
         ok, why = self._judge(best, n_eq)
         if best is not None:
             log.info("candidate %s on the %s: %s", best[0].label, "MCI and FRFs" if self.use_mci else "FRFs", why)
+        failed = set()
+        if not ok and best is not None and not self.use_mci and not self.current and why != IC_FAILED:
+            ok, best, why, failed = self._judge_other_kinds(best, why, evaluated, n_eq)
         picked = None
         if ok and self.use_mci and not self.current:
             # the first term: the MCI's choice and the exact FRF screening's picks compete on one likelihood,
@@ -322,7 +325,8 @@ class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
             # equally good explanations elsewhere: within the information criterion's margin of the best
             margin = self.rss_cur * cfg.penalty * np.log(n_eq) / n_eq
             alts = [(o, v) for o, r, v in sorted(evaluated, key=lambda t: t[1])
-                    if o.key != c.key and _another_explanation(o, c, self.pm_cur.model_at(self.p_cur))
+                    if o.key != c.key and (o.physics, o.value_name) not in failed
+                    and _another_explanation(o, c, self.pm_cur.model_at(self.p_cur))
                     and r - self.rss_cur <= margin]
             self._route[c.key] = (next((g for o, _, g in (self.ranking or []) if o.key == c.key), 0.0), self.use_mci,
                                   None)
