@@ -28,7 +28,10 @@
    are fitted on the FRFs and judged by the same tests, and must leave a reduced χ² of at most
    :data:`PICK_MAX_REDUCED_CHI2` (the linearised MCI is blind to e.g. a spring to ground that mainly moves a
    free frame's rigid-body modes); when the MCI's best passes for the first term, it competes with the picks
-   on the training FRFs (the MCI can prefer an inertia where a clamp is released).  On the FRFs a term must
+   on the training FRFs (the MCI can prefer an inertia where a clamp is released).  On the FRF criterion, when
+   the first term's best option passes the information criterion and fails a later test, the best option of
+   each other kind is judged in turn (:meth:`Diagnoser._judge_other_kinds`: a suspension's spring too small to
+   be missing physics can fit better than the damping that is).  On the FRFs a term must
    also hold under cross-validation over :data:`~updating.diagnosis.terms.CV_FOLDS` folds
    (:meth:`Diagnoser._cross_validated`); every test counts the same observations (:func:`~updating.diagnosis.terms.n_obs`);
    An accepted support release is completed by the other components of its constraint when the data
