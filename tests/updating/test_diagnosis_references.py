@@ -58,3 +58,21 @@ def test_the_configuration_is_validated():
         DiagnoserConfig(criterion="both")
     with pytest.raises(TypeError):
         diagnose(None, None, max_lnes=3)
+
+
+def test_the_held_out_rows_leave_every_measured_direction_in_training():
+    """A planar frame hit ten times, once out of plane (tuning case 1710's layout): every fourth row would hold out
+    the only Z row, leaving the training FRFs blind to out-of-plane motion; it stays in training and the next
+    candidate row is held out instead.  Where every direction keeps a training row, the rows are every fourth."""
+    from modalab.core.dof import Dof
+    from updating.diagnosis.priors import _held_rows
+
+    rows = [Dof.parse(x) for x in ("8+Y", "1+Y", "15-Y", "5-X", "9+Y", "4+Z", "12+Y", "3+Y", "13+Y", "7+Y")]
+    cand = list(range(10))
+    held = _held_rows(rows, cand)
+    assert [str(rows[i]) for i in held] == ["8+Y", "1+Y", "7+Y"]
+    assert len(held) == len(cand[1::4])
+    rows[4] = Dof.parse("9+Z")                     # a second Z row: the usual every fourth is kept
+    assert _held_rows(rows, cand) == cand[1::4]
+    rows = [Dof.parse(x) for x in ("1+Z", "2+Z", "3+Z", "4+Z", "5+Z")]
+    assert _held_rows(rows, list(range(5))) == [1]
