@@ -70,7 +70,7 @@ class _Acceptance(_Picks):
         failed = {(best[0].physics, best[0].value_name)}
         for c, crit, _ in sorted(evaluated, key=lambda t: t[1]):
             kind = (c.physics, c.value_name)
-            if kind in failed or c.key not in self._option_fits:
+            if kind in failed:
                 continue
             t = self._option_fits[c.key]
             ok, why = self._judge(t, n_eq)

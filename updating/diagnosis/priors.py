@@ -3,6 +3,7 @@ density ±3 %, sections ±5 %, damping free; overridable), bounds, the fitted lo
 fit.  Split out of :mod:`~updating.diagnosis.workflow`."""
 from __future__ import annotations
 
+from collections import Counter
 import difflib
 import logging
 
@@ -257,9 +258,7 @@ def _held_rows(responses, cand: list) -> list:
     and out-of-plane motion decouple): tuning case 1710's T-joint, hit once in Z, held that row out, and the
     joint's flexibility about an out-of-plane axis changed no training FRF at any stiffness."""
     want = cand[1::4] if len(cand) >= 4 else cand[:1]
-    left = {}
-    for d in responses:
-        left[d.axis] = left.get(d.axis, 0) + 1
+    left = Counter(d.axis for d in responses)
     held = []
     for i in want + [i for i in cand if i not in want]:
         if len(held) == len(want):
