@@ -361,3 +361,17 @@ def test_the_only_out_of_plane_row_stays_in_training_so_an_out_of_plane_joint_is
     f = _single_finding(1710, tmp_path)
     assert f["physics"] == "joint_flexibility" and f["dofs"] == ["5+RX"], f["description"]
     assert f["values"][0]["value"] == pytest.approx(260.0, rel=0.1), f["description"]
+
+
+@pytest.mark.slow
+def test_the_background_loss_factor_leaves_the_mounts_loss_alone(tmp_path):
+    """Tuning case 1704 (even seed): a ladder frame on four elastomer mounts (CELAS2 GE 0.08 in deck and truth),
+    section loss factors 0.0066 (rail) and 0.0079 (cross), a flexible joint at 12+RY (234 N·m/rad).  The fitted
+    background loss factor (PARAM G) was added to the mounts' GE as Nastran adds it, so a G that fitted the frame's
+    modes overdamped the modes on the mounts: G came out 0.0003, and a local damping term (0.026 on elements 5, 6,
+    7, 28) made up the rail's loss, a second finding.  G now damps the structure and leaves a spring's own GE
+    alone: G 0.0066, the joint is the one finding."""
+    d = _diagnosed(1704, tmp_path)
+    assert [f["physics"] for f in d["findings"]] == ["joint_flexibility"], [f["description"] for f in d["findings"]]
+    assert d["findings"][0]["dofs"] == ["12+RY"], d["findings"][0]["description"]
+    assert d["parameters"]["eta_global"]["updated"] == pytest.approx(0.00658, rel=0.1)

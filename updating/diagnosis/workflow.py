@@ -58,6 +58,7 @@ from modalab.core.errors import ModalabValueError
 from modalab.core.modes import ModeSet
 from modalab.core.frf import FRF
 from updating.fe import FEModel, ParametricFEModel
+from updating.fe.damping import own_loss_exempt
 from updating.diagnosis.fit import RITZ_LIMIT, Prior, fit_frf, fit_std, frf_data, frf_error, model_frf, quick_frf_error
 from updating.diagnosis.dampscreen import damping_screen
 from updating.diagnosis.frfscreen import ParameterRefit, frf_screen
@@ -153,10 +154,13 @@ class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
     def baseline(self, model: FEModel, measured: FRF):
         """The data and their split, the nominal model with fitted damping, the priors, parameter updating."""
         cfg = self.config
-        self.model0 = model = promote_measured(model, list(measured.responses) + list(measured.references))
+        model = promote_measured(model, list(measured.responses) + list(measured.references))
         self.measured = measured = _on_model_dofs(model, measured)
         params = list(cfg.parameters) if cfg.parameters is not None else default_parameters(model)
         damp, dstart = _with_damping(model, params)
+        if any(p.field == "global_ge" for p in damp):      # the fitted G is the structure's, not the mounts'
+            model = own_loss_exempt(model)
+        self.model0 = model
         self.params = params = params + damp
         self.n_damp = len(damp)
         self.pm = pm = ParametricFEModel(model, params)

@@ -139,7 +139,8 @@ def assemble(model, elements=None, dtype=float, index: dict | None = None,
     """Assemble K, M, C, D of ``model`` (or of the listed ``elements`` only) on ``model.dofs``.
 
     dtype : float, or complex for complex-step differentiation.
-    include_global : add the model-wide terms (PARAM G ``global_ge·K``, Rayleigh ``αM + βK``).
+    include_global : add the model-wide terms (PARAM G ``global_ge·K``, Rayleigh ``αM + βK``); G does not damp the
+        elements listed in ``model.global_ge_exempt``.
     """
     dofs = model.dofs
     idx = dof_index(dofs) if index is None else index
@@ -196,7 +197,11 @@ def assemble(model, elements=None, dtype=float, index: dict | None = None,
     if include_global:
         g = model.global_ge
         if g:
-            D = g * K if D is None else D + g * K
+            GK = g * K
+            exempt = [el for el in els if el.eid in model.global_ge_exempt]
+            if exempt:         # their own ge is their whole loss factor (updating.fe.damping.own_loss_exempt)
+                GK = GK - g * assemble(model, elements=exempt, dtype=dtype, index=idx, include_global=False).K
+            D = GK if D is None else D + GK
         if model.rayleigh is not None:
             a, b = model.rayleigh
             R = a * M + b * K

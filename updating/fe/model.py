@@ -82,6 +82,9 @@ class FEModel:
         self.spcs: list[SPC] = []
         self.coupled_mass = bool(coupled_mass)
         self.global_ge = global_ge
+        #: ids of the elements whose stiffness PARAM G does not damp (their own ``ge`` is their whole loss
+        #: factor): empty for a deck as Nastran reads it (G·K over the whole K); see :func:`own_loss_exempt`
+        self.global_ge_exempt: frozenset = frozenset()
         self.rayleigh = rayleigh
         self.modal_damping = modal_damping
         #: free-form information (named nodes, source file ...), copied with the model

@@ -13,6 +13,7 @@ from modalab.app.stages._common import (StageResult, _band, _tuple, check_band_l
 from updating.diagnosis import diagnose as _diagnose
 from updating.diagnosis import diagnose_modes
 from updating.fe.bulk import to_bulk, write_bdf
+from updating.fe.damping import own_loss_exempt
 from updating.diagnosis.report import write_figures
 from modalab.app.figures import plot_frf_overlays
 from updating.fe.parameter_file import read_priors
@@ -179,7 +180,8 @@ def _frf_overlays(H, model, diag, d: Path, want, updated_model) -> Path:
     for name, m in models.items():
         try:
             mm = m.copy()
-            if eta is not None and not mm.global_ge:
+            if eta is not None and not mm.global_ge:      # as the diagnosis fitted it: mounts keep their own GE
+                mm = own_loss_exempt(mm)
                 mm.global_ge = float(eta)
             curves[name] = mm.frf(f, responses=resp, references=[ref], beta=beta)
         except Exception as e:  # noqa: BLE001 - an overlay curve must not fail the stage

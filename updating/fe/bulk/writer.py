@@ -384,16 +384,18 @@ class _Exporter:
                 self.b.add(_meta_from(card, te))
             elif isinstance(el, Spring):
                 a, b = tuple(el.a), (None if el.b is None else tuple(el.b))
+                # Nastran adds PARAM G to every GE: a spring that G does not damp is written with GE - G
+                ge = float(el.ge) - (float(self.m.global_ge or 0.0) if eid in self.m.global_ge_exempt else 0.0)
                 if isinstance(te, C.Celas1) and not isinstance(te, C.Cdamp1):
                     pe = self.t.properties.get(te.pid)
-                    if pe is not None and _same(pe.k, el.k) and _same(pe.ge, el.ge) and \
+                    if pe is not None and _same(pe.k, el.k) and _same(pe.ge, ge) and \
                             {te.a, te.b} == {a, b}:
                         self.b.add(te)
                         if te.pid not in self.b.properties:
                             self.b.add(pe)
                         continue
                 s = te.s if isinstance(te, C.Celas2) else 0.0
-                self.b.add(_meta_from(C.Celas2(eid, float(el.k), a, b, float(el.ge), s), te, el.group))
+                self.b.add(_meta_from(C.Celas2(eid, float(el.k), a, b, ge, s), te, el.group))
             elif isinstance(el, Damper):
                 a, b = tuple(el.a), (None if el.b is None else tuple(el.b))
                 if isinstance(te, C.Cdamp1):
