@@ -159,8 +159,8 @@ class CorrelationResult:
                            f"reciprocity, so the {len(refs)} hit points become the shapes' DOFs) and correlate "
                            "those modes")
         return head + ("measure more response DOFs; if the modes come from a roving-hammer file (the hit points as its "
-                       "references, more of them than responses), identify it without --no-reciprocity: identify "
-                       "transposes it so that the hit points become the DOFs")
+                       "references, more of them than responses) identified with --no-reciprocity, identify it "
+                       "without --no-reciprocity: identify then transposes it so that the hit points become the DOFs")
 
     def to_dict(self) -> dict:
         """JSON-ready dict; mode numbers are 1-based."""
