@@ -11,6 +11,10 @@ by operation because the work does:
     ``O(n³)`` per line against a sparse LU's ``O(n·b²)`` (b the band width after reordering).
     Measured on this project's 2-core machine, single-threaded SuperLU beat batched dense LAPACK
     by 30x at 400 DOFs; below about 80 DOFs the batched dense solve wins (fewer Python calls).
+    Above the limit a narrow band (beam frames, half band up to
+    :data:`updating.correlation.condensation.BAND_LIMIT` after reordering) is factorised by LAPACK's
+    banded LU, which on the discovery benchmark's frames (60-300 DOFs, half band 5-29) takes the
+    receptance columns 1.3-3x faster than SuperLU (the whole diagnosis 1.16x, median of 30 cases).
 
 ``EIGEN_LIMIT`` (2000) — real symmetric eigenproblems ``K φ = ω² M φ`` (normal modes, SEREP's
     modes) and the factorisations made once per mode (Nelson's eigenvector sensitivity, the

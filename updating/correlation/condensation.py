@@ -12,8 +12,9 @@ DOFs and complex Laplace variables ``s`` (``s = iω`` for harmonic motion;
 
 The dynamic stiffness is ``Z(s) = K + iD + sC + s²M`` (hysteretic D kept as
 ``iD``).  Dense batched solves are used for models up to
-:data:`modalab.core.dense.SOLVE_LIMIT` DOFs, a sparse LU per line above (the rule and its
-reasons: :mod:`modalab.core.dense`).
+:data:`modalab.core.dense.SOLVE_LIMIT` DOFs, an LU per line above (the rule and its
+reasons: :mod:`modalab.core.dense`): LAPACK's banded LU in the reverse Cuthill-McKee order where the
+half band is at most :data:`BAND_LIMIT` (beam frames), SuperLU where it is wider.
 """
 from __future__ import annotations
 
