@@ -9,6 +9,9 @@ which removes the leakage of records that have not decayed; a hysteretic
 structure has no causal pole form, so it is checked on records long enough to
 decay without a window.
 """
+import logging
+import re
+
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
@@ -521,3 +524,20 @@ class TestLinearityAndTrigger:
         r = lab.hit("1+Z")
         assert r.metadata["sim"]["miss_arm_m"] is None             # no coordinates: hit exactly at the point
         assert lab.structure is None and "modal model" in repr(lab)
+
+
+def test_a_capped_synthesis_names_the_slow_decay_and_what_is_left_of_it(caplog):
+    """A synthesis grid shorter than the slowest decay needs: the warning names the mode that decays slowest
+    (its frequency), the fraction of its ringing left at the cap (e^(−σT)), and where it shows."""
+    lab = demo_lab(0, max_synthesis_s=4.0)
+    poles = lab.model.poles
+    k = int(np.argmin(abs(poles.real)))
+    sigma, f_hz = abs(poles[k].real), abs(poles[k].imag) / (2 * np.pi)
+    assert np.log(1 / lab.tail_tolerance) / sigma > 4.0                 # the cap is reached
+    with caplog.at_level(logging.WARNING, logger="hardware_sim.lab"):
+        lab.hit(force_n=100.0)
+    msg = caplog.text
+    assert f"the mode at {f_hz:.3g} Hz" in msg and f"lines near {f_hz:.3g} Hz" in msg, msg
+    cap_s = float(re.search(r"capped at ([0-9.e+-]+) s", msg).group(1))
+    left = float(re.search(r"still ([0-9.e+-]+) of its start", msg).group(1))
+    assert left == pytest.approx(np.exp(-sigma * cap_s), rel=0.05)
