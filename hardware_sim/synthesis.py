@@ -63,16 +63,17 @@ class _HitSynthesis:
         acq = self.setup
         fs = acq.sample_rate_hz
         poles = np.asarray(self.model.poles)
-        sig = []                                    # (decay 1/s, what decays)
+        sig = []                                    # (decay 1/s, what decays, where its ringing shows)
         if poles.size:
             k = int(np.argmin(abs(poles.real)))
-            sig.append((abs(poles[k].real), f"the mode at {abs(poles[k].imag) / (2 * np.pi):.3g} Hz"))
-        sig += [(2 * np.pi * c.coupling_corner_hz, f"the IEPE coupling's {c.coupling_corner_hz:.3g} Hz high-pass")
-                for c in self.channels if c.coupling_corner_hz > 0]
+            f_k = f"{abs(poles[k].imag) / (2 * np.pi):.3g} Hz"
+            sig.append((abs(poles[k].real), f"the mode at {f_k}", f"lines near {f_k}"))
+        sig += [(2 * np.pi * c.coupling_corner_hz, f"the IEPE coupling's {c.coupling_corner_hz:.3g} Hz high-pass",
+                 "the lowest lines") for c in self.channels if c.coupling_corner_hz > 0]
         if acq.aa_filter == "butterworth":
             sig.append((2 * np.pi * acq.aa_cutoff * fs * math.sin(math.pi / (2 * acq.aa_order)),
-                        "the anti-alias filter"))
-        sigma, slowest = min(sig, key=lambda t: t[0]) if sig else (np.inf, "")
+                        "the anti-alias filter", "the lines near its cut-off"))
+        sigma, slowest, near = min(sig, key=lambda t: t[0]) if sig else (np.inf, "", "")
         tail_s = math.log(1 / self.tail_tolerance) / sigma if sigma > 0 else np.inf
         self._lead = acq.pretrigger_samples + _GUARD
         self._search = int(math.ceil(self.hammer.max_width_s * fs)) + 2
@@ -82,7 +83,6 @@ class _HitSynthesis:
         if not np.isfinite(tail_s) or need > cap:
             need = max(cap, self._window + acq.n_samples)
             left = math.exp(-sigma * need / fs) if sigma > 0 else 1.0
-            near = f"lines near {slowest[len('the mode at '):]}" if slowest.startswith("the mode") else "the lowest lines"
             log.warning("simulated lab: the slowest decay (%.3g 1/s, %s) needs %.3g s of synthesis to fall to %.1e; "
                         "capped at %.3g s, where it is still %.2g of its start: its ringing wraps around into the "
                         "record (the synthesis is periodic) and shows mostly at %s", sigma, slowest, tail_s,

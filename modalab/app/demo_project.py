@@ -12,9 +12,10 @@ It differs from the nominal model by a finer mesh, by small errors in the declar
 something the nominal model leaves out.  Finding that is the diagnosis' job.
 
 :func:`run_demo` copies the project into ``OUT/project/`` and runs it into ``OUT`` (``quick=True``: the
-lighter variant used by the tests, on the same points — not shorter, the synthesis and the diagnosis dominate: 2 averages instead of 3, at most 3 hits instead of 4,
-identification up to order 24 instead of 40, at most 10 updating iterations instead of 20; the CLI's
-``--quick`` help, :data:`modalab.app.cli.QUICK_HELP`, says the same).
+lighter variant used by the tests, on the same points: 2 averages instead of 3, at most 3 hits instead of 4,
+identification up to order 24 instead of 40, at most 10 updating iterations instead of 20 — not shorter, the
+synthesis and the diagnosis take the time; the CLI's ``--quick`` help, :data:`modalab.app.cli.QUICK_HELP`,
+says the same).
 :func:`write_demo_files` regenerates the project files (maintainers only).
 """
 from __future__ import annotations

@@ -212,7 +212,7 @@ class _Acceptance(_Picks):
         as a supported pick (:meth:`_judge_or_complete`).  The MCI supports it by the modal data; its MCI-optimal
         value can be far from the FRFs' (rejected there), and the fitted pick that leaves the least error can
         be one that fails on the held-out FRFs: even case 1794's 3.5 g mass at node 9 of a clamped post ranked
-        first by the MCI (value 0.0028 against 0.0030) made the training χ²/N worse at the MCI's value, and
+        first by the MCI (criterion 0.00281 against 0.00301) made the training χ²/N worse at the MCI's value, and
         was fitted fourth among the picks (error 0.0322 against 0.0370) after springs to ground that fit the
         training rows better and the held-out rows by less than 10 %, so nothing was found; fitted on the FRFs
         the mass lowers the held-out χ²/N from 2.01 to 1.32 and passes the cross-validation.  Returns the
