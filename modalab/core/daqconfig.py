@@ -15,21 +15,41 @@ from .dof import Dof
 from .errors import PlanError
 from .units import G
 
-__all__ = ["ChannelConfig", "AcquisitionConfig", "sensitivity_to_si"]
+__all__ = ["ChannelConfig", "AcquisitionConfig", "sensitivity_to_si", "sensitivity_quantity", "SENSITIVITY_UNITS"]
+
+#: the sensitivity units each measured quantity takes, as written on calibration sheets (for messages)
+SENSITIVITY_UNITS = {"force": ("mV/N", "V/N"),
+                     "acceleration": ("mV/g", "V/g", "mV/(m/s^2)", "V/(m/s^2)")}
+#: normalised unit -> (factor to V per SI unit, the quantity it is a sensitivity to)
+_SENSITIVITY_TABLE = {"mv/n": (1e-3, "force"), "v/n": (1.0, "force"),
+                      "mv/g": (1e-3 / G, "acceleration"), "v/g": (1.0 / G, "acceleration"),
+                      "mv/(m/s^2)": (1e-3, "acceleration"), "v/(m/s^2)": (1.0, "acceleration"),
+                      "mv/m/s^2": (1e-3, "acceleration"), "v/m/s^2": (1.0, "acceleration")}
+
+
+def _sensitivity_entry(unit: str) -> tuple:
+    u = unit.replace(" ", "").replace("**", "^").lower()
+    if u not in _SENSITIVITY_TABLE:
+        every = ", ".join(x for units in SENSITIVITY_UNITS.values() for x in units)
+        raise PlanError(f"sensitivity unit {unit!r} unknown; expected one of {every}. "
+                        "Copy it from the sensor's calibration sheet")
+    return _SENSITIVITY_TABLE[u]
+
+
+def sensitivity_quantity(unit: str) -> str:
+    """The quantity a sensitivity unit measures: ``'force'`` (mV/N, V/N) or ``'acceleration'`` (mV/g, V/g,
+    mV/(m/s^2), V/(m/s^2)); an unknown unit is the same error as in :func:`sensitivity_to_si`."""
+    return _sensitivity_entry(unit)[1]
 
 
 def sensitivity_to_si(value: float, unit: str) -> float:
     """Convert a data-sheet sensitivity to V per SI unit.
 
-    Accepts ``mV/N``, ``V/N``, ``mV/g``, ``V/g``, ``mV/(m/s^2)``, ``V/(m/s^2)``.
+    Accepts ``mV/N``, ``V/N``, ``mV/g``, ``V/g``, ``mV/(m/s^2)``, ``V/(m/s^2)``
+    (:data:`SENSITIVITY_UNITS`; which quantity a unit measures: :func:`sensitivity_quantity`).
     """
-    u = unit.replace(" ", "").replace("**", "^").lower()
-    table = {"mv/n": 1e-3, "v/n": 1.0, "mv/g": 1e-3 / G, "v/g": 1.0 / G,
-             "mv/(m/s^2)": 1e-3, "v/(m/s^2)": 1.0, "mv/m/s^2": 1e-3, "v/m/s^2": 1.0}
-    if u not in table:
-        raise PlanError(f"sensitivity unit {unit!r} unknown; expected one of mV/N, V/N, mV/g, V/g, "
-                        "mV/(m/s^2), V/(m/s^2). Copy it from the sensor's calibration sheet")
-    v = float(value) * table[u]
+    factor = _sensitivity_entry(unit)[0]
+    v = float(value) * factor
     if not v > 0:
         raise PlanError(f"sensitivity {value} {unit} must be positive")
     return v
