@@ -27,7 +27,7 @@ Example (every key documented; the README carries the same example)::
     role = "force"
     dof = "roving"              # the roving hammer takes the DOF of the current point
     sensitivity = 2.25
-    sensitivity_unit = "mV/N"
+    sensitivity_unit = "mV/N"   # a force channel: mV/N or V/N
     range = 500.0               # N
 
     [[channels]]
@@ -36,7 +36,7 @@ Example (every key documented; the README carries the same example)::
     role = "response"
     dof = "3+Z"
     sensitivity = 100.0
-    sensitivity_unit = "mV/g"
+    sensitivity_unit = "mV/g"   # a response channel: mV/g, V/g, mV/(m/s^2) or V/(m/s^2)
     range = 500.0               # m/s^2
 
     [roving]
@@ -63,6 +63,8 @@ Example (every key documented; the README carries the same example)::
 
 Every section accepts only the keys shown (:data:`SECTION_KEYS`, :data:`CHANNEL_KEYS`): a misspelt key is
 an error naming the file, ``section.key`` and the closest valid key; a value of the wrong type likewise.
+A channel's ``sensitivity_unit`` must be a sensitivity to what its role measures (:data:`ROLE_QUANTITY`):
+a hammer in mV/g, or an accelerometer in mV/N, is an error naming the file, the channel and the units expected.
 
 Ready-made plans for the demo structure: ``examples/plans/demo_roving_hammer.toml``,
 ``demo_roving_accelerometer.toml`` and ``demo_auto_hammer.toml`` (automatic hammer ``simhammer://bench``).
@@ -75,7 +77,8 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from modalab.core.daqconfig import AcquisitionConfig, ChannelConfig, sensitivity_to_si
+from modalab.core.daqconfig import (SENSITIVITY_UNITS, AcquisitionConfig, ChannelConfig, sensitivity_quantity,
+                                    sensitivity_to_si)
 from modalab.core.dof import Dof
 from modalab.core.errors import DofError, ModalabValueError, PlanError
 from .windows import ExponentialWindow
@@ -103,6 +106,8 @@ CHANNEL_KEYS = frozenset({"name", "physical", "role", "dof", "sensitivity", "sen
                           "highpass_hz"})
 #: the simulated hammer's tips (hardware_sim.hammer.TIP_STIFFNESS_N_PER_M; a test keeps the two equal)
 HAMMER_TIPS = ("hard", "medium", "soft")
+#: the quantity each channel role measures; its sensitivity_unit must be a sensitivity to that quantity
+ROLE_QUANTITY = {"force": "force", "response": "acceleration"}
 _REQUIRED = object()
 
 
@@ -340,6 +345,7 @@ def _parse_channel(get: _Reader, i: int, c: dict) -> "PlanChannel":
         sens = sensitivity_to_si(get(sec, "sensitivity", table=c), unit)
     except (TypeError, ValueError) as e:
         raise PlanError(f"{where}: {e}") from None
+    _check_unit_matches_role(where, role, unit)
     dof = get(sec, "dof", kind=str, table=c)
     if dof != ROVING:
         try:
@@ -359,6 +365,18 @@ def _parse_channel(get: _Reader, i: int, c: dict) -> "PlanChannel":
     return PlanChannel(name=get(sec, "name", f"ch{i}", str, table=c),
                        physical=get(sec, "physical", kind=str, table=c), role=role, dof=dof,
                        sensitivity=sens, range=rng, iepe=iepe, highpass_hz=hp)
+
+
+def _check_unit_matches_role(where: str, role: str, unit: str) -> None:
+    """A sensitivity to another quantity than the role measures (a hammer in mV/g) is an error: the volts would
+    be read as the wrong quantity, silently, in every hit."""
+    want, got = ROLE_QUANTITY[role], sensitivity_quantity(unit)
+    if got == want:
+        return
+    other = next(r for r, q in ROLE_QUANTITY.items() if q == got)
+    raise PlanError(f"{where}: sensitivity_unit = {unit!r} is a sensitivity to {got}, but role = {role!r} measures "
+                    f"{want}; expected one of {', '.join(SENSITIVITY_UNITS[want])}: copy the value and its unit "
+                    f"from the sensor's calibration sheet (or set role = {other!r} if this sensor measures {got})")
 
 
 def _parse_channels(get: _Reader) -> list:

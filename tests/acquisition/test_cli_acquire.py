@@ -101,7 +101,8 @@ def test_cli_errors_are_one_clear_line(tmp_path, capsys):
     assert "cannot read test plan" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("case", ["typo", "binary", "directory", "output_is_a_file", "output_below_a_file"])
+@pytest.mark.parametrize("case", ["typo", "binary", "directory", "output_is_a_file", "output_below_a_file",
+                                  "hammer_in_mv_per_g"])
 def test_cli_acquire_bad_input_is_one_line_exit_2(tmp_path, capsys, case):
     plan = small_plan(tmp_path, points=("14+Z",))
     out = tmp_path / "s"
@@ -110,6 +111,12 @@ def test_cli_acquire_bad_input_is_one_line_exit_2(tmp_path, capsys, case):
         plan = small_plan(tmp_path, points=("14+Z",), name="typo.toml",
                           edit=lambda d: d["acquisition"].update(averges=4))
         expect = "unknown key acquisition.averges; did you mean acquisition.averages?"
+    elif case == "hammer_in_mv_per_g":
+        # a fresh user's plan: accepted, a whole session run and "peak force 78.9 N" printed as with mV/N
+        plan = small_plan(tmp_path, points=("14+Z",), name="unit.toml",
+                          edit=lambda d: d["channels"][0].update(sensitivity_unit="mV/g"))
+        expect = ("unit.toml: channel 1 (hammer): sensitivity_unit = 'mV/g' is a sensitivity to acceleration, "
+                  "but role = 'force' measures force; expected one of mV/N, V/N")
     elif case == "binary":
         plan = tmp_path / "random.toml"
         plan.write_bytes(bytes(range(256)) * 4)

@@ -74,6 +74,48 @@ def test_bad_channel_fields():
         TestPlan.from_dict(d)
 
 
+# ------------------------------------------------------------------ the unit agrees with the role (a fresh user's bug)
+def test_a_hammer_in_mv_per_g_is_an_error_naming_the_file_the_channel_and_the_units_expected():
+    # a force channel with sensitivity_unit = "mV/g" was accepted: its volts read as N through an acceleration
+    # sensitivity, and a simulated session ran to completion as if nothing were wrong
+    d = copy.deepcopy(BASE)
+    d["channels"][0]["sensitivity_unit"] = "mV/g"
+    with pytest.raises(PlanError) as e:
+        TestPlan.from_dict(d, source="my_plan.toml")
+    msg = str(e.value)
+    assert msg.startswith("my_plan.toml: channel 1 (hammer): sensitivity_unit = 'mV/g' is a sensitivity to "
+                          "acceleration, but role = 'force' measures force; expected one of mV/N, V/N")
+    assert "role = 'response'" in msg and "\n" not in msg
+
+
+@pytest.mark.parametrize("unit", ["mV/N", "V/N", "v / n"])
+def test_an_accelerometer_in_force_units_is_an_error(unit):
+    d = copy.deepcopy(BASE)
+    d["channels"][1]["sensitivity_unit"] = unit
+    with pytest.raises(PlanError, match=rf"^p\.toml: channel 2 \(acc1\): sensitivity_unit = '{unit}' is a "
+                                        r"sensitivity to force, but role = 'response' measures acceleration; "
+                                        r"expected one of mV/g, V/g, mV/\(m/s\^2\), V/\(m/s\^2\)"):
+        TestPlan.from_dict(d, source="p.toml")
+
+
+@pytest.mark.parametrize("channel,unit,si", [
+    (0, "V/N", 2.25), (0, "mV/N", 2.25e-3),
+    (1, "V/g", 100.0 / G), (1, "mV/(m/s^2)", 0.1), (1, "V/(m/s^2)", 100.0), (1, "mV/m/s^2", 0.1),
+])
+def test_every_unit_of_the_roles_quantity_is_accepted(channel, unit, si):
+    d = copy.deepcopy(BASE)
+    d["channels"][channel]["sensitivity_unit"] = unit
+    assert TestPlan.from_dict(d).channels[channel].sensitivity == pytest.approx(si)
+
+
+def test_an_unknown_unit_is_still_named_before_the_role_is_checked():
+    d = copy.deepcopy(BASE)
+    d["channels"][0]["sensitivity_unit"] = "mV/xyz"
+    with pytest.raises(PlanError, match=r"^p\.toml: channel 1 \(hammer\): sensitivity unit 'mV/xyz' unknown; "
+                                        r"expected one of mV/N, V/N, mV/g"):
+        TestPlan.from_dict(d, source="p.toml")
+
+
 def test_the_inputs_ac_coupling_corner_reaches_the_channel_configs():
     """``highpass_hz``: the input's AC-coupling corner from the module's specifications, per channel; not stated
     is None (never a default number); negative, or on a DC-coupled channel, is an error naming the channel."""
