@@ -63,7 +63,10 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from modalab.core.errors import PlanError
+from acquisition.estimators import ESTIMATORS
+from modalab.core.dof import Dof
+from modalab.core.errors import ModalabError, PlanError
+from updating.diagnosis.library import validate_kinds
 from modalab.app.stages._common import load_parameters
 
 log = logging.getLogger(__name__)
@@ -226,8 +229,58 @@ def load_project(path) -> Project:
         if not all(isinstance(x, (int, float)) and not isinstance(x, bool) and 0 < x <= 0.5 for x in vals):
             raise PlanError(f"{src}: [update] freq_sigma = {fs!r}; expected relative standard deviations above 0 and "
                             "up to 0.5 (0.002 = 0.2 %)")
+    _check_values(src, opts)
     if proj.parameters_path is not None:
         load_parameters(proj.parameters_path)          # validate now, not after an hour of acquisition
     if opts["diagnose"]["parameters"] is None:
         opts["diagnose"]["parameters"] = opts["update"]["parameters"]
     return proj
+
+
+def _check_values(src: str, opts: dict) -> None:
+    """The values a stage would refuse, refused now (naming the file, section and key), not when the stage
+    starts after an acquisition; the same rules as the stages' own checks."""
+    def bad(sec, key, expected):
+        raise PlanError(f"{src}: [{sec}] {key} = {opts[sec][key]!r}; expected {expected}")
+
+    def number(v):
+        return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+    if opts["frf"]["estimator"] not in ESTIMATORS:
+        m = difflib.get_close_matches(str(opts["frf"]["estimator"]), ESTIMATORS, n=1, cutoff=0.5)
+        bad("frf", "estimator", f"one of {', '.join(ESTIMATORS)}" + (f" (did you mean {m[0]}?)" if m else ""))
+    for key in ("force_fraction", "exp_end_level"):
+        v = opts["frf"][key]
+        if v is not None and not (number(v) and 0 < v < 1):
+            bad("frf", key, "a fraction between 0 and 1")
+    if opts["identify"]["weighting"] not in (None, "coherence", "variance"):
+        bad("identify", "weighting", "'coherence' or 'variance' (or leave it out)")
+    sel = opts["identify"]["select"]
+    if isinstance(sel, list) and not (sel and all(number(x) and x > 0 for x in sel)):
+        bad("identify", "select", "'auto' or frequencies in Hz, e.g. select = [12.5, 40.2]")
+    c = opts["correlate"]
+    if not (number(c["mac_min"]) and 0 <= c["mac_min"] <= 1):
+        bad("correlate", "mac_min", "a value in [0, 1] such as 0.5")
+    if not (number(c["freq_window"]) and c["freq_window"] > 0):
+        bad("correlate", "freq_window", "a relative frequency distance above 0, e.g. 0.35")
+    if c["freq_weight"] is not None and not (number(c["freq_weight"]) and c["freq_weight"] >= 0):
+        bad("correlate", "freq_weight", "a weight >= 0")
+    u = opts["update"]
+    r = u["regularisation"]
+    if not ((isinstance(r, str) and r in ("lcurve", "gcv")) or (number(r) and r >= 0)):
+        bad("update", "regularisation", "'lcurve', 'gcv' or a factor >= 0")
+    if not (number(u["shape_sigma"]) and u["shape_sigma"] > 0):
+        bad("update", "shape_sigma", "a relative standard deviation above 0, e.g. 0.05")
+    kinds = opts["diagnose"]["kinds"]
+    if kinds is not None:
+        try:
+            validate_kinds([str(k) for k in kinds])
+        except ModalabError as e:
+            raise PlanError(f"{src}: [diagnose] kinds: {e}") from None
+    dofs = opts["report"]["frf_dofs"]
+    if dofs is not None:
+        for d in dofs:
+            try:
+                Dof.parse(d)
+            except ModalabError as e:
+                raise PlanError(f"{src}: [report] frf_dofs: {e}") from None

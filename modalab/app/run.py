@@ -469,6 +469,7 @@ def _run_stage(ctx: _Context, man: Manifest, s: str, entry: dict, result: RunRes
     if progress:
         progress(s, "start", "")
     t0 = time.perf_counter()
+    previous = man.entry(s)
     man.forget(s)
     pending = out / s / ".pending_key"
     if s == "acquire":
@@ -480,9 +481,7 @@ def _run_stage(ctx: _Context, man: Manifest, s: str, entry: dict, result: RunRes
         write_text(pending, key)
         outputs, summary = stage_acquire(ctx, resume)
     else:
-        if (out / s).exists():
-            shutil.rmtree(out / s)
-        outputs, summary = _RUN[s](ctx)
+        outputs, summary = _run_keeping_previous(ctx, man, s, previous)
     elapsed = time.perf_counter() - t0
     rel = {}
     for p in outputs:
@@ -498,6 +497,31 @@ def _run_stage(ctx: _Context, man: Manifest, s: str, entry: dict, result: RunRes
     result.elapsed_s[s] = elapsed
     if progress:
         progress(s, "done", f"{elapsed:.1f} s")
+
+
+def _run_keeping_previous(ctx: _Context, man: Manifest, s: str, previous: dict | None) -> tuple[list, dict]:
+    """Run stage ``s`` (not the acquisition) into a fresh ``OUT/<s>/``; its previous folder waits beside it
+    (``OUT/.<s>.previous``) and, when the stage fails, comes back with its manifest entry, so that a failed
+    rerun leaves the earlier complete output (and the stages built on it) as they were."""
+    out = ctx.out
+    keep = out / f".{s}.previous"
+    if keep.exists():                       # left by a run that was killed: the manifest no longer lists it
+        shutil.rmtree(keep)
+    if (out / s).exists():
+        (out / s).rename(keep)
+    try:
+        result = _RUN[s](ctx)
+    except BaseException:
+        if (out / s).exists():
+            shutil.rmtree(out / s)
+        if keep.exists():
+            keep.rename(out / s)
+            if previous is not None:
+                man.record(s, previous)
+        raise
+    if keep.exists():
+        shutil.rmtree(keep)
+    return result
 
 
 def _project_inputs(proj: Project) -> list:

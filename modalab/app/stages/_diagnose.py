@@ -167,7 +167,13 @@ def _frf_overlays(H, model, diag, d: Path, want, updated_model) -> Path:
     The measured FRFs keep their exponential window; every model FRF is evaluated where the window puts the
     data, at ``s = iω + β`` (β: the FRF's ``window_beta_per_s``), as the diagnosis itself compares them."""
 
+    measured = {str(r) for r in H.responses}
+    missing = [str(w) for w in (want or ()) if str(w) not in measured]
     resp = [r for r in H.responses if want is None or str(r) in {str(w) for w in want}][:4] or H.responses[:4]
+    if missing:
+        log.warning("FRF overlay: %s not among the measured responses (%s%s); the figure shows %s",
+                    ", ".join(missing), ", ".join(sorted(measured)[:8]), ", ..." if len(measured) > 8 else "",
+                    ", ".join(str(r) for r in resp))
     ref = H.references[0]
     lines = H.freq_hz[H.freq_hz > 0]
     f = lines[::max(1, len(lines) // 600)]
