@@ -450,6 +450,7 @@ def select_frequencies(diag: StabilisationDiagram, freqs_hz, options: SelectionO
     n_in = diag.participation.shape[0]
     lam, parts, orders, csize, spread = [], [], [], [], []
     phys = (diag.damping > 0) & (diag.damping <= opts.max_damping)
+    taken = {}                                   # pole index -> the frequency that took it
     for ft in targets:
         near = np.abs(diag.freq_hz - ft) <= opts.manual_tol * ft
         cand = np.flatnonzero(near & diag.stable & phys)
@@ -465,6 +466,12 @@ def select_frequencies(diag: StabilisationDiagram, freqs_hz, options: SelectionO
         top = diag.order[cand].max()
         c = cand[diag.order[cand] == top]
         best = c[np.argmin(np.abs(diag.freq_hz[c] - ft))]
+        if int(best) in taken:
+            raise ModalabValueError(
+                f"selected frequencies {taken[int(best)]:.6g} Hz and {ft:.6g} Hz both resolve to the pole at "
+                f"{diag.freq_hz[best]:.6g} Hz (the nearest pole of the highest order within {100 * opts.manual_tol:.3g} %); "
+                "one pole is one mode: give each mode once (look at the stabilisation diagram) or raise max_order")
+        taken[int(best)] = ft
         lam.append(diag.lam[best])
         parts.append(diag.participation[:, best])
         orders.append(diag.order[best])

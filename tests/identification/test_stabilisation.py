@@ -128,6 +128,8 @@ class TestSelection:
         assert sel.source == "manual" and np.all(sel.order == 40)
         with pytest.raises(ModalabValueError, match="no pole within"):
             select_frequencies(d, [140.0])
+        with pytest.raises(ModalabValueError, match=r"99.5 Hz and 101 Hz both resolve to the pole at 99.99"):
+            select_frequencies(d, [99.5, 101.0])        # one pole is one mode, never two
         f = tmp_path / "s.json"
         f.write_text('{"freq_hz": [100, 180]}')
         assert len(select_poles(d, f)) == 2
