@@ -249,10 +249,11 @@ def _check_values(src: str, opts: dict) -> None:
     if opts["frf"]["estimator"] not in ESTIMATORS:
         m = difflib.get_close_matches(str(opts["frf"]["estimator"]), ESTIMATORS, n=1, cutoff=0.5)
         bad("frf", "estimator", f"one of {', '.join(ESTIMATORS)}" + (f" (did you mean {m[0]}?)" if m else ""))
-    for key in ("force_fraction", "exp_end_level"):
-        v = opts["frf"][key]
-        if v is not None and not (number(v) and 0 < v < 1):
-            bad("frf", key, "a fraction between 0 and 1")
+    ff, end = opts["frf"]["force_fraction"], opts["frf"]["exp_end_level"]
+    if ff is not None and not (number(ff) and 0 < ff <= 1):
+        bad("frf", "force_fraction", "a fraction of the record in (0, 1]")
+    if end is not None and not (number(end) and 0 <= end < 1):
+        bad("frf", "exp_end_level", "a level in [0, 1) at the record end (0.01 = 1 %; 0 = no window)")
     if opts["identify"]["weighting"] not in (None, "coherence", "variance"):
         bad("identify", "weighting", "'coherence' or 'variance' (or leave it out)")
     sel = opts["identify"]["select"]
