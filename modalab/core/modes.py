@@ -287,6 +287,13 @@ class ModeSet:
                                     "the modes JSON 'modalab identify --json' writes") from None
         if isinstance(d, dict) and "freq_hz" not in d and isinstance(d.get("modes"), dict):
             d = d["modes"]
+        if isinstance(d, dict) and "freq_hz" not in d:
+            other = ("a correlation (the JSON 'modalab correlate --json' writes)" if {"mac", "pairing"} <= set(d)
+                     else "a diagnosis (the JSON 'modalab diagnose --json' writes)" if {"findings", "fit"} <= set(d)
+                     else None)
+            if other:
+                raise ModalabValueError(f"'{path}' does not hold a mode set: it is {other}. Expected the modes JSON "
+                                        "'modalab identify --json' writes (run identify again if it was overwritten)")
         try:
             return cls.from_dict(d)
         except (ModalabError, KeyError, TypeError, ValueError, AttributeError) as e:

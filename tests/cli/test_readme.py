@@ -77,6 +77,8 @@ def test_commands_in_practice_run_as_written(tmp_path, monkeypatch, capsys, capl
     _exact_model_stays_exact(json.loads((tmp_path / "diagnosis.json").read_text()))
     html = (tmp_path / "report" / "report.html").read_text()
     assert "The diagnosis stage has not run" not in html and "stabilisation" in html
+    # the commands run one by one keep no manifest: no empty Stages table; modalab run's report has one
+    assert "<h2>Stages</h2>" not in html and "<h2>Stages</h2>" in (tmp_path / "out" / "report" / "report.html").read_text()
     # the coherence of frf.uff, drawn by the report (modalab frf draws no map; it said "not available")
     assert "<figcaption>Coherence map</figcaption>" in html and "Coherence map: not available" not in html
     for p in ("model.bdf", "params.toml", "corr.json", "updated/updated.bdf", "session/session.uff",

@@ -314,7 +314,9 @@ def test_modes_json_of_identify_is_read_and_damage_is_named(tmp_path):
     np.testing.assert_array_equal(r.freq_hz, m.freq_hz)
     assert [str(d) for d in r.dofs] == ["1+Z", "2+Y"]
     for text, needle in (('{"modes": {"freq_hz": [1.0]', "not valid JSON"), ('{"a": 1}', "needs at least 'freq_hz'"),
-                         ("[1, 2]", "does not hold a mode set")):
+                         ("[1, 2]", "does not hold a mode set"),
+                         ('{"mac": [], "pairing": {}, "pairs": []}', "it is a correlation .*run identify again"),
+                         ('{"findings": [], "fit": {}}', "it is a diagnosis")):
         p.write_text(text)
         with pytest.raises(ModalabValueError, match=needle) as ei:
             ModeSet.from_json(p)

@@ -309,7 +309,9 @@ def build_report(run_dir, report_dir=None, *, title: str | None = None, model=No
         parts.append(f'<p class="statement"><b>Model to use: {html.escape(use[0])}</b> — {html.escape(use[1])}.</p>')
     rows = [{"stage": s, "completed (UTC)": e.get("completed_utc", ""), "time [s]": float(e.get("elapsed_s", 0.0)),
              "key": e.get("key", "")[:12]} for s, e in manifest.get("stages", {}).items()]
-    parts += ["<h2>Stages</h2>", _table(rows, ["stage", "completed (UTC)", "time [s]", "key"], {"time [s]": "{:.1f}"})]
+    if rows:                    # a run's manifest; the commands run one by one keep none
+        parts += ["<h2>Stages</h2>", _table(rows, ["stage", "completed (UTC)", "time [s]", "key"],
+                                             {"time [s]": "{:.1f}"})]
     # diagnosis first: it is what people came for
     parts += _diagnosis_section(run_dir, diag)
     parts += _test_section(run_dir, rd, model, frf_s, rec)
