@@ -234,3 +234,82 @@ class TestErrors:
         assert full.stations[1][2] == 1e-4 and (full.k1, full.k2) == (0.5, 0.6)
         kline = read_bdf("PBEAM   2       1       2.-4    6.-9    4.-9            8.-9\n+       0.      0.\n", xref=False)
         assert kline.properties[2].k1 == 0.0
+
+
+# --------------------------------------------------------------- misspelt card names
+def _large(name, *vals):
+    """A large-field card: 8-column name, four 16-column fields per line, '*' continuations."""
+    vals = [str(v) for v in vals]
+    rows = [vals[k:k + 4] for k in range(0, len(vals), 4)]
+    return "".join((f"{name}*" if i == 0 else "*").ljust(8) + "".join(v.ljust(16) for v in r) + "\n"
+                   for i, r in enumerate(rows))
+
+
+BAR = "CBAR    7       1       1       2       0.      0.      1.\n"
+
+
+class TestMisspeltCards:
+    """A card name that is no Nastran card but close to one (CBAT, CBRA for CBAR) was dropped with a warning, and
+    the model built without that element: it is an error naming the file, the line and the closest card."""
+
+    @pytest.mark.parametrize("card, near", [
+        (BAR.replace("CBAR", "CBAT"), "CBAR"),
+        (BAR.replace("CBAR", "CBRA"), "CBAR"),
+        (BAR.replace("CBAR", "cbat"), "CBAR"),                              # lower case
+        ("CBAT,7,1,1,2,0.,0.,1.\n", "CBAR"),                                # free field
+        (_large("CBAT", 7, 1, 1, 2, "0.", "0.", "1."), "CBAR"),             # large field
+        ("CONM    8       2               .5\n", "CONM2"),
+        ("CQAUD4  9       1       1       2       3       4\n", "CQUAD4"),
+    ])
+    def test_a_misspelt_card_names_the_file_the_line_and_the_closest_card(self, tmp_path, card, near):
+        f = tmp_path / "model_typo.bdf"
+        f.write_text(BASE + "$ the elements\n" + card + "ENDDATA\n")
+        e = _err(f, r"model_typo\.bdf", r"line 7\b", rf"unknown bulk-data card '{card[:4].upper()}\w*'",
+                 rf"did you mean '{near}'\?", r"Correct the card name", r"--ignore-unsupported")
+        assert e.line == 7 and e.path == str(f)
+        assert "\n" not in str(e)
+
+    def test_in_an_include_file_the_include_file_is_named(self, tmp_path):
+        (tmp_path / "elements.bdf").write_text("$ bars\n" + BAR.replace("CBAR", "CBAT"))
+        main = tmp_path / "main.bdf"
+        main.write_text(BASE + "INCLUDE 'elements.bdf'\nENDDATA\n")
+        e = _err(main, r"elements\.bdf", r"line 2\b", r"did you mean 'CBAR'")
+        assert e.path.endswith("elements.bdf")
+
+    def test_ignore_unsupported_keeps_it_unmodelled_and_the_warning_names_the_likely_typo(self, caplog):
+        with caplog.at_level("WARNING", logger="updating.fe.bulk.reader"):
+            b = read_bdf(BASE + BAR.replace("CBAR", "CBAT"), ignore_unsupported=True)
+        assert [r.name for r in b.unsupported] == ["CBAT"] and not b.elements
+        msg = " ".join(r.getMessage() for r in caplog.records)
+        assert "CBAT (1: line 6; not a Nastran card: did you mean CBAR?)" in msg, msg
+
+    @pytest.mark.parametrize("name", ["ZZTOP", "XYZZY", "MYCARD7", "DOF"])
+    def test_an_exotic_name_far_from_every_card_still_only_warns(self, caplog, name):
+        with caplog.at_level("WARNING", logger="updating.fe.bulk.reader"):
+            b = read_bdf(BASE + BAR + f"{name:<8}1       2.\n")
+        assert [r.name for r in b.unsupported] == [name] and 7 in b.elements
+        msg = " ".join(r.getMessage() for r in caplog.records if "not modelled" in r.getMessage())
+        assert f"{name} (1: line 7)" in msg and "did you mean" not in msg, msg
+
+    def test_real_cards_in_lower_case_large_and_free_field_are_not_flagged(self, caplog):
+        deck = ("grid    1               0.      0.      0.\n"
+                + _large("GRID", 2, "", "1.", "0.", "0.")
+                + "Mat1,1,7.+10,,.3,2700.\n"
+                + "pbarl   1       1               BAR\n        .02     .01\n"
+                + "cbar    7       1       1       2       0.      0.      1.\n"
+                + _large("CBAR", 8, 1, 2, 1, "0.", "0.", "1.")
+                + "cbar,9,1,1,2,0.,0.,1.\n"
+                + "eigrl,10,,,6\n"
+                + "force   3       2               1.      0.      0.      1.\n"   # a real card not modelled
+                + "pload4  4       7       1.\n"
+                + "Suport1 5       1       123\n")
+        with caplog.at_level("WARNING", logger="updating.fe.bulk.reader"):
+            b = read_bdf(deck)
+        assert sorted(b.elements) == [7, 8, 9] and b.grids[2].xyz[0] == 1.0
+        assert [r.name for r in b.unsupported] == ["FORCE", "PLOAD4", "SUPORT1"]
+        assert "did you mean" not in caplog.text
+
+    def test_a_deck_cut_inside_a_card_name_says_it_looks_truncated(self, tmp_path):
+        f = tmp_path / "cut.bdf"
+        f.write_bytes((BASE + BAR + "CBA").encode())
+        _err(f, r"cut\.bdf", r"line 7\b", r"did you mean 'CBAR'", r"looks truncated")

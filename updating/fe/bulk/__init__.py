@@ -6,7 +6,8 @@ Reading
     whole SOL 103 decks (executive/case control recognised and skipped, SPC/METHOD/SDAMPING
     selections kept), INCLUDE, ENDDATA; small, large (``*``) and free (comma) fields with
     explicit or implicit continuations.  Unsupported cards are kept and listed in one
-    :class:`UnsupportedCardWarning`.  Every error is a :class:`modalab.core.errors.BulkDataError`
+    :class:`UnsupportedCardWarning`; a misspelt card name (``CBAT`` for ``CBAR``: close to a known
+    Nastran card, :mod:`~updating.fe.bulk.card_names`) is an error unless ``ignore_unsupported=True``.  Every error is a :class:`modalab.core.errors.BulkDataError`
     naming the card, line and file.
 :class:`BulkData`
     ``grids``, ``coords``, ``elements``, ``rigid``, ``properties``, ``materials``, ``spcs``,

@@ -12,7 +12,10 @@
 including file, then to the main file); reading stops at ``ENDDATA``.
 Cards this package does not model are kept in :attr:`BulkData.unsupported`
 (and written back by the writer) and listed, with counts and line numbers, in
-ONE logged warning (logger ``updating.fe.bulk.reader``); nothing is dropped silently.
+ONE logged warning (logger ``updating.fe.bulk.reader``); nothing is dropped silently.  A card name that is no
+Nastran card but close to one (:data:`KNOWN_CARDS`: ``CBAT`` or ``CBRA`` for ``CBAR``) is a typo: a
+:class:`~modalab.core.errors.BulkDataError` naming the file, the line and the closest card, unless
+``ignore_unsupported``; a name far from every known card (an exotic card) is kept with the warning.
 
 A deck file that is empty, not text, or looks cut short (its last line has no
 line break and there is no ``ENDDATA``; grids but no elements without
@@ -39,6 +42,7 @@ import numpy as np
 from modalab.core.errors import BulkDataError
 
 from updating.fe.bulk import cards as C
+from updating.fe.bulk.card_names import NASTRAN_CARDS, closest_card
 from updating.fe.bulk.fields import Line, group_cards
 from updating.fe.bulk.geometry import resolve_coord
 from modalab.core.errors import _where
@@ -415,10 +419,15 @@ def _split_sections(lines, cc: CaseControl) -> list:
     return bulk
 
 
-def read_bdf(source, *, xref: bool = True, base_dir=None, whole_model: bool = False) -> BulkData:
+def read_bdf(source, *, xref: bool = True, base_dir=None, whole_model: bool = False,
+             ignore_unsupported: bool = False) -> BulkData:
     """Read a Nastran deck (path, or text containing a newline) into :class:`BulkData`.
 
     xref : run the cross-reference checks (:meth:`BulkData.check`).
+    ignore_unsupported : a card name that is no known Nastran card but close to one (a typo: ``CBAT`` for
+        ``CBAR``) is an error naming the file, the line and the closest card; with ``ignore_unsupported`` (the CLI's
+        ``--ignore-unsupported``) it is kept in :attr:`BulkData.unsupported` like any unmodelled card, and named as
+        a likely typo in the warning.  A name far from every known card is always kept, with the warning.
     whole_model : the deck must be a whole model: a deck with grids but no elements or masses is an error
     (it looks truncated when it has no ENDDATA), not a model with a zero mass matrix.
     base_dir : extra directory for INCLUDE files (default: the main file's directory
@@ -449,6 +458,8 @@ def read_bdf(source, *, xref: bool = True, base_dir=None, whole_model: bool = Fa
         for raw in raw_cards:
             typed = C.parse_card(raw)
             if typed is None:
+                if not ignore_unsupported:
+                    _refuse_typo(raw)
                 bulk.unsupported.append(raw)
                 continue
             for card in typed:
@@ -525,6 +536,20 @@ STRUCTURAL_CARDS = frozenset({
     "CDAMP4", "CDAMP5", "CVISC", "GENEL", "DMIG", "RBE1", "RROD", "RSPLINE", "RTRPLT", "MPC", "MPCADD"})
 
 
+#: Every card name the reader knows: the cards it models, the structural cards it knowingly does not model and the
+#: other MSC/NX Nastran bulk-data cards (:data:`~updating.fe.bulk.card_names.NASTRAN_CARDS`)
+KNOWN_CARDS = frozenset(C.CARD_TYPES) | STRUCTURAL_CARDS | NASTRAN_CARDS
+
+
+def _refuse_typo(raw) -> None:
+    """A card whose name is no known Nastran card but close to one is a typo: an error naming the closest."""
+    near = closest_card(raw.name, KNOWN_CARDS, C.CARD_TYPES)
+    if near is not None:
+        raise raw.error(f"unknown bulk-data card {raw.name!r}; did you mean {near!r}? Correct the card name (or "
+                        f"remove the card); if {raw.name} is a Nastran card modalab does not know, pass "
+                        "--ignore-unsupported to keep it unmodelled")
+
+
 def _report_unsupported(bulk: BulkData) -> None:
     """One logged warning listing the cards that are kept but not modelled, with their line numbers."""
     by_name: dict = {}
@@ -536,7 +561,9 @@ def _report_unsupported(bulk: BulkData) -> None:
     for name in sorted(by_name):
         ls = [str(v) for v in by_name[name] if v is not None]
         shown = ", ".join(ls[:8]) + (f" ... ({len(ls)} in all)" if len(ls) > 8 else "")
-        parts.append(f"{name} ({len(by_name[name])}: line{'s' if len(ls) > 1 else ''} {shown})")
+        near = closest_card(name, KNOWN_CARDS, C.CARD_TYPES)
+        typo = f"; not a Nastran card: did you mean {near}?" if near else ""
+        parts.append(f"{name} ({len(by_name[name])}: line{'s' if len(ls) > 1 else ''} {shown}{typo})")
     if not by_name:
         return
     msg = (f"{bulk.path or 'deck'}: {sum(len(v) for v in by_name.values())} bulk-data card(s) of {len(by_name)} type(s) are not "
