@@ -55,7 +55,8 @@ def add_map_arguments(s):
                    help="test node n is model grid n (only when you know the numbering is shared)")
     s.add_argument("--ignore-unsupported", action="store_true",
                    help="build the model without the structural cards modalab does not model (e.g. CTRIA6); "
-                        "by default they are an error, since the model would be a different structure")
+                        "by default they are an error, since the model would be a different structure; also "
+                        "keeps, unmodelled, a card whose name looks like a typo of a known card (e.g. CBAT)")
     s.add_argument("--freq-window", type=float, default=0.35,
                    help="largest relative frequency distance of a pair (default 0.35 = ±35 %%)")
 

@@ -90,7 +90,8 @@ def register(sub):
                                                "campaign (needs --report)")
     s.add_argument("--ignore-unsupported", action="store_true",
                    help="build the model without the structural cards modalab does not model (e.g. CTRIA6); "
-                        "by default they are an error, since the model would be a different structure")
+                        "by default they are an error, since the model would be a different structure; also "
+                        "keeps, unmodelled, a card whose name looks like a typo of a known card (e.g. CBAT)")
     s.add_argument("--modes", help="identified modes (UFF 55 or JSON); alone, a modes-only diagnosis")
     s.add_argument("--map", help="with --modes alone: DOF map file (TOML/CSV, as for correlate: test DOF -> model "
                                  "DOF with sign); default: test node ids are model grid ids")

@@ -313,3 +313,24 @@ class TestMisspeltCards:
         f = tmp_path / "cut.bdf"
         f.write_bytes((BASE + BAR + "CBA").encode())
         _err(f, r"cut\.bdf", r"line 7\b", r"did you mean 'CBAR'", r"looks truncated")
+
+    def test_the_cli_refuses_it_in_one_line_with_exit_code_2(self, tmp_path, capsys):
+        from modalab.app.cli import main
+        from modalab.core.modes import ModeSet
+
+        demo = Path(__file__).resolve().parents[2] / "examples" / "demo_project" / "nominal.bdf"
+        lines = demo.read_text().splitlines(keepends=True)
+        n = next(i for i, ln in enumerate(lines) if ln.startswith("CBAR"))
+        lines[n] = lines[n].replace("CBAR", "CBAT", 1)
+        deck = tmp_path / "model_typo.bdf"
+        deck.write_text("".join(lines))
+        modes = tmp_path / "modes.uff"
+        ModeSet(freq_hz=[19.0, 71.0], damping=[0.01, 0.02], shapes=[[1.0, 0.5], [0.3, -1.0], [0.2, 0.1]],
+                dofs=["102+Z", "104+Z", "106+Z"]).to_uff(modes)
+        capsys.readouterr()
+        argv = ["correlate", str(deck), str(modes), "--same-ids"]
+        assert main(argv) == 2                      # it was 0, with the model cut in two at that bar
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+        assert f"'{deck}'" in err and f"line {n + 1}," in err and "did you mean 'CBAR'?" in err, err
+        assert main(argv + ["--ignore-unsupported"]) == 0       # the documented way out, for a real exotic card

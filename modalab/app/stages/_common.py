@@ -79,14 +79,16 @@ def _expect(path, wanted: str, what: str, hint: str) -> None:
 
 def load_model(path, ignore_unsupported: bool = False):
     """An FE model from Nastran bulk data (``.bdf``, ``.dat``, ``.nas``, ``.blk``); a structural card the
-    builder does not model is an error unless ``ignore_unsupported`` (``--ignore-unsupported``)."""
+    builder does not model, or a misspelt card name (CBAT for CBAR), is an error unless ``ignore_unsupported``
+    (``--ignore-unsupported``)."""
 
     p = Path(path)
     if not p.is_file():
         raise PlanError(f"model file {str(p)!r} does not exist; give a Nastran bulk-data file (.bdf)")
     _expect(p, "bulk", "Nastran bulk data (the FE model, e.g. model.bdf)",
             "check the order of the arguments (the model comes first)")
-    return build_model(read_bdf(p, whole_model=True), ignore_unsupported=ignore_unsupported)
+    return build_model(read_bdf(p, whole_model=True, ignore_unsupported=ignore_unsupported),
+                       ignore_unsupported=ignore_unsupported)
 
 
 def _frfs_not_modes(path: Path) -> PlanError | None:

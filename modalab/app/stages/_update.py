@@ -281,7 +281,8 @@ def _update_parameters(model, model_path, opts: UpdateOptions, declared, test, f
     rows = np.vstack([np.asarray(pm.p0, float)[None, :]] + [np.asarray(h["p"], float)[None, :] for h in hist])
     files = [plot_convergence(rows, out / "convergence.png", names=names, normalise=False)]
     updated = pm.model_at(p)
-    files.append(write_text(out / "updated.bdf", write_bdf(to_bulk(updated, template=read_bdf(model_path)))))
+    files.append(write_text(out / "updated.bdf", write_bdf(to_bulk(updated, template=read_bdf(
+        model_path, ignore_unsupported=opts.correlation.ignore_unsupported)))))
     summary["updated_model"] = str(out / "updated.bdf")
     after = _correlation(updated, test, opts.correlation, mapping) if test is not None else None
     return after, files
