@@ -178,7 +178,7 @@ def _add_demo(sub):
 
 def _add_sim(sub):
     s = sub.add_parser("sim", help="simulate a roving-hammer test into a UFF of raw hits")
-    s.add_argument("-o", "--output", required=True, help="UFF file to write (raw hits, dataset 58 time records)")
+    s.add_argument("-o", "--output", required=True, help="UFF file to write (raw hits: dataset 58 time records, written in binary form, 58b)")
     s.add_argument("--structure", default="demo", help="'demo' or a Nastran bulk-data file (default: demo)")
     s.add_argument("--points", nargs="+", help="DOFs to hit, e.g. 1+Z 3+Z (default: the demo's points)")
     s.add_argument("--references", nargs="+", help="accelerometer DOFs (default: the demo's three)")
