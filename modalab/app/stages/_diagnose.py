@@ -168,8 +168,9 @@ def _frf_overlays(H, model, diag, d: Path, want, updated_model) -> Path:
     data, at ``s = iω + β`` (β: the FRF's ``window_beta_per_s``), as the diagnosis itself compares them."""
 
     measured = {str(r) for r in H.responses}
-    missing = [str(w) for w in (want or ()) if str(w) not in measured]
-    resp = [r for r in H.responses if want is None or str(r) in {str(w) for w in want}][:4] or H.responses[:4]
+    wanted = [str(w) for w in want or ()]
+    missing = [w for w in wanted if w not in measured]
+    resp = [r for r in H.responses if want is None or str(r) in wanted][:4] or H.responses[:4]
     if missing:
         log.warning("FRF overlay: %s not among the measured responses (%s%s); the figure shows %s",
                     ", ".join(missing), ", ".join(sorted(measured)[:8]), ", ..." if len(measured) > 8 else "",
