@@ -67,7 +67,6 @@ from acquisition.estimators import ESTIMATORS
 from modalab.core.dof import Dof
 from modalab.core.errors import ModalabError, PlanError
 from updating.diagnosis.library import validate_kinds
-from updating.methods.regularisation import REGULARISATION_METHODS
 from modalab.app.stages._common import load_parameters
 
 log = logging.getLogger(__name__)
@@ -269,8 +268,8 @@ def _check_values(src: str, opts: dict) -> None:
         bad("correlate", "freq_weight", "a weight >= 0")
     u = opts["update"]
     r = u["regularisation"]
-    if not ((isinstance(r, str) and r in REGULARISATION_METHODS) or (number(r) and r >= 0)):
-        bad("update", "regularisation", f"{', '.join(map(repr, REGULARISATION_METHODS))} or a factor >= 0")
+    if not ((isinstance(r, str) and r in ("lcurve", "gcv")) or (number(r) and r >= 0)):
+        bad("update", "regularisation", "'lcurve', 'gcv' or a factor >= 0")
     if not (number(u["shape_sigma"]) and u["shape_sigma"] > 0):
         bad("update", "shape_sigma", "a relative standard deviation above 0, e.g. 0.05")
     kinds = opts["diagnose"]["kinds"]

@@ -12,10 +12,7 @@ from scipy.stats import chi2 as _chi2
 
 from modalab.core.errors import ModalabValueError
 
-__all__ = ["choose_alpha", "tikhonov_solve", "posterior", "REGULARISATION_METHODS"]
-
-#: the rules :func:`choose_alpha` picks the Tikhonov factor by (a number >= 0 gives the factor itself)
-REGULARISATION_METHODS = ("lcurve", "gcv")
+__all__ = ["choose_alpha", "tikhonov_solve", "posterior"]
 
 #: singular values of S below this fraction of the largest are a null direction: the data cannot see that
 #: combination of parameters (its unregularised variance is infinite, :func:`_inverse`), and the plain
