@@ -152,6 +152,10 @@ class RitzBasis:
             g = 1.0 / z
             Yr = g[:, None, :] * Qr.T[:, :, None]                      # (m, n_r, n_s)
             Ym = g[:, None, :] * Qm.T[:, :, None] if want_jac_rows else None
+        elif Cq is None and (Y := _hysteretic_solve(w2, Dq, s, np.concatenate([Qr.T, Qm.T], axis=1)
+                                                    if want_jac_rows else Qr.T)) is not None:
+            Yr = Y[:, : Qr.shape[0]]
+            Ym = Y[:, Qr.shape[0]:] if want_jac_rows else None
         else:
             Z = np.zeros((s.size, m, m), complex)
             Z[:, np.arange(m), np.arange(m)] = w2[None, :] + (s ** 2)[:, None]
@@ -171,18 +175,37 @@ class RitzBasis:
         """``∂H/∂p`` (n_rows, n_refs, n_s) for one :class:`~updating.fe.parametric.Derivative`."""
         Q, Yr, Ym = ctx
         m, nr, ns = Yr.shape
-        out = np.zeros((Ym.shape[1], nr, ns), complex)
-        A = np.zeros((ns, m, nr), complex)
-        YrT = Yr.transpose(2, 0, 1)                                   # (n_s, m, n_r)
+        A = np.zeros((m, nr, ns), complex)
+        Y2 = np.ascontiguousarray(Yr).reshape(m, nr * ns)             # one product over every line and reference
         for mat, fac in ((derivative.dK, None), (derivative.dM, s ** 2), (derivative.dC, s),
                          (derivative.dD, 1j * np.ones_like(s))):
             if mat is None:
                 continue
             P = Q.T @ (mat @ Q)                                       # (m, m)
-            PY = np.matmul(P[None], YrT)                              # (n_s, m, n_r)
-            A += PY if fac is None else PY * fac[:, None, None]
-        out = -np.matmul(Ym.transpose(2, 1, 0), A).transpose(1, 2, 0)
-        return out
+            # a real P: one real product on the interleaved real and imaginary parts
+            PY = (P @ Y2 if np.iscomplexobj(P) else (P @ Y2.view(float)).view(complex)).reshape(m, nr, ns)
+            A += PY if fac is None else PY * fac[None, None, :]
+        # dH[a, b, f] = −Σ_k Ym[k, a, f] A[k, b, f], one small product per line
+        return -np.matmul(Ym.transpose(2, 1, 0), A.transpose(2, 0, 1)).transpose(1, 2, 0)
+
+
+#: the eigenvector matrix of ``diag(ω²) + i Dq`` may have at most this condition number for
+#: :func:`_hysteretic_solve`, which otherwise leaves the lines to a solve each
+EIG_COND_LIMIT = 1e6
+
+
+def _hysteretic_solve(w2, Dq, s, rhs):
+    """``(diag(ω²) + i Dq + s_f² I)⁻¹ rhs`` at every line (m, n_rhs, n_s), from one eigen-decomposition
+    ``diag(ω²) + i Dq = W Λ W⁻¹`` (the resolvent of one matrix: ``W (Λ + s_f²)⁻¹ W⁻¹``) instead of a solve per
+    line; None where ``W`` is too ill-conditioned to invert (:data:`EIG_COND_LIMIT`: near-defective, as
+    repeated ω² coupled by ``Dq`` can be)."""
+    lam, W = np.linalg.eig(np.diag(w2).astype(complex) + 1j * Dq)
+    if not np.all(np.isfinite(lam)) or np.linalg.cond(W) > EIG_COND_LIMIT:
+        return None
+    B = np.linalg.solve(W, rhs)                                               # (m, n_rhs)
+    G = B[:, :, None] / (lam[:, None, None] + (s ** 2)[None, None, :])        # (m, n_rhs, n_s)
+    m, nr, ns = G.shape
+    return (W @ G.reshape(m, nr * ns)).reshape(m, nr, ns)
 
 
 class SingularStepError(ConvergenceError, np.linalg.LinAlgError):

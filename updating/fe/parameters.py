@@ -338,11 +338,15 @@ class ParametricFEModel:
         """Structure (M, K, C, D) at ``p`` on the constrained DOFs."""
         return self.system(p).structure(coords=self.model.coords(), name=self.model.name)
 
-    def derivatives(self, p=None) -> list:
-        """Exact ∂K/∂p_i, ∂M/∂p_i, ∂C/∂p_i, ∂D/∂p_i on the constrained DOFs (None where zero)."""
+    def derivatives(self, p=None, only=None) -> list:
+        """Exact ∂K/∂p_i, ∂M/∂p_i, ∂C/∂p_i, ∂D/∂p_i on the constrained DOFs (None where zero); with ``only``
+        (parameter indices) those alone are assembled and the others are None."""
         p = np.asarray(self._check(p), float)
         out = []
         for i, (par, (tg, els)) in enumerate(zip(self.parameters, self._targets)):
+            if only is not None and i not in only:
+                out.append(None)
+                continue
             h = 1e-30 * max(1.0, abs(p[i]))
             pc = p.astype(complex)
             pc[i] += 1j * h

@@ -22,6 +22,7 @@ import weakref
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
 from updating.correlation.condensation import condensed_residual
 from updating.fe import ParametricFEModel
@@ -107,15 +108,100 @@ def residual_system(structure, data, weights=None) -> ResidualSystem:
 
 _DERIV_CACHE: weakref.WeakKeyDictionary | None = None
 _LINEAR_FIELDS = ("E", "rho", "k", "c", "mass", "inertia", "nsm")
+#: fields that multiply a linear field's matrices in C or D (C = αM + βK + dampers, D = Σ ge_e K_e + G·K): the
+#: derivatives of the linear parameters are affine in their values
+_AFFINE_FIELDS = ("ge", "global_ge", "rayleigh_alpha", "rayleigh_beta")
+
+
+def _split(pmodel) -> tuple[np.ndarray, np.ndarray]:
+    """``(lin, aff)`` masks over ``pmodel.parameters``: the parameters whose matrix derivatives do not depend on p
+    apart from the damping values (a linear field that no other parameter of the same field also scales: a
+    material's E and one property's E on the same elements multiply, and each one's derivative holds the other's
+    value), and the damping values those derivatives are affine in."""
+    pars = pmodel.parameters
+    els = [getattr(pmodel, "_targets", [(None, None)] * len(pars))[i][1] for i in range(len(pars))]
+    sets = [None if e is None else {int(getattr(x, "eid", x)) for x in e} for e in els]
+    lin = np.array([par.field in _LINEAR_FIELDS for par in pars])
+    for i in np.flatnonzero(lin):
+        for j in np.flatnonzero(lin):
+            if i < j and pars[i].field == pars[j].field and (sets[i] is None or sets[j] is None or sets[i] & sets[j]):
+                lin[i] = lin[j] = False
+    aff = np.array([par.field in _AFFINE_FIELDS for par in pars])
+    return lin, aff
+
+
+class _AffineDerivatives:
+    """The derivatives of the linear parameters as ``d(a) = d0 + Σ_j a_j Δd_j`` in the damping values ``a``
+    (:data:`_AFFINE_FIELDS`), from ``1 + n_a`` complex-step evaluations (the damping values at 0 and at each unit
+    vector) and checked against a direct evaluation at the first ``p``: exact where the assembly is as
+    :mod:`updating.fe.assembly` states, and refused (``ok`` False) where it is not."""
+
+    def __init__(self, pmodel, p, lin, aff, direct):
+        self.lin, self.aff = np.flatnonzero(lin), np.flatnonzero(aff)
+        q = p.copy()
+        q[self.aff] = 0.0
+        base = pmodel.derivatives(q)
+        self.d0 = {i: base[i] for i in self.lin}
+        self.delta = []
+        for j in self.aff:
+            q1 = q.copy()
+            q1[j] = 1.0
+            dj = pmodel.derivatives(q1)
+            self.delta.append({i: (_diff(dj[i].dC, base[i].dC), _diff(dj[i].dD, base[i].dD)) for i in self.lin})
+        self.ok = all(_close(self.at(p)[i], direct[i]) for i in self.lin)
+
+    def at(self, p) -> dict:
+        out = {}
+        for i in self.lin:
+            d = self.d0[i]
+            C, D = d.dC, d.dD
+            for a, delta in zip(p[self.aff], self.delta):
+                dC, dD = delta[i]
+                if a != 0.0 and dC is not None:
+                    C = dC * a if C is None else C + dC * a
+                if a != 0.0 and dD is not None:
+                    D = dD * a if D is None else D + dD * a
+            out[i] = type(d)(dK=d.dK, dM=d.dM, dC=C, dD=D)
+        return out
+
+
+def _only(pmodel, p, idx: set) -> list:
+    """The derivatives of the parameters ``idx`` at ``p`` (in their order), the others not assembled."""
+    ds = pmodel.derivatives(p, only=idx) if isinstance(pmodel, ParametricFEModel) else pmodel.derivatives(p)
+    return [ds[i] for i in sorted(idx)]
+
+
+def _diff(A, B):
+    """``A − B`` of two sparse matrices or None (None where zero)."""
+    if A is None and B is None:
+        return None
+    out = sp.csr_matrix(A if B is None else (-B if A is None else A - B))
+    out.eliminate_zeros()
+    return out if out.nnz else None
+
+
+def _close(a, b) -> bool:
+    """Two :class:`~updating.fe.parametric.Derivative` equal to round-off."""
+    for x, y in ((a.dK, b.dK), (a.dM, b.dM), (a.dC, b.dC), (a.dD, b.dD)):
+        if x is None and y is None:
+            continue
+        x = sp.csr_matrix(y.shape) if x is None else x
+        y = sp.csr_matrix(x.shape) if y is None else y
+        scale = max(abs(x).max(), abs(y).max(), 1e-300)
+        if abs(x - y).max() > 1e-9 * scale:
+            return False
+    return True
 
 
 def derivatives(pmodel, p):
     """``pmodel.derivatives(p)``, cached per model for parameters that enter the matrices linearly.
 
-    For fields that scale an element or material matrix (E, ρ, k, c, mass, inertia, nsm) the derivative
-    does not depend on p itself, only on the values of the model-wide damping fields (PARAM G, Rayleigh)
-    that multiply K or M and of non-linear parameters (section dimensions, ν, GE); the cache is keyed by
-    those.  Saves the complex-step re-assembly (one model per parameter) in iterated MCI updates.
+    For fields that scale an element or material matrix (E, ρ, k, c, mass, inertia, nsm; :func:`_split`) the
+    derivative depends on p only through the model-wide and element damping values (PARAM G, GE, Rayleigh) that
+    multiply K or M, and affinely (:class:`_AffineDerivatives`), and through non-linear parameters (section
+    dimensions, ν); the cache is keyed by the latter.  The non-linear parameters' own derivatives are assembled
+    at every call.  Saves the complex-step re-assembly (one model per parameter) in iterated MCI updates and in
+    the FRF fits of the diagnosis, whose loss factors move at every step.
     """
     global _DERIV_CACHE
     if _DERIV_CACHE is None:
@@ -124,8 +210,8 @@ def derivatives(pmodel, p):
     if pars is None:
         return pmodel.derivatives(p)
     p = np.asarray(p, float)
-    lin = np.array([par.field in _LINEAR_FIELDS for par in pars])
-    key = tuple(np.round(p[~lin], 12))
+    lin, aff = _split(pmodel)
+    key = tuple(np.round(p[~lin & ~aff], 12))
     try:
         store = _DERIV_CACHE.setdefault(pmodel, {})
     except TypeError:  # pragma: no cover - not weak-referenceable
@@ -133,17 +219,21 @@ def derivatives(pmodel, p):
     if key not in store:
         if len(store) > 8:
             store.clear()
-        store[key] = pmodel.derivatives(p)
-        return list(store[key])
-    out = list(store[key])
+        direct = pmodel.derivatives(p)
+        store[key] = _AffineDerivatives(pmodel, p, lin, aff, direct) if lin.any() else None
+        if store[key] is None or not store[key].ok:
+            # not affine as assembled (or nothing linear): this key is evaluated directly from now on
+            store[key] = False
+        return list(direct)
+    if store[key] is False:
+        return pmodel.derivatives(p)
+    out = [None] * len(pars)
+    for i, d in store[key].at(p).items():
+        out[i] = d
     nonlin = np.flatnonzero(~lin)
     if nonlin.size:
         # the derivatives of the non-linear fields (e.g. PARAM G: ∂D/∂g = K(p)) depend on every parameter
-        sub = ParametricFEModel(pmodel.model_at(p), [pars[i] for i in nonlin])
-        for i, d in zip(nonlin, sub.derivatives(sub.p0)):
-            if pars[i].mode == "factor":
-                f = 1.0 / p[i] if p[i] != 0 else 0.0
-                d = type(d)(*(None if A is None else A * f for A in (d.dK, d.dM, d.dC, d.dD)))
+        for i, d in zip(nonlin, _only(pmodel, p, set(int(i) for i in nonlin))):
             out[i] = d
     return out
 

@@ -1,0 +1,54 @@
+"""The cache of exact parameter derivatives (updating.methods.mci_condensed.derivatives): at every point it
+returns what the complex-step assembly returns there, with the damping values and the linear parameters moved
+between calls (cache hits), and with two parameters that scale the same elements' E (which must not be cached)."""
+import numpy as np
+import scipy.sparse as sp
+from hypothesis import given, settings, strategies as st
+
+from updating.fe import Beam3D, Parameter, ParametricFEModel
+from updating.methods.mci_condensed import derivatives
+
+from tests.updating.test_fe_parameters import PARAMS, build
+
+#: the frame's parameters plus the E of material 1 beside the E of its property "plate" (the same elements)
+OVERLAP = PARAMS + [Parameter("E_mat1", "E", materials=[1])]
+PM = ParametricFEModel(build(Beam3D), OVERLAP)
+#: linear fields and damping values: what a cache hit may move; the geometry stays where it is
+MOVING = [i for i, par in enumerate(OVERLAP) if par.field in
+          ("E", "rho", "k", "c", "mass", "inertia", "nsm", "ge", "global_ge", "rayleigh_alpha", "rayleigh_beta")]
+
+
+def same(a, b) -> float:
+    """Largest |a − b| relative to the largest entry of the two (sparse or None)."""
+    if a is None and b is None:
+        return 0.0
+    a = sp.csr_matrix(b.shape) if a is None else a
+    b = sp.csr_matrix(a.shape) if b is None else b
+    return abs(a - b).max() / max(abs(a).max(), abs(b).max(), 1e-300)
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.lists(st.lists(st.floats(0.5, 2.0), min_size=len(MOVING), max_size=len(MOVING)), min_size=2, max_size=4))
+def test_cached_derivatives_equal_the_assembled_ones(points):
+    base = PM.p0.copy()
+    for factors in points:
+        p = base.copy()
+        p[MOVING] = PM.p0[MOVING] * np.asarray(factors)
+        p[[i for i, par in enumerate(OVERLAP) if par.mode == "value" and par.field in ("ge", "global_ge",
+                                                                                        "rayleigh_alpha")]] += 0.01
+        got, want = derivatives(PM, p), PM.derivatives(p)
+        for par, g, w in zip(OVERLAP, got, want):
+            for k in ("dK", "dM", "dC", "dD"):
+                assert same(getattr(g, k), getattr(w, k)) < 1e-9, (par.name, k)
+
+
+def test_a_moved_overlapping_factor_changes_the_other_ones_derivative():
+    """E of material 1 and E of the property "plate" multiply on the plate's elements: ∂K/∂E_mat1 there scales
+    with E_plate, so the two are not cached as constants (they were, before: the first value stayed)."""
+    p = PM.p0.copy()
+    derivatives(PM, p)
+    i, j = OVERLAP.index(OVERLAP[-1]), [par.name for par in OVERLAP].index("E_plate")
+    p[j] = 1.5
+    got, want = derivatives(PM, p)[i].dK, PM.derivatives(p)[i].dK
+    assert same(got, want) < 1e-9
+    assert same(PM.derivatives(PM.p0)[i].dK, want) > 0.01
