@@ -151,7 +151,10 @@ def main():
             print(f"{code}: findings {[(lab, round(v, 1)) for lab, v in o['findings']]}; held-out FRF error "
                   f"parameters only {o['held_out'][0]:.3f}, with physics {o['held_out'][1]:.3f}")
         if out["baseline"]["findings"] is not None:
-            print("findings", "same" if out["baseline"]["findings"] == out["now"]["findings"] else "DIFFER")
+            fb, fn = out["baseline"]["findings"], out["now"]["findings"]
+            same = len(fb) == len(fn) and all(lb == ln and abs(vb - vn) <= 1e-6 * max(abs(vb), abs(vn))
+                                              for (lb, vb), (ln, vn) in zip(fb, fn))
+            print("findings", "same (values to 1e-6)" if same else "DIFFER")
     return 0
 
 
