@@ -158,11 +158,14 @@ def or_labels(c: Candidate, others) -> str:
     return "".join(f" or {_short(c, o)}" for o in others)
 
 
-def statement(findings, fit, held_desc: str, not_evaluated=(), unobservable=(), mesh: str | None = None) -> str:
+def statement(findings, fit, held_desc: str, not_evaluated=(), unobservable=(), mesh: str | None = None,
+              blind: str | None = None) -> str:
     """The diagnosis in words; candidates that could not be evaluated and releases the sensors and hits
     cannot see are named (the conclusion does not cover them); ``mesh``: why the nominal beam mesh's own error
     was taken out of the data (:func:`~updating.diagnosis.mesh.mesh_discrepancy`), said first."""
     text = _statement(findings, fit, held_desc)
+    if blind and findings:
+        text += " " + blind
     if mesh:
         text = (f"The nominal beam mesh's own discretisation error was taken out of the measured FRFs first ({mesh}); "
                 "the FRF errors here are against the data so corrected. " + text)
