@@ -38,6 +38,12 @@ threads round otherwise and never got there; 34fc930 reports such a candidate as
 74.6 s (ratio 1.10; CPU 130 s against 143 s), the same finding: the 75-82 s above were two-thread BLAS, twice the
 time of one thread for this work of many small dense solves.
 
+Measured 2026-12-03 (that session's machine, quiet, one BLAS thread): baseline af8c5fc total 73.3 s (CPU 76.6 s),
+358325e (exact derivatives cached as an affine function of the loss factors, the Ritz Jacobian one product per
+matrix, the hysteretic Ritz resolvent from one eigen-decomposition) 66.8 s (ratio 0.91; CPU 70.5 s;
+localise+name 64.2 -> 59.9 s), the same finding (spring to ground at 204+Z, 19 990 N/m; held-out FRF error
+289 % -> 1.8 %).
+
 Measured 2026-11-30, sixteenth session, after the nominal mesh's own error is taken out of the data where the data
 show it (``updating.diagnosis.mesh.mesh_discrepancy``: one more fit, of the model with its beams cut in two):
 total 38.6 s (0.64 of the budget; CPU 40.8 s; localise+name 33.9 s), the same finding (spring to ground at 204+Z,
