@@ -140,7 +140,9 @@ class _AffineDerivatives:
         self.lin, self.aff = np.flatnonzero(lin), np.flatnonzero(aff)
         q = p.copy()
         q[self.aff] = 0.0
-        base = pmodel.derivatives(q)
+        # with the damping values already 0 (or none: an MCI update of moduli and densities) the direct
+        # evaluation is the base; no second assembly
+        base = direct if not np.any(p[self.aff]) else pmodel.derivatives(q)
         self.d0 = {i: base[i] for i in self.lin}
         self.delta = []
         for j in self.aff:
