@@ -210,3 +210,20 @@ def test_hysteretic_resolvent_from_one_eigendecomposition_equals_a_solve_per_lin
     if Y is not None:                           # every line to 1e-9 of its own largest response
         err = np.abs(Y - want).max(axis=(0, 1)) / np.abs(want).max(axis=(0, 1))
         assert err.max() < 1e-9
+
+
+def test_a_model_between_100_and_200_dofs_is_fitted_in_a_basis_to_the_exact_fits_answer():
+    """RITZ_LIMIT (100 DOFs) decides the FRF fits' numerics: a 138-DOF frame takes the Ritz basis by
+    default and lands where the exact fit lands, with the exact error reported."""
+    from updating.diagnosis.fit import RITZ_LIMIT
+    small = garteur_model(2, suspension=True)
+    small.global_ge = 0.02
+    small._changed()
+    assert RITZ_LIMIT < small.structure().n_dof <= 200
+    pm, data = _wing_modulus_case(small)
+    auto = fit_frf(pm, data, [1.0], lower=[0.5], upper=[2.0])
+    exact = fit_frf(pm, data, [1.0], lower=[0.5], upper=[2.0], reduced=False)
+    assert "Ritz" in auto.message and "Ritz" not in exact.message
+    assert auto.p[0] == pytest.approx(1.06, rel=2e-3)
+    assert auto.p[0] == pytest.approx(exact.p[0], rel=1e-3)
+    assert auto.error == pytest.approx(frf_error(model_frf(pm.structure(auto.p), data), data), rel=1e-12)

@@ -249,8 +249,13 @@ def _jacobian_ritz(pmodel, p, data: FRFData, free, ctx):
     return np.array(J).T
 
 
-#: models above this many DOFs are fitted in a Ritz basis (:mod:`~updating.diagnosis.ritz`)
-RITZ_LIMIT = 200
+#: FRF fits and exact FRF screenings of models above this many DOFs run in a Ritz basis
+#: (:mod:`~updating.diagnosis.ritz`), checked against the exact receptance.  Below, a banded LU per line and
+#: evaluation costs about 0.3 ms per line at 200 DOFs, and the frames of 150-200 DOFs took 60-100 s of CPU per
+#: diagnosis against 30-60 s for larger ones in a basis (the benchmark's timings, sessions 23-25); from 200 to
+#: 100 DOFs: even case 2042 (198 DOFs) 96 -> 58 s, the same finding and values to four digits.  Which
+#: criterion localises (MCI or FRF) is a separate choice (:data:`~updating.diagnosis.workflow.MCI_LIMIT`)
+RITZ_LIMIT = 100
 #: a parameter whose matrix derivatives touch at most this many DOFs is local (a spring, a mass, a released
 #: joint or support): the Ritz basis of a fit gets the static correction at those DOFs (:func:`fit_frf`)
 LOCAL_DOFS = 12

@@ -11,7 +11,7 @@
    model with its beams cut in two fits the data better by the information criterion, the nominal mesh's own
    error is taken out of the data (:func:`~updating.diagnosis.mesh.mesh_discrepancy`) and steps 1-2 repeated;
 2. **localise** — the condensed force residual (MCI, thesis 3.2.4) of the model for models up to
-   :data:`~updating.diagnosis.fit.RITZ_LIMIT` DOFs, or the training FRF error above (``criterion``);
+   :data:`MCI_LIMIT` DOFs, or the training FRF error above (``criterion``);
 3. **screen** — one term at a time: every candidate of the library (:mod:`~updating.diagnosis.library`) is
    screened linearly on the MCI residual and exactly on the FRFs by a low-rank update
    (:func:`~updating.diagnosis.frfscreen.frf_screen`), joint and support releases exactly at every place
@@ -42,7 +42,7 @@
    modes (:func:`pair_test_modes`: rigid-body and suspension modes excluded on purpose, MAC ≥
    :data:`PAIR_MAC_MIN` within a :data:`PAIR_MAX_FREQ_ERROR` frequency window).
 
-FRF fits of models above :data:`~updating.diagnosis.fit.RITZ_LIMIT` DOFs run in a Ritz basis
+FRF fits and exact FRF screenings of models above :data:`~updating.diagnosis.fit.RITZ_LIMIT` DOFs run in a Ritz basis
 (:mod:`~updating.diagnosis.ritz`), checked against the exact receptance.
 """
 from __future__ import annotations
@@ -59,7 +59,7 @@ from modalab.core.modes import ModeSet
 from modalab.core.frf import FRF
 from updating.fe import FEModel, ParametricFEModel
 from updating.fe.damping import own_loss_exempt
-from updating.diagnosis.fit import RITZ_LIMIT, Prior, fit_frf, fit_std, frf_data, frf_error, model_frf, quick_frf_error
+from updating.diagnosis.fit import Prior, fit_frf, fit_std, frf_data, frf_error, model_frf, quick_frf_error
 from updating.diagnosis.dampscreen import damping_screen
 from updating.diagnosis.frfscreen import ParameterRefit, frf_screen
 from updating.diagnosis.library import _nodes_of, build_library, spring_loss_candidates, validate_kinds
@@ -76,6 +76,11 @@ from updating.diagnosis.refine import _Refine
 from updating.diagnosis.eliminate import _Eliminate
 
 log = logging.getLogger(__name__)
+
+#: models up to this many DOFs are localised on the MCI (thesis 3.2.4), larger ones on the training FRF error
+#: (``criterion='auto'``); the MCI of a larger model also iterates less (3 steps instead of 6).  Whether FRF
+#: fits run in a Ritz basis is a separate, numerical choice (:data:`~updating.diagnosis.fit.RITZ_LIMIT`)
+MCI_LIMIT = 200
 
 __all__ = ["diagnose", "Diagnoser", "DiagnoserConfig", "Diagnosis", "Finding", "default_parameters"]
 
@@ -236,7 +241,7 @@ class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
         cfg = self.config
         self._say("step 3/6: localising the residual (MCI) and 4/6: ranking candidate physics")
         self._t1 = time.perf_counter()
-        self.large = self.pm.structure(self.p_nom).n_dof > RITZ_LIMIT
+        self.large = self.pm.structure(self.p_nom).n_dof > MCI_LIMIT
         crit = cfg.criterion if cfg.criterion != "auto" else ("frf" if self.large else "mci")
         self.use_mci = crit == "mci"
         self.free_mci = np.ones(len(self.params), bool)
