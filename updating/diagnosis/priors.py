@@ -287,12 +287,12 @@ def _bounds(params, p0):
     return np.array(lo), np.array(hi)
 
 
-def _fit_continued(pm, train, p_start, damp_mask, lo, hi, max_nfev, *, levels=(0.08,), prior=None):
+def _fit_continued(pm, train, p_start, damp_mask, lo, hi, max_nfev, *, levels=(0.08,), prior=None, reduced=None):
     """FRF fit with continuation in damping: the parameters are first fitted with the damping raised to
     each of ``levels`` (a smoother error surface: a resonance shifted by more than its half-power
     bandwidth leaves a plain FRF fit in a local minimum), then everything from there with the damping
-    back at its start; the better of this and a direct fit is returned."""
-    direct = fit_frf(pm, train, p_start, lower=lo, upper=hi, max_nfev=max_nfev, prior=prior)
+    back at its start; the better of this and a direct fit is returned.  ``reduced``: as :func:`fit_frf`."""
+    direct = fit_frf(pm, train, p_start, lower=lo, upper=hi, max_nfev=max_nfev, prior=prior, reduced=reduced)
     damp_mask = np.asarray(damp_mask, bool)
     if not damp_mask.any():
         return direct
@@ -300,8 +300,9 @@ def _fit_continued(pm, train, p_start, damp_mask, lo, hi, max_nfev, *, levels=(0
     for level in levels:
         ps = p.copy()
         ps[damp_mask] = np.maximum(ps[damp_mask], level)
-        sm = fit_frf(pm, train, ps, lower=lo, upper=hi, free=~damp_mask, max_nfev=max_nfev, prior=prior)
+        sm = fit_frf(pm, train, ps, lower=lo, upper=hi, free=~damp_mask, max_nfev=max_nfev, prior=prior,
+                     reduced=reduced)
         p[~damp_mask] = sm.p[~damp_mask]
-    cont = fit_frf(pm, train, p, lower=lo, upper=hi, max_nfev=max_nfev, prior=prior)
+    cont = fit_frf(pm, train, p, lower=lo, upper=hi, max_nfev=max_nfev, prior=prior, reduced=reduced)
     log.info("parameter fit: direct %.4g, with damping continuation %.4g", direct.error, cont.error)
     return cont if cont.error < direct.error else direct
