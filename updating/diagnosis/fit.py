@@ -249,12 +249,8 @@ def _jacobian_ritz(pmodel, p, data: FRFData, free, ctx):
     return np.array(J).T
 
 
-#: FRF fits and exact FRF screenings of models above this many DOFs run in a Ritz basis
-#: (:mod:`~updating.diagnosis.ritz`), checked against the exact receptance.  Below, a banded LU per line and
-#: evaluation costs about 0.3 ms per line at 200 DOFs, and the frames of 150-200 DOFs took 60-100 s of CPU per
-#: diagnosis against 30-60 s for larger ones in a basis (the benchmark's timings, sessions 23-25); from 200 to
-#: 100 DOFs: even case 2042 (198 DOFs) 96 -> 58 s, the same finding and values to four digits.  Which
-#: criterion localises (MCI or FRF) is a separate choice (:data:`~updating.diagnosis.workflow.MCI_LIMIT`)
+#: FRF fits and exact FRF screenings of models above this many DOFs run in a checked Ritz basis (was 200: a
+#: banded LU per line made 150-200-DOF frames the slowest cases, benchmarks/discovery/RESULTS.md, 25th session)
 RITZ_LIMIT = 100
 #: a parameter whose matrix derivatives touch at most this many DOFs is local (a spring, a mass, a released
 #: joint or support): the Ritz basis of a fit gets the static correction at those DOFs (:func:`fit_frf`)
