@@ -170,6 +170,7 @@ class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
         self.n_damp = len(damp)
         self.pm = pm = ParametricFEModel(model, params)
         self.p_nom = np.array(pm.p0, float)
+        self.n_dof = pm.structure(pm.p0).n_dof
         self.p_nom[len(params) - len(damp):] = dstart
         # the priors (their means: the nominal values) also bound the fits at PRIOR_BOUND standard deviations
         self.pmean, self.psig = parameter_priors(params, self.p_nom, cfg.priors)
@@ -232,9 +233,8 @@ class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
         t1 = time.perf_counter()
         # the reference every term is judged against: exact up to MCI_LIMIT DOFs (a fit in a Ritz basis can stop
         # in another minimum: tuning case 1632's parameters-only error 0.139 against the exact fit's 0.1346)
-        exact = False if self.pm.structure(self.p_nom).n_dof <= MCI_LIMIT else None
         self.upd = _fit_continued(pm, self.train, self.p_nomd, self.free_d, self.lo, self.hi, cfg.max_nfev,
-                                  prior=self.prior, reduced=exact)
+                                  prior=self.prior, reduced=None if self.n_dof > MCI_LIMIT else False)
         self.timings["2 parameters"] = time.perf_counter() - t1
 
     # ------------------------------------------------------------------ step 3
@@ -244,7 +244,7 @@ class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
         cfg = self.config
         self._say("step 3/6: localising the residual (MCI) and 4/6: ranking candidate physics")
         self._t1 = time.perf_counter()
-        self.large = self.pm.structure(self.p_nom).n_dof > MCI_LIMIT
+        self.large = self.n_dof > MCI_LIMIT
         crit = cfg.criterion if cfg.criterion != "auto" else ("frf" if self.large else "mci")
         self.use_mci = crit == "mci"
         self.free_mci = np.ones(len(self.params), bool)
