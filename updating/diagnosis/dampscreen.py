@@ -47,7 +47,8 @@ MODES_TO = 2.0
 STATIC_TO = 10.0
 #: candidates fitted to convergence, the best after two steps of every one
 FITTED = 20
-#: modes computed at most (the sparse solver's count for large models)
+#: normal modes in the basis at most, for every model size (RitzBasis's max_modes; before the Ritz basis, the cap
+#: applied to the sparse solver's large models only)
 MAX_MODES = 40
 
 
