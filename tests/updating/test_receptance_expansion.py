@@ -202,3 +202,29 @@ def test_structurally_zero_pairs_do_not_veto_every_line():
                coherence=np.full(H.shape, 0.2), quantity="receptance")
     with pytest.raises(ModalabValueError, match="too poor to diagnose"):
         frf_data(dead)
+
+
+def test_a_column_no_sensor_sees_has_a_finite_weight():
+    """An out-of-plane hit on a planar frame measured with in-plane sensors only: its column of FRFs is zero
+    throughout (an independent truth writes exact zeros, a lab would record noise).  Its relative-error
+    denominator took the column's own RMS, 0, and was 1e-300: the model's rounding there (1e-20 m/N) weighed
+    1e280 and overflowed the first FRF fit of held-out case 2289 (set AA).  The column takes the RMS over all
+    pairs instead: such rounding is no error, while the other columns keep their own denominators."""
+    from updating.diagnosis.fit import frf_error
+    f = np.linspace(1.0, 100.0, 200)
+    rng = np.random.default_rng(1)
+    H = (rng.standard_normal((3, 2, f.size)) + 1j * rng.standard_normal((3, 2, f.size))) * 1e-5
+    H[:, 1] = 0.0                                     # responses 2+X, 3+X, 4+Y to the hit at 5+Z: none
+    frf = FRF(freq_hz=f, H=H, responses=["2+X", "3+X", "4+Y"], references=["2+X", "5+Z"],
+              coherence=np.where(H != 0, 0.99, 0.0), quantity="receptance")
+    d = frf_data(frf, max_lines=1000)
+    col0 = d.den[:, 0]
+    assert np.all(np.isfinite(d.den)) and d.den[:, 1].min() > 1e-4 * 0.1 * np.sqrt(np.mean(np.abs(H[:, 0]) ** 2))
+    np.testing.assert_allclose(d.den[:, 1], np.broadcast_to(d.den[0, 1], (3, d.s.size)), rtol=1e-12)  # per line
+    rounding = d.H.copy()
+    rounding[:, 1] += 1e-20
+    assert frf_error(rounding, d) < 1e-9
+    assert frf_error(d.H, d) == 0.0
+    again = frf_data(FRF(freq_hz=f, H=H[:, :1], responses=frf.responses, references=["2+X"],
+                         coherence=np.full((3, 1, f.size), 0.99), quantity="receptance"), max_lines=1000)
+    np.testing.assert_array_equal(again.den[:, 0], col0)                       # the live column: its own

@@ -46,11 +46,16 @@ class FRFData:
         """Denominator of the relative FRF error (n_m, n_r, n_s): ``|H|`` + 0.2 × the pair's local RMS over
         lines (:func:`_local_rms`) + 10⁻⁴ × the reference column's RMS.  The last term keeps structurally
         zero pairs (a response orthogonal to the force, e.g. out-of-plane to in-plane on a symmetric
-        structure: numerical noise in model and data alike) from counting as large errors."""
+        structure: numerical noise in model and data alike) from counting as large errors.  A column that is
+        zero throughout (a force that no sensor sees: an out-of-plane hit on a planar frame with in-plane
+        sensors only) takes the RMS over all pairs instead: with its own it had weights of 10³⁰⁰, and the
+        model's rounding there overflowed the fit (held-out case 2289 of set AA)."""
         if self._den is None:
             a = np.abs(self.H)
             rms = _local_rms(a, np.abs(np.asarray(self.s).imag))
             col = np.sqrt(np.mean(rms ** 2, axis=0, keepdims=True)) if a.size else 0.0
+            if a.size:
+                col = np.where(col > 0, col, np.sqrt(np.mean(rms ** 2, axis=(0, 1), keepdims=True)))
             self._den = a + 0.2 * rms + 1e-4 * col + 1e-300
         return self._den
 
