@@ -172,8 +172,9 @@ class _ModalChange:
         the changed reduced model: ``K v = λ M v``, ``K = Λ + iΦᵀDΦ + Σ x_j A0_j``, ``M = I + Σ x_j A2_j``,
         normalised ``Vᵀ M V = I`` (complex symmetric: the transpose, not the conjugate), so that
         ``Z(s)⁻¹ = V diag(1 / (λ + s²)) Vᵀ``; ``g`` (n_s, m).  None when the model has a viscous term (``Z`` is
-        then quadratic in ``s``) or when the eigenvectors do not diagonalise both matrices to 1e-10 (close
-        eigenvalues of a non-Hermitian pencil): the caller then solves line by line (:meth:`_solve`)."""
+        then quadratic in ``s``), when ``M`` is singular, or when the eigenvectors' backward error exceeds
+        :data:`BACKWARD_ERROR` (:meth:`_accurate`; close eigenvalues of a non-Hermitian pencil): the caller then
+        solves line by line (:meth:`_solve`)."""
         key = np.asarray(x, float).tobytes()        # the last x and terms (held, so that no other array has their id)
         if self._last is not None and self._last[0] == key and self._last[1] is A[0] and self._last[2] is A[1]:
             return self._last[3]
@@ -182,11 +183,9 @@ class _ModalChange:
             z0, z2 = self._changed(x, A)
             K, M = self.K0 + z0, np.eye(z2.shape[0]) + z2
             lam, V = scipy.linalg.eig(K, M.astype(complex))
-            if np.all(np.isfinite(lam)):
-                V = _bilinear_orthonormal(V, M, lam)
+            V = _bilinear_orthonormal(V, M, lam) if np.all(np.isfinite(lam)) else None   # M singular: no pencil
             if V is not None:
                 out = self._accurate(V, K, M)
-        self._last = (key, A[0], A[1], out)
         self._last = (key, A[0], A[1], out)
         return out
 
