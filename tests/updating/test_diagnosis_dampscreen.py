@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from modalab.core.frf import FRF
+from modalab.core.structure import Structure
 from updating.diagnosis.dampscreen import damping_screen
 from updating.diagnosis.fit import frf_data
 from updating.diagnosis.library import build_library
@@ -53,7 +54,7 @@ def test_an_exact_model_gains_nothing():
     assert all(g < 1e-3 for _, _, g in ranked), ranked[:3]
 
 
-@pytest.mark.parametrize("path", ["eigensolution", "line by line"])
+@pytest.mark.parametrize("path", ["eigensolution", "line by line", "viscous"])
 def test_the_factored_terms_give_the_residual_and_jacobian_of_the_full_arrays(path, monkeypatch):
     """The modal change keeps each term as two m x m parts, ``A(s) = A0 + s² A2``, never the (lines x m x m)
     array (one per candidate and parameter, kept for a fit, made the demo's diagnosis peak at 20 GB).  On the
@@ -61,14 +62,17 @@ def test_the_factored_terms_give_the_residual_and_jacobian_of_the_full_arrays(pa
     those of the full arrays (the formula of the module docstring, inverted line by line here), and the
     Jacobian is the residual's derivative (central differences) — both from one eigensolution of the changed
     reduced model (the free beam's six rigid-body modes a cluster of equal eigenvalues) and, when that is
-    refused (a backward error allowed of 0), from the LU of every line."""
+    refused (a backward error allowed of 0) or does not apply (a viscous term, ``Z`` quadratic in ``s``), from
+    the LU of every line."""
     from updating.diagnosis import dampscreen
     from updating.diagnosis.dampscreen import _ModalChange, _projected
     if path == "line by line":
         monkeypatch.setattr(dampscreen, "BACKWARD_ERROR", 0.0)
-    tol = 1e-12 if path == "line by line" else 1e-9
+    tol = 1e-9 if path == "eigensolution" else 1e-12
     pm, lib, data = _case(5, 0.2)
     st = pm.structure([0.013])
+    if path == "viscous":                            # proportional viscous damping beside the structural
+        st = Structure(M=st.M, K=st.K, C=1e-6 * st.K, D=st.D, dofs=st.dofs)
     mc = _ModalChange(st, data)
     c = next(c for c in lib if c.matrix == "D" and c.elements == (5,))
     K, M = st.K.tocsr(), st.M.tocsr()
