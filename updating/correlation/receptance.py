@@ -53,8 +53,9 @@ class FRFData:
         if self._den is None:
             a = np.abs(self.H)
             rms = _local_rms(a, np.abs(np.asarray(self.s).imag))
-            col = np.sqrt(np.mean(rms ** 2, axis=0, keepdims=True)) if a.size else 0.0
+            col = 0.0
             if a.size:
+                col = np.sqrt(np.mean(rms ** 2, axis=0, keepdims=True))
                 col = np.where(col > 0, col, np.sqrt(np.mean(rms ** 2, axis=(0, 1), keepdims=True)))
             self._den = a + 0.2 * rms + 1e-4 * col + 1e-300
         return self._den

@@ -126,13 +126,12 @@ class _ModalChange:
         mi, ms, ri, rs = _indices(structure.dofs, data)
         w2, self.phi = _basis(structure, np.concatenate([mi, ri]), float(np.max(data.freq_hz)))
         s2 = data.s ** 2
-        Z0 = np.diag(w2)[None] + s2[:, None, None] * np.eye(w2.size)[None]
-        Z0 = Z0 + 1j * _projected(structure.D, self.phi)[None] + data.s[:, None, None] * \
-            _projected(structure.C, self.phi)[None]
-        self.Z0 = Z0                                                                     # (n_s, m, m)
+        Dp, Cp = _projected(structure.D, self.phi), _projected(structure.C, self.phi)
         # Z(s, x) = K(x) + s² M(x) without a viscous term: one eigensolution per x gives every line (_modes)
-        self.K0 = np.diag(w2).astype(complex) + 1j * _projected(structure.D, self.phi)
-        self.viscous = structure.C is not None and bool(np.any(_projected(structure.C, self.phi)))
+        self.K0 = np.diag(w2).astype(complex) + 1j * Dp
+        self.viscous = bool(np.any(Cp))
+        Z0 = self.K0[None] + s2[:, None, None] * np.eye(w2.size)[None] + data.s[:, None, None] * Cp[None]
+        self.Z0 = Z0                                                                     # (n_s, m, m)
         self._last = None
         self.pm, self.pr = self.phi[mi] * ms[:, None], self.phi[ri] * rs[:, None]
         self.H00 = self._reduced_at(np.zeros(1), (np.zeros((1,) + Z0.shape[1:]),) * 2)  # (n_s, n_m, n_r)
