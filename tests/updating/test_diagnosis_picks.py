@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
+import pytest
+
 from updating.diagnosis.picks import _Picks
 
 
@@ -40,3 +42,27 @@ def test_further_picks_are_each_other_kind_best_screened_at_most_kind_picks_each
         (0.20, _c("eta@4", "local_damping", "eta"), 0.02, None, 2)]
     got = [o.key for o, *_ in _Picks._per_kind(screened, {"k@5"}, failed)]
     assert got == ["k@14"] + [f"m@{i}" for i in range(KIND_PICKS)] + ["eta@4"]
+
+
+def test_the_mass_a_density_absorbed_is_its_excess_times_its_elements_mass():
+    """:func:`absorbed_mass` (the start value of a prior-tension pick): a density factor 1.1 on the materials of
+    elements 3 and 4 of the thesis beam adds 0.1 ρ A L of those two elements (from the model's own sections), at
+    the nodes of those elements alone; a factor at its mean adds nothing."""
+    import numpy as np
+    from updating.diagnosis.picks import absorbed_mass
+    from updating.fe import Parameter, ParametricFEModel
+    from updating.fe.models.beams import thesis_beam
+
+    m = thesis_beam("analytical", cord_stiffness=None)
+    pm = ParametricFEModel(m, [Parameter("rho_34", "rho", materials=(3, 4)), Parameter("E", "E", materials=(1,))])
+    want = 0.0
+    for eid in (3, 4):
+        e = m.elements[eid]
+        prop = m.properties[e.pid]
+        sec = prop.section
+        length = float(np.linalg.norm(m.nodes[e.n2].xyz - m.nodes[e.n1].xyz))
+        want += m.materials[prop.mid].rho * np.pi / 4 * (sec.do ** 2 - sec.di ** 2) * length
+    kg, nodes = absorbed_mass(pm, np.array([1.1, 1.0]), np.array([1.0, 1.0]), [0])
+    assert kg == pytest.approx(0.1 * want, rel=1e-9)
+    assert nodes == {3, 4, 5}
+    assert absorbed_mass(pm, np.array([1.0, 1.3]), np.array([1.0, 1.0]), [0])[0] == pytest.approx(0.0, abs=1e-15)

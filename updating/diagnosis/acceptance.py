@@ -149,6 +149,7 @@ class _Acceptance(_Picks):
             return None
         pm_ref, ref = self._frf_ref()
         tried, siblings = self._fitted_picks(picks, have, ref.error)
+        tried += self._tension_picks(tried, have)
         err, c, pm_aug, fr, clo, chi, k, _ = min(tried, key=lambda t: t[0])
         n_eq = n_obs(self.train)
         if rival is not None:
@@ -157,13 +158,15 @@ class _Acceptance(_Picks):
                 log.info("screening pick %s (FRF error %.4g) does not beat the MCI's choice %s (%.4g)", c.label, err,
                          rival[0].label, e_r)
                 return None
-        supported = rival is not None or (mci_best is not None and c.key == mci_best.key)
+        supported = rival is not None or (mci_best is not None and c.key == mci_best.key) or self._relieves(c, fr.p)
         judged = self._judge_or_complete((err, c, pm_aug, fr, clo, chi, k), supported, "screening pick")
         further = set()
         if judged is None and rival is None and self._pick_left:
             judged, tried, further = self._after_residual_left(tried, have, (err, c), ref.error, supported)
         if judged is None and rival is None:
             judged = self._mci_best_fitted(tried, mci_best, c, ref.error)
+        if judged is None and rival is None:
+            judged = self._tension_fitted(tried, c, ref.error)
         if judged is None:
             return None
         err, c, pm_aug, fr, clo, chi, k = judged
@@ -176,8 +179,12 @@ class _Acceptance(_Picks):
         self._frf_cur = (pm_aug, fr)
         scr = self._screens[k][0]
         g_c = next((g for o, _, g in scr if o.key == c.key), None)     # None: a completed group, not screened here
-        self._route[c.key] = (g_c or 0.0, False, [(o, v, g) for o, v, g in scr if set(o.nodes) & set(c.nodes)
-                                            and o.key != c.key])
+        g_r = g_c or 0.0
+        if g_c is None and self._relieves(c, fr.p):
+            # a prior-tension pick (no screening of its own): its gain and competitors where it screened best
+            g_r, scr = self._tension_route(c, fr.p)
+        self._route[c.key] = (g_r, False, [(o, v, g) for o, v, g in scr if set(o.nodes) & set(c.nodes)
+                                           and o.key != c.key])
         m_now = pm_aug.model_at(fr.p)
         # the screening names alternatives by single-term gains within the margin of the pick's own; a support's
         # other components (_support_siblings) and a further pick (_kind_picks) were fitted for what they are, not
@@ -221,6 +228,14 @@ class _Acceptance(_Picks):
             return None
         t = next((t for t in tried if t[1].key == mci_best.key and t[0] < e_ref), None)
         return None if t is None else self._judge_or_complete(t[:7], True, "the MCI's best candidate")
+
+    def _tension_fitted(self, tried: list, failed, e_ref: float):
+        """When the best fitted pick ``failed``: the best prior-tension pick (:meth:`_tension_picks`) that lowered
+        the training FRF error below ``e_ref`` and brings the densities back within their priors, judged as a
+        supported pick (:meth:`_judge_or_complete`).  Returns the judged tuple or None."""
+        t = min((t for t in tried if t[1].key != failed.key and t[0] < e_ref and self._relieves(t[1], t[3].p)),
+                key=lambda t: t[0], default=None)
+        return None if t is None else self._judge_or_complete(t[:7], True, "prior-tension pick")
 
     def _judge_or_complete(self, t, supported: bool, what: str):
         """The pick ``t = (error, candidate, pm, FitResult, lower, upper, screening index)`` judged on the FRFs
