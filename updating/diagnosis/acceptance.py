@@ -164,9 +164,7 @@ class _Acceptance(_Picks):
         if judged is None and rival is None and self._pick_left:
             judged, tried, further = self._after_residual_left(tried, have, (err, c), ref.error, supported)
         if judged is None and rival is None:
-            judged = self._mci_best_fitted(tried, mci_best, c, ref.error)
-        if judged is None and rival is None:
-            judged = self._tension_fitted(tried, c, ref.error)
+            judged = self._mci_best_fitted(tried, mci_best, c, ref.error) or self._tension_fitted(tried, c, ref.error)
         if judged is None:
             return None
         err, c, pm_aug, fr, clo, chi, k = judged
@@ -179,12 +177,7 @@ class _Acceptance(_Picks):
         self._frf_cur = (pm_aug, fr)
         scr = self._screens[k][0]
         g_c = next((g for o, _, g in scr if o.key == c.key), None)     # None: a completed group, not screened here
-        g_r = g_c or 0.0
-        if g_c is None and self._relieves(c, fr.p):
-            # a prior-tension pick (no screening of its own): its gain and competitors where it screened best
-            g_r, scr = self._tension_route(c, fr.p)
-        self._route[c.key] = (g_r, False, [(o, v, g) for o, v, g in scr if set(o.nodes) & set(c.nodes)
-                                           and o.key != c.key])
+        self._record_route(c, fr.p, scr, g_c)
         m_now = pm_aug.model_at(fr.p)
         # the screening names alternatives by single-term gains within the margin of the pick's own; a support's
         # other components (_support_siblings) and a further pick (_kind_picks) were fitted for what they are, not
@@ -228,6 +221,17 @@ class _Acceptance(_Picks):
             return None
         t = next((t for t in tried if t[1].key == mci_best.key and t[0] < e_ref), None)
         return None if t is None else self._judge_or_complete(t[:7], True, "the MCI's best candidate")
+
+    def _record_route(self, c, p, scr: list, g_c) -> None:
+        """The route of an accepted pick ``c`` (fitted at ``p``) for its finding's evidence: its single-term gain
+        ``g_c`` in its screening ``scr`` and that screening's candidates at its nodes; a prior-tension pick (no
+        screening of its own, ``g_c`` None) takes them from the screening where it gains most
+        (:meth:`_tension_route`)."""
+        g_r = g_c or 0.0
+        if g_c is None and self._relieves(c, p):
+            g_r, scr = self._tension_route(c, p)
+        self._route[c.key] = (g_r, False, [(o, v, g) for o, v, g in scr if set(o.nodes) & set(c.nodes)
+                                           and o.key != c.key])
 
     def _tension_fitted(self, tried: list, failed, e_ref: float):
         """When the best fitted pick ``failed``: the best prior-tension pick (:meth:`_tension_picks`) that lowered
