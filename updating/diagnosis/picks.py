@@ -238,7 +238,7 @@ class _Picks:
         and the model with it is the one the priors allow — the priors support it, as the MCI's ranking
         supports its picks."""
         idx = self._tension()
-        return c.key in self._tension_keys and bool(np.all(self.prior.z(p)[idx] <= AT_PRIOR_Z))
+        return c.key in self.__dict__.get("_tension_keys", ()) and bool(np.all(self.prior.z(p)[idx] <= AT_PRIOR_Z))
 
     def _tension_picks(self, tried: list, have: set) -> list:
         """For the first term, when the parameter-only fit holds a density above its prior
@@ -263,7 +263,7 @@ class _Picks:
         picks = [t[1] for t in best[:TENSION_PICKS]]
         if not picks or not absorbed > 0:
             return []
-        self._tension_keys |= {o.key for o in picks}
+        self._tension_keys = self.__dict__.get("_tension_keys", set()) | {o.key for o in picks}
         self._screens.append(([], p_start))             # no screening: the fits alone decide
         k = len(self._screens) - 1
         what = ", ".join(f"{self.params[i].name} {self.prior.z(p0)[i]:+.2g} σ" for i in idx)
@@ -277,7 +277,7 @@ class _Picks:
         over from the densities (kept in ``_tension_notes``)."""
         g, _, _, _, k = self._best_screened().get(c.key, (0.0, None, None, None, len(self._screens) - 1))
         z0, z1 = self.prior.z(self.upd.p), self.prior.z(p)
-        self._tension_notes[c.key] = ("; fitted with the parameters it takes over what " + ", ".join(
+        self.__dict__.setdefault("_tension_notes", {})[c.key] = ("; fitted with the parameters it takes over what " + ", ".join(
             f"{self.params[i].name} had absorbed ({z0[i]:+.2g} σ of its prior in the parameter-only fit, "
             f"{z1[i]:+.2g} σ with the term)" for i in self._tension()))
         return max(float(g), 0.0), self._screens[k][0]
