@@ -277,7 +277,8 @@ class _Picks:
         over from the densities (kept in ``_tension_notes``)."""
         g, _, _, _, k = self._best_screened().get(c.key, (0.0, None, None, None, len(self._screens) - 1))
         z0, z1 = self.prior.z(self.upd.p), self.prior.z(p)
-        self.__dict__.setdefault("_tension_notes", {})[c.key] = ("; fitted with the parameters it takes over what " + ", ".join(
+        note = "; fitted with the parameters it takes over what " + ", ".join(
             f"{self.params[i].name} had absorbed ({z0[i]:+.2g} σ of its prior in the parameter-only fit, "
-            f"{z1[i]:+.2g} σ with the term)" for i in self._tension()))
+            f"{z1[i]:+.2g} σ with the term)" for i in self._tension())
+        self.__dict__.setdefault("_tension_notes", {})[c.key] = note
         return max(float(g), 0.0), self._screens[k][0]
