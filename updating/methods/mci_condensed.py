@@ -133,16 +133,18 @@ def _split(pmodel) -> tuple[np.ndarray, np.ndarray]:
 class _AffineDerivatives:
     """The derivatives of the linear parameters as ``d(a) = d0 + Σ_j a_j Δd_j`` in the damping values ``a``
     (:data:`_AFFINE_FIELDS`), from ``1 + n_a`` complex-step evaluations (the damping values at 0 and at each unit
-    vector) and checked against a direct evaluation at the first ``p``: exact where the assembly is as
+    vector, the linear parameters at their nominal values) and checked against a direct evaluation at the first ``p``: exact where the assembly is as
     :mod:`updating.fe.assembly` states, and refused (``ok`` False) where it is not."""
 
     def __init__(self, pmodel, p, lin, aff, direct):
         self.lin, self.aff = np.flatnonzero(lin), np.flatnonzero(aff)
+        # the base and the steps at the damping values 0 and the linear parameters' nominal values: to the bit,
+        # complex-step derivatives depend on the values they are taken at, and the form must not depend on the p
+        # of its first call (derivatives())
         q = p.copy()
+        q[self.lin] = np.asarray(getattr(pmodel, "nominal", p), float)[self.lin]
         q[self.aff] = 0.0
-        # with the damping values already 0 (or none: an MCI update of moduli and densities) the direct
-        # evaluation is the base; no second assembly
-        base = direct if not np.any(p[self.aff]) else pmodel.derivatives(q)
+        base = direct if np.array_equal(q, p) else pmodel.derivatives(q)
         self.d0 = {i: base[i] for i in self.lin}
         self.delta = []
         for j in self.aff:
@@ -203,7 +205,10 @@ def derivatives(pmodel, p):
     multiply K or M, and affinely (:class:`_AffineDerivatives`), and through non-linear parameters (section
     dimensions, ν); the cache is keyed by the latter.  The non-linear parameters' own derivatives are assembled
     at every call.  Saves the complex-step re-assembly (one model per parameter) in iterated MCI updates and in
-    the FRF fits of the diagnosis, whose loss factors move at every step.
+    the FRF fits of the diagnosis, whose loss factors move at every step.  The first call for a key returns the
+    affine form too, not the direct evaluation it was checked against (equal to round-off): the result at ``p``
+    is then the same whatever the model was evaluated at before, so that a fit does not depend on the history
+    of its model object (a copy of it in another process fits the same, :mod:`modalab.core.parallel`).
     """
     global _DERIV_CACHE
     if _DERIV_CACHE is None:
@@ -226,7 +231,7 @@ def derivatives(pmodel, p):
         if store[key] is None or not store[key].ok:
             # not affine as assembled (or nothing linear): this key is evaluated directly from now on
             store[key] = False
-        return list(direct)
+            return list(direct)
     if store[key] is False:
         return pmodel.derivatives(p)
     out = [None] * len(pars)
