@@ -1,0 +1,77 @@
+"""modalab.core.parallel.fork_map: the results and the log of a serial loop, computed by forked workers."""
+import logging
+import multiprocessing as mp
+import os
+
+import numpy as np
+import pytest
+
+from modalab.core.parallel import available_cores, fork_map
+
+log = logging.getLogger("modalab.test.parallel")
+
+needs_fork = pytest.mark.skipif("fork" not in mp.get_all_start_methods(), reason="no fork start method here")
+
+
+class Unpicklable:
+    """Holds a local function, as a diagnosis candidate does: it cannot travel back pickled."""
+
+    def __init__(self, k):
+        self.k = k
+        self.f = lambda x: x + k
+
+
+def _work(obj, x):
+    log.info("item %d in process %d", obj.k, os.getpid())
+    return obj, obj.f(x), np.linalg.solve(np.eye(3) * (obj.k + 1), np.arange(3.0)), os.getpid()
+
+
+@needs_fork
+def test_results_and_log_are_those_of_the_serial_loop(caplog):
+    objs = [Unpicklable(k) for k in range(5)]
+    items = [(o, 10 * o.k) for o in objs]
+    with caplog.at_level(logging.INFO, logger="modalab.test.parallel"):
+        par = fork_map(_work, items, 2, by_reference=objs)
+        logged = [r.getMessage().split(" in ")[0] for r in caplog.records if r.name == log.name]
+    ser = fork_map(_work, items, 1)
+    assert logged == [f"item {k}" for k in range(5)]            # in the order of the items, once each
+    assert all(a[0] is o and b[0] is o for a, b, o in zip(par, ser, objs))      # the caller's own objects
+    assert [a[1] for a in par] == [b[1] for b in ser] == [11 * k for k in range(5)]
+    assert all(np.array_equal(a[2], b[2]) for a, b in zip(par, ser))
+    assert {a[3] for a in par} - {os.getpid()}                  # computed elsewhere
+    assert {b[3] for b in ser} == {os.getpid()}
+
+
+def _boom(k):
+    if k == 2:
+        raise ValueError(f"item {k} failed")
+    return k
+
+
+@needs_fork
+def test_a_failing_call_fails_the_map_with_its_own_error():
+    with pytest.raises(ValueError, match="item 2 failed"):
+        fork_map(_boom, [(k,) for k in range(4)], 2)
+
+
+def _nested(k):
+    return fork_map(os.getpid, [(), ()], 2), os.getpid()
+
+
+@needs_fork
+def test_a_worker_runs_a_nested_map_in_its_own_process():
+    for inner, pid in fork_map(_nested, [(0,), (1,)], 2):
+        assert inner == [pid, pid]
+
+
+def test_jobs_must_be_positive():
+    with pytest.raises(ValueError, match="jobs = 0"):
+        fork_map(_boom, [(0,)], 0)
+    assert available_cores() >= 1
+
+
+def test_an_unpicklable_result_not_passed_by_reference_is_an_error_not_a_wrong_result():
+    if "fork" not in mp.get_all_start_methods():
+        pytest.skip("no fork start method here")
+    with pytest.raises(Exception, match="pickle"):
+        fork_map(_work, [(Unpicklable(k), 0) for k in range(2)], 2)
