@@ -35,8 +35,10 @@ def parse_kinds(values) -> tuple | None:
 def _options(a):
 
     kinds = parse_kinds(a.kinds)   # a misspelt kind fails before any file is read
+    if a.jobs is not None and a.jobs < 1:
+        raise PlanError(f"--jobs {a.jobs}: expected a positive number of processes (1: no parallel fits)")
     return DiagnoseOptions(parameters=a.params, criterion=a.criterion, dofmap=getattr(a, "map", None), kinds=kinds,
-                           ignore_unsupported=a.ignore_unsupported)
+                           ignore_unsupported=a.ignore_unsupported, jobs=a.jobs)
 
 
 def _pm(std) -> str:
@@ -104,6 +106,9 @@ def register(sub):
                         "or by the FRF fit; auto: MCI up to 200 DOFs, FRF fit above (default: auto)")
     s.add_argument("--dask", help="address of an existing Dask scheduler (tcp://host:port) for campaigns")
     s.add_argument("--workers", type=int, help="local processes for campaigns (default: the number of CPUs)")
+    s.add_argument("--jobs", type=int, help="processes for one diagnosis' independent fits (default: the CPUs this "
+                                            "process may use; 1: none in parallel; the findings are the same "
+                                            "either way); a campaign's inputs run one process each")
     s.add_argument("--kinds", nargs="+", metavar="KIND",
                    help="kinds of missing physics to consider, among " + ", ".join(KINDS) + " (separated by "
                         "spaces or commas; default: all)")

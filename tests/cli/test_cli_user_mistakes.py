@@ -222,3 +222,12 @@ def test_diagnose_given_a_modes_file_as_measured_points_to_modes(small_frf, tmp_
     err = _one_line(capsys)
     assert "holds identified modes (dataset 55), not measured FRFs" in err
     assert f"--modes {tmp_path / 'modes.uff'}" in err
+
+
+@pytest.mark.parametrize("jobs", ["0", "-2"])
+def test_diagnose_jobs_below_one_is_one_line_before_any_file_is_read(tmp_path, monkeypatch, capsys, jobs):
+    monkeypatch.chdir(tmp_path)
+    assert main(["diagnose", str(DEMO / "nominal.bdf"), "missing.uff", "--jobs", jobs, "--json", "d.json"]) == 2
+    err = _one_line(capsys)
+    assert f"--jobs {jobs}: expected a positive number of processes" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == []

@@ -10,6 +10,7 @@ import logging
 import numpy as np
 
 from modalab.core.errors import ModalabValueError
+from modalab.core.parallel import fork_map
 
 from updating.fe import FEModel, Parameter, ParametricFEModel
 from updating.diagnosis.fit import FitResult, FRFData, Prior, fit_frf, fit_std, frf_error, model_frf
@@ -287,22 +288,25 @@ def _bounds(params, p0):
     return np.array(lo), np.array(hi)
 
 
-def _fit_continued(pm, train, p_start, damp_mask, lo, hi, max_nfev, *, levels=(0.08,), prior=None, reduced=None):
+def _fit_continued(pm, train, p_start, damp_mask, lo, hi, max_nfev, *, levels=(0.08,), prior=None, reduced=None,
+                   jobs=None):
     """FRF fit with continuation in damping: the parameters are first fitted with the damping raised to
     each of ``levels`` (a smoother error surface: a resonance shifted by more than its half-power
     bandwidth leaves a plain FRF fit in a local minimum), then everything from there with the damping
-    back at its start; the better of this and a direct fit is returned.  ``reduced``: as :func:`fit_frf`."""
-    direct = fit_frf(pm, train, p_start, lower=lo, upper=hi, max_nfev=max_nfev, prior=prior, reduced=reduced)
+    back at its start; the better of this and a direct fit is returned.  ``reduced``: as :func:`fit_frf`.
+    The two are independent, and run side by side on ``jobs`` processes (:func:`~modalab.core.parallel.fork_map`)."""
     damp_mask = np.asarray(damp_mask, bool)
+    kw = dict(lower=lo, upper=hi, max_nfev=max_nfev, prior=prior, reduced=reduced)
+
+    def continued():
+        p = np.asarray(p_start, float).copy()
+        for level in levels:
+            ps = p.copy()
+            ps[damp_mask] = np.maximum(ps[damp_mask], level)
+            p[~damp_mask] = fit_frf(pm, train, ps, free=~damp_mask, **kw).p[~damp_mask]
+        return fit_frf(pm, train, p, **kw)
     if not damp_mask.any():
-        return direct
-    p = np.asarray(p_start, float).copy()
-    for level in levels:
-        ps = p.copy()
-        ps[damp_mask] = np.maximum(ps[damp_mask], level)
-        sm = fit_frf(pm, train, ps, lower=lo, upper=hi, free=~damp_mask, max_nfev=max_nfev, prior=prior,
-                     reduced=reduced)
-        p[~damp_mask] = sm.p[~damp_mask]
-    cont = fit_frf(pm, train, p, lower=lo, upper=hi, max_nfev=max_nfev, prior=prior, reduced=reduced)
+        return fit_frf(pm, train, p_start, **kw)
+    direct, cont = fork_map(lambda f: f(), [(lambda: fit_frf(pm, train, p_start, **kw),), (continued,)], jobs)
     log.info("parameter fit: direct %.4g, with damping continuation %.4g", direct.error, cont.error)
     return cont if cont.error < direct.error else direct

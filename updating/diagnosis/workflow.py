@@ -61,9 +61,8 @@ from updating.fe import FEModel, ParametricFEModel
 from updating.fe.damping import own_loss_exempt
 from updating.diagnosis.fit import Prior, fit_frf, fit_std, frf_data, frf_error, model_frf, quick_frf_error
 from updating.diagnosis.dampscreen import damping_screen
-from updating.diagnosis.frfscreen import ParameterRefit, frf_screen
 from updating.diagnosis.library import _nodes_of, build_library, spring_loss_candidates, validate_kinds
-from updating.diagnosis.release import release_screen, release_visibility
+from updating.diagnosis.release import release_visibility
 from updating.diagnosis.screen import mci_update, rank_candidates, residual_system
 from updating.diagnosis.priors import default_parameters, PRIOR_BOUND, parameter_priors, _with_damping, _split, _bounds, _fit_continued, nonnegative_loss_factors
 from updating.diagnosis.terms import _another_explanation, DAMPING_PLACES, _distinct_places, cv_folds, n_obs, promote_measured, _on_model_dofs, _dof_stiffness, _upper, _augment
@@ -107,6 +106,7 @@ class DiagnoserConfig:
     priors: dict | None = None            # parameter name -> relative prior σ or 'free'
     mesh_correction: bool = True          # the beam mesh's own error out of the data where they show it
     screen_refit: bool = True             # screenings around the parameter-only fit re-fit the parameters (1st order)
+    jobs: int | None = None               # processes for a step's independent fits (None: the cores available)
 
     def __post_init__(self):
         self.kinds = validate_kinds(self.kinds)
@@ -114,6 +114,8 @@ class DiagnoserConfig:
             raise ModalabValueError(f"criterion={self.criterion!r}: expected 'auto', 'mci' or 'frf'")
         if self.holdout not in (None, "rows", "columns", "lines"):
             raise ModalabValueError(f"holdout={self.holdout!r}: expected 'rows', 'columns', 'lines' or None")
+        if self.jobs is not None and (isinstance(self.jobs, bool) or not isinstance(self.jobs, int) or self.jobs < 1):
+            raise ModalabValueError(f"jobs={self.jobs!r}: expected a positive number of processes or None")
 
 
 class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
@@ -234,7 +236,7 @@ class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
         # the reference every term is judged against: exact up to MCI_LIMIT DOFs (a fit in a Ritz basis can stop
         # in another minimum: tuning case 1632's parameters-only error 0.139 against the exact fit's 0.1346)
         self.upd = _fit_continued(pm, self.train, self.p_nomd, self.free_d, self.lo, self.hi, cfg.max_nfev,
-                                  prior=self.prior, reduced=None if self.n_dof > MCI_LIMIT else False)
+                                  prior=self.prior, reduced=None if self.n_dof > MCI_LIMIT else False, jobs=cfg.jobs)
         self.timings["2 parameters"] = time.perf_counter() - t1
 
     # ------------------------------------------------------------------ step 3
@@ -309,10 +311,8 @@ class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
         self._rival_fit, self._option_fits = None, {}
         options = self._options(it)
         best, evaluated = None, []
-        for c, th in options:
-            best = self._run_option(c, th, it, best, evaluated)
-        for c, th in self._nearby_options(evaluated, options):
-            best = self._run_option(c, th, it, best, evaluated)
+        best = self._run_options(options, it, best, evaluated)
+        best = self._run_options(self._nearby_options(evaluated, options), it, best, evaluated)
         n_eq = (self.W.size * len(self.train.responses) * 2) if self.use_mci else n_obs(self.train)
         ok, why = self._judge(best, n_eq)
         if best is not None:
@@ -403,23 +403,9 @@ class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
         # to hide the effect), then around the current model
         # joint and support releases are screened exactly too, at every place (updating.diagnosis.release)
         releases = [c for c in lib if c.release is not None and c.key not in have and c.key not in self._hidden]
-        screens = []
-        self._screens = []
-        # around the parameter-only fit, the parameters re-fitted alongside each candidate to first order
-        # (ParameterRefit): they have absorbed part of what is missing, and held there they hide it (seed 1543).
-        # Not for a further term: around a fit with a term the refit finds the model-form error below the noise
-        # that the term's fit left (a T-frame's damping, then a spring passing by χ² 70 against 64 at χ²/N 0.03)
-        for p_scr, fitted in ([(self.p_nomd, False), (self.upd.p, True)] if it == 0 else [(p_cur, False)]):
-            st_scr, m_scr = pm_cur.structure(p_scr), pm_cur.model_at(p_scr)
-            g_scr = float(m_scr.global_ge or 0.0)
-            refit = ParameterRefit(pm_cur, p_scr, self.train, self.prior) if fitted and cfg.screen_refit else None
-            scr = frf_screen(st_scr, lib, self.train, loss_factor=g_scr, refit=refit)
-            if releases:
-                scr = sorted(scr + release_screen(st_scr, m_scr, releases, self.train, loss_factor=g_scr,
-                                                  refit=refit),
-                             key=lambda t: -t[2])
-            screens.append(scr)
-            self._screens.append((scr, np.asarray(p_scr, float)))
+        at = [(self.p_nomd, False), (self.upd.p, True)] if it == 0 else [(p_cur, False)]
+        screens = self._each(self._screening, [(p_scr, fitted, lib, releases) for p_scr, fitted in at], refs=lib)
+        self._screens = [(scr, np.asarray(p_scr, float)) for scr, (p_scr, _) in zip(screens, at)]
         if self.use_mci:
             rk, _, energy = rank_candidates(pm_cur, p_cur, lib, self.train, self.W)
             if it == 0:

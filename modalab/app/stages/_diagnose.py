@@ -47,6 +47,7 @@ class DiagnoseOptions:
     ignore_unsupported: bool = False       # build the model without structural cards it cannot model
     band_option: str = "band_hz"           # how the band was given, for messages (a project key)
     band_source: str | None = None         # the file that gave it (a project file)
+    jobs: int | None = None                # processes for the diagnosis' independent fits (None: the cores)
 
     def __post_init__(self):
         for k in ("band_hz", "kinds", "overlay_dofs"):
@@ -89,7 +90,7 @@ def diagnose(model_path, *, frf_path=None, modes_path=None, opts: DiagnoseOption
         if opts.band_hz:
             check_band_lines(H, opts.band_hz, frf_path, option=opts.band_option, source=opts.band_source)
         H = _band(H, opts.band_hz) if opts.band_hz else H
-        kw = {k: getattr(opts, k) for k in ("max_lines", "max_findings", "max_nfev", "holdout")
+        kw = {k: getattr(opts, k) for k in ("max_lines", "max_findings", "max_nfev", "holdout", "jobs")
               if getattr(opts, k) is not None}
         if opts.kinds:
             kw["kinds"] = list(opts.kinds)
