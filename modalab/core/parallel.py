@@ -11,7 +11,9 @@ Results travel back pickled, except the objects given as ``by_reference`` (objec
 that hold local functions and cannot be pickled): a result that refers to one gets the caller's object itself.
 
 Serial (in this process) when ``jobs`` is 1, when there are fewer than two items, where the ``fork`` start
-method does not exist (Windows) and inside a worker process of :mod:`multiprocessing` or of
+method does not exist (Windows), while other threads run in this process (a fork copies the calling thread
+alone, and a lock another thread holds would stay locked in the copy: a progress bar's refresh thread, a
+threaded scheduler) and inside a worker process of :mod:`multiprocessing` or of
 :mod:`concurrent.futures` (a campaign's, a Dask worker's, or this module's own): there the cores are already
 shared out, and nested pools would oversubscribe them.  Layer 1: imports nothing of the project.
 """
@@ -22,6 +24,7 @@ import logging
 import multiprocessing as mp
 import os
 import pickle
+import threading
 
 __all__ = ["fork_map", "available_cores"]
 
@@ -38,7 +41,7 @@ def available_cores() -> int:
 
 def _serial(jobs: int, n: int) -> bool:
     return (jobs <= 1 or n < 2 or "fork" not in mp.get_all_start_methods()
-            or mp.parent_process() is not None)
+            or mp.parent_process() is not None or threading.active_count() > 1)
 
 
 def fork_map(fn, items, jobs: int | None = None, by_reference=()) -> list:

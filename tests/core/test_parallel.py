@@ -75,3 +75,15 @@ def test_an_unpicklable_result_not_passed_by_reference_is_an_error_not_a_wrong_r
         pytest.skip("no fork start method here")
     with pytest.raises(Exception, match="pickle"):
         fork_map(_work, [(Unpicklable(k), 0) for k in range(2)], 2)
+
+
+def test_while_another_thread_runs_the_calls_stay_in_this_process():
+    import threading
+    stop = threading.Event()
+    t = threading.Thread(target=stop.wait)
+    t.start()
+    try:
+        assert fork_map(os.getpid, [(), ()], 2) == [os.getpid()] * 2
+    finally:
+        stop.set()
+        t.join()
