@@ -36,6 +36,7 @@ embedded demo, ``examples/demo_project/project.toml``)::
     [diagnose]
     max_lines = 120
     band_hz = [2.0, 80.0]
+    # jobs = 2                    # processes for a diagnosis' independent fits (default: the CPUs available)
 
     [report]
     frf_dofs = ["218+Z", "200+Z"]  # FRF overlays at these response DOFs
@@ -93,7 +94,7 @@ STAGE_OPTIONS = {
                "use_shapes": (bool, True), "freq_sigma": ((float, list), None), "shape_sigma": (float, 0.05)},
     "diagnose": {"parameters": (str, None), "max_lines": (int, 120), "band_hz": (list, None),
                  "max_findings": (int, 3), "max_nfev": (int, 30), "holdout": (str, None), "kinds": (list, None),
-                 "enabled": (bool, True)},
+                 "enabled": (bool, True), "jobs": (int, None)},
     "report": {"frf_dofs": (list, None), "title": (str, None)},
     "project": {"name": (str, "modalab project")},
 }
@@ -219,7 +220,7 @@ def load_project(path) -> Project:
             raise PlanError(f"{src}: [{sec}] band_hz = {b!r}; expected [low, high]: two numbers in Hz with "
                             "0 <= low < high, e.g. band_hz = [5, 700]")
     for sec, key, low in (("update", "max_iter", 1), ("identify", "max_order", 1), ("diagnose", "max_findings", 0),
-                          ("diagnose", "max_lines", 1), ("diagnose", "max_nfev", 1)):
+                          ("diagnose", "max_lines", 1), ("diagnose", "max_nfev", 1), ("diagnose", "jobs", 1)):
         v = opts.get(sec, {}).get(key)
         if v is not None and not (isinstance(v, int) and not isinstance(v, bool) and v >= low):
             raise PlanError(f"{src}: [{sec}] {key} = {v!r}; expected a whole number >= {low}")

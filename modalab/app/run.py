@@ -313,7 +313,7 @@ def stage_diagnose(ctx: _Context) -> tuple[list, dict]:
         band_hz=o["band_hz"] or ctx.project.options["identify"]["band_hz"], max_lines=o["max_lines"],
         band_option="[diagnose] band_hz" if o["band_hz"] else "[identify] band_hz", band_source=str(ctx.project.path),
         max_findings=o["max_findings"], max_nfev=o["max_nfev"], holdout=o["holdout"], kinds=o["kinds"],
-        overlay_dofs=ctx.project.options["report"]["frf_dofs"])
+        jobs=o["jobs"], overlay_dofs=ctx.project.options["report"]["frf_dofs"])
     modes = ctx.out / "identify" / "modes.uff"     # the identified modes give the frequency and MAC columns
     r = stages.diagnose(ctx.project.bulk_path, frf_path=ctx.out / "frf" / "frf.uff",
                         modes_path=modes if modes.is_file() else None, opts=opts, out_dir=d,

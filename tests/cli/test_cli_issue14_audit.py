@@ -314,6 +314,24 @@ def test_a_project_diagnose_band_in_khz_names_the_file_and_the_key_it_came_from(
     assert msg.startswith(f"{p}: {key} = [0.002, 0.08] Hz holds") and f"give {key} = [2, 80]" in msg, msg
 
 
+def test_a_project_diagnose_jobs_reaches_the_diagnosis(one_point_frf, tmp_path, monkeypatch):
+    """[diagnose] jobs: the processes of the diagnosis' independent fits, as diagnose --jobs; a typo is refused."""
+    from modalab.app.project import load_project
+    from modalab.core.errors import ModalabValueError
+    import modalab.app.run as R
+    seen = []
+    monkeypatch.setattr(R.stages, "diagnose", lambda *a, opts, **k: seen.append(opts.jobs) or R.stages.StageResult(None))
+    out = tmp_path / "out"
+    (out / "frf").mkdir(parents=True)
+    (out / "frf" / "frf.uff").write_bytes(one_point_frf.read_bytes())
+    R.stage_diagnose(R._Context(load_project(_band_project(tmp_path, one_point_frf, "[diagnose]\njobs = 1\n")),
+                                out, "sim", None))
+    assert seen == [1]
+    (tmp_path / "proj" / "p.toml").write_text((tmp_path / "proj" / "p.toml").read_text().replace("jobs", "job"))
+    with pytest.raises(ModalabValueError, match=r"\[diagnose\] unknown key job \(did you mean jobs\?\)"):
+        load_project(tmp_path / "proj" / "p.toml")
+
+
 @pytest.mark.parametrize("kinds", [["local_damping"], ["joint_flexibility", "added_mass"]])
 def test_a_modes_only_diagnosis_refuses_kinds_it_cannot_judge(tmp_path, capsys, freqs, kinds):
     """diagnose --modes --kinds local_damping said 'Nothing is missing beyond parameter error' without looking
@@ -331,6 +349,7 @@ def test_a_modes_only_diagnosis_refuses_kinds_it_cannot_judge(tmp_path, capsys, 
     ("update", "max_iter = 10", "max_iter = 10\nfreq_sigma = 0.8", "[update] freq_sigma = 0.8; expected relative"),
     ("identify", "max_order = 24", "max_order = -4", "[identify] max_order = -4; expected a whole number >= 1"),
     ("diagnose", "max_nfev = 10", "max_nfev = 0", "[diagnose] max_nfev = 0; expected a whole number >= 1"),
+    ("diagnose", "max_nfev = 10", "max_nfev = 10\njobs = 0", "[diagnose] jobs = 0; expected a whole number >= 1"),
 ])
 def test_a_project_value_the_stage_would_refuse_is_refused_before_any_work(tmp_path, capsys, section, old, new,
                                                                           expect):
