@@ -167,6 +167,11 @@ class _Acceptance(_Picks):
             judged = self._mci_best_fitted(tried, mci_best, c, ref.error) or self._tension_fitted(tried, c, ref.error)
         if judged is None:
             return None
+
+        def supports(o, p) -> bool:            # the support a competitor would have in the pick's place
+            return rival is not None or (mci_best is not None and o.key == mci_best.key) or self._relieves(o, p)
+
+        judged, alts = self._settle(judged, tried, siblings | further, have, supports)
         err, c, pm_aug, fr, clo, chi, k = judged
         # the MCI state of the augmented model for the next term's criterion (minimised like every candidate's);
         # the screenings and fits start from the FRF fit
@@ -176,17 +181,53 @@ class _Acceptance(_Picks):
         self.pm_cur, self.p_cur, self.lo_cur, self.hi_cur = pm_aug, fr.p, clo, chi
         self._frf_cur = (pm_aug, fr)
         scr = self._screens[k][0]
+        self._record_route(c, fr.p, scr, next((g for o, _, g in scr if o.key == c.key), None))
+        return c, alts
+
+    def _settle(self, judged, tried: list, fitted_for_kind: set, have: set, supports):
+        """The accepted pick ``judged`` and its alternatives (:meth:`_alternatives`).  A competitor fitted there
+        whose training FRF error is lower than the pick's by the information criterion (N ln(e_pick²/e²) >
+        ``penalty`` ln N) is a better explanation, not an equal one: it is judged by the pick's tests
+        (:meth:`_judge_or_complete`, ``supports(candidate, p)`` telling whether it is supported) and, when it
+        passes, replaces the pick, whose alternatives are then named afresh.  Tuning case 2118, a clamped
+        portal whose support at node 10 is elastic: the screening pick, a rotary inertia at 12+RX beside the
+        support, was accepted at training error 0.1195, and the support's rotations, fitted as its competitor,
+        left 0.0462 — listed as an alternative only.  Returns ``(judged, alternatives)``."""
+        alts, comps = self._alternatives(judged, tried, fitted_for_kind, have)
+        err, c, n_eq = judged[3].error, judged[1], n_obs(self.train)     # a completed release: its fit's error
+        need = self.config.penalty * np.log(n_eq)
+        better = min((t for t in comps if t[0] < err and n_eq * np.log(err ** 2 / max(t[0] ** 2, 1e-300)) > need),
+                     key=lambda t: t[0], default=None)
+        if better is None:
+            return judged, alts
+        log.info("competitor %s fits the training FRFs better than %s by the information criterion (error %.4g "
+                 "against %.4g): judged in its place", better[1].label, c.label, better[0], err)
+        pending = self.__dict__.pop("_parts_pending", None)        # set when the pick was a completed release
+        new = self._judge_or_complete(better[:7], supports(better[1], better[3].p), "competitor")
+        if new is None:
+            if pending is not None:
+                self._parts_pending = pending
+            return judged, alts
+        self._decide("rejected", c, f"{better[1].label} fits the training FRFs significantly better (error "
+                                    f"{better[0]:.4g} against {err:.4g})")
+        return new, self._alternatives(new, tried + comps, fitted_for_kind, have)[0]
+
+    def _alternatives(self, judged, tried: list, fitted_for_kind: set, have: set):
+        """The alternatives of the accepted pick ``judged = (error, candidate, pm, FitResult, lower, upper,
+        screening index)``: those of its screening (:meth:`_screened_alternatives`) and those fitted
+        (:meth:`_fitted_alternatives`).  The screening names alternatives by single-term gains within the margin
+        of the pick's own; a support's other components (:meth:`_support_siblings`) and a further pick
+        (:meth:`_kind_picks`), ``fitted_for_kind``, were fitted for what they are, not for their screening gain,
+        which can be far below the screening's best: there only fitted competitors are alternatives.  Returns
+        ``(alternatives, competitors fitted)``, the competitors as ``tried`` holds picks."""
+        err, c, pm_aug, fr, clo, chi, k = judged
+        scr = self._screens[k][0]
         g_c = next((g for o, _, g in scr if o.key == c.key), None)     # None: a completed group, not screened here
-        self._record_route(c, fr.p, scr, g_c)
-        m_now = pm_aug.model_at(fr.p)
-        # the screening names alternatives by single-term gains within the margin of the pick's own; a support's
-        # other components (_support_siblings) and a further pick (_kind_picks) were fitted for what they are, not
-        # for their screening gain, which can be far below the screening's best: there only fitted competitors
-        # are alternatives
-        margin = self._margin(pm_aug, fr)
+        m_now, margin, n_eq = pm_aug.model_at(fr.p), self._margin(pm_aug, fr), n_obs(self.train)
         alts = self._screened_alternatives(c, g_c, scr, have, tried, m_now, n_eq, margin) \
-            if g_c is not None and c.key not in siblings | further else []
-        return c, alts + self._fitted_alternatives(c, err, k, tried, alts, m_now, n_eq, margin)
+            if g_c is not None and c.key not in fitted_for_kind else []
+        more, comps = self._fitted_alternatives(c, fr, k, tried, alts, m_now, n_eq, margin)
+        return alts + more, comps
 
     def _after_residual_left(self, tried: list, have: set, best, e_ref: float, supported: bool):
         """The best fitted pick ``best = (error, candidate)`` failed only by the residual it leaves: a support
@@ -334,8 +375,8 @@ class _Acceptance(_Picks):
             picks.append((c, v, p_scr, k))
         return picks
 
-    def _fitted_alternatives(self, c, err_c: float, k: int, tried: list, alts: list, m_now, n_eq: int,
-                             margin) -> list:
+    def _fitted_alternatives(self, c, fr_c, k: int, tried: list, alts: list, m_now, n_eq: int,
+                             margin) -> tuple[list, list]:
         """Explanations elsewhere that fit the FRFs as well as the accepted pick ``c`` once the parameters are
         re-fitted with them (not significantly worse on the training FRFs by the test of a term: ``margin``,
         :meth:`_margin`): the other picks already fitted (``tried``), and the competitors of
@@ -345,7 +386,8 @@ class _Acceptance(_Picks):
         :data:`FRF_PICKS` − 1 of them, fitted like the pick.  The screening alone cannot tell: parameters
         re-fitted with a term absorb part of what separated it from its neighbours (the same release at the two
         ends of a symmetric frame's rail differs by a fraction of a percent once the moduli are free).
-        Returns ``[(candidate, value)]``."""
+        ``c`` is fitted at ``fr_c``.  Returns ``([(candidate, value)], competitors fitted)``, the competitors as
+        ``tried`` holds picks."""
         cfg, n = self.config, len(self.params)
         infl = max(margin.infl, 1.0)
         need = cfg.penalty * np.log(max(n_eq / infl, 2.0))
@@ -360,21 +402,24 @@ class _Acceptance(_Picks):
         close = [] if g_c is None else [
             (o, v) for o, v, g in scr if o.key not in seen and _another_explanation(o, c, m_now)
             and n_eq * np.log(max(1 - g, 1e-300) ** 2 / max(1 - g_c, 1e-300) ** 2) / infl <= 4 * need]
+        comps = []
         for o, v in close[:FRF_PICKS - 1]:
             m_aug, cpar, scales = _augment(self.model0, self.current + [o])
             pm_aug = ParametricFEModel(m_aug, self.params + cpar)
             clo = np.concatenate([self.lo, np.zeros(len(cpar))])
             chi = np.concatenate([self.hi, _upper(self.current + [o], scales)])
-            # the current terms' values, then the competitor's (the accepted pick's, one or two — a completed
-            # support release — at the end of p_cur, are left out)
-            start = np.concatenate([p_scr[:n], self.p_cur[n:n + len(cpar) - 1],
+            # the current terms' values as the pick's fit left them, then the competitor's (the accepted pick's,
+            # one or two — a completed support release — at the end of its fit, are left out)
+            start = np.concatenate([p_scr[:n], fr_c.p[n:n + len(cpar) - 1],
                                     [min(v, getattr(o, "upper", np.inf)) / scales[-1]]])
             fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
                            max_nfev=max(8, cfg.max_nfev // 2))
-            log.info("competitor %s of %s fitted on the FRFs: error %.4g (%.4g)", o.label, c.label, fr.error, err_c)
+            log.info("competitor %s of %s fitted on the FRFs: error %.4g (%.4g)", o.label, c.label, fr.error,
+                     fr_c.error)
+            comps.append((fr.error, o, pm_aug, fr, clo, chi, k, scales[-1]))
             if not margin(pm_aug, fr.p):
                 out.append((o, float(fr.p[-1] * scales[-1])))
-        return out
+        return out, comps
 
     def _fit_pick(self, c, v, p_scr):
         """The current terms plus ``c`` fitted with the parameters on the training FRFs, from the parameters
