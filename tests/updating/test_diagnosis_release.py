@@ -363,9 +363,10 @@ def test_a_release_and_its_mirror_image_are_fitted_alternatives():
     clo, chi = np.r_[d.lo, 0.0], np.r_[d.hi, np.inf]
     fr = d._fit(pm_a, d.train, np.clip(np.r_[d.p_nomd[:n], k / scales[-1]], clo, chi), lower=clo, upper=chi,
                 max_nfev=30)
-    alts = d._fitted_alternatives(left, fr.error, 0, [], [], pm_a.model_at(fr.p), d.train.H.size * 2,
-                                  d._margin(pm_a, fr))
+    alts, comps = d._fitted_alternatives(left, fr, 0, [], [], pm_a.model_at(fr.p), d.train.H.size * 2,
+                                         d._margin(pm_a, fr))
     assert [o.dofs for o, _ in alts] == [("7+RZ",)]
+    assert ("7+RZ",) in [t[1].dofs for t in comps]         # the competitors fitted, as the picks are kept
     assert alts[0][1] == pytest.approx(k, rel=0.1)
 
 
