@@ -380,3 +380,26 @@ def test_test_modes_with_impossible_frequencies_are_refused(tmp_path, capsys, co
     err = _one_line(capsys)
     assert expect in err and str(modes) in err, err
     assert not out.exists()
+
+
+def test_the_report_wire_frame_of_a_model_with_a_card_the_builder_does_not_model(one_point_frf, tmp_path,
+                                                                                   monkeypatch, caplog):
+    """The geometry figure drew no wire frame (and said so at info level only) when the deck held a structural
+    card the builder does not model, although the diagnosis ran on it with --ignore-unsupported: the wire frame
+    needs the grids and elements only."""
+    import modalab.app.stages._report as R
+    deck = (DEMO / "nominal.bdf").read_text().splitlines()
+    at = next(i for i, line in enumerate(deck) if line.startswith("GRID"))
+    deck[at:at] = ["CHEXA   900     1       1       2       3       4       5       6", "+       7       8"]
+    bdf = tmp_path / "with_hexa.bdf"
+    bdf.write_text("\n".join(deck) + "\n")
+    (tmp_path / "run" / "frf").mkdir(parents=True)
+    (tmp_path / "run" / "frf" / "frf.uff").write_bytes(one_point_frf.read_bytes())
+    drawn = []
+    real = R.plot_geometry
+    monkeypatch.setattr(R, "plot_geometry", lambda *a, **k: drawn.append(k["lines"]) or real(*a, **k))
+    with caplog.at_level("WARNING"):
+        path = R._geometry_figure(tmp_path / "run", tmp_path, model=bdf)
+    assert path is not None and path.is_file()
+    assert len(drawn) == 1 and len(drawn[0]) >= 70, "the demo's 71 beam elements drawn"
+    assert not [r for r in caplog.records if "wire frame" in r.getMessage()]

@@ -21,14 +21,12 @@ import logging
 from dataclasses import dataclass
 from pathlib import Path
 
-from modalab.core.errors import ModalabValueError
+from modalab.core.errors import ModalabError, ModalabValueError
 from modalab.app.figures import plot_coherence_map
 from modalab.app.outputs import write_json, write_text
-from modalab.app.stages._common import StageResult
+from modalab.app.stages._common import StageResult, load_model
 from modalab.core import uff
 from modalab.core.plots import plot_geometry
-from updating.fe.bulk import read_bdf
-from updating.fe.bulk.build import build_model
 
 log = logging.getLogger(__name__)
 
@@ -217,14 +215,15 @@ def _geometry_figure(run_dir: Path, report_dir: Path, model=None) -> Path | None
     except Exception:  # noqa: BLE001 - FRFs without geometry
         coords = {}
     if model is not None:
-        try:
-            m = build_model(read_bdf(model))
+        try:     # the wire frame needs the grids and elements only: cards the builder does not model are left out
+            m = load_model(model, ignore_unsupported=True)
+        except ModalabError as e:
+            log.warning("no wire frame in the geometry plot: %s", e)
+        else:
             for nid, n in m.nodes.items():
                 coords.setdefault(nid, tuple(float(x) for x in n.xyz))
             lines = [tuple(e.nodes[:2]) for e in m.elements.values() if len(getattr(e, "nodes", ())) >= 2]
             lines += [(r.independent, d) for r in m.rbe2s.values() for d in r.dependents]
-        except Exception as e:  # noqa: BLE001 - the wire frame is a nicety
-            log.info("no wire frame in the geometry plot: %s", e)
     if not coords:
         return None
     frf = uff.read_frf(frf_path)
