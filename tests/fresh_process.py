@@ -1,13 +1,14 @@
 """Run a check in a fresh Python process, for what depends on the process's state.
 
 ``modalab.core.parallel.fork_map`` computes serially while other threads run in the calling process (a fork
-copies the calling thread alone).  A pytest worker may hold threads another test left running (a Dask
-scheduler's pool, a simulated instrument's reader), so a test that must see the calls go to forked workers
+copies the calling thread alone).  A pytest worker may hold threads another test left running (CI's did;
+which test left them was not traced), so a test that must see the calls go to forked workers
 runs its check with :func:`run_fresh`: ``python -c`` in a new interpreter, the repository on its path, the
 check's exit status and its output the test's.
 """
 from __future__ import annotations
 
+import logging
 import os
 import subprocess
 import sys
@@ -40,6 +41,5 @@ class Keep(list):
 
     def __init__(self):
         super().__init__()
-        import logging
         self.handler = logging.Handler(logging.DEBUG)
         self.handler.emit = self.append

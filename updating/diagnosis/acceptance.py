@@ -27,6 +27,13 @@ IC_FAILED = "fails the information criterion"
 #: term with a small effect must show to be kept for the residual it explains (:meth:`_small_effect_kept`)
 MESH_MARGIN = MIN_FREQ_EFFECT / 4
 
+
+def _fits_better(err: float, e_ref: float, n_eq: int, penalty: float) -> bool:
+    """Whether training FRF error ``err`` is lower than ``e_ref`` by the information criterion on ``n_eq``
+    observations: N ln(e_ref²/err²) > ``penalty`` ln N."""
+    return err < e_ref and n_eq * np.log(e_ref ** 2 / max(err ** 2, 1e-300)) > penalty * np.log(n_eq)
+
+
 class _Acceptance(_Picks):
     """The acceptance tests of :class:`~updating.diagnosis.workflow.Diagnoser` (a mixin)."""
 
@@ -154,7 +161,7 @@ class _Acceptance(_Picks):
         n_eq = n_obs(self.train)
         if rival is not None:
             e_r = self._rival_fit.error
-            if not (err < e_r and n_eq * np.log(e_r ** 2 / max(err ** 2, 1e-300)) > cfg.penalty * np.log(n_eq)):
+            if not _fits_better(err, e_r, n_eq, cfg.penalty):
                 log.info("screening pick %s (FRF error %.4g) does not beat the MCI's choice %s (%.4g)", c.label, err,
                          rival[0].label, e_r)
                 return None
@@ -195,9 +202,8 @@ class _Acceptance(_Picks):
         left 0.0462 — listed as an alternative only.  Returns ``(judged, alternatives)``."""
         alts, comps = self._alternatives(judged, tried, fitted_for_kind, have)
         err, c, n_eq = judged[3].error, judged[1], n_obs(self.train)     # a completed release: its fit's error
-        need = self.config.penalty * np.log(n_eq)
-        better = min((t for t in comps if t[0] < err and n_eq * np.log(err ** 2 / max(t[0] ** 2, 1e-300)) > need),
-                     key=lambda t: t[0], default=None)
+        better = min((t for t in comps if _fits_better(t[0], err, n_eq, self.config.penalty)), key=lambda t: t[0],
+                     default=None)
         if better is None:
             return judged, alts
         log.info("competitor %s fits the training FRFs better than %s by the information criterion (error %.4g "
@@ -459,7 +465,7 @@ class _Acceptance(_Picks):
         self._pick_left = self._pick_held = False
         pm_ref, ref = self._frf_ref()
         err, n_eq = fr.error, n_obs(self.train)
-        if not (err < ref.error and n_eq * np.log(ref.error ** 2 / max(err ** 2, 1e-300)) > penalty * np.log(n_eq)):
+        if not _fits_better(err, ref.error, n_eq, penalty):
             return False, "fails the information criterion on the FRFs"
         if self.current and err > ref.error * (1 - cfg.min_extra_gain):
             return False, (f"a further term lowering the training FRF error by less than "
