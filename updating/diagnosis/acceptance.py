@@ -199,17 +199,22 @@ class _Acceptance(_Picks):
         passes, replaces the pick, whose alternatives are then named afresh.  Tuning case 2118, a clamped
         portal whose support at node 10 is elastic: the screening pick, a rotary inertia at 12+RX beside the
         support, was accepted at training error 0.1195, and the support's rotations, fitted as its competitor,
-        left 0.0462 — listed as an alternative only.  Returns ``(judged, alternatives)``."""
+        left 0.0462 — listed as an alternative only.  Every clamp released whole (:meth:`_whole_clamps`, two
+        values: twice the penalty) competes too.  Returns ``(judged, alternatives)``."""
         alts, comps = self._alternatives(judged, tried, fitted_for_kind, have)
         err, c, n_eq = judged[3].error, judged[1], n_obs(self.train)     # a completed release: its fit's error
-        better = min((t for t in comps if _fits_better(t[0], err, n_eq, self.config.penalty)), key=lambda t: t[0],
-                     default=None)
+        pen = self.config.penalty
+        clamps = self._whole_clamps(c, judged[6])                 # two values each: twice the penalty
+        better = min([t for t in comps if _fits_better(t[0], err, n_eq, pen)] +
+                     [t for t in clamps if _fits_better(t[0], err, n_eq, 2 * pen)], key=lambda t: t[0], default=None)
         if better is None:
             return judged, alts
         log.info("competitor %s fits the training FRFs better than %s by the information criterion (error %.4g "
                  "against %.4g): judged in its place", better[1].label, c.label, better[0], err)
         pending = self.__dict__.pop("_parts_pending", None)        # set when the pick was a completed release
-        new = self._judge_or_complete(better[:7], supports(better[1], better[3].p), "competitor")
+        sup = supports(better[1], better[3].p)
+        new = self._judge_clamp(better, sup) if any(better is t for t in clamps) else \
+            self._judge_or_complete(better[:7], sup, "competitor")
         if new is None:
             if pending is not None:
                 self._parts_pending = pending
@@ -274,7 +279,7 @@ class _Acceptance(_Picks):
         ``g_c`` in its screening ``scr`` and that screening's candidates at its nodes; a prior-tension pick (no
         screening of its own, ``g_c`` None) takes them from the screening where it gains most
         (:meth:`_tension_route`)."""
-        g_r = g_c or 0.0
+        g_r = g_c                 # None: a completed release, not screened alone
         if g_c is None and self._relieves(c, p):
             g_r, scr = self._tension_route(c, p)
         self._route[c.key] = (g_r, False, [(o, v, g) for o, v, g in scr if set(o.nodes) & set(c.nodes)

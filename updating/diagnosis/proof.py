@@ -192,7 +192,7 @@ class _Proof:
             if same is None:
                 same = [(o, t, g) for o, t, g in ranking if set(o.nodes) & set(c.nodes) and o.key != c.key]
             findings.append(Finding(c, float(val), float(std), _evidence(c, gain, same, self.band, by_mci) +
-                                    self.__dict__.get("_tension_notes", {}).get(c.key, ""), gain,
+                                    self.__dict__.get("_tension_notes", {}).get(c.key, ""), gain or 0.0,
                                     alternatives=list(self.alternatives.get(c.key, []))))
         return findings
 

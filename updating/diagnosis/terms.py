@@ -381,7 +381,7 @@ def _augment(model: FEModel, cands: list) -> tuple[FEModel, list, list]:
     return m, params, scales
 
 
-def _evidence(c: Candidate, gain: float, rank_same_place: list, band, use_mci: bool = True) -> str:
+def _evidence(c: Candidate, gain: float | None, rank_same_place: list, band, use_mci: bool = True) -> str:
     kind = {"K": "real and constant over frequency (a stiffness)", "M": "real and growing as −ω² (an inertia)",
             "C": "imaginary and growing with ω (viscous damping)", "D": "imaginary and constant (hysteretic damping)"}[c.matrix]
     where = ', '.join(c.dofs) or 'node ' + ','.join(map(str, c.nodes))
@@ -391,8 +391,10 @@ def _evidence(c: Candidate, gain: float, rank_same_place: list, band, use_mci: b
              f"term alone explains {pct(100 * gain)} % of the residual left after parameter updating")
     else:
         alt = ", ".join(f"{o.label} {pct(100 * g)} %" for o, _, g in rank_same_place[:2])
-        s = (f"added alone at its best value, a dynamic stiffness at {where} that is {kind} removes "
-             f"{pct(100 * gain)} % of the FRF error between {band[0]:.3g} and {band[1]:.3g} Hz; with the parameters "
-             "re-fitted it gave the lowest training error of the candidates tried and passed the information "
-             "criterion")
+        alone = (f"added alone at its best value, a dynamic stiffness at {where} that is {kind} removes "
+                 f"{pct(100 * gain)} % of the FRF error between {band[0]:.3g} and {band[1]:.3g} Hz") \
+            if gain is not None else (f"released with the rest of its support (not screened alone), a dynamic "
+                                      f"stiffness at {where} that is {kind}")
+        s = (alone + "; with the parameters re-fitted it gave the lowest training error of the candidates tried "
+             "and passed the information criterion")
     return s + (f" (competing at the same place: {alt})" if alt else "")

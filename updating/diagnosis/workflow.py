@@ -367,7 +367,7 @@ class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
         self.current.extend(parts)                          # before c: the augmented model's order
         self.current.append(c)
         for o in parts:
-            self._route[o.key] = (0.0, False, [])
+            self._route[o.key] = (None, False, [])        # not screened alone
             self._decide("found", o, f"as a part of {c.label}, released with it")
         if alts:                     # every place the data cannot tell from c's (along a stiff member: all)
             self.alternatives[c.key] = alts
