@@ -16,7 +16,11 @@ from updating.diagnosis import acceptance
 from updating.diagnosis import workflow as wf
 from updating.diagnosis.fit import frf_data
 from updating.diagnosis.priors import _split
+from updating.diagnosis.picks import SUPPORT_PICKS
 from updating.diagnosis.terms import _chi2, cv_folds, inflation, n_obs, significant_gain
+from updating.fe import Spring
+from updating.fe.models.beams import beam_model
+from modalab.core.frf import FRF
 from test_diagnosis_selection import _case
 
 
@@ -139,3 +143,46 @@ def test_a_pick_the_mci_ranked_best_is_a_supported_pick(monkeypatch):
     assert other.label in said and "above 1e-09" not in said[other.label], said
     picked = d._judge_picks(0, 1, mci_best=spring)               # the MCI's own best candidate, FRF-fitted
     assert picked is not None and picked[0].key == spring.key
+
+
+def _multi_clamped(elastic: int):
+    """A 3-D beam clamped at five nodes (1, 4, 7, 10, 13; 12 elements over 1.2 m), measured with 0.3 % noise;
+    in the truth the clamp at node ``elastic`` is springs (2e6 N/m, 300 N·m/rad)."""
+    nominal = beam_model(12, length=1.2, kind="beam3d", bc="cantilever")
+    for n in (4, 7, 10, 13):
+        nominal.add_spc(n)
+    nominal.global_ge = 0.01
+    truth = nominal.copy()
+    truth.spcs = [s for s in truth.spcs if s.node != elastic]
+    for comp in range(1, 7):
+        truth.add_element(Spring(9000 + comp, a=(elastic, comp), b=None, k=2e6 if comp <= 3 else 3e2))
+    resp = [f"{i}+Z" for i in (2, 3, 5, 6, 8, 9, 11, 12)] + [f"{i}+Y" for i in (2, 6, 9, 12)]
+    f = np.linspace(50, 4000, 600)
+    H = truth.frf(f, resp, ["6+Z", "9+Y"], quantity="receptance")
+    rng = np.random.default_rng(3)
+    Hn = H.H * (1 + 0.003 * (rng.standard_normal(H.H.shape) + 1j * rng.standard_normal(H.H.shape)) / np.sqrt(2))
+    return nominal, FRF(freq_hz=f, H=Hn, responses=H.responses, references=H.references,
+                        coherence=np.full(H.H.shape, 0.999), quantity="receptance")
+
+
+def test_whole_clamps_are_the_few_that_screen_best_and_the_elastic_one_fits_best():
+    """Every clamp released whole competes with an accepted pick (refine._whole_clamps), but a model with many
+    clamps (a plate's clamped edge) would cost a fit each: at most SUPPORT_PICKS are fitted, those whose releases
+    gain most in the screenings.  Of five clamps of a beam, the elastic one (node 7) is among them and its whole
+    release fits the FRFs best, at the noise."""
+    nominal, meas = _multi_clamped(7)
+    d = wf.Diagnoser(wf.DiagnoserConfig(max_lines=80, progress=lambda m: None))
+    d._t0, d.timings = time.perf_counter(), {}
+    d.baseline(nominal, meas)
+    d.localise()
+    d._options(0)
+    mass = next(c for c in d._library(d.model0) if c.physics == "added_mass" and c.nodes == (3,)
+                and c.value_name != "J")
+    eligible = {o.release[1] for o in d._library(d.model0) if o.release is not None and o.release[0] == "support"}
+    assert len(eligible) == 5
+    halves = d._clamp_halves(mass)
+    assert len(halves) == SUPPORT_PICKS and 7 in [n for n, _ in halves], halves
+    fits = d._whole_clamps(mass, 0)
+    best = min(fits, key=lambda t: t[0])
+    assert best[1].release[1] == 7 and best[7].release[1] == 7
+    assert best[0] < 0.2 * max(t[0] for t in fits)

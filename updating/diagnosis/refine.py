@@ -11,6 +11,7 @@ import numpy as np
 
 from updating.fe import ParametricFEModel
 from updating.diagnosis.screen import mci_update
+from updating.diagnosis.picks import SUPPORT_PICKS
 from updating.diagnosis.terms import _augment, _is_support, _upper
 
 log = logging.getLogger(__name__)
@@ -93,18 +94,11 @@ class _Refine:
         beside it that absorbs part of both: held-out case 2455 (a portal whose foot at node 8 is elastic in
         all six components) was named a spring at the other foot's first node (training error 0.0338, the
         clamp's rotations 0.0356), tuning case 3366 a rotary inertia two nodes up the elastic leg, 3570 one
-        near a post's tip.  Returns ``[(error, rotations, pm, FitResult, lower, upper, k, translations)]``."""
-        on = {x.release[1] for x in self.current + [c] if _is_support(x)}
-        nodes = sorted({o.release[1] for o in self._library(self.model0) if _is_support(o)} - on)
+        near a post's tip.  At most :data:`~updating.diagnosis.picks.SUPPORT_PICKS` clamps are fitted
+        (:meth:`_clamp_halves`).  Returns ``[(error, rotations, pm, FitResult, lower, upper, k, translations)]``."""
         _, ref = self._frf_ref()
         out = []
-        for n in nodes:
-            rel = self._support_releases(n)
-            halves = [max((o for o in rel if _is_translation(o.release[2]) == tr), default=None,
-                          key=lambda o: (len(o.release[2]), -min(o.release[2]))) for tr in (True, False)]
-            if None in halves:
-                continue
-            o, g = halves
+        for n, (o, g) in self._clamp_halves(c):
             terms = self.current + [o, g]
             m_aug, cpar, scales = _augment(self.model0, terms)
             pm_aug = ParametricFEModel(m_aug, self.params + cpar)
@@ -118,6 +112,26 @@ class _Refine:
                      fr.error)
             out.append((fr.error, g, pm_aug, fr, clo, chi, k, o))
         return out
+
+    def _clamp_halves(self, c) -> list:
+        """``[(node, (translations, rotations))]``: the clamps whose two halves the library holds (not hidden, no
+        release accepted there, not ``c``'s), at most :data:`~updating.diagnosis.picks.SUPPORT_PICKS` of them —
+        those whose releases gain most in the screenings (a plate's clamped edge has tens)."""
+        on = {x.release[1] for x in self.current + [c] if _is_support(x)}
+        clamps = []
+        for n in sorted({o.release[1] for o in self._library(self.model0) if _is_support(o)} - on):
+            rel = self._support_releases(n)
+            halves = [max((o for o in rel if _is_translation(o.release[2]) == tr), default=None,
+                          key=lambda o: (len(o.release[2]), -min(o.release[2]))) for tr in (True, False)]
+            if None not in halves:
+                clamps.append((n, tuple(halves)))
+        if len(clamps) > SUPPORT_PICKS:
+            gain: dict = {}
+            for g, o, *_ in self._best_screened().values():
+                if _is_support(o):
+                    gain[o.release[1]] = max(gain.get(o.release[1], -np.inf), g)
+            clamps = sorted(sorted(clamps, key=lambda t: -gain.get(t[0], -np.inf))[:SUPPORT_PICKS])
+        return clamps
 
     def _judge_clamp(self, t, supported: bool):
         """A whole clamp ``t`` of :meth:`_whole_clamps` judged as two values (:meth:`_judge_pick`, every penalty
