@@ -20,8 +20,7 @@ from updating.diagnosis.picks import SUPPORT_PICKS
 from updating.diagnosis.terms import _chi2, cv_folds, inflation, n_obs, significant_gain
 from updating.fe import Spring
 from updating.fe.models.beams import beam_model
-from modalab.core.frf import FRF
-from test_diagnosis_selection import _case
+from test_diagnosis_selection import _case, measured
 
 
 def test_one_n_for_every_test():
@@ -157,12 +156,7 @@ def _multi_clamped(elastic: int):
     for comp in range(1, 7):
         truth.add_element(Spring(9000 + comp, a=(elastic, comp), b=None, k=2e6 if comp <= 3 else 3e2))
     resp = [f"{i}+Z" for i in (2, 3, 5, 6, 8, 9, 11, 12)] + [f"{i}+Y" for i in (2, 6, 9, 12)]
-    f = np.linspace(50, 4000, 600)
-    H = truth.frf(f, resp, ["6+Z", "9+Y"], quantity="receptance")
-    rng = np.random.default_rng(3)
-    Hn = H.H * (1 + 0.003 * (rng.standard_normal(H.H.shape) + 1j * rng.standard_normal(H.H.shape)) / np.sqrt(2))
-    return nominal, FRF(freq_hz=f, H=Hn, responses=H.responses, references=H.references,
-                        coherence=np.full(H.H.shape, 0.999), quantity="receptance")
+    return nominal, measured(truth, np.linspace(50, 4000, 600), resp, ["6+Z", "9+Y"], seed=3)
 
 
 def test_whole_clamps_are_the_few_that_screen_best_and_the_elastic_one_fits_best():
