@@ -159,11 +159,20 @@ def or_labels(c: Candidate, others) -> str:
 
 
 def statement(findings, fit, held_desc: str, not_evaluated=(), unobservable=(), mesh: str | None = None,
-              blind: str | None = None) -> str:
+              blind: str | None = None, noise_limit: float | None = None) -> str:
     """The diagnosis in words; candidates that could not be evaluated and releases the sensors and hits
     cannot see are named (the conclusion does not cover them); ``mesh``: why the nominal beam mesh's own error
-    was taken out of the data (:func:`~updating.diagnosis.mesh.mesh_discrepancy`), said first."""
+    was taken out of the data (:func:`~updating.diagnosis.mesh.mesh_discrepancy`), said first.
+    ``noise_limit``: the χ²/N up to which FRFs are at their noise; without a finding, a parameters-only fit that
+    leaves the held-out FRFs above it is said to leave something out (no evidence that nothing is missing)."""
     text = _statement(findings, fit, held_desc)
+    chi = (fit.get("parameters_only") or {}).get("chi2_per_value_held_out")
+    if not findings and noise_limit is not None and chi is not None and chi > noise_limit:
+        text = text.replace("Nothing is missing beyond parameter error", "Nothing is missing that the candidate "
+                            "library can name", 1)
+        text += (f" But the held-out FRFs stay above their noise (χ²/N {chi:.3g}; about 1 at the noise): the model "
+                 "still leaves something out — its mesh or its sections' scatter (model-form error), or physics the "
+                 "library does not hold — so this is no evidence that the model is complete.")
     if blind and findings:
         text += " " + blind
     if mesh:

@@ -116,7 +116,8 @@ class _Proof:
             curves, freqs = {}, {}
         diag = Diagnosis(findings=findings, parameters=self._parameters(), fit=fit_blocks,
                          statement=statement(findings, fit_blocks, self.held_desc, self.not_evaluated,
-                                             self.unobservable, self.mesh_note, blind=self._blind_note),
+                                             self.unobservable, self.mesh_note, blind=self._blind_note,
+                                             noise_limit=PICK_MAX_REDUCED_CHI2),
                          model=final_model, not_evaluated=list(self.not_evaluated),
                          unobservable=list(self.unobservable), decisions=list(self.decisions),
                          parametric=self.best_pm, p=self.best_fit.p,
