@@ -165,14 +165,9 @@ def statement(findings, fit, held_desc: str, not_evaluated=(), unobservable=(), 
     was taken out of the data (:func:`~updating.diagnosis.mesh.mesh_discrepancy`), said first.
     ``noise_limit``: the χ²/N up to which FRFs are at their noise; without a finding, a parameters-only fit that
     leaves the held-out FRFs above it is said to leave something out (no evidence that nothing is missing)."""
-    text = _statement(findings, fit, held_desc)
     chi = (fit.get("parameters_only") or {}).get("chi2_per_value_held_out")
-    if not findings and noise_limit is not None and chi is not None and chi > noise_limit:
-        text = text.replace("Nothing is missing beyond parameter error", "Nothing is missing that the candidate "
-                            "library can name", 1)
-        text += (f" But the held-out FRFs stay above their noise (χ²/N {chi:.3g}; about 1 at the noise): the model "
-                 "still leaves something out — its mesh or its sections' scatter (model-form error), or physics the "
-                 "library does not hold — so this is no evidence that the model is complete.")
+    text = _statement(findings, fit, held_desc,
+                      above=chi if noise_limit is not None and chi is not None and chi > noise_limit else None)
     if blind and findings:
         text += " " + blind
     if mesh:
@@ -195,15 +190,23 @@ def statement(findings, fit, held_desc: str, not_evaluated=(), unobservable=(), 
     return text
 
 
-def _statement(findings, fit, held_desc: str) -> str:
+def _statement(findings, fit, held_desc: str, above: float | None = None) -> str:
+    """The statement's body; ``above``: without a finding, the held-out χ²/N the parameters-only fit leaves when
+    above the noise (:func:`statement`), or None."""
     e_par = 100 * fit["parameters_only"]["frf_error_held_out"]
     e_phys = 100 * fit["with_physics"]["frf_error_held_out"]
     e_nom = 100 * fit["nominal"]["frf_error_held_out"]
     if not findings:
         verb = "leaves" if pct(e_nom) == pct(e_par) else "brings"
-        return (f"Nothing is missing beyond parameter error: updating the model's own parameters {verb} the held-out "
+        head = "beyond parameter error" if above is None else "that the candidate library can name"
+        text = (f"Nothing is missing {head}: updating the model's own parameters {verb} the held-out "
                 f"FRF error ({held_desc}) {from_to(e_nom, e_par)}, and no candidate physics improves it "
                 "further, so none is added.")
+        if above is not None:
+            text += (f" But the held-out FRFs stay above their noise (χ²/N {above:.3g}; about 1 at the noise): the "
+                     "model still leaves something out — its mesh or its sections' scatter (model-form error), or "
+                     "physics the library does not hold — so this is no evidence that the model is complete.")
+        return text
     by_kind: dict[str, list] = {}
     for f in findings:
         by_kind.setdefault(f.candidate.physics, []).append(f)
