@@ -11,11 +11,10 @@ import logging
 
 import numpy as np
 
-from updating.fe import ParametricFEModel
 from updating.diagnosis.mesh import mesh_error, shift_beyond_mesh
 from updating.diagnosis.screen import mci_update
 from updating.diagnosis.picks import _Picks
-from updating.diagnosis.terms import _another_explanation, _is_support, MIN_FREQ_EFFECT, FRF_PICKS, PICK_EXPLAINS, MIN_DAMPING_EFFECT, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, CV_NFEV, _residual, inflation, significant_gain, n_obs, _upper, _augment
+from updating.diagnosis.terms import _another_explanation, _is_support, MIN_FREQ_EFFECT, FRF_PICKS, PICK_EXPLAINS, MIN_DAMPING_EFFECT, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, CV_NFEV, _residual, inflation, significant_gain, n_obs, _augmented
 
 log = logging.getLogger(__name__)
 
@@ -415,13 +414,10 @@ class _Acceptance(_Picks):
             and n_eq * np.log(max(1 - g, 1e-300) ** 2 / max(1 - g_c, 1e-300) ** 2) / infl <= 4 * need]
         comps = []
         for o, v in close[:FRF_PICKS - 1]:
-            m_aug, cpar, scales = _augment(self.model0, self.current + [o])
-            pm_aug = ParametricFEModel(m_aug, self.params + cpar)
-            clo = np.concatenate([self.lo, np.zeros(len(cpar))])
-            chi = np.concatenate([self.hi, _upper(self.current + [o], scales)])
+            pm_aug, clo, chi, scales = _augmented(self.model0, self.params, self.lo, self.hi, self.current + [o])
             # the current terms' values as the pick's fit left them, then the competitor's (the accepted pick's,
             # one or two — a completed support release — at the end of its fit, are left out)
-            start = np.concatenate([p_scr[:n], fr_c.p[n:n + len(cpar) - 1],
+            start = np.concatenate([p_scr[:n], fr_c.p[n:len(clo) - 1],
                                     [min(v, getattr(o, "upper", np.inf)) / scales[-1]]])
             fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
                            max_nfev=max(8, cfg.max_nfev // 2))
@@ -436,10 +432,7 @@ class _Acceptance(_Picks):
         """The current terms plus ``c`` fitted with the parameters on the training FRFs, from the parameters
         ``p_scr`` and the value ``v`` (a screening's): ``(pm_aug, FitResult, lower, upper, scale)``, ``scale``
         the factor from ``c``'s fitted parameter (the last) to its physical value."""
-        m_aug, cpar, scales = _augment(self.model0, self.current + [c])
-        pm_aug = ParametricFEModel(m_aug, self.params + cpar)
-        clo = np.concatenate([self.lo, np.zeros(len(cpar))])
-        chi = np.concatenate([self.hi, _upper(self.current + [c], scales)])
+        pm_aug, clo, chi, scales = _augmented(self.model0, self.params, self.lo, self.hi, self.current + [c])
         start = np.concatenate([p_scr, [min(v, getattr(c, "upper", np.inf)) / scales[-1]]])
         fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
                        max_nfev=max(8, self.config.max_nfev // 2))

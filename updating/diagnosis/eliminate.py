@@ -9,11 +9,10 @@ import logging
 import numpy as np
 
 from modalab.core.errors import ModalabValueError
-from updating.fe import ParametricFEModel
 from updating.diagnosis.fit import frf_error, model_frf
 from updating.diagnosis.library import loss_of as _loss_of
 from updating.diagnosis.screen import mci_update
-from updating.diagnosis.terms import _augment, _upper
+from updating.diagnosis.terms import _augmented
 
 log = logging.getLogger(__name__)
 
@@ -41,11 +40,8 @@ class _Eliminate:
         # a spring's own loss (library.spring_loss_candidates) goes with its spring
         gone = {worst} | {k for k, t in enumerate(current) if _loss_of(t, current[worst])}
         rest = [t for k, t in enumerate(current) if k not in gone]
-        m_aug, cpar, sc = _augment(self.model0, rest)
-        pm_rest = ParametricFEModel(m_aug, self.params + cpar)
+        pm_rest, clo_r, chi_r, sc = _augmented(self.model0, self.params, self.lo, self.hi, rest)
         keep = np.r_[np.arange(n0), n0 + np.array([k for k in range(len(current)) if k not in gone], int)]
-        clo_r = np.concatenate([self.lo, np.zeros(len(cpar))])
-        chi_r = np.concatenate([self.hi, _upper(rest, sc)])
         refit = self._fit(pm_rest, self.train, best_fit.p[keep], lower=clo_r, upper=chi_r, max_nfev=cfg.max_nfev)
         # also from the MCI solution of the reduced set (the removed term may have dragged the others), and from
         # the nominal parameters

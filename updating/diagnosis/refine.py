@@ -9,16 +9,21 @@ import logging
 
 import numpy as np
 
-from updating.fe import ParametricFEModel
 from updating.diagnosis.screen import mci_update
 from updating.diagnosis.picks import SUPPORT_PICKS
-from updating.diagnosis.terms import _augment, _is_support, _upper
+from updating.diagnosis.terms import _augmented, _is_support
 
 log = logging.getLogger(__name__)
 
 
 def _is_translation(components) -> bool:
     return min(components) <= 3
+
+
+def _largest(releases: list):
+    """The support release of ``releases`` with the most components (among as many, the one whose lowest
+    component is lowest); None when there is none."""
+    return max(releases, default=None, key=lambda o: (len(o.release[2]), -min(o.release[2])))
 
 
 class _Refine:
@@ -69,11 +74,7 @@ class _Refine:
         g = self._group_of(c)
         if g is not None:                      # a clamp's translations (rotations) released together
             c = g
-        terms = self.current + [o, c]
-        m_aug, cpar, scales = _augment(self.model0, terms)
-        pm_aug = ParametricFEModel(m_aug, self.params + cpar)
-        clo = np.concatenate([self.lo, np.zeros(len(cpar))])
-        chi = np.concatenate([self.hi, _upper(terms, scales)])
+        pm_aug, clo, chi, scales = _augmented(self.model0, self.params, self.lo, self.hi, self.current + [o, c])
         n = len(fr_c.p) - 1
         start = np.concatenate([fr_c.p[:n], [min(self._screened_value(o), o.upper) / scales[-2]], fr_c.p[n:]])
         fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
@@ -99,11 +100,7 @@ class _Refine:
         _, ref = self._frf_ref()
         out = []
         for n, (o, g) in self._clamp_halves(c):
-            terms = self.current + [o, g]
-            m_aug, cpar, scales = _augment(self.model0, terms)
-            pm_aug = ParametricFEModel(m_aug, self.params + cpar)
-            clo = np.concatenate([self.lo, np.zeros(len(cpar))])
-            chi = np.concatenate([self.hi, _upper(terms, scales)])
+            pm_aug, clo, chi, scales = _augmented(self.model0, self.params, self.lo, self.hi, self.current + [o, g])
             start = np.concatenate([ref.p, [min(self._screened_value(x), x.upper) / s
                                             for x, s in zip((o, g), scales[-2:])]])
             fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
@@ -121,8 +118,7 @@ class _Refine:
         clamps = []
         for n in sorted({o.release[1] for o in self._library(self.model0) if _is_support(o)} - on):
             rel = self._support_releases(n)
-            halves = [max((o for o in rel if _is_translation(o.release[2]) == tr), default=None,
-                          key=lambda o: (len(o.release[2]), -min(o.release[2]))) for tr in (True, False)]
+            halves = [_largest([o for o in rel if _is_translation(o.release[2]) == tr]) for tr in (True, False)]
             if None not in halves:
                 clamps.append((n, tuple(halves)))
         if len(clamps) > SUPPORT_PICKS:
@@ -168,11 +164,8 @@ class _Refine:
         if any(_is_support(x) and x.release[1] == node and
                _is_translation(x.release[2]) != _is_translation(tuple(comps)) for x in self.current):
             return None                       # the other kind is accepted already
-        other = [o for o in self._support_releases(node) if not set(o.release[2]) & comps
-                 and _is_translation(o.release[2]) != _is_translation(tuple(comps))]
-        if not other:
-            return None
-        return max(other, key=lambda o: (len(o.release[2]), -min(o.release[2])))
+        return _largest([o for o in self._support_releases(node) if not set(o.release[2]) & comps
+                         and _is_translation(o.release[2]) != _is_translation(tuple(comps))])
 
     def _screened_value(self, o) -> float:
         """``o``'s value in the latest exact screening, else a stiff start (the fit moves it down)."""

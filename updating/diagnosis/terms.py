@@ -11,7 +11,7 @@ import numpy as np
 from modalab.core.errors import ModalabValueError
 from modalab.core.frf import FRF
 
-from updating.fe import FEModel
+from updating.fe import FEModel, ParametricFEModel
 from updating.diagnosis.fit import FRFData, model_frf
 from updating.diagnosis.library import Candidate, _nodes_of
 from updating.diagnosis.findings import pct
@@ -379,6 +379,17 @@ def _augment(model: FEModel, cands: list) -> tuple[FEModel, list, list]:
         params.append(par)
         scales.append(scale)
     return m, params, scales
+
+
+def _augmented(model: FEModel, params: list, lower: np.ndarray, upper: np.ndarray, terms: list):
+    """The model with the candidate ``terms`` added (:func:`_augment`), parametrised by ``params`` and the
+    terms' values: ``(ParametricFEModel, lower, upper, scales)``, the bounds ``lower``, ``upper`` of ``params``
+    followed by zero and each term's plausible value (:func:`_upper`), ``scales`` the factors from the terms'
+    fitted parameters to their physical values."""
+    m_aug, cpar, scales = _augment(model, terms)
+    lo = np.concatenate([lower, np.zeros(len(cpar))])
+    hi = np.concatenate([upper, _upper(terms, scales)])
+    return ParametricFEModel(m_aug, list(params) + cpar), lo, hi, scales
 
 
 def _evidence(c: Candidate, gain: float | None, rank_same_place: list, band, use_mci: bool = True) -> str:

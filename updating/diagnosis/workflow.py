@@ -65,7 +65,7 @@ from updating.diagnosis.library import _nodes_of, build_library, spring_loss_can
 from updating.diagnosis.release import release_visibility
 from updating.diagnosis.screen import mci_update, rank_candidates, residual_system
 from updating.diagnosis.priors import default_parameters, PRIOR_BOUND, parameter_priors, _with_damping, _split, _bounds, _fit_continued, nonnegative_loss_factors
-from updating.diagnosis.terms import _another_explanation, DAMPING_PLACES, _distinct_places, cv_folds, n_obs, promote_measured, _on_model_dofs, _dof_stiffness, _upper, _augment
+from updating.diagnosis.terms import _another_explanation, DAMPING_PLACES, _distinct_places, cv_folds, n_obs, promote_measured, _on_model_dofs, _dof_stiffness, _upper, _augment, _augmented
 from updating.diagnosis.testmodes import suspension_band
 from updating.diagnosis.mesh import mesh_discrepancy
 from updating.diagnosis.findings import Finding, Diagnosis, or_labels
@@ -482,10 +482,7 @@ class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
         """The current terms plus ``c`` fitted with the parameters (MCI or FRF fit, from one or two starts):
         (c, criterion, pm, p, lower, upper, value scale), or None when the candidate cannot be evaluated."""
         cfg, n = self.config, len(self.params)
-        m_aug, cpar, scales = _augment(self.model0, self.current + [c])
-        pm_aug = ParametricFEModel(m_aug, self.params + cpar)
-        clo = np.concatenate([self.lo, np.zeros(len(cpar))])
-        chi = np.concatenate([self.hi, _upper(self.current + [c], scales)])
+        pm_aug, clo, chi, scales = _augmented(self.model0, self.params, self.lo, self.hi, self.current + [c])
         prev = list(self.p_cur[n:])
         p_aug, rss_aug = None, np.inf
         try:
@@ -505,7 +502,7 @@ class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
                 if self.use_mci:
                     pa, ra, _ = mci_update(pm_aug, start, self.train, clo, chi, weights=self.W,
                                            iters=3 if self.large else 6,
-                                           free=np.concatenate([self.free_mci, np.ones(len(cpar), bool)]))
+                                           free=np.concatenate([self.free_mci, np.ones(len(clo) - n, bool)]))
                     if c.release is not None:
                         # the iteration may leave the start for a worse value (see above): the start is a solution
                         y0 = residual_system(pm_aug.structure(start), self.train, self.W).y
