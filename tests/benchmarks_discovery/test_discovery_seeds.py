@@ -9,6 +9,7 @@ budget; run them with ``python -m pytest -q -n auto -m slow`` before landing a c
 from __future__ import annotations
 
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -417,6 +418,9 @@ def test_held_out_rows_at_their_noise_leave_the_judgement_to_the_folds(tmp_path)
     assert f["physics"] == "joint_flexibility" and f["dofs"] == ["1+RX"], f["description"]
     assert f["values"][0]["value"] == pytest.approx(2.85e4, rel=0.1), f["description"]
     assert "cannot show the gain" in d["statement"] and "cross-validation" in d["statement"]
+    # the folds' χ² before and after the term, as the cross-validation computed them
+    m = re.search(r"did not see it\): χ²/N ([0-9.e+-]+) -> ([0-9.e+-]+)\.", d["statement"])
+    assert m and float(m.group(2)) < 0.1 * float(m.group(1)), d["statement"]
 
 
 @pytest.mark.slow

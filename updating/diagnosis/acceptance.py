@@ -557,6 +557,14 @@ class _Acceptance(_Picks):
         cache[key] = (pm, out)                    # the model is kept alive with its key
         return out
 
+    def _cv_totals(self, ref, new) -> tuple[list, list, float, float, int]:
+        """The folds' residuals of ``ref`` and ``new`` (:meth:`_fold_fits`, cached), their χ² summed over the
+        folds and the number of observations: ``(r0, r1, c0, c1, n)``."""
+        r0, r1 = self._fold_fits(*ref), self._fold_fits(*new)
+        c0 = float(sum(np.sum(np.abs(r) ** 2) for r in r0))
+        c1 = float(sum(np.sum(np.abs(r) ** 2) for r in r1))
+        return r0, r1, c0, c1, int(sum(2 * r.size for r in r1))
+
     def _cross_validated(self, ref, new, penalty: float | None = None) -> tuple[bool, str]:
         """The term of ``new`` against the model ``ref`` (each ``(pm, p, lower, upper)``, fitted on the
         training FRFs) judged by :data:`~updating.diagnosis.terms.CV_FOLDS`-fold cross-validation: both are
@@ -565,11 +573,7 @@ class _Acceptance(_Picks):
         (:func:`significant_gain`, the test of :func:`_term_holds` with the same N).  This replaces one split's
         luck and the former threshold on the training gain of a first term (``min_gain``, 5 %): a term that only
         fits the noise or model-form error of the fitted rows does not predict the rows it did not see."""
-        r0 = self._fold_fits(*ref)
-        r1 = self._fold_fits(*new)
-        c0 = float(sum(np.sum(np.abs(r) ** 2) for r in r0))
-        c1 = float(sum(np.sum(np.abs(r) ** 2) for r in r1))
-        n = int(sum(2 * r.size for r in r1))
+        r0, r1, c0, c1, n = self._cv_totals(ref, new)
         infl = float(np.average([inflation(r) for r in r1], weights=[max(np.sum(np.abs(r) ** 2), 1e-300)
                                                                         for r in r1]))
         ok, stat, need = significant_gain(c0, c1, n, infl, self.config.penalty if penalty is None else penalty)
