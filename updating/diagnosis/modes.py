@@ -61,7 +61,7 @@ from updating.diagnosis.fit import FitResult, FRFData
 from updating.diagnosis.modal_fit import fit_modal_residual
 from updating.diagnosis.library import build_library
 from updating.diagnosis.priors import _bounds, default_parameters
-from updating.diagnosis.terms import _axes, _augment, _upper, promote_measured
+from updating.diagnosis.terms import _axes, _augment, _augmented, promote_measured
 from updating.diagnosis.findings import Diagnosis, Finding, _fmt, from_to, pct, statement
 from updating.diagnosis.modes_screen import MIN_OBSERVED_EFFECT, screen_modes  # noqa: F401 (re-exported)
 from updating.correlation.dofmap import as_dofmap
@@ -297,10 +297,7 @@ def _fit_option(pb: _ModesProblem, st: _State, c, th, first: bool, cols):
     modes any grounded stiffness), from the current and on the first pass also the nominal parameters:
     ``(c, rss, pm, p, std)`` of the better, or None when it fits to (nearly) nothing."""
     params, n_par = pb.params, len(pb.params)
-    m_aug, cpar, scales = _augment(pb.model, st.current + [c])
-    pm_aug = ParametricFEModel(m_aug, params + cpar)
-    clo = np.concatenate([pb.lo, np.zeros(len(cpar))])
-    chi = np.concatenate([pb.hi, _upper(st.current + [c], scales)])
+    pm_aug, clo, chi, scales = _augmented(pb.model, params, pb.lo, pb.hi, st.current + [c])
     best = None
     for p_par in [st.p] + ([pb.p_nom] if first else []):
         if th <= 0:
@@ -308,7 +305,7 @@ def _fit_option(pb: _ModesProblem, st: _State, c, th, first: bool, cols):
         start = np.concatenate([p_par[:n_par], st.p[n_par:], [min(th, c.upper) / scales[-1]]])
         start[:n_par][~pb.dens_free] = pb.p_nom[~pb.dens_free]
         pa, sa, ra = fit_modal_residual(pm_aug, pb.resid, start, lower=clo, upper=chi, cols=cols,
-                                        free=np.concatenate([pb.dens_free, np.ones(len(cpar), bool)]))
+                                        free=np.concatenate([pb.dens_free, np.ones(len(clo) - n_par, bool)]))
         log.info("modes: candidate %s: modal residual %.4g (current %.4g)", c.label, ra, st.rss)
         if pa[-1] * scales[-1] <= 1e-3 * th:      # fitted to (nearly) nothing: not this term
             continue
@@ -361,12 +358,9 @@ def _backward_elimination(pb: _ModesProblem, st: _State, min_term_gain: float) -
         trial = []
         for k in range(len(st.current)):
             rest = st.current[:k] + st.current[k + 1:]
-            m_r, cpar_r, sc_r = _augment(pb.model, rest)
-            pm_r = ParametricFEModel(m_r, pb.params + cpar_r)
+            pm_r, lo_r, hi_r, _ = _augmented(pb.model, pb.params, pb.lo, pb.hi, rest)
             keep_i = np.r_[np.arange(n_par), n_par + np.array([i for i in range(len(st.current)) if i != k], int)]
-            pr, sr, rr = fit_modal_residual(pm_r, pb.resid, st.p[keep_i],
-                                            lower=np.concatenate([pb.lo, np.zeros(len(rest))]),
-                                            upper=np.concatenate([pb.hi, _upper(rest, sc_r)]),
+            pr, sr, rr = fit_modal_residual(pm_r, pb.resid, st.p[keep_i], lower=lo_r, upper=hi_r,
                                             free=np.concatenate([pb.dens_free, np.ones(len(rest), bool)]))
             trial.append((rr, k, _State(rest, pm_r, pr, sr, rr)))
         rr, k, new = min(trial, key=lambda t: (t[0], t[1]))
