@@ -511,11 +511,14 @@ def test_a_joint_of_a_near_symmetric_frame_is_fitted_at_every_corner_that_screen
     With the parameters held, the four corners' joints about X and about Y screen alike (34-38 %); only the best
     pick (10+RX) and two runners-up were fitted, the truth never (10+RX leaves training error 0.0094, then a rotary
     inertia at 28+RX, 1 % lower, replaced it, held-out χ²/N 0.181 against the joint's 0.043).  Up to seven
-    runners-up are fitted now: the joint at 20+RY leaves 0.0039 and is the finding, sized."""
+    runners-up are fitted now: the joint at 20+RY leaves 0.0039 and is the finding, sized.  Rotary inertias that
+    screened as well as it (28+RX and its neighbours) were named as its alternatives unfitted; fitted, they leave
+    0.0093, significantly worse, and are no alternatives: the mirror corner's joint (10+RY) is."""
     d = _diagnosed(2633, tmp_path)
     assert len(d["findings"]) == 1, [f["description"] for f in d["findings"]]
     f = d["findings"][0]
     assert f["physics"] == "joint_flexibility" and f["dofs"] == ["20+RY"], f["description"]
+    assert {a["physics"] for a in f.get("alternatives") or []} <= {"joint_flexibility"}, f["description"]
     assert f["values"][0]["value"] == pytest.approx(339.0, rel=0.25), f["values"]
     po, wp = d["fit"]["parameters_only"], d["fit"]["with_physics"]
     assert wp["frf_error_held_out"] < 0.5 * po["frf_error_held_out"], d["fit"]
