@@ -395,7 +395,7 @@ class _Acceptance(_Picks):
         fitted yet, at most :data:`~updating.diagnosis.picks.RUNNERS_UP` of them, and the competitors of
         ``c``'s screening whose single-term error (parameters fixed) is within four information-criterion
         margins of ``c``'s (``n_eq`` ln(e_o²/e_c²) ≤ 4 ``penalty`` ln ``n_eq``, both over the residual's
-        inflation), at most :data:`FRF_PICKS` − 1 of them, fitted like the pick (:meth:`_competitor_fit`).  The
+        inflation), at most :data:`FRF_PICKS` − 1 of them, fitted like the pick (:meth:`_fitted`).  The
         screening alone cannot tell: parameters re-fitted with a term absorb part of what separated it from its
         neighbours (the same release at the two ends of a symmetric frame's rail differs by a fraction of a
         percent once the moduli are free), and a pick fitted far below its screening's error is not matched by
@@ -419,7 +419,9 @@ class _Acceptance(_Picks):
             (o, v) for o, v, g in scr if o.key not in seen and _another_explanation(o, c, m_now)
             and n_eq * np.log(max(1 - g, 1e-300) ** 2 / max(1 - g_c, 1e-300) ** 2) / infl <= 4 * need]
         todo = [(o, v) for o, v in alts if o.key not in done][:RUNNERS_UP] + close[:FRF_PICKS - 1]
-        comps = self._each(self._competitor_fit, [(o, v, c, fr_c, k) for o, v in todo])
+        # from the screening's parameters and the current terms' values as c's fit left them
+        start = np.concatenate([self._screens[k][1][:len(self.params)], fr_c.p[len(self.params):]])
+        comps = self._fitted_each([(o, v, start, k, f"competitor of {c.label} ({fr_c.error:.4g}):") for o, v in todo])
         kept, fitted = {o.key for o, _ in alts}, {}
         for err, o, pm_aug, fr, *_, scale in comps:
             if not margin(pm_aug, fr.p):
@@ -434,9 +436,10 @@ class _Acceptance(_Picks):
     def _fit_pick(self, c, v, p_scr):
         """The current terms plus ``c`` fitted with the parameters on the training FRFs, from the parameters
         ``p_scr`` and the value ``v`` (a screening's): ``(pm_aug, FitResult, lower, upper, scale)``, ``scale``
-        the factor from ``c``'s fitted parameter (the last) to its physical value."""
+        the factor from ``c``'s fitted parameter (the last) to its physical value.  Values of ``p_scr`` beyond
+        the current model's are left out (a competitor starts from the accepted pick's fit, less the pick)."""
         pm_aug, clo, chi, scales = _augmented(self.model0, self.params, self.lo, self.hi, self.current + [c])
-        start = np.concatenate([p_scr, [min(v, getattr(c, "upper", np.inf)) / scales[-1]]])
+        start = np.concatenate([p_scr[:len(clo) - 1], [min(v, getattr(c, "upper", np.inf)) / scales[-1]]])
         fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
                        max_nfev=max(8, self.config.max_nfev // 2))
         return pm_aug, fr, clo, chi, scales[-1]

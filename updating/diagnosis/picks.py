@@ -17,7 +17,7 @@ from updating.diagnosis.frfscreen import ParameterRefit, frf_screen
 from updating.diagnosis.library import Candidate
 from updating.diagnosis.priors import AT_PRIOR_Z
 from updating.diagnosis.release import release_screen
-from updating.diagnosis.terms import _another_explanation, _is_support, _same_kind_nearby, NEARBY_PLACES, _augmented
+from updating.diagnosis.terms import _another_explanation, _is_support, _same_kind_nearby, NEARBY_PLACES
 
 log = logging.getLogger(__name__)
 
@@ -111,19 +111,6 @@ class _Picks:
         pm_aug, fr, clo, chi, scale = self._fit_pick(o, v, p_scr)
         log.info("%s %s fitted on the FRFs: error %.4g", what, o.label, fr.error)
         return fr.error, o, pm_aug, fr, clo, chi, k, scale
-
-    def _competitor_fit(self, o, v, c, fr_c, k: int) -> tuple:
-        """``o``, a competitor of the accepted pick ``c`` (fitted at ``fr_c``) in screening ``k``, fitted with the
-        parameters and the current terms on the training FRFs: from the screening's parameters, the current terms'
-        values as ``c``'s fit left them and ``o``'s screening value ``v`` (``c``'s own values, one or two — a
-        completed support release — at the end of its fit, left out).  The ``tried``-style tuple."""
-        n, p_scr = len(self.params), self._screens[k][1]
-        pm_aug, clo, chi, scales = _augmented(self.model0, self.params, self.lo, self.hi, self.current + [o])
-        start = np.concatenate([p_scr[:n], fr_c.p[n:len(clo) - 1], [min(v, getattr(o, "upper", np.inf)) / scales[-1]]])
-        fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
-                       max_nfev=max(8, self.config.max_nfev // 2))
-        log.info("competitor %s of %s fitted on the FRFs: error %.4g (%.4g)", o.label, c.label, fr.error, fr_c.error)
-        return fr.error, o, pm_aug, fr, clo, chi, k, scales[-1]
 
     def _fitted_picks(self, picks: list, have: set, e_ref: float) -> tuple[list, set]:
         """The picks fitted on the training FRFs (:meth:`_fit_pick`), then the best one's runners-up and
