@@ -524,7 +524,6 @@ def test_a_joint_of_a_near_symmetric_frame_is_fitted_at_every_corner_that_screen
     assert wp["frf_error_held_out"] < 0.5 * po["frf_error_held_out"], d["fit"]
 
 
-
 @pytest.mark.slow
 def test_local_damping_is_screened_with_the_whole_residual_flexibility(tmp_path):
     """Held-out case 2665 (odd seed, set AG, analysed after it was scored): a ladder frame on four mounts whose

@@ -27,10 +27,10 @@ dropped carry the residual flexibility the static corrections are there for, so 
 re-fit already differed from the exact one.  On held-out case 2665 (a ladder frame on mounts, element 13 damped,
 loss factor 0.101; analysed after its score) the reduced re-fit left 0.0143 against the exact 0.0175, every place
 gained 64-67 % and element 13 ranked 26th at 0.33 — never fitted, nothing found; with every pseudo-mode the
-re-fit is the exact one (0.0175), element 13 ranks first at 0.101 and is found (0.1009).  The ranking is by the
-training FRF error
-each candidate leaves against the same fit without it.  It only chooses which places the full fit
-(:meth:`~updating.diagnosis.workflow.Diagnoser._try`, and the screening picks of
+re-fit is the exact one (0.0175), element 13 ranks first at 0.101 and is found (0.1009).
+
+The ranking is by the training FRF error each candidate leaves against the same fit without it.  It only chooses
+which places the full fit (:meth:`~updating.diagnosis.workflow.Diagnoser._try`, and the screening picks of
 :meth:`~updating.diagnosis.acceptance._Acceptance._judge_picks`) tries; that fit decides.
 
 Without a viscous term ``Z(s, x) = K(x) + s² M(x)`` is one pencil for all lines: one eigensolution per ``x``
