@@ -1,8 +1,8 @@
 """The acceptance of a term in the diagnosis (step 3 of :mod:`~updating.diagnosis.workflow`): the tests a
 candidate must pass to become a finding — the information criterion and the significance of its gain on the
 training and held-out FRFs (:meth:`_Acceptance._judge`), its effect on natural frequencies or damping beyond
-model-form error (:meth:`_Acceptance._effect_ok`), the exact FRF screening's picks against the MCI's choice
-(:meth:`_Acceptance._judge_picks`), other explanations fitted as alternatives (ambiguity) and the
+model-form error (:meth:`_Acceptance._effect_ok`), the exact FRF screening's picks against the criterion's
+choice (:meth:`_Acceptance._judge_picks`), other explanations fitted as alternatives (ambiguity) and the
 cross-validation over folds (:meth:`_Acceptance._cross_validated`).  Split out of ``workflow.py`` as a mixin
 of :class:`~updating.diagnosis.workflow.Diagnoser`: the methods read and write the diagnoser's state."""
 from __future__ import annotations
@@ -127,15 +127,16 @@ class _Acceptance(_Picks):
         within the information criterion's margin, elsewhere, make the finding ambiguous.  Returns
         ``(candidate, alternatives)`` with the state updated, or None.
 
-        ``rival``: the MCI's best option, accepted by :meth:`_judge` (``(candidate, criterion, pm, p, lower,
-        upper)``).  It is fitted on the training FRFs too (kept as ``_rival_fit``), and a pick replaces it only
-        when its training FRF error is lower by the information criterion (N ln(e_rival²/e_pick²) > ``penalty``
-        ln N, N = :func:`n_obs`) and it passes the tests the rival passed (:meth:`_judge_pick` with ``supported``);
-        else None (the rival stands).  ``mci_best``: the candidate the MCI ranked and fitted best, rejected by
-        :meth:`_judge` (its MCI-optimal value can be far from the FRFs'); the same candidate picked here is
-        supported by the MCI too, so it is judged like a supported pick.  ``mci_refit``: ``mci_best`` passed the
-        MCI's information criterion and failed a later test with its MCI-optimal value; it is fitted on the
-        training FRFs too, from its exact screening's value (:meth:`_screened`), as one more pick.
+        ``rival``: the criterion's best option (MCI or FRFs), accepted by :meth:`_judge` (``(candidate,
+        criterion, pm, p, lower, upper)``).  It is fitted on the training FRFs too (kept as ``_rival_fit``), and
+        a pick replaces it only when its training FRF error is lower by the information criterion
+        (N ln(e_rival²/e_pick²) > ``penalty`` ln N, N = :func:`n_obs`) and it passes the tests the rival passed
+        (:meth:`_judge_pick` with ``supported``); else None (the rival stands).  ``mci_best``: the candidate the
+        MCI ranked and fitted best, rejected by :meth:`_judge` (its MCI-optimal value can be far from the
+        FRFs'); the same candidate picked here is supported by the MCI too, so it is judged like a supported
+        pick.  ``mci_refit``: ``mci_best`` passed the MCI's information criterion and failed a later test with
+        its MCI-optimal value; it is fitted on the training FRFs too, from its exact screening's value
+        (:meth:`_screened`), as one more pick.
 
         An alternative that the screening alone (parameters fixed) found within the margin but that was fitted
         on the FRFs as a pick and is worse than the accepted pick by the information criterion is no
@@ -147,7 +148,8 @@ class _Acceptance(_Picks):
             have = have | {rival[0].key}
             self._rival_fit = self._fit(rival[2], self.train, rival[3], lower=rival[4], upper=rival[5],
                                         max_nfev=max(8, cfg.max_nfev // 2))
-            log.info("the MCI's choice %s fitted on the FRFs: error %.4g", rival[0].label, self._rival_fit.error)
+            log.info("the criterion's choice %s fitted on the FRFs: error %.4g", rival[0].label,
+                     self._rival_fit.error)
         picks = self._screening_picks(have)[:FRF_PICKS]
         if mci_refit and mci_best is not None and mci_best.key not in {c.key for c, *_ in picks} | have:
             picks += [x for x in [self._screened(mci_best)] if x is not None]
@@ -161,8 +163,8 @@ class _Acceptance(_Picks):
         if rival is not None:
             e_r = self._rival_fit.error
             if not _fits_better(err, e_r, n_eq, cfg.penalty):
-                log.info("screening pick %s (FRF error %.4g) does not beat the MCI's choice %s (%.4g)", c.label, err,
-                         rival[0].label, e_r)
+                log.info("screening pick %s (FRF error %.4g) does not beat the criterion's choice %s (%.4g)", c.label,
+                         err, rival[0].label, e_r)
                 return None
         supported = rival is not None or (mci_best is not None and c.key == mci_best.key) or self._relieves(c, fr.p)
         judged = self._judge_or_complete((err, c, pm_aug, fr, clo, chi, k), supported, "screening pick")

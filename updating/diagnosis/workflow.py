@@ -306,7 +306,8 @@ class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
         fails for the first term, the exact FRF screening's best picks are fitted on the FRFs and the best of
         them is judged by the same tests (:meth:`_judge_picks`): the linearised MCI is blind to effects that
         act through unmeasured DOFs or that mainly move rigid-body and suspension modes (a spring to ground on
-        a free frame), which the exact screening sees."""
+        a free frame), which the exact screening sees.  A first term that passes, on either criterion, competes
+        with those picks on the training FRFs (``rival``; AH 2717: a mass named a rotary inertia elsewhere)."""
         cfg = self.config
         self._rival_fit, self._option_fits = None, {}
         options = self._options(it)
@@ -321,12 +322,13 @@ class Diagnoser(_Acceptance, _Refine, _Proof, _Eliminate):
         if not ok and best is not None and not self.use_mci and not self.current and why != IC_FAILED:
             ok, best, why, failed = self._judge_other_kinds(best, why, evaluated, n_eq)
         picked = None
-        if ok and self.use_mci and not self.current:
-            # the first term: the MCI's choice and the exact FRF screening's picks compete on one likelihood,
-            # the training FRFs' (the linearised MCI can prefer an inertia where a release is missing)
+        if ok and not self.current:
+            # the first term: the criterion's choice and the exact FRF screening's picks compete on one likelihood,
+            # the training FRFs' (the criterion fits only the options it ranked best)
             picked = self._judge_picks(it, n_eq, rival=best)
         if picked is not None:
-            self._decide("rejected", best[0], f"passed on the MCI, but {picked[0].label} fits the training FRFs "
+            on = "MCI" if self.use_mci else "FRFs"
+            self._decide("rejected", best[0], f"passed on the {on}, but {picked[0].label} fits the training FRFs "
                                               "better by the information criterion")
             self._displaced = best[0]
             c, alts = picked
