@@ -181,16 +181,21 @@ class _Acceptance(_Picks):
 
         judged, alts = self._settle(judged, tried, siblings | further, have, supports)
         err, c, pm_aug, fr, clo, chi, k = judged
-        # the MCI state of the augmented model for the next term's criterion (minimised like every candidate's);
-        # the screenings and fits start from the FRF fit
-        free = np.concatenate([self.free_mci, np.ones(len(fr.p) - len(self.free_mci), bool)])
-        _, self.rss_cur, _ = mci_update(pm_aug, fr.p, self.train, clo, chi, weights=self.W,
-                                        iters=3 if self.large else 6, free=free)
+        self.rss_cur = self._criterion_of(pm_aug, fr, clo, chi)
         self.pm_cur, self.p_cur, self.lo_cur, self.hi_cur = pm_aug, fr.p, clo, chi
         self._frf_cur = (pm_aug, fr)
         scr = self._screens[k][0]
         self._record_route(c, fr.p, scr, next((g for o, _, g in scr if o.key == c.key), None))
         return c, alts
+
+    def _criterion_of(self, pm_aug, fr, clo, chi) -> float:
+        """The criterion of an augmented model accepted from its FRF fit ``fr``, the next term's reference: its
+        MCI residual (minimised from ``fr``, like every candidate's) on the MCI, its training FRF error² else."""
+        if not self.use_mci:
+            return fr.error ** 2
+        free = np.concatenate([self.free_mci, np.ones(len(fr.p) - len(self.free_mci), bool)])
+        return mci_update(pm_aug, fr.p, self.train, clo, chi, weights=self.W, iters=3 if self.large else 6,
+                          free=free)[1]
 
     def _settle(self, judged, tried: list, fitted_for_kind: set, have: set, supports):
         """The accepted pick ``judged`` and its alternatives (:meth:`_alternatives`).  A competitor fitted there

@@ -9,7 +9,6 @@ import logging
 
 import numpy as np
 
-from updating.diagnosis.screen import mci_update
 from updating.diagnosis.picks import SUPPORT_PICKS
 from updating.diagnosis.terms import _augmented, _is_support
 
@@ -50,10 +49,7 @@ class _Refine:
             if not ok:
                 self._decide("rejected", o, f"as a part of {c.label}: {why}")
                 continue
-            free = np.concatenate([self.free_mci, np.ones(len(self.current) + 1, bool)])
-            _, self.rss_cur, _ = mci_update(pm_aug, fr.p, self.train, clo, chi, weights=self.W,
-                                            iters=3 if self.large else 6, free=free) if self.use_mci else \
-                (None, fr.error ** 2, None)
+            self.rss_cur = self._criterion_of(pm_aug, fr, clo, chi)
             self.current.append(o)
             self.pm_cur, self.p_cur, self.lo_cur, self.hi_cur = pm_aug, fr.p, clo, chi
             self._frf_cur = (pm_aug, fr)
