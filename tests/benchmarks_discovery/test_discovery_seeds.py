@@ -543,7 +543,14 @@ def test_the_screening_picks_compete_with_the_frf_criterions_choice(tmp_path):
     point mass at node 6.  The diagnosis ran on the FRF criterion and fitted only its own best option, a rotary
     inertia at 46+RX (training χ²/N 31 -> 9.0, held-out 72 -> 31.7), which passed and was named.  The exact
     screening's second pick, the mass at node 6, was never fitted: fitted with the parameters it leaves 0.091 /
-    0.10.  The screening picks now compete with an accepted first term on the FRF criterion as on the MCI."""
-    f = _single_finding(2717, tmp_path)
+    0.10.  The screening picks now compete with an accepted first term on the FRF criterion as on the MCI, and
+    the accepted pick's training FRF error is the next term's reference (it was an unweighted MCI residual,
+    reported as "training FRF error down to 0.0588" for a fit at 0.0052)."""
+    diag = _diagnosed(2717, tmp_path)
+    assert len(diag["findings"]) == 1, [f["description"] for f in diag["findings"]]
+    f = diag["findings"][0]
     assert f["physics"] == "added_mass" and f["nodes"] == [6], f["description"]
     assert f["values"][0]["value"] == pytest.approx(0.198, rel=0.25), f["values"]
+    found = [d["reason"] for d in diag["decisions"] if d["decision"] == "found"]
+    said = float(found[0].rsplit(" ", 1)[1])
+    assert said == pytest.approx(diag["fit"]["with_physics"]["frf_error_train"], rel=0.05), found
