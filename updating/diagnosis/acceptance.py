@@ -146,8 +146,7 @@ class _Acceptance(_Picks):
         self._rival_fit = None
         if rival is not None:
             have = have | {rival[0].key}
-            self._rival_fit = self._fit(rival[2], self.train, rival[3], lower=rival[4], upper=rival[5],
-                                        max_nfev=max(8, cfg.max_nfev // 2))
+            self._rival_fit = self._fit_converged(rival[2], rival[3], rival[4], rival[5])
             log.info("the criterion's choice %s fitted on the FRFs: error %.4g", rival[0].label,
                      self._rival_fit.error)
         picks = self._screening_picks(have)[:FRF_PICKS]
@@ -447,8 +446,7 @@ class _Acceptance(_Picks):
         the current model's are left out (a competitor starts from the accepted pick's fit, less the pick)."""
         pm_aug, clo, chi, scales = _augmented(self.model0, self.params, self.lo, self.hi, self.current + [c])
         start = np.concatenate([p_scr[:len(clo) - 1], [min(v, getattr(c, "upper", np.inf)) / scales[-1]]])
-        fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
-                       max_nfev=max(8, self.config.max_nfev // 2))
+        fr = self._fit_converged(pm_aug, np.clip(start, clo, chi), clo, chi)
         return pm_aug, fr, clo, chi, scales[-1]
 
     def _judge_pick(self, c, pm_aug, fr, clo, chi, supported: bool = False, part: bool = False,

@@ -73,8 +73,7 @@ class _Refine:
         pm_aug, clo, chi, scales = _augmented(self.model0, self.params, self.lo, self.hi, self.current + [o, c])
         n = len(fr_c.p) - 1
         start = np.concatenate([fr_c.p[:n], [min(self._screened_value(o), o.upper) / scales[-2]], fr_c.p[n:]])
-        fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
-                       max_nfev=max(8, self.config.max_nfev // 2))
+        fr = self._fit_converged(pm_aug, np.clip(start, clo, chi), clo, chi)
         ok, why = self._judge_pick(c, pm_aug, fr, clo, chi, n_terms=2)
         log.info("screening pick %s with %s on the FRFs: %s", c.label, o.label, why)
         if not ok:
@@ -99,8 +98,7 @@ class _Refine:
             pm_aug, clo, chi, scales = _augmented(self.model0, self.params, self.lo, self.hi, self.current + [o, g])
             start = np.concatenate([ref.p, [min(self._screened_value(x), x.upper) / s
                                             for x, s in zip((o, g), scales[-2:])]])
-            fr = self._fit(pm_aug, self.train, np.clip(start, clo, chi), lower=clo, upper=chi,
-                           max_nfev=max(8, self.config.max_nfev // 2))
+            fr = self._fit_converged(pm_aug, np.clip(start, clo, chi), clo, chi)
             log.info("the whole clamp at node %d (%s with %s) fitted on the FRFs: error %.4g", n, g.label, o.label,
                      fr.error)
             out.append((fr.error, g, pm_aug, fr, clo, chi, k, o))
