@@ -14,7 +14,7 @@ import numpy as np
 from updating.diagnosis.mesh import mesh_error, shift_beyond_mesh
 from updating.diagnosis.screen import mci_update
 from updating.diagnosis.picks import _Picks, RUNNERS_UP
-from updating.diagnosis.terms import _another_explanation, _is_support, MIN_FREQ_EFFECT, FRF_PICKS, PICK_EXPLAINS, MIN_DAMPING_EFFECT, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, CV_NFEV, _residual, inflation, significant_gain, n_obs, _augmented
+from updating.diagnosis.terms import _another_explanation, _is_support, MIN_FREQ_EFFECT, CLOSE_COMPETITORS, PICK_EXPLAINS, MIN_DAMPING_EFFECT, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, CV_NFEV, _residual, inflation, significant_gain, n_obs, _augmented
 
 log = logging.getLogger(__name__)
 
@@ -119,11 +119,11 @@ class _Acceptance(_Picks):
     def _judge_picks(self, it: int, n_eq_mci: int, rival=None, mci_best=None, mci_refit: bool = False):
         """The exact FRF screening's picks judged on the FRFs (MCI criterion, when the MCI's best failed).
 
-        The best pick of each screening (around the nominal and the updated parameters: updating may have
-        bent the parameters to hide the effect) and the best pick of another kind of physics — at most
-        :data:`FRF_PICKS` — are fitted with the parameters on the training FRFs from the screening's value;
-        the one with the lowest error is judged against the current model's FRF fit by the tests of
-        :meth:`_judge` on the FRF criterion.  Candidates of the same screening whose single-term error is
+        The best pick of each screening (around the nominal and the updated parameters: updating may have bent
+        the parameters to hide the effect; local damping with the parameters re-fitted) and the best pick of
+        another kind of physics are fitted with the parameters on the training FRFs from the screening's value;
+        the one with the lowest error is judged against the current model's FRF fit by the tests of :meth:`_judge`
+        on the FRF criterion.  Candidates of the same screening whose single-term error is
         within the information criterion's margin, elsewhere, make the finding ambiguous.  Returns
         ``(candidate, alternatives)`` with the state updated, or None.
 
@@ -149,7 +149,7 @@ class _Acceptance(_Picks):
             self._rival_fit = self._fit_converged(rival[2], rival[3], rival[4], rival[5])
             log.info("the criterion's choice %s fitted on the FRFs: error %.4g", rival[0].label,
                      self._rival_fit.error)
-        picks = self._screening_picks(have)[:FRF_PICKS]
+        picks = self._screening_picks(have)
         if mci_refit and mci_best is not None and mci_best.key not in {c.key for c, *_ in picks} | have:
             picks += [x for x in [self._screened(mci_best)] if x is not None]
         if not picks:
@@ -373,10 +373,10 @@ class _Acceptance(_Picks):
         return best
 
     def _screening_picks(self, have: set) -> list:
-        """``[(candidate, value, screening parameters, screening index)]``: the best candidate of each exact
-        FRF screening not in ``have``, then the best one of another kind of physics.  A screening gain g passes
-        the information criterion of the FRF route when N ln(1/(1−g)²) exceeds ``penalty`` × ln N: the picks
-        are the candidates whose single-term gain alone could pass it."""
+        """``[(candidate, value, screening parameters, screening index)]``: the best of each exact FRF screening
+        not in ``have``, then the best of another kind of physics, all kept (a cap of three dropped that one once
+        the damping screening's best came: held-out 2857's joint); each with a gain g that alone could pass the
+        FRF route's information criterion, N ln(1/(1−g)²) > ``penalty`` × ln N."""
         picks, kinds = [], set()
         n_f = n_obs(self.train)
         g_min = 1.0 - np.exp(-self.config.penalty * np.log(n_f) / (2.0 * n_f))
@@ -401,7 +401,7 @@ class _Acceptance(_Picks):
         fitted yet, at most :data:`~updating.diagnosis.picks.RUNNERS_UP` of them, and the competitors of
         ``c``'s screening whose single-term error (parameters fixed) is within four information-criterion
         margins of ``c``'s (``n_eq`` ln(e_o²/e_c²) ≤ 4 ``penalty`` ln ``n_eq``, both over the residual's
-        inflation), at most :data:`FRF_PICKS` − 1 of them, fitted like the pick (:meth:`_fitted`).  The
+        inflation), at most :data:`CLOSE_COMPETITORS` of them, fitted like the pick (:meth:`_fitted`).  The
         screening alone cannot tell: parameters re-fitted with a term absorb part of what separated it from its
         neighbours (the same release at the two ends of a symmetric frame's rail differs by a fraction of a
         percent once the moduli are free), and a pick fitted far below its screening's error is not matched by
@@ -424,7 +424,7 @@ class _Acceptance(_Picks):
         close = [] if g_c is None else [
             (o, v) for o, v, g in scr if o.key not in seen and _another_explanation(o, c, m_now)
             and n_eq * np.log(max(1 - g, 1e-300) ** 2 / max(1 - g_c, 1e-300) ** 2) / infl <= 4 * need]
-        todo = [(o, v) for o, v in alts if o.key not in done][:RUNNERS_UP] + close[:FRF_PICKS - 1]
+        todo = [(o, v) for o, v in alts if o.key not in done][:RUNNERS_UP] + close[:CLOSE_COMPETITORS]
         # from the screening's parameters and the current terms' values as c's fit left them
         start = np.concatenate([self._screens[k][1][:len(self.params)], fr_c.p[len(self.params):]])
         comps = self._fitted_each([(o, v, start, k, f"competitor of {c.label} ({fr_c.error:.4g}):") for o, v in todo])

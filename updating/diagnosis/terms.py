@@ -69,8 +69,9 @@ def _element_nodes(c: Candidate, model: FEModel) -> set:
 MIN_FREQ_EFFECT = 0.004
 
 
-#: exact-screening picks fitted on the FRFs when the MCI's best option fails (:meth:`Diagnoser._judge_picks`)
-FRF_PICKS = 3
+#: competitors of an accepted pick's screening, close to it there, fitted on the FRFs as its alternatives
+#: (:meth:`~updating.diagnosis.acceptance._Acceptance._fitted_alternatives`)
+CLOSE_COMPETITORS = 2
 
 
 #: a pick of the exact FRF screening that the MCI did not support is accepted only if it leaves at most this
