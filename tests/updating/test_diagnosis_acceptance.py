@@ -180,3 +180,44 @@ def test_whole_clamps_are_the_few_that_screen_best_and_the_elastic_one_fits_best
     best = min(fits, key=lambda t: t[0])
     assert best[1].release[1] == 7 and best[7].release[1] == 7
     assert best[0] < 0.2 * max(t[0] for t in fits)
+
+
+def test_every_screenings_best_and_the_other_kinds_are_fitted(monkeypatch):
+    """The picks are the best of each exact screening (around the nominal and the updated parameters, local
+    damping with the parameters re-fitted) and the best of another kind of physics, and every one is fitted: a
+    cap of three dropped the last once the damping screening's best was a pick (held-out 2857).  Here the
+    screenings around the updated parameters and of local damping are given other bests (their gains raised),
+    so that there are four picks: two springs, the damping, and a rotary inertia as the other kind."""
+    d = _diagnoser(True)
+    (s0, _), (s1, p1), (s2, p2) = d._screens
+    rz = next(t for t in s1 if t[0].label == "spring to ground at 1+RZ")
+    d._screens[1] = ([(rz[0], rz[1], 0.5)] + [t for t in s1 if t[0].key != rz[0].key], p1)
+    d._screens[2] = ([(s2[0][0], s2[0][1], 0.3)] + s2[1:], p2)
+    picks = d._screening_picks(set())
+    assert [c.physics for c, *_ in picks] == ["ground_spring", "ground_spring", "local_damping", "added_mass"]
+    fitted = []
+    orig = d._fitted_picks
+
+    def spy(p, have, e_ref):
+        fitted.extend(c.key for c, *_ in p)
+        return orig(p, have, e_ref)
+
+    monkeypatch.setattr(d, "_fitted_picks", spy)
+    d._judge_picks(0, 1)
+    assert fitted == [c.key for c, *_ in picks]
+
+
+def test_a_judged_fit_is_continued_to_its_optimum():
+    """A candidate's fit that its tests judge does not stop where a short evaluation budget ran out: the spring
+    started ten times too stiff stops short after max_nfev // 2 = 15 evaluations, and is continued until the
+    solver converges, to a lower error."""
+    d = _diagnoser(True)
+    assert d.config.max_nfev == 30
+    scr, p_scr = d._screens[1]
+    c, v, _ = next(t for t in scr if t[0].physics == "ground_spring" and t[0].dofs == ("4+Y",))
+    pm_aug, clo, chi, scales = acceptance._augmented(d.model0, d.params, d.lo, d.hi, d.current + [c])
+    start = np.clip(np.concatenate([p_scr[:len(clo) - 1], [10 * v / scales[-1]]]), clo, chi)
+    short = d._fit(pm_aug, d.train, start, lower=clo, upper=chi, max_nfev=15)
+    assert not short.success                                  # fifteen evaluations do not reach an optimum
+    fr = d._fit_converged(pm_aug, start, clo, chi)
+    assert fr.success and fr.error < 0.5 * short.error
