@@ -493,13 +493,14 @@ def test_a_pick_too_small_to_be_missing_physics_lets_the_other_kinds_be_fitted(t
     2.64 -> 1.22) with a frequency effect of 0.29 %, below the size of model-form error, and was rejected; the
     joint, ranked below it, was never fitted and nothing was found.  A pick that passes every test but its
     effect now lets the other kinds be fitted, as one that leaves too much residual does: the joint at 7+RZ
-    leaves the least error and is the one finding."""
+    leaves the least error and is the one finding.  Since every screening's pick and the other kind's are
+    fitted (14e91b1: the joint is the other kind's, which a cap of three picks dropped) the joint is among the
+    first picks and found so; the route this case found is tested on its own in
+    ``tests/updating/test_diagnosis_acceptance.py`` (a pick failing only by its effect)."""
     d = _diagnosed(2575, tmp_path)
     assert len(d["findings"]) == 1, [f["description"] for f in d["findings"]]
     f = d["findings"][0]
     assert f["physics"] == "joint_flexibility" and f["dofs"] == ["7+RZ"], f["description"]
-    assert any(x["decision"] == "rejected" and x["candidate"] == "rotary inertia at 13+RZ"
-               and "the size of model-form error" in x["reason"] for x in d["decisions"]), d["decisions"]
     po, wp = d["fit"]["parameters_only"], d["fit"]["with_physics"]
     assert wp["frf_error_held_out"] < 0.7 * po["frf_error_held_out"], d["fit"]
 
