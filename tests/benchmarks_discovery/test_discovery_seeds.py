@@ -564,9 +564,7 @@ def test_the_other_kinds_pick_is_fitted_beside_the_damping_screenings(tmp_path):
     best of another kind; since the damping screening's best became a pick, a cap of three picks dropped that
     last one, here the joint (the release screening's best), and a rotary inertia five nodes away was named
     (training χ²/N 5.87 -> 0.149).  Fitted, the joint leaves 0.061 (held-out 0.171 -> 0.051) with 2.76e5."""
-    diag = _diagnosed(2857, tmp_path)
-    assert len(diag["findings"]) == 1, [f["description"] for f in diag["findings"]]
-    f = diag["findings"][0]
+    f = _single_finding(2857, tmp_path)
     assert f["physics"] == "joint_flexibility" and f["nodes"] == [1], f["description"]
     assert f["values"][0]["value"] == pytest.approx(2.74e5, rel=0.25), f["values"]
 
