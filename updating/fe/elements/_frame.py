@@ -142,7 +142,7 @@ def _bending_M_batch(m, rhoI, L, phi, n, dtype):
 
 
 def frame_local_batch(L, E, G, rho, A, Iy, Iz, J, Ip, nsm, *, shear_y=None, shear_z=None,
-                      lumped=False, rotary=False, lumped_torsion=False):
+                      lumped=False, rotary=False, lumped_torsion=False, e_over_g=None):
     """Local 12×12 stiffness and mass of n 3-D frame elements (every argument an (n,) array).
 
     shear_y, shear_z : shear factors κ (n,) for Timoshenko behaviour in the x–y and
@@ -150,6 +150,10 @@ def frame_local_batch(L, E, G, rho, A, Iy, Iz, J, Ip, nsm, *, shear_y=None, shea
     inertia of bending.  lumped : Nastran-style lumped mass (half the translational
     mass at each node, no rotary inertia), as with PARAM COUPMASS < 0; with the torsional inertia
     ρ·Ip·L/2 at each node where ``lumped_torsion`` (bool or (n,) bool: Nastran's CBEAM), none elsewhere (CBAR).
+    e_over_g : E/G (n,) for the shear parameter φ = 12 (E/G) I / (κ A L²); None: E / G.  Give 2(1+ν) where G is
+    derived from E, so that φ does not depend on E even in complex arithmetic: E/G of a complex-step E is E's
+    round-off in its imaginary part, a spurious ∂M/∂E and ∂K/∂E non-linear in E (``updating.methods.mci_condensed``
+    then assembles every parameter derivative at every step instead of caching them).
     """
     n = L.shape[0]
     dtype = np.result_type(E, G, rho, A, Iy, Iz, J, Ip, nsm, float)
@@ -160,12 +164,14 @@ def frame_local_batch(L, E, G, rho, A, Iy, Iz, J, Ip, nsm, *, shear_y=None, shea
     K[:, iu[:, None], iu[None, :]] = (E * A / L)[:, None, None] * B
     K[:, it[:, None], it[None, :]] = (G * J / L)[:, None, None] * B
     zero = np.zeros(n)
+    eg = E / G if e_over_g is None else e_over_g
+
     def shear_phi(I, k):
         # k = 0 (or None) marks a shear-rigid plane
         if k is None:
             return zero
         on = np.real(k) > 0
-        return np.where(on, 12 * E * I / (np.where(on, k, 1.0) * G * A * L * L), 0.0)
+        return np.where(on, 12 * eg * I / (np.where(on, k, 1.0) * A * L * L), 0.0)
 
     phi_z = shear_phi(Iz, shear_y)
     phi_y = shear_phi(Iy, shear_z)

@@ -98,7 +98,7 @@ class Beam3D(Element):
                 x2[k] += wb
                 offset.append((k, wa, wb))
         L, lam = local_axes_batch(x1, x2, v, [el.eid for el in elements])
-        names = ("E", "G", "rho", "A", "Iy", "Iz", "J", "Ip", "nsm", "ky", "kz", "ge")
+        names = ("E", "G", "EG", "rho", "A", "Iy", "Iz", "J", "Ip", "nsm", "ky", "kz", "ge")
         cols = {nm: [None] * n for nm in names}
         uniq, inv = np.unique(pids, return_inverse=True)
         for u, pid in enumerate(uniq):
@@ -109,8 +109,10 @@ class Beam3D(Element):
                                         f"{type(prop).__name__}; a beam needs a BeamProperty")
             mat = ctx.material(prop.mid)
             s = prop.section
-            vals = dict(E=mat.E, G=mat.shear_modulus, rho=mat.rho, A=s.A, Iy=s.Iy, Iz=s.Iz, J=s.J, Ip=s.polar,
-                        nsm=prop.nsm, ky=s.ky, kz=s.kz, ge=prop.ge if prop.ge is not None else mat.ge)
+            # E/G exactly 2(1+ν) where G is derived from E (frame_local_batch's e_over_g)
+            eg = 2.0 * (1.0 + mat.nu) if mat.G is None else mat.E / mat.G
+            vals = dict(E=mat.E, G=mat.shear_modulus, EG=eg, rho=mat.rho, A=s.A, Iy=s.Iy, Iz=s.Iz, J=s.J,
+                        Ip=s.polar, nsm=prop.nsm, ky=s.ky, kz=s.kz, ge=prop.ge if prop.ge is not None else mat.ge)
             for nm in names:
                 cols[nm][u] = vals[nm]
         arr = {}
@@ -128,7 +130,7 @@ class Beam3D(Element):
         ky, kz = arr["ky"], arr["kz"]   # 0 marks a shear-rigid plane
         Kl, Ml = frame_local_batch(L, arr["E"], arr["G"], arr["rho"], arr["A"], arr["Iy"], arr["Iz"], arr["J"],
                                    arr["Ip"], arr["nsm"], shear_y=ky, shear_z=kz, lumped=not ctx.coupled_mass,
-                                   rotary=cls._shear,
+                                   rotary=cls._shear, e_over_g=arr["EG"],
                                    lumped_torsion=np.array([cls._lumped_torsion if el.lumped_torsion is None
                                                             else bool(el.lumped_torsion) for el in elements]))
         K, M = to_basic(Kl, lam), to_basic(Ml, lam)
