@@ -169,6 +169,47 @@ class _AffineDerivatives:
         return out
 
 
+class _AffineDampingDerivatives:
+    """The derivatives of the damping values (:data:`_AFFINE_FIELDS`: ∂C/∂α = M, ∂C/∂β = K, ∂D/∂g = K, ∂D/∂g_e =
+    K_e) as ``d(p) = d0 + Σ_j (p_j − q_j)/h_j Δd_j`` in the linear parameters, the fields of the matrices they are
+    derivatives of (:func:`_split`; they do not depend on the damping values), from ``1 + n_lin`` evaluations at
+    ``q`` (the linear parameters' nominal values, the damping values 0) and at one step ``h_j`` in each, and
+    checked against the direct evaluation at the first ``p``: refused (``ok`` False) where they differ.  Spares
+    the assembly of these derivatives at every step of a fit (the loss factors are parameters of every fit)."""
+
+    def __init__(self, pmodel, p, lin, aff, direct):
+        self.lin, self.aff = np.flatnonzero(lin), np.flatnonzero(aff)
+        idx = set(int(i) for i in self.aff)
+        q = p.copy()
+        q[self.lin] = np.asarray(getattr(pmodel, "nominal", p), float)[self.lin]
+        q[self.aff] = 0.0
+        self.q, self.h = q, np.maximum(1.0, np.abs(q[self.lin]))
+        self.d0 = _only(pmodel, q, idx)
+        self.delta = []
+        for j, h in zip(self.lin, self.h):
+            q1 = q.copy()
+            q1[j] += h
+            self.delta.append([[_diff(getattr(a, k), getattr(b, k)) for k in _MATS]
+                               for a, b in zip(_only(pmodel, q1, idx), self.d0)])
+        self.ok = all(_close(a, direct[i]) for a, i in zip(self.at(p), self.aff))
+
+    def at(self, p) -> list:
+        """The derivatives of the damping values at ``p``, in the order of their indices."""
+        out = []
+        for n, d in enumerate(self.d0):
+            mats = [getattr(d, k) for k in _MATS]
+            for j, h, delta in zip(self.lin, self.h, self.delta):
+                a = (p[j] - self.q[j]) / h
+                if a != 0.0:
+                    mats = [A if dA is None else (dA * a if A is None else A + dA * a)
+                            for A, dA in zip(mats, delta[n])]
+            out.append(type(d)(**dict(zip(_MATS, mats))))
+        return out
+
+
+_MATS = ("dK", "dM", "dC", "dD")
+
+
 def _only(pmodel, p, idx: set) -> list:
     """The derivatives of the parameters ``idx`` at ``p`` (in their order), the others not assembled."""
     ds = pmodel.derivatives(p, only=idx) if isinstance(pmodel, ParametricFEModel) else pmodel.derivatives(p)
@@ -205,7 +246,9 @@ def derivatives(pmodel, p):
     multiply K or M, and affinely (:class:`_AffineDerivatives`), and through non-linear parameters (section
     dimensions, ν); the cache is keyed by the latter.  The non-linear parameters' own derivatives are assembled
     at every call.  Saves the complex-step re-assembly (one model per parameter) in iterated MCI updates and in
-    the FRF fits of the diagnosis, whose loss factors move at every step.  The first call for a key returns the
+    the FRF fits of the diagnosis, whose loss factors move at every step.  The damping values' own derivatives
+    are affine in the linear parameters and cached so too (:class:`_AffineDampingDerivatives`); the other
+    non-linear parameters' are assembled at every call.  The first call for a key returns the
     affine form too, not the direct evaluation it was checked against (equal to round-off): the result at ``p``
     is then the same whatever the model was evaluated at before, so that a fit does not depend on the history
     of its model object (a copy of it in another process fits the same, :mod:`modalab.core.parallel`).
@@ -232,12 +275,19 @@ def derivatives(pmodel, p):
             # not affine as assembled (or nothing linear): this key is evaluated directly from now on
             store[key] = False
             return list(direct)
+        damping = _AffineDampingDerivatives(pmodel, p, lin, aff, direct) if aff.any() else None
+        store[key].damping = damping if damping is not None and damping.ok else None
     if store[key] is False:
         return pmodel.derivatives(p)
     out = [None] * len(pars)
     for i, d in store[key].at(p).items():
         out[i] = d
     nonlin = np.flatnonzero(~lin)
+    damping = store[key].damping
+    if damping is not None:
+        for i, d in zip(damping.aff, damping.at(p)):
+            out[i] = d
+        nonlin = np.flatnonzero(~lin & ~aff)
     if nonlin.size:
         # the derivatives of the non-linear fields (e.g. PARAM G: ∂D/∂g = K(p)) depend on every parameter
         for i, d in zip(nonlin, _only(pmodel, p, set(int(i) for i in nonlin))):
