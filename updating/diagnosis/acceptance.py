@@ -14,7 +14,8 @@ import numpy as np
 from updating.diagnosis.mesh import mesh_error, shift_beyond_mesh
 from updating.diagnosis.screen import mci_update
 from updating.diagnosis.picks import _Picks, RUNNERS_UP
-from updating.diagnosis.terms import _another_explanation, _is_support, MIN_FREQ_EFFECT, CLOSE_COMPETITORS, PICK_EXPLAINS, MIN_DAMPING_EFFECT, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, CV_NFEV, _residual, inflation, significant_gain, n_obs, _augmented
+from updating.diagnosis.crossval import _CrossValidation
+from updating.diagnosis.terms import _another_explanation, _is_support, MIN_FREQ_EFFECT, CLOSE_COMPETITORS, PICK_EXPLAINS, MIN_DAMPING_EFFECT, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, _residual, inflation, significant_gain, n_obs, _augmented
 
 log = logging.getLogger(__name__)
 
@@ -33,7 +34,7 @@ def _fits_better(err: float, e_ref: float, n_eq: int, penalty: float) -> bool:
     return err < e_ref and n_eq * np.log(e_ref ** 2 / max(err ** 2, 1e-300)) > penalty * np.log(n_eq)
 
 
-class _Acceptance(_Picks):
+class _Acceptance(_Picks, _CrossValidation):
     """The acceptance tests of :class:`~updating.diagnosis.workflow.Diagnoser` (a mixin)."""
 
     def _judge(self, best, n_eq: int) -> tuple[bool, str]:
@@ -547,52 +548,3 @@ class _Acceptance(_Picks):
                                      f"({100 * dfx:.2g} %): indistinguishable from the mesh's discretisation error")
         return True, why_h + (f"; a small effect on the frequencies, but the model with it leaves χ²/N {red:.3g} "
                               f"(noise), {100 * left:.2g} % of the current model's χ²")
-
-    def _fold_fits(self, pm, p, lo, hi) -> list:
-        """``pm`` fitted (from ``p``) on the training part of every cross-validation fold (:func:`cv_folds`),
-        its residual on the fold's held-out part (noise units): ``[residual]``, one per fold.  The fold of the
-        diagnosis' own split reuses ``p`` (fitted on that training part); the others start from ``p`` with
-        :data:`~updating.diagnosis.terms.CV_NFEV` evaluations.  Cached per model and parameters (the reference
-        is judged against several candidates)."""
-        key = (id(pm), np.asarray(p, float).tobytes())
-        cache = self.__dict__.setdefault("_cv_cache", {})
-        if key in cache:
-            return cache[key][1]
-        out = []
-        for tr, he, _ in self._folds:
-            if [str(d) for d in he.responses] == [str(d) for d in self.held.responses] and \
-                    [str(d) for d in he.references] == [str(d) for d in self.held.references] and \
-                    he.H.shape == self.held.H.shape:
-                pf = np.asarray(p, float)
-            else:
-                pf = self._fit(pm, tr, np.clip(p, lo, hi), lower=lo, upper=hi, max_nfev=CV_NFEV).p
-            out.append(_residual(pm.structure(pf), he))
-        cache[key] = (pm, out)                    # the model is kept alive with its key
-        return out
-
-    def _cv_totals(self, ref, new) -> tuple[list, list, float, float, int]:
-        """The folds' residuals of ``ref`` and ``new`` (:meth:`_fold_fits`, cached), their χ² summed over the
-        folds and the number of observations: ``(r0, r1, c0, c1, n)``."""
-        r0, r1 = self._fold_fits(*ref), self._fold_fits(*new)
-        c0 = float(sum(np.sum(np.abs(r) ** 2) for r in r0))
-        c1 = float(sum(np.sum(np.abs(r) ** 2) for r in r1))
-        return r0, r1, c0, c1, int(sum(2 * r.size for r in r1))
-
-    def _cross_validated(self, ref, new, penalty: float | None = None) -> tuple[bool, str]:
-        """The term of ``new`` against the model ``ref`` (each ``(pm, p, lower, upper)``, fitted on the
-        training FRFs) judged by :data:`~updating.diagnosis.terms.CV_FOLDS`-fold cross-validation: both are
-        re-fitted without each fold, and the χ² of their predictions of the held-out folds — every held-out
-        value predicted once, by a model that did not see it — must fall significantly
-        (:func:`significant_gain`, the test of :func:`_term_holds` with the same N).  This replaces one split's
-        luck and the former threshold on the training gain of a first term (``min_gain``, 5 %): a term that only
-        fits the noise or model-form error of the fitted rows does not predict the rows it did not see."""
-        r0, r1, c0, c1, n = self._cv_totals(ref, new)
-        infl = float(np.average([inflation(r) for r in r1], weights=[max(np.sum(np.abs(r) ** 2), 1e-300)
-                                                                        for r in r1]))
-        ok, stat, need = significant_gain(c0, c1, n, infl, self.config.penalty if penalty is None else penalty)
-        worse = sum(float(np.sum(np.abs(b) ** 2)) > float(np.sum(np.abs(a) ** 2)) for a, b in zip(r0, r1))
-        why = (f"cross-validated over {len(r1)} folds: χ²/N {c0 / n:.3g} -> {c1 / n:.3g} (statistic {stat:.3g}, "
-               f"needed {need:.3g}; worse on {worse} fold(s))")
-        if not ok:
-            return False, why + ": not significant on data the fits did not see"
-        return True, why
