@@ -82,12 +82,13 @@ class TestAberth:
         start = true + 0.004 * (rng.normal(size=true.size) + 1j * rng.normal(size=true.size))
         start = start[rng.permutation(true.size)][n_new:]         # a lower order has fewer roots
         z, method = denominator_roots(a, start)
-        if np.abs(a).sum() > 1e4:
-            # badly scaled coefficients (pLSCF's are O(1)): the rounding level of the evaluation may
-            # leave discs too wide to certify; then the eigenvalues must have been taken
-            if method == "eigvals":
-                np.testing.assert_allclose(np.sort_complex(z), np.sort_complex(_companion_roots(a)))
-                return
+        # badly scaled coefficients (pLSCF's are O(1)), or roots outside the unit circle where the polynomial's
+        # evaluation loses digits (seed 211, 24 pairs, 3 real: |a| sums to 7.6e3, and the roots near -1.21 have
+        # inclusion discs of radius 0.048 at the rounding level, wider than half their distance): the discs can
+        # be too wide to certify even from the exact roots; then the eigenvalues must have been taken
+        if method == "eigvals" and (np.abs(a).sum() > 1e4 or aberth_roots(a, true * np.exp(1e-4j)) is None):
+            np.testing.assert_allclose(np.sort_complex(z), np.sort_complex(_companion_roots(a)))
+            return
         assert method == "tracked"
         exact = _exact_roots(a)
         err_eig = _match_error(np.roots(a[::-1]), exact)
