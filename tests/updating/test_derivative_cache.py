@@ -1,11 +1,14 @@
 """The cache of exact parameter derivatives (updating.methods.mci_condensed.derivatives): at every point it
 returns what the complex-step assembly returns there, with the damping values and the linear parameters moved
 between calls (cache hits), and with two parameters that scale the same elements' E (which must not be cached)."""
+import dataclasses
+
 import numpy as np
 import scipy.sparse as sp
 from hypothesis import given, settings, strategies as st
 
-from updating.fe import Beam3D, Parameter, ParametricFEModel
+import updating.methods.mci_condensed as mc
+from updating.fe import Beam3D, Parameter, ParametricFEModel, Timoshenko3D
 from updating.methods.mci_condensed import derivatives
 
 from tests.updating.test_fe_parameters import PARAMS, build
@@ -80,11 +83,8 @@ def test_the_derivatives_at_a_point_do_not_depend_on_where_the_model_was_evaluat
                 assert np.array_equal(sp.csr_matrix(a).toarray(), sp.csr_matrix(b).toarray()), (par.name, k)
 
 
-
 def _timoshenko(shear_modulus=None):
     """The frame of shear-deformable beams, steel for material 1, with the E of two properties and a loss factor."""
-    import dataclasses
-    from updating.fe import Timoshenko3D
     m = build(Timoshenko3D)
     m.materials[1] = dataclasses.replace(m.materials[1], E=2.1e11, nu=0.3, G=shear_modulus)
     pars = [Parameter("E_general", "E", properties=["general"]), Parameter("E_plate", "E", properties=["plate"]),
@@ -100,7 +100,6 @@ def test_a_shear_deformable_beams_E_leaves_its_mass_alone_where_G_follows_from_n
     in its imaginary part: a ∂M/∂E of relative size 1e-16 (at (1, 1) and most other points) that failed the cache's
     affine check, and every derivative of every fit on a frame of such beams was assembled anew at every step (a
     third of a space frame's diagnosis)."""
-    import updating.methods.mci_condensed as mc
     pm = _timoshenko()
     p = np.array([*factors, ge])
     assert [d.dM for d in pm.derivatives(p)[:2]] == [None, None]

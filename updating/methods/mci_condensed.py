@@ -130,6 +130,16 @@ def _split(pmodel) -> tuple[np.ndarray, np.ndarray]:
     return lin, aff
 
 
+_MATS = ("dK", "dM", "dC", "dD")
+
+
+def _add(A, dA, a):
+    """``A + a·dA`` of two sparse matrices or None (None where zero)."""
+    if dA is None:
+        return A
+    return dA * a if A is None else A + dA * a
+
+
 class _AffineDerivatives:
     """The derivatives of the linear parameters as ``d(a) = d0 + Σ_j a_j Δd_j`` in the damping values ``a``
     (:data:`_AFFINE_FIELDS`), from ``1 + n_a`` complex-step evaluations (the damping values at 0 and at each unit
@@ -160,11 +170,8 @@ class _AffineDerivatives:
             d = self.d0[i]
             C, D = d.dC, d.dD
             for a, delta in zip(p[self.aff], self.delta):
-                dC, dD = delta[i]
-                if a != 0.0 and dC is not None:
-                    C = dC * a if C is None else C + dC * a
-                if a != 0.0 and dD is not None:
-                    D = dD * a if D is None else D + dD * a
+                if a != 0.0:
+                    C, D = (_add(A, dA, a) for A, dA in zip((C, D), delta[i]))
             out[i] = type(d)(dK=d.dK, dM=d.dM, dC=C, dD=D)
         return out
 
@@ -201,13 +208,9 @@ class _AffineDampingDerivatives:
             for j, h, delta in zip(self.lin, self.h, self.delta):
                 a = (p[j] - self.q[j]) / h
                 if a != 0.0:
-                    mats = [A if dA is None else (dA * a if A is None else A + dA * a)
-                            for A, dA in zip(mats, delta[n])]
+                    mats = [_add(A, dA, a) for A, dA in zip(mats, delta[n])]
             out.append(type(d)(**dict(zip(_MATS, mats))))
         return out
-
-
-_MATS = ("dK", "dM", "dC", "dD")
 
 
 def _only(pmodel, p, idx: set) -> list:
@@ -244,11 +247,11 @@ def derivatives(pmodel, p):
     For fields that scale an element or material matrix (E, ρ, k, c, mass, inertia, nsm; :func:`_split`) the
     derivative depends on p only through the model-wide and element damping values (PARAM G, GE, Rayleigh) that
     multiply K or M, and affinely (:class:`_AffineDerivatives`), and through non-linear parameters (section
-    dimensions, ν); the cache is keyed by the latter.  The non-linear parameters' own derivatives are assembled
-    at every call.  Saves the complex-step re-assembly (one model per parameter) in iterated MCI updates and in
-    the FRF fits of the diagnosis, whose loss factors move at every step.  The damping values' own derivatives
-    are affine in the linear parameters and cached so too (:class:`_AffineDampingDerivatives`); the other
-    non-linear parameters' are assembled at every call.  The first call for a key returns the
+    dimensions, ν); the cache is keyed by the latter.  The non-linear parameters' own derivatives (but the
+    damping values') are assembled at every call.  Saves the complex-step re-assembly (one model per parameter) in iterated MCI updates and in
+    the FRF fits of the diagnosis, whose loss factors move at every step; the damping values' own derivatives
+    are affine in the linear parameters and cached so too (:class:`_AffineDampingDerivatives`).  The first call
+    for a key returns the
     affine form too, not the direct evaluation it was checked against (equal to round-off): the result at ``p``
     is then the same whatever the model was evaluated at before, so that a fit does not depend on the history
     of its model object (a copy of it in another process fits the same, :mod:`modalab.core.parallel`).
