@@ -48,6 +48,17 @@ def test_the_damped_element_ranks_first_with_its_loss_factor(element):
     assert gain > 0.5
 
 
+def test_the_screening_on_two_processes_is_the_serial_one_bit_for_bit():
+    """The candidates' fits run on forked processes (fork_map): the same ranking, values and gains, in the same
+    order, as the serial loop, the top FITTED continued from their own two-step points."""
+    pm, lib, data = _case(5, 0.2)
+    serial = damping_screen(pm, [0.013], lib, data, jobs=1)
+    forked = damping_screen(pm, [0.013], lib, data, jobs=2)
+    assert len(serial) > 3
+    assert [(c.key, v, g) for c, v, g in forked] == [(c.key, v, g) for c, v, g in serial]
+    assert all(a is b for (a, _, _), (b, _, _) in zip(forked, serial))        # the caller's own candidates
+
+
 def test_an_exact_model_gains_nothing():
     pm, lib, data = _case(None, 0.0)
     ranked = damping_screen(pm, [0.01], lib, data)

@@ -6,37 +6,43 @@ from __future__ import annotations
 
 import numpy as np
 
+from modalab.core.parallel import fork_map
 from updating.diagnosis.terms import CV_NFEV, _residual, inflation, significant_gain
 
 
 class _CrossValidation:
 
-    def _fold_fits(self, pm, p, lo, hi) -> list:
-        """``pm`` fitted (from ``p``) on the training part of every cross-validation fold (:func:`cv_folds`),
-        its residual on the fold's held-out part (noise units): ``[residual]``, one per fold.  The fold of the
-        diagnosis' own split reuses ``p`` (fitted on that training part); the others start from ``p`` with
-        :data:`~updating.diagnosis.terms.CV_NFEV` evaluations.  Cached per model and parameters (the reference
-        is judged against several candidates)."""
-        key = (id(pm), np.asarray(p, float).tobytes())
+    def _fold_fits(self, *models) -> list:
+        """Each model ``(pm, p, lower, upper)`` fitted (from ``p``) on the training part of every
+        cross-validation fold (:func:`cv_folds`), its residual on the fold's held-out part (noise units):
+        ``[[residual] per fold]`` per model.  The fold of the diagnosis' own split reuses ``p`` (fitted on that
+        training part); the others start from ``p`` with :data:`~updating.diagnosis.terms.CV_NFEV` evaluations,
+        all of them independent fits on the configured cores (:func:`~modalab.core.parallel.fork_map`: the
+        serial result bit for bit).  Cached per model and parameters (the reference is judged against several
+        candidates)."""
         cache = self.__dict__.setdefault("_cv_cache", {})
-        if key in cache:
-            return cache[key][1]
-        out = []
-        for tr, he, _ in self._folds:
-            if [str(d) for d in he.responses] == [str(d) for d in self.held.responses] and \
-                    [str(d) for d in he.references] == [str(d) for d in self.held.references] and \
-                    he.H.shape == self.held.H.shape:
-                pf = np.asarray(p, float)
-            else:
-                pf = self._fit(pm, tr, np.clip(p, lo, hi), lower=lo, upper=hi, max_nfev=CV_NFEV).p
-            out.append(_residual(pm.structure(pf), he))
-        cache[key] = (pm, out)                    # the model is kept alive with its key
-        return out
+        keys = [(id(pm), np.asarray(p, float).tobytes()) for pm, p, _, _ in models]
+        own = [[str(d) for d in he.responses] == [str(d) for d in self.held.responses] and
+               [str(d) for d in he.references] == [str(d) for d in self.held.references] and
+               he.H.shape == self.held.H.shape for _, he, _ in self._folds]
+        todo = [(i, k) for i, key in enumerate(keys) if key not in cache and key not in keys[:i]
+                for k in range(len(self._folds)) if not own[k]]
+
+        def fold_fit(i, k):
+            pm, p, lo, hi = models[i]
+            return self._fit(pm, self._folds[k][0], np.clip(p, lo, hi), lower=lo, upper=hi, max_nfev=CV_NFEV).p
+        fitted = dict(zip(todo, fork_map(fold_fit, todo, self.config.jobs)))
+        for i, key in enumerate(keys):
+            if key not in cache:
+                pm, p = models[i][:2]
+                cache[key] = (pm, [_residual(pm.structure(fitted.get((i, k), np.asarray(p, float))), he)
+                                   for k, (_, he, _) in enumerate(self._folds)])   # the model kept with its key
+        return [cache[key][1] for key in keys]
 
     def _cv_totals(self, ref, new) -> tuple[list, list, float, float, int]:
         """The folds' residuals of ``ref`` and ``new`` (:meth:`_fold_fits`, cached), their χ² summed over the
         folds and the number of observations: ``(r0, r1, c0, c1, n)``."""
-        r0, r1 = self._fold_fits(*ref), self._fold_fits(*new)
+        r0, r1 = self._fold_fits(ref, new)
         c0 = float(sum(np.sum(np.abs(r) ** 2) for r in r0))
         c1 = float(sum(np.sum(np.abs(r) ** 2) for r in r1))
         return r0, r1, c0, c1, int(sum(2 * r.size for r in r1))

@@ -37,6 +37,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import minimize_scalar
 
+from modalab.core.parallel import fork_map
 from updating.correlation.condensation import solve_columns
 from updating.diagnosis.fit import RITZ_LIMIT, FRFData, _exact_rows, _indices, frf_error
 from updating.diagnosis.ritz import RitzBasis
@@ -308,14 +309,15 @@ def _polished(errors, t, err):
 
 
 def frf_screen(structure, candidates, data: FRFData, *, loss_factor: float = 0.0, top: int | None = None,
-               refit: ParameterRefit | None = None) -> list:
+               refit: ParameterRefit | None = None, jobs: int | None = 1) -> list:
     """Rank shared candidates by the training FRF error each alone leaves when added to ``structure`` at its
     best value on a plausible grid (with ``refit``, the parameters of the fit ``structure`` are re-fitted to
     first order alongside: module docstring).  Returns ``[(candidate, value, gain)]`` best first, ``gain`` the
     relative drop of :func:`~updating.diagnosis.fit.frf_error` (only candidates that lower it).
 
     ``loss_factor`` is the model-wide structural damping (PARAM G) that an added stiffness carries too
-    (``θ (1 + i g) G``), as the element added to the model will."""
+    (``θ (1 + i g) G``), as the element added to the model will.  The candidates on ``jobs`` processes
+    (:func:`~modalab.core.parallel.fork_map`: the serial result bit for bit)."""
     work = []
     for c in candidates:
         if not c.shared or c.G is None:
@@ -330,13 +332,14 @@ def frf_screen(structure, candidates, data: FRFData, *, loss_factor: float = 0.0
     K, M = sp.csr_matrix(structure.K), sp.csr_matrix(structure.M)
     fit = _Misfit(R.meas_refs(), R.sign, data, refit)
     e0 = fit.e0
-    out = []
-    for c, (rows, L) in work:
+
+    def best(c, rows, L):
+        """The candidate's best value on its grid and the error it leaves, or None (no admissible value)."""
         # rank one costs O(n_s) per value: a fine grid (resonances crossing lines make the error rough in
         # the value); higher ranks a coarse one
         grid = _value_grid(c, K, M, rows, L, n=61 if L.shape[1] == 1 else 13)
         if grid.size == 0:
-            continue
+            return None
         Hm = R.meas_cols(L, rows)                                         # (n_m, r, n_s)
         Hr = R.rows_refs(L, rows)                                         # (r, n_r, n_s)
         Hll = R.rows_rows(L, rows)                                        # (r, r, n_s)
@@ -347,8 +350,11 @@ def frf_screen(structure, candidates, data: FRFData, *, loss_factor: float = 0.0
         if Hll.shape[0] == 1 and not (len(work) > 400 and err.min() > 0.9 * e0):
             t, err = _polished(errors, t, err)
         k = int(np.argmin(err))
-        if err[k] < e0:
-            out.append((c, float(t[k]), 1.0 - float(err[k]) / e0))
+        return float(t[k]), float(err[k])
+
+    out = [(c, t, 1.0 - e / e0) for (c, _), r in zip(work, fork_map(lambda c, lr: best(c, *lr), work, jobs,
+                                                                      by_reference=[c for c, _ in work]))
+           if r is not None for t, e in [r] if e < e0]
     out.sort(key=lambda t: -t[2])
     log.info("FRF screening of %d candidates (error %.4g now%s): best %s", len(work), e0,
              "" if refit is None else ", the parameters re-fitted to first order",

@@ -62,7 +62,7 @@ class _Options:
         # MCI's minimiser can sit at the parameters' bounds with a negative loss factor (seed 1305: E -15 %,
         # ρ -9 %), where the linear re-fit ranks well but the pick's fit from there stops in a poor optimum
         pm_d, fr_d = self._frf_ref()
-        dscr = damping_screen(pm_d, fr_d.p, [c for c in lib if c.key not in have], self.train)
+        dscr = damping_screen(pm_d, fr_d.p, [c for c in lib if c.key not in have], self.train, self.config.jobs)
         self._screens.append((dscr, np.asarray(fr_d.p, float)))        # its best is a pick too (_judge_picks)
         for scr in screens + [dscr]:
             by_kind: dict = {}

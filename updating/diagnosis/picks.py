@@ -95,7 +95,7 @@ class _Picks:
         g_scr = float(m_scr.global_ge or 0.0)
         refit = ParameterRefit(self.pm_cur, p_scr, self.train, self.prior) if fitted and self.config.screen_refit \
             else None
-        scr = frf_screen(st_scr, lib, self.train, loss_factor=g_scr, refit=refit)
+        scr = frf_screen(st_scr, lib, self.train, loss_factor=g_scr, refit=refit, jobs=self.config.jobs)
         if releases:
             scr = sorted(scr + release_screen(st_scr, m_scr, releases, self.train, loss_factor=g_scr, refit=refit),
                          key=lambda t: -t[2])
