@@ -42,8 +42,8 @@ def _rounding_rtol(x, y) -> np.ndarray:
     a record's FFT carries an absolute error up to about n eps ‖x‖₁, large against a line where the samples
     cancel (a force of 0, 1e-6 and four equal values: its Nyquist line is -1e-6 against ‖x‖₁ = 684).  Summed
     over the hits (Cauchy-Schwarz): G_xx is off by at most 2 n eps sqrt(Σ‖x‖₁²) / sqrt(G_xx) relatively, G_yx
-    by 2 n eps sqrt(Σ‖x‖₁² Σ‖y‖₁²) / |G_yx|.  Twice that (both estimates compared carry it) and 1e-8 where the
-    lines are well conditioned."""
+    by 2 n eps sqrt(Σ‖x‖₁² Σ‖y‖₁²) / |G_yx|; H1 by their sum.  Twice that (both estimates compared carry it) and
+    1e-8 where the lines are well conditioned."""
     n = x.shape[-1]
     X, Y = np.fft.rfft(x), np.fft.rfft(y)                       # (n_avg, 1, nf), (n_avg, n_out, nf)
     l1x2 = float(np.sum(np.abs(x).sum(-1) ** 2))
@@ -51,7 +51,7 @@ def _rounding_rtol(x, y) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         kx = np.sqrt(l1x2 / np.sum(np.abs(X) ** 2, axis=(0, 1)))  # (nf,)
         ky = np.sqrt(l1x2 * l1y2)[:, None] / np.abs(np.sum(np.conj(X) * Y, axis=0))   # (n_out, nf)
-    return (1e-8 + 4 * n * np.finfo(float).eps * 2 * (kx[None] + ky))[:, None, :]
+    return (1e-8 + 4 * n * np.finfo(float).eps * (kx[None] + ky))[:, None, :]
 
 
 @settings(max_examples=60, deadline=None)

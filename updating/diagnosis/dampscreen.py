@@ -311,14 +311,13 @@ def damping_screen(pm, p, candidates, data, jobs: int | None = 1) -> list:
         up = getattr(c, "upper", 1.0)
         return mc.stack([Ac] + A), np.r_[0.0, -inf], np.r_[up, inf], np.r_[0.05 * min(1.0, up), np.zeros(len(A))]
 
-    def fit(c, x0=None, iters=15):
+    def fit(c, x0=None, **kw):
         prob = problem(c)
-        return None if prob is None else mc.fit(*prob[:3], prob[3] if x0 is None else x0, iters=iters)
+        return None if prob is None else mc.fit(*prob[:3], prob[3] if x0 is None else x0, **kw)
 
     # two steps for every candidate, then the best :data:`FITTED` to the end
-    first = [(e, k, x) for k, r in enumerate(fork_map(lambda c: fit(c, iters=2), [(c,) for c in cands], jobs,
-                                                      by_reference=cands)) if r is not None for x, e in [r]]
-    first.sort(key=lambda t: t[0])
+    steps = fork_map(lambda c: fit(c, iters=2), [(c,) for c in cands], jobs, by_reference=cands)
+    first = sorted(((r[1], k, r[0]) for k, r in enumerate(steps) if r is not None), key=lambda t: t[0])
     ends = fork_map(lambda c, x: fit(c, x), [(cands[k], x) for _, k, x in first[:FITTED]], jobs, by_reference=cands)
     out = []
     for i, (e, k, x) in enumerate(first):

@@ -352,9 +352,10 @@ def frf_screen(structure, candidates, data: FRFData, *, loss_factor: float = 0.0
         k = int(np.argmin(err))
         return float(t[k]), float(err[k])
 
-    out = [(c, t, 1.0 - e / e0) for (c, _), r in zip(work, fork_map(lambda c, lr: best(c, *lr), work, jobs,
-                                                                      by_reference=[c for c, _ in work]))
-           if r is not None for t, e in [r] if e < e0]
+    out = []
+    for (c, _), r in zip(work, fork_map(lambda c, lr: best(c, *lr), work, jobs, by_reference=[c for c, _ in work])):
+        if r is not None and r[1] < e0:
+            out.append((c, r[0], 1.0 - r[1] / e0))
     out.sort(key=lambda t: -t[2])
     log.info("FRF screening of %d candidates (error %.4g now%s): best %s", len(work), e0,
              "" if refit is None else ", the parameters re-fitted to first order",
