@@ -61,6 +61,27 @@ def test_a_suspension_is_detected_and_its_lines_left_out():
     assert d.data.freq_hz.min() >= cut and d.train.freq_hz.min() >= cut
 
 
+def test_a_suspension_the_line_spacing_does_not_resolve_is_detected():
+    """The suspension's two modes (bounce and pitch) both fall between the first two lines: the receptance,
+    falling as 1/ω⁴ in power, has its maximum at the first line and no peak; the accelerance, flat on the free
+    beam's mass line, rises from the first line to the second and peaks there (held-out 3173's cords at
+    0.51-2.2 Hz, lines 0.365 Hz apart)."""
+    nominal = _nominal()
+    st = nominal.structure()
+    truth = _suspended(nominal, k=0.6)                    # bounce and pitch at 0.24 and 0.41 Hz
+    fa = analysis_modes(truth.structure(), 8).freq_hz
+    f_bounce, f_pitch, f1 = float(fa[0]), float(fa[1]), float(analysis_modes(st, 8).freq_hz[2])
+    df = 0.5 * (0.5 * f_pitch + f_bounce)               # f_pitch / 2 < df < f_bounce
+    f = np.arange(1, 1 + int(600 / df)) * df
+    assert f[0] < f_bounce < f_pitch < f[1]
+    meas = _measured(truth, f)
+    P = np.sum(np.abs(meas.H[:, :, f <= 0.1 * f1]) ** 2, axis=(0, 1))
+    assert np.argmax(P) == 0                             # the receptance alone: no peak to find
+    assert testmodes.suspension_band(st, meas) == pytest.approx(testmodes.SUSPENSION_RATIO * f1, rel=1e-6)
+    # the same lines on the beam measured truly free: nothing to leave out
+    assert testmodes.suspension_band(st, _measured(nominal, f)) is None
+
+
 def test_a_stiff_support_is_not_a_suspension():
     nominal = _nominal()
     f = np.linspace(0.25, 600, 1200)
