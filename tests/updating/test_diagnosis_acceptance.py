@@ -18,9 +18,9 @@ from updating.diagnosis.fit import frf_data
 from updating.diagnosis.priors import _split
 from updating.diagnosis.picks import SUPPORT_PICKS
 from updating.diagnosis.terms import _chi2, cv_folds, inflation, n_obs, significant_gain
-from updating.fe import Spring
+from updating.fe import LumpedMass, Spring
 from updating.fe.models.beams import beam_model
-from test_diagnosis_selection import _case, measured
+from test_diagnosis_selection import RESP, _case, measured
 
 
 def test_one_n_for_every_test():
@@ -244,3 +244,37 @@ def test_a_pick_failing_only_by_its_effect_lets_the_other_kinds_be_fitted(monkey
     said = {x["candidate"]: x["reason"] for x in d.decisions}
     assert "the size of model-form error" in said["spring to ground at 4+Y"], said
     assert reached == [True]
+
+
+def test_a_point_mass_competes_with_the_rotary_inertia_accepted_in_its_place():
+    """The screenings hold the parameters, so one form of added mass can rank above the other there yet fit
+    worse with them (held-out 3111: a rotary inertia named for a point mass).  Here the truth is a 50 g mass at
+    node 4 of the free beam, and a rotary inertia at node 8, ranked first by every screening, stands as the
+    accepted pick: the best screened point mass is fitted as its competitor, fits the training FRFs better by
+    the information criterion, passes the pick's tests and replaces it (without the other form the inertia
+    stands: its screening's close competitors are those that screened nearly as well).  A point mass's other
+    form is a rotary inertia."""
+    nominal = beam_model(10, length=1.0, kind="beam3d", bc="free")
+    nominal.global_ge = 0.01
+    truth = nominal.copy()
+    truth.add_element(LumpedMass(9002, 4, 0.05))
+    meas = measured(truth, np.linspace(5, 900, 600), RESP, ["11+Y", "11+Z"], seed=1)
+    d = wf.Diagnoser(wf.DiagnoserConfig(max_lines=80, progress=lambda m: None))
+    d._t0, d.timings = time.perf_counter(), {}
+    d.baseline(nominal, meas)
+    d.localise()
+    d._options(0)
+    forms = {c.value_name for c, _ in d._other_forms(
+        next(c for c in d._library(d.model0) if c.physics == "added_mass" and c.value_name == "m"), set())}
+    assert forms == {"J"}
+    _, p_scr = d._screens[0]
+    inertia = next(c for c in d._library(d.model0) if c.physics == "added_mass" and c.value_name == "J"
+                   and c.nodes == (8,) and c.dofs[0].endswith("RY"))
+    # the inertia ranked first by every screening, as 17+RZ was on 3111: no screened mass is its close competitor
+    d._screens = [([(inertia, 1e-5, 0.99)] + [t for t in scr if t[0].key != inertia.key], p) for scr, p in d._screens]
+    judged = d._fitted(inertia, 1e-5, p_scr, 0, "the accepted pick")[:7]
+    new, _ = d._settle(judged, [], set(), set(), lambda o, p: False)
+    assert new[1].physics == "added_mass" and new[1].value_name == "m", new[1].label
+    assert new[1].nodes == (4,) and new[0] < judged[0]
+    assert new[3].p[-1] * acceptance._augmented(d.model0, d.params, d.lo, d.hi, [new[1]])[3][-1] == \
+        pytest.approx(0.05, rel=0.1)
