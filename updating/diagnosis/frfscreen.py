@@ -337,7 +337,7 @@ def frf_screen(structure, candidates, data: FRFData, *, loss_factor: float = 0.0
         """The candidate's best value on its grid and the error it leaves, or None (no admissible value)."""
         # rank one costs O(n_s) per value: a fine grid (resonances crossing lines make the error rough in
         # the value); higher ranks a coarse one
-        grid = _value_grid(c, K, M, rows, L, n=61 if L.shape[1] == 1 else 13)
+        grid = _value_grid(c, K, M, rows, L, n=241 if L.shape[1] == 1 else 13)
         if grid.size == 0:
             return None
         Hm = R.meas_cols(L, rows)                                         # (n_m, r, n_s)
