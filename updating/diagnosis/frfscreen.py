@@ -335,8 +335,8 @@ def frf_screen(structure, candidates, data: FRFData, *, loss_factor: float = 0.0
 
     def best(c, rows, L):
         """The candidate's best value on its grid and the error it leaves, or None (no admissible value)."""
-        # rank one costs O(n_s) per value: a fine grid (resonances crossing lines make the error rough in
-        # the value); higher ranks a coarse one
+        # rank one costs O(n_s) per value: a fine grid, 241 values per six decades (a 6 % step: resonances
+        # crossing lines make the error rough in the value); higher ranks a coarse one (13, a factor 2.9)
         grid = _value_grid(c, K, M, rows, L, n=241 if L.shape[1] == 1 else 13)
         if grid.size == 0:
             return None

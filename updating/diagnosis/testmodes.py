@@ -164,8 +164,9 @@ def suspension_band(structure, measured: FRF, band_hz=None) -> float | None:
     dominates the error measure and every screening (a 1/ω² mass line against a resonance).  A spring to ground
     that the model should carry (a support at a tenth of f₁ or above) is not a suspension and keeps its lines.
 
-    The accelerance shows a suspension the line spacing does not resolve: a free article's accelerance is flat
-    there (its mass line, within a factor of 2), while a resonance between two lines raises the one above it
+    The accelerance shows a suspension the line spacing does not resolve: a free article's accelerance there is
+    its mass line, flat and rising towards the first elastic mode without a peak, while a resonance between two
+    lines raises the one above it
     over its neighbours, or the first line over those after it (the first line then counts as a peak); the
     receptance, falling as 1/ω⁴ in power, has its maximum at the first line, where no peak is found (held-out
     3173, seen after its score: cords at 0.51-2.2 Hz measured at 0.365 Hz spacing, the suspension lines left
