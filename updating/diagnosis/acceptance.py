@@ -168,6 +168,8 @@ class _Acceptance(_Picks, _CrossValidation):
                 return None
         supported = rival is not None or (mci_best is not None and c.key == mci_best.key) or self._relieves(c, fr.p)
         judged = self._judge_or_complete((err, c, pm_aug, fr, clo, chi, k), supported, "screening pick")
+        if judged is None and rival is None and self._pick_left and self._mesh_shows(c, pm_aug, fr, clo, chi):
+            return None
         further = set()
         if judged is None and rival is None and (self._pick_left or self._pick_small):
             judged, tried, further = self._after_residual_left(tried, have, (err, c), ref.error, supported)
