@@ -172,15 +172,11 @@ class Diagnoser(_Acceptance, _Options, _Refine, _Proof, _Eliminate):
         again from its steps 1-2 (:meth:`~updating.diagnosis.workflow.Diagnoser.fit`); once per diagnosis.
         A concealed effect decides the comparison without it: held-out 2847 (seen after its score), a T's
         joint of 7.4e5 N·m/rad, the mesh cut in two fits to χ²/N 19.5 against 16 without the joint; with it,
-        the coarse mesh leaves 4.8 (28 % of the residual: rejected), the mesh cut in two 0.15."""
+        the coarse mesh leaves 4.8 (28 % of the residual: rejected), the mesh cut in two 0.17."""
         if self._mesh_checked or self.current:
             return False
         self._mesh_checked = True
-        cfg = self.config
-        D, why = mesh_discrepancy(lambda pm_, d, p0: self._fit(pm_, d, p0, lower=clo, upper=chi,
-                                                               max_nfev=cfg.max_nfev),
-                                  pm_aug.model, pm_aug.parameters, fr.p, self.data, self.train, self.held,
-                                  cfg.penalty)
+        D, why = self._mesh_discrepancy(pm_aug.model, pm_aug.parameters, fr.p, clo, chi)
         if D is None:
             log.info("mesh, with %s in both models: %s: the data stay as measured", c.label, why)
             return False
@@ -188,6 +184,14 @@ class Diagnoser(_Acceptance, _Options, _Refine, _Proof, _Eliminate):
                  c.label, why)
         self._mesh_restart = (D, f"with {c.label} in both models, {why}")
         return True
+
+    def _mesh_discrepancy(self, model: FEModel, params: list, p, lower, upper):
+        """:func:`mesh_discrepancy` of ``model`` (parameters ``params`` at ``p``) on the diagnosis' data, with its
+        MAP fit bounded by ``lower``, ``upper``: ``(D or None, reason)``."""
+        cfg = self.config
+        return mesh_discrepancy(lambda pm_, d, p0: self._fit(pm_, d, p0, lower=lower, upper=upper,
+                                                             max_nfev=cfg.max_nfev),
+                                model, params, p, self.data, self.train, self.held, cfg.penalty)
 
     def _fit(self, *a, **k):
         """A MAP FRF fit with the parameters' priors."""
@@ -245,9 +249,7 @@ class Diagnoser(_Acceptance, _Options, _Refine, _Proof, _Eliminate):
         if not cfg.mesh_correction:
             return
         # the nominal beam mesh's own error taken out of the data, where the data show it (mesh_discrepancy)
-        D, why = mesh_discrepancy(lambda pm_, d, p0: self._fit(pm_, d, p0, lower=self.lo, upper=self.hi,
-                                                               max_nfev=cfg.max_nfev),
-                                  model, params, self.upd.p, self.data, self.train, self.held, cfg.penalty)
+        D, why = self._mesh_discrepancy(model, params, self.upd.p, self.lo, self.hi)
         if D is None:
             log.info("mesh: %s: the data are used as measured", why)
             return
