@@ -17,7 +17,7 @@ from updating.diagnosis import workflow as wf
 from updating.diagnosis.fit import frf_data
 from updating.diagnosis.priors import _split
 from updating.diagnosis.picks import SUPPORT_PICKS
-from updating.diagnosis.terms import _chi2, cv_folds, inflation, n_obs, significant_gain
+from updating.diagnosis.terms import _chi2, cv_folds, held_out_worse, inflation, n_obs, significant_gain
 from updating.fe import LumpedMass, Spring
 from updating.fe.models.beams import beam_model
 from test_diagnosis_selection import RESP, _case, measured
@@ -101,6 +101,21 @@ def test_a_wrong_mci_choice_loses_to_the_pick_that_fits_the_frfs():
     assert picked is not None and picked[0].physics == "ground_spring" and picked[0].dofs == ("4+Y",)
     assert d._rival_fit is not None and d._frf_cur[1].error < d._rival_fit.error
     assert len(d.p_cur) == n + 1
+
+
+def test_a_wrong_explanation_fits_the_held_out_frfs_significantly_worse():
+    """The rule that keeps a better training fit from replacing a choice it cannot match out of sample: the wrong
+    mass fits the held-out FRFs significantly worse than the right spring, not the reverse, and a model is not
+    worse than itself."""
+    d = _diagnoser(True)
+    mass = next(c for c in d._library(d.model0) if c.physics == "added_mass" and 10 in c.nodes and c.value_name != "J")
+    r = d._try(mass, 0.05, 0)
+    d._judge_picks(0, 1, rival=r[:6])
+    wrong = r[2].structure(d._rival_fit.p)
+    right = d._frf_cur[0].structure(d._frf_cur[1].p)
+    assert held_out_worse(wrong, right, d.held, d.config.penalty)[0]
+    assert not held_out_worse(right, wrong, d.held, d.config.penalty)[0]
+    assert not held_out_worse(right, right, d.held, d.config.penalty)[0]
 
 
 def test_no_finding_and_no_rival_swap_on_data_from_the_nominal():

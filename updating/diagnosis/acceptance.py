@@ -15,7 +15,7 @@ from updating.diagnosis.mesh import mesh_error, shift_beyond_mesh
 from updating.diagnosis.screen import mci_update
 from updating.diagnosis.picks import _Picks, RUNNERS_UP
 from updating.diagnosis.crossval import _CrossValidation
-from updating.diagnosis.terms import _another_explanation, _is_support, MIN_FREQ_EFFECT, CLOSE_COMPETITORS, PICK_EXPLAINS, MIN_DAMPING_EFFECT, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, _residual, inflation, significant_gain, n_obs, _augmented
+from updating.diagnosis.terms import _another_explanation, _is_support, MIN_FREQ_EFFECT, CLOSE_COMPETITORS, PICK_EXPLAINS, MIN_DAMPING_EFFECT, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, _residual, inflation, significant_gain, held_out_worse, n_obs, _augmented
 
 log = logging.getLogger(__name__)
 
@@ -131,7 +131,8 @@ class _Acceptance(_Picks, _CrossValidation):
         ``rival``: the criterion's best option (MCI or FRFs), accepted by :meth:`_judge` (``(candidate,
         criterion, pm, p, lower, upper)``).  It is fitted on the training FRFs too (kept as ``_rival_fit``), and
         a pick replaces it only when its training FRF error is lower by the information criterion
-        (N ln(e_rival²/e_pick²) > ``penalty`` ln N, N = :func:`n_obs`) and it passes the tests the rival passed
+        (N ln(e_rival²/e_pick²) > ``penalty`` ln N, N = :func:`n_obs`), it does not fit the held-out FRFs
+        significantly worse (:meth:`_held_worse`) and it passes the tests the rival passed
         (:meth:`_judge_pick` with ``supported``); else None (the rival stands).  ``mci_best``: the candidate the
         MCI ranked and fitted best, rejected by :meth:`_judge` (its MCI-optimal value can be far from the
         FRFs'); the same candidate picked here is supported by the MCI too, so it is judged like a supported
@@ -166,6 +167,8 @@ class _Acceptance(_Picks, _CrossValidation):
                 log.info("screening pick %s (FRF error %.4g) does not beat the criterion's choice %s (%.4g)", c.label,
                          err, rival[0].label, e_r)
                 return None
+            if self._held_worse((c.label, pm_aug, fr.p), (rival[0].label, rival[2], self._rival_fit.p)):
+                return None
         supported = rival is not None or (mci_best is not None and c.key == mci_best.key) or self._relieves(c, fr.p)
         judged = self._judge_or_complete((err, c, pm_aug, fr, clo, chi, k), supported, "screening pick")
         if judged is None and rival is None and self._pick_left and self._mesh_shows(c, pm_aug, fr, clo, chi):
@@ -190,6 +193,15 @@ class _Acceptance(_Picks, _CrossValidation):
         self._record_route(c, fr.p, scr, next((g for o, _, g in scr if o.key == c.key), None))
         return c, alts
 
+    def _held_worse(self, new, old) -> bool:
+        """Whether ``new`` (``(label, pm, p)``), better than ``old`` on the training FRFs, fits the held-out FRFs
+        significantly worse (:func:`held_out_worse`): then it replaces nothing."""
+        worse, why = held_out_worse(new[1].structure(new[2]), old[1].structure(old[2]), self.held, self.config.penalty)
+        if worse:
+            log.info("%s fits the training FRFs better than %s but the held-out FRFs significantly worse (%s): it "
+                     "replaces nothing", new[0], old[0], why)
+        return worse
+
     def _criterion_of(self, pm_aug, fr, clo, chi) -> float:
         """The criterion of an augmented model accepted from its FRF fit ``fr``, the next term's reference: its
         MCI residual (minimised from ``fr``, like every candidate's) on the MCI, its training FRF error² else."""
@@ -202,7 +214,8 @@ class _Acceptance(_Picks, _CrossValidation):
     def _settle(self, judged, tried: list, fitted_for_kind: set, have: set, supports):
         """The accepted pick ``judged`` and its alternatives (:meth:`_alternatives`).  A competitor fitted there
         whose training FRF error is lower than the pick's by the information criterion (N ln(e_pick²/e²) >
-        ``penalty`` ln N) is a better explanation, not an equal one: it is judged by the pick's tests
+        ``penalty`` ln N), and whose held-out FRF error is not significantly higher (:meth:`_held_worse`), is a
+        better explanation, not an equal one: it is judged by the pick's tests
         (:meth:`_judge_or_complete`, ``supports(candidate, p)`` telling whether it is supported) and, when it
         passes, replaces the pick, whose alternatives are then named afresh.  Tuning case 2118, a clamped
         portal whose support at node 10 is elastic: the screening pick, a rotary inertia at 12+RX beside the
@@ -213,8 +226,11 @@ class _Acceptance(_Picks, _CrossValidation):
         err, c, n_eq = judged[3].error, judged[1], n_obs(self.train)     # a completed release: its fit's error
         pen = self.config.penalty
         clamps = self._whole_clamps(c, judged[6])                 # two values each: twice the penalty
-        better = min([t for t in comps if _fits_better(t[0], err, n_eq, pen)] +
-                     [t for t in clamps if _fits_better(t[0], err, n_eq, 2 * pen)], key=lambda t: t[0], default=None)
+        better = [t for t in comps if _fits_better(t[0], err, n_eq, pen)] + \
+            [t for t in clamps if _fits_better(t[0], err, n_eq, 2 * pen)]
+        cur = (c.label, judged[2], judged[3].p)
+        better = min([t for t in better if not self._held_worse((t[1].label, t[2], t[3].p), cur)],
+                     key=lambda t: t[0], default=None)
         if better is None:
             return judged, alts
         log.info("competitor %s fits the training FRFs better than %s by the information criterion (error %.4g "
