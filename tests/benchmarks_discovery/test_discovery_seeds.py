@@ -608,7 +608,7 @@ def test_a_pick_better_on_training_but_worse_held_out_leaves_the_criterions_choi
     flexible about X (1.12e5 N·m/rad).  The MCI's choice, that joint, fitted on the FRFs leaves training χ²/N
     0.30 and held-out 0.45; the screening pick, a joint at node 8, leaves 0.23 on the training FRFs and 2.56 on
     the held-out ones, and replaced it on the training error alone (named four nodes away).  A pick now replaces
-    the criterion's choice only if it does not fit the held-out FRFs significantly worse (found at 83a75dc:
+    the criterion's choice only if it does not fit the held-out FRFs significantly worse (found at ee24823:
     1.40e5 N·m/rad, +25 %)."""
     f = _single_finding(3499, tmp_path)
     assert f["physics"] == "joint_flexibility" and f["dofs"] == ["14+RX"], f["description"]
