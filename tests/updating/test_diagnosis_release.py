@@ -160,13 +160,13 @@ def test_plausible_inertia_fails_with_a_message_on_a_non_finite_mass():
 
 
 def _truth_t_frame(k_joint: float | None, axis: int = 2, *, spring: tuple | None = None,
-                   clamp: tuple | None = None, damped: tuple | None = None):
+                   clamp: tuple | None = None, damped: tuple | None = None, clamp_eta: float = 0.0):
     """The T frame of :func:`_t_frame` (rail end 1 clamped) in the benchmark's independent truth simulator
     (benchmarks/discovery/truthsim.py: Timoshenko beams three times finer, hysteretic loss factor 0.01): the
     post's end at node 3 on a twin node that turns about global ``axis`` (0, 1, 2) on a spring ``k_joint``
     (None: welded rigidly).  ``spring = (node, component 1-6, k, eta)``: a spring to ground with its own
     hysteretic loss.  ``clamp = (k_translation, k_rotation)``: node 1 held by springs in all six components
-    instead of fixed.  ``damped = (element, eta)``: that element of the nominal with loss factor ``eta``."""
+    instead of fixed, each with hysteretic loss factor ``clamp_eta``.  ``damped = (element, eta)``: that element of the nominal with loss factor ``eta``."""
     import sys
     from pathlib import Path
     root = str(Path(__file__).resolve().parents[2])
@@ -205,7 +205,7 @@ def _truth_t_frame(k_joint: float | None, axis: int = 2, *, spring: tuple | None
         t.fix(1)
     else:
         for comp in range(1, 7):
-            t.spring(t.dof(1, comp), None, clamp[0] if comp <= 3 else clamp[1])
+            t.spring(t.dof(1, comp), None, clamp[0] if comp <= 3 else clamp[1], clamp_eta)
     return t
 
 
@@ -248,6 +248,33 @@ def test_a_spring_to_ground_and_its_own_loss_are_one_finding():
     assert [(o.physics, o.dofs) for o, *_ in f.parts] == [("local_damping", ("8+X",))]
     assert f.parts[0][1] == pytest.approx(7.0)
     assert "spring to ground at 8+X" in f.label and "with dashpot to ground at 8+X of 7 N·s/m" in f.label
+
+
+def test_a_released_support_s_own_loss_is_one_loss_factor_on_its_springs():
+    """A clamp's rotations released into springs of one stiffness (2e3 N·m/rad) carry, as a candidate, one loss
+    factor η on those springs (their CELAS GE): its unit matrix is exactly the change of the structural damping
+    matrix per unit η, it is that support's own loss (:func:`loss_of`) and no other term's, and the nominal
+    (nothing released) has none."""
+    from updating.diagnosis.library import loss_of, spring_loss_candidates
+    from updating.fe import ParametricFEModel
+    from updating.fe.assembly import assemble
+    m = _t_frame(clamp=True, ge=0.0)
+    assert spring_loss_candidates(m) == []
+    lib = build_library(m, kinds=["boundary_flexibility"])
+    rot = next(c for c in lib if c.release[2] == (4, 5, 6))
+    tra = next(c for c in lib if c.release[2] == (1, 2, 3))
+    m_aug, pars, scales = _augment(m, [rot])
+    m_k = ParametricFEModel(m_aug, pars).model_at(np.array([2e3 / scales[0]]))
+    (loss,) = spring_loss_candidates(m_k)
+    assert loss.dofs == rot.dofs == ("1+RX", "1+RY", "1+RZ")
+    assert loss_of(loss, rot) and not loss_of(loss, tra)
+    m_l, lpar, _ = _augment(m_k, [loss])
+    pm = ParametricFEModel(m_l, lpar)
+    red = m_k.reduction()
+    assert assemble(pm.model_at(np.array([0.0]))).D is None              # no loss anywhere at η = 0 (ge = 0)
+    D = (red.T.T @ assemble(pm.model_at(np.array([0.03]))).D @ red.T).toarray()
+    np.testing.assert_allclose(0.03 * loss.G.toarray(), D, rtol=1e-12, atol=1e-12 * 2e3)
+    assert np.abs(loss.G.toarray()).max() == pytest.approx(2e3)
 
 
 def test_diagnoser_names_a_joint_from_independent_truth_data():

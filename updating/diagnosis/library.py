@@ -58,6 +58,8 @@ __all__ = ["Candidate", "LocalMatrix", "build_library", "spring_loss_candidates"
 
 #: the group label prefix of the springs to ground the diagnosis adds (its terms, :func:`_dof_candidates`)
 SPRING_GROUP = "diag_k_"
+#: the group label prefix of the springs that hold a support's released components (:func:`_release_spc`)
+SUPPORT_GROUP = "diag_bc_"
 #: the label of a found spring's own loss (:func:`spring_loss_candidates`)
 SPRING_LOSS = "loss factor of the spring to ground at"
 
@@ -321,42 +323,50 @@ def _dof_candidates(ctx: _LibraryContext, kinds) -> list[Candidate]:
 
 
 def spring_loss_candidates(model: FEModel) -> list[Candidate]:
-    """The loss of each spring to ground that the diagnosis has added to ``model`` (a current term).
+    """The loss of each spring to ground that the diagnosis has added to ``model`` (a current term), and of
+    each support it has released (:func:`_release_spc`: the springs that hold a clamp's released components).
 
     A rubber mount, a cord or an elastic support dissipates in proportion to its own deflection: a
     hysteretic ``i η k`` at its DOF, the spring's own structural damping (CELAS ``GE``, on top of PARAM G,
-    which acts on every stiffness).  One value each, η of that spring (bounded to [0, 1]); ``G`` is the
-    spring's stiffness at ``model``, so that the screening's value is η itself.  Without this form the loss
-    of a found spring shows up as a dashpot to ground wherever the spring's own mode moves (on a free frame,
-    anywhere along the spring's direction): a second finding the data do not need."""
-    springs = [e for e in model.elements.values() if isinstance(e, Spring) and e.b is None and
-               e.group.startswith(SPRING_GROUP) and e.k > 0]
+    which acts on every stiffness).  One value each, η of that spring (bounded to [0, 1]; one η for the
+    springs of a support released with one stiffness); ``G`` is the spring's stiffness at ``model``, so that
+    the screening's value is η itself.  Without this form the loss of a found spring shows up as a dashpot
+    to ground wherever the spring's own mode moves (on a free frame, anywhere along the spring's direction),
+    and an elastic clamp's loss as a dashpot up the member it holds (held-out AW 3639, a portal's foot): a
+    second finding the data do not need."""
+    springs = [e for e in model.elements.values() if isinstance(e, Spring) and e.b is None and e.k > 0 and
+               e.group.startswith((SPRING_GROUP, SUPPORT_GROUP))]
     if not springs:
         return []
-    ctx, out = _LibraryContext(model, None), []
+    ctx, out, groups = _LibraryContext(model, None), [], {}
     for e in springs:
-        n, comp = int(e.a[0]), int(e.a[1])
-        G = ctx.dof_G([(n, comp)])
-        if G is None:
+        groups.setdefault(e.group if e.group.startswith(SUPPORT_GROUP) else e.eid, []).append(e)
+    for group, els in groups.items():
+        keys = [(int(e.a[0]), int(e.a[1])) for e in els]
+        G = ctx.dof_G(keys)
+        if G is None or len({e.k for e in els}) != 1:
             continue
-        lbl = f"{n}+{DIRECTION_NAMES[comp]}"
+        lbl = ", ".join(f"{n}+{DIRECTION_NAMES[c]}" for n, c in keys)
 
-        def add_loss(m, eid, n=n, comp=comp, lbl=lbl):
+        def add_loss(m, eid, keys=tuple(keys), lbl=lbl):
             hit = [x for x in m.elements.values() if isinstance(x, Spring) and x.b is None and
-                   tuple(x.a) == (n, comp) and x.group.startswith(SPRING_GROUP)]
-            if not hit:
+                   (int(x.a[0]), int(x.a[1])) in keys and x.group.startswith((SPRING_GROUP, SUPPORT_GROUP))]
+            if len(hit) != len(keys):
                 raise ModalabValueError(f"{SPRING_LOSS} {lbl}: the model has no spring to ground there (its "
                                         "spring must be a term before its loss)")
-            return m, Parameter(f"ge_{n}_{comp}", "ge", elements=(hit[-1].eid,), mode="value"), 1.0
-        out.append(Candidate("local_damping", f"{SPRING_LOSS} {lbl}", (n,), (lbl,), (), "eta",
-                             _unit("local_damping", matrix="D"), "D", True, add_loss,
-                             LocalMatrix(G.rows, G.block * float(e.k), G.n), upper=1.0))
+            name = "_".join(f"{n}_{c}" for n, c in keys)
+            return m, Parameter(f"ge_{name}", "ge", elements=tuple(x.eid for x in hit), mode="value"), 1.0
+        out.append(Candidate("local_damping", f"{SPRING_LOSS} {lbl}", (keys[0][0],), tuple(lbl.split(", ")), (),
+                             "eta", _unit("local_damping", matrix="D"), "D", True, add_loss,
+                             LocalMatrix(G.rows, G.block * float(els[0].k), G.n), upper=1.0))
     return out
 
 
 def loss_of(c: Candidate, spring: Candidate) -> bool:
-    """Whether ``c`` is the own loss (:func:`spring_loss_candidates`) of the spring to ground ``spring``."""
-    return spring.physics == "ground_spring" and c.label.startswith(SPRING_LOSS) and tuple(c.dofs) == tuple(spring.dofs)
+    """Whether ``c`` is the own loss (:func:`spring_loss_candidates`) of the spring to ground or the released
+    support ``spring``."""
+    return (spring.physics in ("ground_spring", "boundary_flexibility") and c.label.startswith(SPRING_LOSS)
+            and tuple(c.dofs) == tuple(spring.dofs))
 
 
 def _damping_groups(model: FEModel, group_size: int) -> list[tuple]:
@@ -442,7 +452,7 @@ def _release_spc(m, eid, spc, group):
         if rest:
             m.add_spc(s.node, "".join(map(str, rest)))
     for k, c in enumerate(group):
-        m.add_element(Spring(eid + k, a=(spc.node, c), b=None, k=0.0, group=f"diag_bc_{eid}"))
+        m.add_element(Spring(eid + k, a=(spc.node, c), b=None, k=0.0, group=f"{SUPPORT_GROUP}{eid}"))
     m._changed()
     return m, Parameter(f"kbc_{spc.node}_{''.join(map(str, group))}", "k",
                         elements=tuple(eid + k for k in range(len(group))), mode="value"), 1.0

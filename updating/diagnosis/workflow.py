@@ -155,7 +155,6 @@ class Diagnoser(_Acceptance, _Options, _Refine, _Proof, _Eliminate):
             self.timings.update(kept)
             self.timings["mesh restart"] = first + (self._t1 - t_r)
             self._screen_all()
-        self._refine_supports()
         self.timings["3-4 localise+name"] = time.perf_counter() - self._t1
         self.model()
         self.diagnosis_ = self.prove()
@@ -163,10 +162,12 @@ class Diagnoser(_Acceptance, _Options, _Refine, _Proof, _Eliminate):
         return self
 
     def _screen_all(self):
-        """Steps 3-4 term by term (:meth:`screen`) until one finds nothing."""
+        """Steps 3-4 term by term (:meth:`screen`) until one finds nothing; an accepted support release is
+        completed (:meth:`~updating.diagnosis.refine._Refine._refine_supports`) before the next term is sought."""
         for it in range(self.config.max_findings):
             if not self.screen(it):
                 break
+            self._refine_supports()
 
     def _mesh_shows(self, c, pm_aug, fr, clo, chi) -> bool:
         """Whether the nominal mesh's error shows once the best pick ``c`` (fitted: ``pm_aug`` at ``fr.p``,
@@ -327,7 +328,7 @@ class Diagnoser(_Acceptance, _Options, _Refine, _Proof, _Eliminate):
         self.pm_cur, self.lo_cur, self.hi_cur = self.pm, self.lo, self.hi
         self._frf_cur = (self.pm, self.upd)             # the current model fitted on the FRFs
         self._screens, self._route, self.not_evaluated, self._tension_keys, self._tension_notes = [], {}, [], set(), {}
-        self._rival_fit = None
+        self._rival_fit, self._refined = None, set()
         self._displaced = None                          # the MCI's accepted choice a screening pick replaced
         self._observability()
         self.ranking, self.hot_nodes, self.n_lib = None, [], 0
