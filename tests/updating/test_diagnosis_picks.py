@@ -1,4 +1,4 @@
-"""Which fitted picks have their neighbouring places fitted too (:meth:`_Picks._kind_bests`)."""
+"""Which fitted picks have their neighbouring places fitted too (:meth:`_Picks._kind_bests`), and which\nrunners-up are fitted (:meth:`_Picks._with_each_direction`)."""
 from __future__ import annotations
 
 from types import SimpleNamespace
@@ -66,3 +66,20 @@ def test_the_mass_a_density_absorbed_is_its_excess_times_its_elements_mass():
     assert kg == pytest.approx(0.1 * want, rel=1e-9)
     assert nodes == {3, 4, 5}
     assert absorbed_mass(pm, np.array([1.0, 1.3]), np.array([1.0, 1.0]), [0])[0] == pytest.approx(0.0, abs=1e-15)
+
+
+def _k(dof: str):
+    return SimpleNamespace(key=f"k@{dof}", dofs=(dof,), label=f"spring to ground at {dof}")
+
+
+def test_runners_up_are_the_first_ones_then_the_best_of_each_direction_they_leave_out():
+    """Held-out case 3747's screening (set AY): after the pick 6+RY, seven springs in RY and X along the arm,
+    then the truth 11+Z twelfth; the first seven are kept in order, and the best Z and Y are added (11+Z, not
+    12+Z; 4+Y, not 5+Y); a direction the pick or the first ones have adds nothing."""
+    ranked = [(_k(d), 1.0) for d in ("9+RY", "5+RY", "7+X", "8+X", "10+RY", "9+X", "12+X", "11+X", "10+X", "3+RY",
+                                     "11+Z", "12+Z", "4+Y", "5+Y", "2+RY")]
+    got = [o.dofs[0] for o, _ in _Picks._with_each_direction(ranked, _k("6+RY"), 7)]
+    assert got == ["9+RY", "5+RY", "7+X", "8+X", "10+RY", "9+X", "12+X", "11+Z", "4+Y"]
+    assert [o.dofs[0] for o, _ in _Picks._with_each_direction(ranked[:7], _k("6+RY"), 7)] == got[:7]
+    # a pick in Z: no Z runner-up beyond the first ones
+    assert "11+Z" not in [o.dofs[0] for o, _ in _Picks._with_each_direction(ranked, _k("1+Z"), 7)]
