@@ -166,6 +166,7 @@ class _Acceptance(_Picks, _CrossValidation):
             if not _fits_better(err, e_r, n_eq, cfg.penalty):
                 log.info("screening pick %s (FRF error %.4g) does not beat the criterion's choice %s (%.4g)", c.label,
                          err, rival[0].label, e_r)
+                self._rival_alts = self._tied_with(rival, self._rival_fit, tried)
                 return None
             if self._held_worse((c.label, pm_aug, fr.p), (rival[0].label, rival[2], self._rival_fit.p)):
                 return None

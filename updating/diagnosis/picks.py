@@ -165,6 +165,18 @@ class _Picks:
         near = self._with_each_direction(ranked, c, RUNNERS_UP)
         return self._fitted_each([(o, v, p_scr, k, f"runner-up of {c.label} ({best[0]:.4g})") for o, v in near])
 
+    def _tied_with(self, rival, fit, tried: list) -> list:
+        """The fitted picks ``tried`` elsewhere that the criterion's choice ``rival`` (``(candidate, criterion, pm,
+        ...)``, fitted on the training FRFs at ``fit``), standing, does not fit significantly better (the test
+        of a term, :meth:`~updating.diagnosis.acceptance._Acceptance._margin`): its alternatives, as
+        ``[(candidate, value)]``.  The data cannot tell them from it: held-out case 3737 (set AY), a spring at
+        17+X on a ladder frame's rail, named at 19+X "or" 21+X, 22+X (the criterion's options within its
+        margin) while springs at 12+X to 22+X, fitted as picks, all left training error 0.005429."""
+        c, worse = rival[0], self._margin(rival[2], fit)
+        m_now = rival[2].model_at(fit.p)
+        return [(o, float(fr.p[-1] * scale)) for _, o, pm_o, fr, *_, scale in tried
+                if o.key != c.key and _another_explanation(o, c, m_now) and not worse(pm_o, fr.p)]
+
     @staticmethod
     def _with_each_direction(ranked: list, c, n: int) -> list:
         """The first ``n`` of ``ranked`` (``[(candidate, value)]``, best screened first), then the best of each

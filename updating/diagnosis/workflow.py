@@ -372,7 +372,7 @@ class Diagnoser(_Acceptance, _Options, _Refine, _Proof, _Eliminate):
         a free frame), which the exact screening sees.  A first term that passes, on either criterion, competes
         with those picks on the training FRFs (``rival``; AH 2717: a mass named a rotary inertia elsewhere)."""
         cfg = self.config
-        self._rival_fit, self._option_fits = None, {}
+        self._rival_fit, self._option_fits, self._rival_alts = None, {}, []
         options = self._options(it)
         best, evaluated = None, []
         best = self._run_options(options, it, best, evaluated)
@@ -408,6 +408,7 @@ class Diagnoser(_Acceptance, _Options, _Refine, _Proof, _Eliminate):
                     if o.key != c.key and (o.physics, o.value_name) not in failed
                     and _another_explanation(o, c, self.pm_cur.model_at(self.p_cur))
                     and r - self.rss_cur <= margin]
+            alts += [t for t in self._rival_alts if t[0].key not in {o.key for o, _ in alts}]   # picks fitted as well
             self._route[c.key] = (next((g for o, _, g in (self.ranking or []) if o.key == c.key), 0.0), self.use_mci,
                                   None)
         elif self.use_mci and (not self.current or self._displaced is not None):
