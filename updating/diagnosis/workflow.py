@@ -402,8 +402,7 @@ class Diagnoser(_Acceptance, _Options, _Refine, _Proof, _Eliminate):
                 self._frf_cur = (self.pm_cur, self._rival_fit)
             else:
                 self._frf_cur = None                   # the FRF fit of the new current model, when needed
-            # equally good explanations elsewhere: within the information criterion's margin of the best
-            margin = self.rss_cur * cfg.penalty * np.log(n_eq) / n_eq
+            margin = self.rss_cur * cfg.penalty * np.log(n_eq) / n_eq      # equally good elsewhere: within this
             alts = [(o, v) for o, r, v in sorted(evaluated, key=lambda t: t[1])
                     if o.key != c.key and (o.physics, o.value_name) not in failed
                     and _another_explanation(o, c, self.pm_cur.model_at(self.p_cur))
