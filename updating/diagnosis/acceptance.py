@@ -13,7 +13,7 @@ import numpy as np
 
 from updating.diagnosis.mesh import mesh_error, shift_beyond_mesh
 from updating.diagnosis.screen import mci_update
-from updating.diagnosis.picks import _Picks, RUNNERS_UP
+from updating.diagnosis.picks import _Picks, RUNNERS_UP, equal_fits
 from updating.diagnosis.crossval import _CrossValidation
 from updating.diagnosis.terms import _another_explanation, _is_support, MIN_FREQ_EFFECT, CLOSE_COMPETITORS, PICK_EXPLAINS, MIN_DAMPING_EFFECT, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, _residual, inflation, significant_gain, held_out_worse, n_obs, _augmented
 
@@ -457,10 +457,7 @@ class _Acceptance(_Picks, _CrossValidation):
         infl = max(margin.infl, 1.0)
         need = cfg.penalty * np.log(max(n_eq / infl, 2.0))
         seen = {o.key for o, _ in alts} | {c.key} | {x.key for x in self.current}
-        out = []
-        for err, o, pm_o, fr, *_, scale in tried:
-            if o.key not in seen and _another_explanation(o, c, m_now) and not margin(pm_o, fr.p):
-                out.append((o, float(fr.p[-1] * scale)))
+        out = equal_fits(c, tried, m_now, margin, seen)
         done = {o.key for _, o, *_ in tried}            # fitted once already: not again as a competitor
         seen |= done
         scr = self._screens[k][0]

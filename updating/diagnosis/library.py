@@ -346,7 +346,8 @@ def spring_loss_candidates(model: FEModel) -> list[Candidate]:
         G = ctx.dof_G(keys)
         if G is None or len({e.k for e in els}) != 1:
             continue
-        lbl = ", ".join(f"{n}+{DIRECTION_NAMES[c]}" for n, c in keys)
+        dofs = tuple(f"{n}+{DIRECTION_NAMES[c]}" for n, c in keys)
+        lbl = ", ".join(dofs)
 
         def add_loss(m, eid, keys=tuple(keys), lbl=lbl):
             hit = [x for x in m.elements.values() if isinstance(x, Spring) and x.b is None and
@@ -356,7 +357,7 @@ def spring_loss_candidates(model: FEModel) -> list[Candidate]:
                                         "spring must be a term before its loss)")
             name = "_".join(f"{n}_{c}" for n, c in keys)
             return m, Parameter(f"ge_{name}", "ge", elements=tuple(x.eid for x in hit), mode="value"), 1.0
-        out.append(Candidate("local_damping", f"{SPRING_LOSS} {lbl}", (keys[0][0],), tuple(lbl.split(", ")), (),
+        out.append(Candidate("local_damping", f"{SPRING_LOSS} {lbl}", (keys[0][0],), dofs, (),
                              "eta", _unit("local_damping", matrix="D"), "D", True, add_loss,
                              LocalMatrix(G.rows, G.block * float(els[0].k), G.n), upper=1.0))
     return out

@@ -41,6 +41,14 @@ SUPPORT_PICKS = 2
 TENSION_PICKS = 4
 
 
+def equal_fits(c, tried: list, m_now, worse, seen: set) -> list:
+    """The picks of ``tried`` (``(error, candidate, pm, FitResult, ..., scale)``) elsewhere than ``c`` (another
+    explanation at ``m_now``), not in ``seen``, that ``c``'s fit does not beat: ``worse(pm, p)`` false (the test
+    of a term, :meth:`~updating.diagnosis.acceptance._Acceptance._margin`).  ``[(candidate, value)]``."""
+    return [(o, float(fr.p[-1] * scale)) for _, o, pm_o, fr, *_, scale in tried
+            if o.key not in seen and _another_explanation(o, c, m_now) and not worse(pm_o, fr.p)]
+
+
 def absorbed_mass(pm, p, mean, idx) -> tuple[float, set]:
     """The translational mass (kg) that the density parameters ``idx`` of ``pm`` add at ``p`` beyond their
     ``mean`` values, Σ (p_i − mean_i) xᵀ (∂M/∂p_i) x with x a unit rigid translation (along the model's
@@ -172,10 +180,7 @@ class _Picks:
         ``[(candidate, value)]``.  The data cannot tell them from it: held-out case 3737 (set AY), a spring at
         17+X on a ladder frame's rail, named at 19+X "or" 21+X, 22+X (the criterion's options within its
         margin) while springs at 12+X to 22+X, fitted as picks, all left training error 0.005429."""
-        c, worse = rival[0], self._margin(rival[2], fit)
-        m_now = rival[2].model_at(fit.p)
-        return [(o, float(fr.p[-1] * scale)) for _, o, pm_o, fr, *_, scale in tried
-                if o.key != c.key and _another_explanation(o, c, m_now) and not worse(pm_o, fr.p)]
+        return equal_fits(rival[0], tried, rival[2].model_at(fit.p), self._margin(rival[2], fit), {rival[0].key})
 
     @staticmethod
     def _with_each_direction(ranked: list, c, n: int) -> list:

@@ -41,12 +41,12 @@ class _Refine:
         fitted soft was first paired with a spring beside it that the translations then could not beat
         (held-out AW 3619: the rotation about X 43 % soft and a spring to ground at 2+Y, two findings)."""
         for c in list(self.current):
-            if not _is_support(c):
+            if not _is_support(c) or c.key in self._refined:
                 continue
+            self._refined.add(c.key)
             o = self._complement(c)
-            if o is None or (c.key, o.key) in self._refined:
+            if o is None:
                 continue
-            self._refined.add((c.key, o.key))
             v = self._screened_value(o)
             pm_aug, fr, clo, chi, scale = self._fit_pick(o, v, self.p_cur)
             ok, why = self._judge_pick(o, pm_aug, fr, clo, chi, supported=True, part=True)
