@@ -116,3 +116,29 @@ def test_a_map_fit_is_covered_with_the_prior_term():
         cov = _map_coverage(rho)
         assert np.all(np.abs(cov - 0.683) <= _band()), (rho, cov)
     assert np.all(_map_coverage(0.0, with_prior_term=False) < 0.3)
+
+
+def test_a_parameter_without_effect_leaves_the_reml_estimate_and_the_others_std_unchanged():
+    """A Jacobian column that is zero (a parameter the FRFs do not feel) or repeats another made ``JᵀR⁻¹J``
+    singular: its log-determinant −∞ turned the REML objective non-finite and the bounded search's ρ arbitrary
+    (a clamped post's completed support release, seen as scipy's "invalid value encountered" warning).  REML
+    depends on the regressors' column space only: the same ρ and σ² with or without such columns, no warning,
+    and the std of the parameters the data do determine unchanged (the other ``inf``)."""
+    import warnings
+    X = _regressors()
+    rng = np.random.default_rng(11)
+    e = _ar1(rng, 0.9)
+    r = e - X @ np.linalg.lstsq(X, e, rcond=None)[0]
+    rr = r.reshape(2, N_LINES)
+    base = reml_ar1(rr, X.reshape(2, N_LINES, 2))
+    for extra in (np.zeros((2 * N_LINES, 1)), X[:, :1] * 3.0):
+        Xe = np.hstack([X, extra])
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            got = reml_ar1(rr, Xe.reshape(2, N_LINES, 3))
+        np.testing.assert_allclose(got, base, rtol=1e-6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        std = correlated_std(r, np.hstack([X, np.zeros((2 * N_LINES, 1))]), (1, 1, N_LINES))
+    np.testing.assert_allclose(std[:2], correlated_std(r, X, (1, 1, N_LINES)), rtol=1e-6)
+    assert std[2] == np.inf
