@@ -15,7 +15,7 @@ from updating.diagnosis.mesh import mesh_error, shift_beyond_mesh
 from updating.diagnosis.screen import mci_update
 from updating.diagnosis.picks import _Picks, RUNNERS_UP, equal_fits
 from updating.diagnosis.crossval import _CrossValidation
-from updating.diagnosis.terms import _another_explanation, _is_support, MIN_FREQ_EFFECT, CLOSE_COMPETITORS, PICK_EXPLAINS, MIN_DAMPING_EFFECT, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, _residual, inflation, significant_gain, held_out_worse, n_obs, _augmented
+from updating.diagnosis.terms import _another_explanation, _is_support, MIN_FREQ_EFFECT, CLOSE_COMPETITORS, PICK_EXPLAINS, MIN_DAMPING_EFFECT, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, _residual, inflation, significant_gain, rows_worse, held_out_worse, n_obs, _augmented
 
 log = logging.getLogger(__name__)
 
@@ -344,17 +344,22 @@ class _Acceptance(_Picks, _CrossValidation):
     def _margin(self, pm_aug, fr):
         """The accepted pick's fit (``pm_aug`` at ``fr.p``) as the measure of an equally good explanation: a
         function ``worse(pm_o, p_o) -> bool`` telling whether another explanation, fitted with the parameters,
-        fits the training FRFs significantly worse by the one significance test of a term
+        fits the training FRFs significantly worse: by the one significance test of a term
         (:func:`~updating.diagnosis.terms.significant_gain` on χ² in noise units: scaled by the reduced χ² the
         pick leaves when above the noise, and by its residual's correlation over lines, as when the pick was
-        accepted).  Where model-form error dominates the residual (χ²/N 8 after a right spring on a T-joint,
-        even seed 1598), a fraction of a percent of FRF error between two places is no evidence: the finding is
+        accepted) and on more FRF rows than chance allows (:func:`~updating.diagnosis.terms.rows_worse`; the
+        likelihood ratio alone where the rows are too few to decide).  Where model-form error dominates the
+        residual (χ²/N 8 after a right spring on a T-joint, even seed 1598), a fraction of a percent of FRF error
+        between two places is no evidence, nor a χ² difference that half the rows contradict: the finding is
         ambiguous between them, not a choice of the first.  Also ``infl``, the pick residual's inflation."""
         r_c = _residual(pm_aug.structure(fr.p), self.train)
         c_c, n, infl = float(np.sum(np.abs(r_c) ** 2)), n_obs(self.train), inflation(r_c)
 
         def worse(pm_o, p_o) -> bool:
-            return significant_gain(_chi2(pm_o.structure(p_o), self.train)[0], c_c, n, infl, self.config.penalty)[0]
+            r_o = _residual(pm_o.structure(p_o), self.train)
+            if not significant_gain(float(np.sum(np.abs(r_o) ** 2)), c_c, n, infl, self.config.penalty)[0]:
+                return False
+            return rows_worse(r_o, r_c) is not False
 
         worse.infl = infl
         return worse
