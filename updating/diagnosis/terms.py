@@ -212,9 +212,9 @@ def rows_worse(r_o: np.ndarray, r_c: np.ndarray) -> bool | None:
     The likelihood ratio treats a χ² difference as that of nested models; between two non-nested ones it can be
     large and still carried by a few rows while the others prefer the other place (held-out case 3835, set AZ:
     a planar frame's joint at 8+RZ fitted to χ²/N 1.12 against 1.06 at 16+RZ, χ² 1401 apart, but worse on 19 of
-    36 rows, p 0.43: "16 or 8").  Counting rows rather than weighing values keeps the test's size where the
-    difference sits at a few resonances (Vuong's z over the values had no power there: tuning 3288's local
-    damping, χ²/N 0.04, got rotary inertias at 7.5 as alternatives, yet they are worse on 60 of 60 rows) and
+    36 rows, p 0.43: "16 or 8").  Counting rows rather than weighing values keeps the test's power where the
+    difference sits at a few resonances (Vuong's z over the values had none there: tuning 3288's local damping,
+    χ²/N 0.04, got rotary inertias at 7.5 as alternatives, yet they are worse on 60 of 60 rows) and its size
     where the lines of a row are correlated: the rows' noise is independent."""
     d = (np.abs(r_o) ** 2 - np.abs(r_c) ** 2).reshape(-1, np.shape(r_c)[-1]).sum(axis=1)
     tol = 1e-9 * float(np.max(np.abs(d), initial=0.0))
