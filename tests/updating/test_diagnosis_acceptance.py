@@ -8,6 +8,7 @@ The synthetic case is that of ``test_diagnosis_selection.py`` (own model, not a 
 from __future__ import annotations
 
 import time
+from math import comb
 
 import numpy as np
 import pytest
@@ -74,7 +75,7 @@ def test_two_places_that_fit_equally_well_are_told_apart_at_the_stated_rate():
     is told apart however small and correlated its misfit; with 5 rows or fewer (all worse has probability
     1/32 ≥ 2.5 %) the rows cannot decide and the test says so (``None``); identical residuals neither."""
     x = np.linspace(0.0, 1.0, 200)
-    size = sum(__import__("math").comb(12, k) for k in (10, 11, 12)) / 2 ** 12
+    size = sum(comb(12, k) for k in (10, 11, 12)) / 2 ** 12
     band = 3.5 * np.sqrt(size * (1 - size) / 800)
     assert size <= ROWS_LEVEL
     for rho in (0.0, 0.9):
