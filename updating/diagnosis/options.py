@@ -17,6 +17,10 @@ from updating.diagnosis.terms import DAMPING_PLACES, _distinct_places, _dof_stif
 
 log = logging.getLogger(__name__)
 
+#: a release whose stiffness is this many times the structure's own at its DOF is the rigid connection of the
+#: nominal (its flexibility changes the local compliance by a millionth): the bound of its MCI fit
+RIGID_RELEASE = 1e6
+
 
 class _Options:
 
@@ -85,6 +89,18 @@ class _Options:
                     and c.key not in have]
         return [(c, th) for c, th in options if c.key not in self._hidden]
 
+    def _rigid_bound(self, c, chi, scale) -> np.ndarray:
+        """``chi`` with the released stiffness of ``c`` bounded at :data:`RIGID_RELEASE` times the larger of the
+        structure's median and its own DOF's diagonal stiffness (:func:`_dof_stiffness`): stiffer, the release is
+        the rigid connection of the nominal.  Unbounded, the MCI iteration of a release the data do not want
+        runs its stiffness up by decades per step (control CT 2242: a joint of a post's arm at 1.4e107, where
+        the derivative columns overflow)."""
+        K = self.pm_cur.structure(self.p_cur).K
+        kd = max(float(np.median(np.abs(K.diagonal()))), _dof_stiffness(self.pm_cur.structure(self.p_cur), c))
+        out = np.array(chi, float)
+        out[-1] = min(out[-1], RIGID_RELEASE * kd / scale)
+        return out
+
     def _start_value(self, c, pm_aug, p_par, prev) -> float:
         """A start value for a candidate without one: on the MCI, the best of six decades around the median
         stiffness; on the FRFs, the error (in a Ritz basis when large) over six decades around the stiffness
@@ -114,6 +130,8 @@ class _Options:
         n = len(self.params)
         pm_aug, clo, chi, scales = _augmented(self.model0, self.params, self.lo, self.hi, self.current + [c])
         prev = list(self.p_cur[n:])
+        if self.use_mci and c.release is not None:
+            chi = self._rigid_bound(c, chi, scales[-1])
         p_aug, rss_aug = None, np.inf
         try:
             values = [th]
@@ -149,6 +167,9 @@ class _Options:
             log.warning("candidate %s could not be evaluated (%s): it is left out of the comparison", c.label, e)
             self.not_evaluated.append({"candidate": c.label, "physics": c.physics, "reason": str(e)})
             return None
+        if self.use_mci and c.release is not None and p_aug is not None and p_aug[-1] >= chi[-1] * (1 - 1e-9):
+            log.info("candidate %s: the MCI fit holds it rigid (%.3g, %.0e times the stiffness at its DOF): "
+                     "no release", c.label, p_aug[-1] * scales[-1], RIGID_RELEASE)
         log.info("candidate %s: %s %.4g (current %.4g)", c.label, "MCI residual" if self.use_mci else
                  "FRF error²", rss_aug, self.rss_cur)
         return None if p_aug is None else (c, rss_aug, pm_aug, p_aug, clo, chi, scales[-1])
