@@ -690,9 +690,9 @@ def test_two_joints_that_half_the_rows_prefer_each_are_one_ambiguous_finding(tmp
 def test_a_release_the_data_do_not_want_stays_rigid_in_the_mci(tmp_path):
     """Tuning control 2242 (even seed; a clamped post with an arm, parameter and model-form error only): the MCI fit
     of the arm's joint about RZ at node 7, which the data do not want released, ran its stiffness up by decades
-    per step to 1.4e107 (scaled), where the derivative columns of the E and density of the post overflowed
-    (numpy's RuntimeWarning; their steps became 0 and the fit went on).  A release is now bounded at 1e6 times the
-    stiffness at its DOF (``options.RIGID_RELEASE``: stiffer, it is the nominal's rigid connection): the same
+    per step to 1.4e107 (scaled), where the derivative columns of the post's E and density and of the global loss
+    factor overflowed (numpy's RuntimeWarning; their steps became 0 and the fit went on).  A release is now bounded
+    at 1e6 times the stiffness at its DOF (``options.RIGID_RELEASE``: stiffer, it is the nominal's rigid connection): the same
     diagnosis, no finding, and no overflow anywhere (warnings are errors here)."""
     import warnings
 
