@@ -95,8 +95,8 @@ class _Options:
         the rigid connection of the nominal.  Unbounded, the MCI iteration of a release the data do not want
         runs its stiffness up by decades per step (control CT 2242: a joint of a post's arm at 1.4e107, where
         the derivative columns overflow)."""
-        K = self.pm_cur.structure(self.p_cur).K
-        kd = max(float(np.median(np.abs(K.diagonal()))), _dof_stiffness(self.pm_cur.structure(self.p_cur), c))
+        structure = self.pm_cur.structure(self.p_cur)
+        kd = max(float(np.median(np.abs(structure.K.diagonal()))), _dof_stiffness(structure, c))
         out = np.array(chi, float)
         out[-1] = min(out[-1], RIGID_RELEASE * kd / scale)
         return out
