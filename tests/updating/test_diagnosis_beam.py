@@ -38,9 +38,15 @@ def _run(k):
     return _cache[k]
 
 
-@pytest.mark.parametrize("k", [100.0, 1000.0])
+@pytest.mark.parametrize("k", [1000.0])
 def test_thesis_beam_cords_are_named(k):
-    diag, meas = _run(k)
+    """The 1000 N/m cords; the 100 N/m ones are checked so in the two-process test
+    (tests/updating/test_diagnosis_parallel.py), which diagnoses them anyway."""
+    assert_cords_named(*_run(k), k)
+
+
+def assert_cords_named(diag, meas, k):
+    """Both cords named as grounded springs within 20 %, the low band fitted, the held-out error cut 3 times."""
     found = {tuple(f.candidate.dofs): f for f in diag.findings}
     assert set(found) == {("1+Z",), ("10+Z",)}, [f.candidate.label for f in diag.findings]
     for f in found.values():
