@@ -21,7 +21,7 @@ import difflib
 import time
 from typing import Sequence
 
-from modalab.core.dof import locate
+from modalab.core.dof import locate, parse_dofs
 from modalab.core.errors import DofError, PlanError
 
 from .hammer import Hammer
@@ -54,13 +54,15 @@ def _faults(spec, source: str) -> FaultConfig | None:
 
 
 def lab_from_sim(sim: dict, structure, *, channel_names: Sequence[str] = (), automatic: bool = False,
-                 seed: int | None = None, source: str = "plan", dofs: Sequence = ()) -> SimulatedLab:
+                 seed: int | None = None, source: str = "plan", dofs: Sequence = (),
+                 hammer_points: Sequence = ()) -> SimulatedLab:
     """The simulated lab a plan's ``[sim]`` section describes, on ``structure`` (a Structure or ModalModel).
 
     ``channel_names``: the plan's channel names (``dead``/``noisy`` must name them); ``automatic``: the plan
     has an automatic hammer (``[hammer] url = "simhammer://..."``); ``seed`` overrides ``sim['seed']``;
     ``source`` (the plan file) prefixes error messages; ``dofs`` (the plan's points and fixed sensor DOFs)
-    must exist in the structure, checked now so that a wrong label fails before a session folder is made.
+    must exist in the structure, checked now so that a wrong label fails before a session folder is made;
+    ``hammer_points``: the points a roving hammer will visit (:class:`SimulatedLab`'s, a speed-up only).
     """
     names = list(channel_names)
     dead = set(sim.get("dead", []))
@@ -80,7 +82,7 @@ def lab_from_sim(sim: dict, structure, *, channel_names: Sequence[str] = (), aut
                        rng=seed,
                        hit_interval_s=float(sim.get("hit_interval_s", 0.0)),
                        sleep=time.sleep if sim.get("realtime") else None)
-    for d in dofs:
+    for d in list(dofs) + list(hammer_points):
         try:
             locate(lab.model.dofs, [d], "DOF")
         except DofError:
@@ -88,6 +90,7 @@ def lab_from_sim(sim: dict, structure, *, channel_names: Sequence[str] = (), aut
             raise PlanError(f"{source}: DOF {d} is not in the simulated structure (nodes {nodes[0]}..{nodes[-1]}, "
                             f"{len(nodes)} in all); fix the label or set [sim] structure to the structure the plan "
                             "was written for") from None
+    lab.hammer_points = parse_dofs(hammer_points)
     if dead or noisy:
         base_configure = lab.configure
 

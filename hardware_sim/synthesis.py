@@ -54,6 +54,7 @@ __all__: list[str] = []
 log = logging.getLogger("hardware_sim.lab")     # the lab's logger, as before the split
 
 _GUARD = 32          # samples between the pretrigger and the nominal hit (room for pre-ringing)
+_PREPARE_BYTES = 512 * 2 ** 20      # FRF columns computed in one pass over the synthesis grid (prepare)
 
 
 class _HitSynthesis:
@@ -165,8 +166,10 @@ class _HitSynthesis:
             for d in [p] + self._rotations(p):
                 if d not in self._cache and d not in want:
                     want.append(d)
-        for a in range(0, len(want), 32):
-            batch = want[a:a + 32]
+        # batches of at most _PREPARE_BYTES of FRF columns: every batch is one pass over the grid's lines
+        per = max(1, int(_PREPARE_BYTES // (16 * max(len(self.response_dofs), 1) * self._freq.size)))
+        for a in range(0, len(want), per):
+            batch = want[a:a + per]
             H = self.model.frf(self._freq, responses=self.response_dofs, references=batch,
                                quantity="accelerance", chunk=8192).H
             for j, d in enumerate(batch):
@@ -175,7 +178,8 @@ class _HitSynthesis:
     def _column(self, dof: Dof) -> np.ndarray:
         """Exact accelerance from ``dof`` to every response channel on the synthesis grid (cached)."""
         if dof not in self._cache:
-            self.prepare([dof])
+            # with the points the hammer will visit (SimulatedLab's hammer_points): one pass over the grid
+            self.prepare([dof] + [p for p in self.hammer_points if p not in self._cache])
         return self._cache[dof]
 
     def _synthesise(self, p: dict) -> TimeRecord | None:

@@ -136,6 +136,15 @@ def test_range_suggestions_after_the_first_point(auto_run):
     assert any(m.startswith("range of hammer") for m in rec.messages)
 
 
+def test_the_simulated_bench_knows_where_the_hammer_will_go(auto_run, tmp_path):
+    # a roving-hammer plan's points are the lab's hammer points (their FRF columns computed in one pass, at the
+    # first hit: every point's columns are there after the session); a roving accelerometer's hammer stays put
+    assert [str(d) for d in auto_run["lab"].hammer_points] == ["1+Z", "14+Z", "19+Z"]
+    assert {"1+Z", "14+Z", "19+Z"} <= {str(d) for d in auto_run["lab"]._cache}
+    acc = make_sim_backend(load_plan(small_plan(tmp_path, "demo_roving_accelerometer", points=("3+Z", "18+Z"))))
+    assert acc.hammer_points == []
+
+
 def test_roving_accelerometer_session_matches_exact(tmp_path):
     plan_path = small_plan(tmp_path, "demo_roving_accelerometer", points=("3+Z", "18+Z"))
     r = acquire(plan_path, tmp_path / "s", AcquireOptions(auto=True))

@@ -441,6 +441,30 @@ def test_prepare_batches_without_changing_the_records():
         a.prepare(["99+Z"])
 
 
+def test_the_hammer_points_are_computed_in_one_pass_with_the_first_hit():
+    """A lab told the points the hammer will visit computes their FRF columns (and the rotations a miss loads)
+    with the first one it needs, in one call of the modal model's FRF (one pass over the synthesis grid's
+    lines, whose pole terms every column shares); the records are those of a lab computing each point's
+    columns when first hit."""
+    points = ["4+Z", "11+Z", "7+Z"]
+    a, b = demo_lab(34, hammer_points=points), demo_lab(34)
+    calls = []
+    frf = a.model.frf
+
+    def counted(*args, **kw):          # the modal model's own FRF, counted
+        calls.append(kw.get("references"))
+        return frf(*args, **kw)
+
+    a.model.frf = counted
+    for p in points:
+        ra, rb = a.hit(p), b.hit(p)
+        assert np.allclose(ra.data, rb.data, rtol=0, atol=1e-9 * np.abs(rb.data).max())
+    assert len(calls) == 1 and {str(d) for d in calls[0]} >= set(points)
+    assert set(a._cache) == set(b._cache)
+    with pytest.raises(DofError):
+        demo_lab(34, hammer_points=["99+Z"])
+
+
 def test_hit_interval_gives_no_hit_yet_then_the_hit():
     waited = []
     lab = demo_lab(32, hit_interval_s=3.0, sleep=waited.append)

@@ -37,7 +37,8 @@ def make_sim_backend(plan, *, seed: int | None = None, structure=None):
     st = _sim_structure(plan.sim.get("structure", "demo"))[0] if structure is None else structure
     automatic = str(plan.hammer.get("url", "")).startswith("simhammer://")
     lab = lab_from_sim(plan.sim, st, channel_names=[c.name for c in plan.channels], automatic=automatic, seed=seed,
-                       source=plan.source, dofs=list(plan.points) + plan.fixed_dofs)
+                       source=plan.source, dofs=list(plan.points) + plan.fixed_dofs,
+                       hammer_points=list(plan.points) if plan.pattern == "hammer" else ())
     if automatic:
         serial_devices.register()
         serial_devices.device(plan.hammer["url"]).on_fire = lab.fire
