@@ -50,8 +50,7 @@ Every command has --help, e.g. modalab identify --help."""
 #: what ``modalab demo --quick`` changes (the same words in the README; the demo's plan_quick/project_quick files)
 QUICK_HELP = ("the demo on the same points with 2 accepted averages per point instead of 3 (at most 3 hits instead "
               "of 4), identification up to order 24 instead of 40, at most 10 updating iterations instead of 20; "
-              "not shorter: the simulated lab's response synthesis and the diagnosis take the time, and it leaves "
-              "both as they are")
+              "not shorter: the diagnosis takes most of the time, and it leaves the diagnosis as it is")
 UNITS_EPILOG = ("Units: SI throughout - frequencies in Hz, times in s, forces in N, accelerations in m/s^2, "
                 "stiffness in N/m (N*m/rad), masses in kg; DOFs as node+direction, e.g. 12+Z.")
 

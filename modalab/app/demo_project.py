@@ -14,7 +14,7 @@ something the nominal model leaves out.  Finding that is the diagnosis' job.
 :func:`run_demo` copies the project into ``OUT/project/`` and runs it into ``OUT`` (``quick=True``: the
 lighter variant used by the tests, on the same points: 2 averages instead of 3, at most 3 hits instead of 4,
 identification up to order 24 instead of 40, at most 10 updating iterations instead of 20 — not shorter, the
-synthesis and the diagnosis take the time; the CLI's ``--quick`` help, :data:`modalab.app.cli.QUICK_HELP`,
+diagnosis takes most of the time; the CLI's ``--quick`` help, :data:`modalab.app.cli.QUICK_HELP`,
 says the same).
 :func:`write_demo_files` regenerates the project files (maintainers only).
 """
