@@ -19,7 +19,7 @@ def test_opens_with_the_two_commands_and_ci_runs_the_test_command():
     setup = first[0].split("#")[0].strip()
     tests = first[1].split("#")[0].strip()
     assert setup.startswith("pip install -e .") and "modalab demo" in setup
-    assert tests == "pip install -e '.[test]' && python -m pytest -q -n auto"
+    assert tests == "pip install -e '.[test]' && python -m pytest -q -n auto --dist loadgroup"
     ci = (ROOT / ".ci" / "run").read_text().strip().splitlines()
     assert ci[-1].strip() == tests
 

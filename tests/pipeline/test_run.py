@@ -24,7 +24,7 @@ from modalab.app.project import STAGES, load_project
 from modalab.app.run import Manifest, content_hash, run_project, sha256_file
 
 REPO = Path(__file__).resolve().parents[2]
-#: one worker runs this module under -n (pyproject's --dist loadgroup): its module fixture is a whole demo run
+#: one worker runs this module with -n and --dist loadgroup (the README's test command): its module fixture is a whole demo run
 pytestmark = pytest.mark.xdist_group("demo_run")
 
 
