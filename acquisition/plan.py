@@ -297,7 +297,8 @@ def _parse_acquisition(get: _Reader) -> dict:
         raise PlanError(f"{source}: acquisition.bandwidth_hz = {bw} must be positive")
     if bw * 2.56 > fs * (1 + 1e-9):
         raise PlanError(f"{source}: bandwidth {bw} Hz needs a sample rate of at least {2.56 * bw:g} Hz "
-                        f"(2.56 x bandwidth, anti-alias margin); got {fs:g} Hz")
+                        f"(2.56 x bandwidth, anti-alias margin); got {fs:g} Hz: raise sample_rate_hz or lower "
+                        "bandwidth_hz")
     a = get.d.get("acquisition", {})
     if "n_samples" in a and "record_s" in a:
         raise PlanError(f"{source}: [acquisition] gives both record_s and n_samples; keep one")

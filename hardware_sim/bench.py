@@ -84,7 +84,7 @@ def lab_from_sim(sim: dict, structure, *, channel_names: Sequence[str] = (), aut
                        sleep=time.sleep if sim.get("realtime") else None)
     for d in list(dofs) + list(hammer_points):
         try:
-            locate(lab.model.dofs, [d], "DOF")
+            locate(lab.model.dofs, [d], "DOF", "the model")
         except DofError:
             nodes = sorted({x.node for x in lab.model.dofs})
             raise PlanError(f"{source}: DOF {d} is not in the simulated structure (nodes {nodes[0]}..{nodes[-1]}, "

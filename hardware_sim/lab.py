@@ -95,7 +95,7 @@ class SimulatedLab(_HitSynthesis):
         if not 0 < tail_tolerance < 1:
             raise ModalabValueError(f"tail_tolerance={tail_tolerance!r} must lie in (0, 1)")
         self.hammer_points = parse_dofs(hammer_points)
-        locate(self.model.dofs, self.hammer_points, "hammer point")
+        locate(self.model.dofs, self.hammer_points, "hammer point", "the model")
         self.hammer = hammer if hammer is not None else Hammer()
         self.faults = faults if faults is not None else FaultConfig()
         self.oversample = None if oversample is None else int(oversample)
@@ -139,7 +139,7 @@ class SimulatedLab(_HitSynthesis):
         if tc is not None and int(tc) != force[0]:
             raise ModalabValueError(f"trigger_channel={tc} but the force channel is channel {force[0]}; "
                                     "the simulated lab triggers on the hammer")
-        locate(self.model.dofs, [c.dof for c in chans], "channel DOF")
+        locate(self.model.dofs, [c.dof for c in chans], "channel DOF", "the model")
         # the synthesis grid and the FRF cache depend on everything but the hammer's DOF: keep them
         # when a session reconfigures per point with only the roving DOF changed
         key = (acq, tuple(replace(c, dof=Dof(0)) if c.role == "force" else c for c in chans))
@@ -196,7 +196,7 @@ class SimulatedLab(_HitSynthesis):
         """
         self._need_config()
         d = Dof.parse(dof)
-        locate(self.model.dofs, [d], "point DOF")
+        locate(self.model.dofs, [d], "point DOF", "the model")
         if role == "force":
             self._point = d
             return

@@ -162,7 +162,7 @@ class _HitSynthesis:
         self._need_config()
         want = []
         for p in parse_dofs(points):
-            locate(self.model.dofs, [p], "point DOF")
+            locate(self.model.dofs, [p], "point DOF", "the model")
             for d in [p] + self._rotations(p):
                 if d not in self._cache and d not in want:
                     want.append(d)

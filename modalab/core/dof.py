@@ -115,10 +115,11 @@ def parse_dofs(values) -> list[Dof]:
         raise DofError(f"cannot interpret {values!r} as DOF labels; pass e.g. ['1+Z', '2+Z']") from None
 
 
-def locate(dofs: Sequence[Dof], wanted: Iterable, what: str = "DOF") -> tuple[list[int], list[int]]:
+def locate(dofs: Sequence[Dof], wanted: Iterable, what: str = "DOF",
+           where: str = "the data") -> tuple[list[int], list[int]]:
     """Indices and signs of ``wanted`` DOFs within ``dofs`` (sign flips when the labels differ in sign).
 
-    Raises :class:`DofError` naming the missing label and what is available.
+    Raises :class:`DofError` naming the missing label, ``where`` it was looked for and what is available.
     """
     table = {}
     for i, d in enumerate(dofs):
@@ -128,7 +129,7 @@ def locate(dofs: Sequence[Dof], wanted: Iterable, what: str = "DOF") -> tuple[li
         hit = table.get((w.node, w.axis))
         if hit is None:
             avail = ", ".join(str(d) for d in list(dofs)[:12]) + (" ..." if len(dofs) > 12 else "")
-            raise DofError(f"{what} {w} is not in the data; available: {avail}. Check the label or the node numbering")
+            raise DofError(f"{what} {w} is not in {where}; available: {avail}. Check the label or the node numbering")
         idx.append(hit[0])
         sgn.append(hit[1] * w.sign)
     return idx, sgn

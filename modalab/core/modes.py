@@ -281,7 +281,7 @@ class ModeSet:
             with open(path, "rb") as fh:
                 d = json.loads(fh.read().decode("utf-8"))
         except OSError as e:
-            raise ModalabValueError(f"cannot read modes file '{path}': {e.strerror or e}") from None
+            raise ModalabValueError(f"cannot read modes file '{path}': {e.strerror or e}; check the path") from None
         except (UnicodeDecodeError, ValueError) as e:
             raise ModalabValueError(f"'{path}' is not valid JSON ({e}); the file is truncated or not JSON. Expected "
                                     "the modes JSON 'modalab identify --json' writes") from None

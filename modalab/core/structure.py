@@ -95,8 +95,8 @@ class ModalModel:
         """Labels and the signed rows of the residue factors for the requested DOFs."""
         resp = self.dofs if responses is None else parse_dofs(responses)
         refs = self.dofs if references is None else parse_dofs(references)
-        io, so = locate(self.dofs, resp, "response DOF")
-        ii, si = locate(self.dofs, refs, "reference DOF")
+        io, so = locate(self.dofs, resp, "response DOF", "the model")
+        ii, si = locate(self.dofs, refs, "reference DOF", "the model")
         so, si = np.asarray(so)[:, None], np.asarray(si)[:, None]
         return (resp, refs, self.right[io] * so, self.left[:, ii] * si.T, self.rigid[io] * so,
                 self.rigid[ii] * si)
@@ -276,8 +276,8 @@ class Structure:
         freq = np.asarray(freq_hz, dtype=float)
         resp = self.dofs if responses is None else parse_dofs(responses)
         refs = self.dofs if references is None else parse_dofs(references)
-        io, so = locate(self.dofs, resp, "response DOF")
-        ii, si = locate(self.dofs, refs, "reference DOF")
+        io, so = locate(self.dofs, resp, "response DOF", "the model")
+        ii, si = locate(self.dofs, refs, "reference DOF", "the model")
         n = self.n_dof
         F = np.zeros((n, len(ii)), complex)
         F[ii, np.arange(len(ii))] = si

@@ -44,7 +44,7 @@ def test_valid_plan():
 
 @pytest.mark.parametrize("changes,match", [
     ({"acquisition__pretrigger_s": 3.0}, "pretrigger .* is not shorter than the record"),
-    ({"acquisition__bandwidth_hz": 1000.0}, "2.56"),
+    ({"acquisition__bandwidth_hz": 1000.0}, "2.56 .*: raise sample_rate_hz or lower bandwidth_hz$"),
     ({"acquisition__record_s": None}, "record_s or n_samples"),
     ({"acquisition__max_hits": 2}, "averages <= max_hits"),
     ({"trigger__channel": "nope"}, "trigger channel 'nope'"),

@@ -231,3 +231,14 @@ def test_diagnose_jobs_below_one_is_one_line_before_any_file_is_read(tmp_path, m
     err = _one_line(capsys)
     assert f"--jobs {jobs}: expected a positive number of processes" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_a_sim_point_outside_the_model_and_a_missing_modes_file_say_where_and_what_to_do(tmp_path, monkeypatch,
+                                                                                          capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(["sim", "-o", "s.uff", "--points", "1+Z", "99+Z", "--hits", "1", "--samples", "1024"]) == 2
+    assert "99+Z is not in the model" in _one_line(capsys)
+    assert main(["update", str(DEMO / "nominal.bdf"), "--modes", "nothere.json", "-o", "upd"]) == 2
+    err = _one_line(capsys)
+    assert "'nothere.json'" in err and "check the path" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == []          # nothing created

@@ -39,6 +39,18 @@ def test_a_typo_is_one_line_with_the_file_the_key_and_the_closest_key(tmp_path):
     assert "\n" not in msg and str(f) in msg and "'feild'" in msg and "field" in msg
 
 
+def test_a_bad_value_names_the_parameter_once(tmp_path):
+    from modalab.app.stages import load_parameters
+    from modalab.core.errors import PlanError
+
+    f = tmp_path / "params.toml"
+    f.write_text('[[parameter]]\nname = "E_wing"\nfield = "E"\nmode = "factr"\nproperties = ["wing"]\n')
+    with pytest.raises(PlanError) as e:
+        load_parameters(f)
+    msg = str(e.value)
+    assert msg.startswith(f"{f}: parameter #1 ('E_wing'): ") and msg.count("E_wing") == 1 and "'factr'" in msg
+
+
 def test_without_a_model_the_bounds_are_arrays(tmp_path):
     from modalab.app.stages import load_parameters
 

@@ -46,3 +46,5 @@ def test_locate_signs_and_missing():
     assert idx == [1, 2, 0] and sgn == [-1, -1, 1]
     with pytest.raises(DofError, match="4\\+Z is not in the data"):
         locate(dofs, ["4+Z"])
+    with pytest.raises(DofError, match="point DOF 4\\+Z is not in the model"):
+        locate(dofs, ["4+Z"], "point DOF", "the model")

@@ -158,8 +158,20 @@ class TestFiles:
         with pytest.raises(ModalabValueError, match="does not exist"):
             DofMap.from_file(tmp_path / "nope.toml")
         p.write_text("[dofz]\n")
-        with pytest.raises(ModalabValueError, match="unknown keys"):
+        with pytest.raises(ModalabValueError, match=r"DOF map '.*bad\.toml': unknown key 'dofz'; did you mean 'dofs'\?"):
             DofMap.from_file(p)
+
+    def test_an_entry_error_names_the_file_and_the_key(self, tmp_path):
+        p = tmp_path / "m.toml"
+        p.write_text('[dofs]\n"1+Z" = "1+W"\n')
+        with pytest.raises(DofError, match=r"DOF map '.*m\.toml': \[dofs\] '1\+Z': .*'1\+W'"):
+            DofMap.from_file(p)
+        p.write_text('[dofs]\n"1+Z" = { node = 3, direction = [0, 0, 0] }\n')
+        with pytest.raises(ModalabValueError, match=r"m\.toml': \[dofs\] '1\+Z': .*non-zero 3-vector"):
+            DofMap.from_file(p)
+        p.write_text('[dofs]\n"1+Z" = "999+Z"\n')
+        with pytest.raises(DofError, match=r"1\+Z -> 999\+Z.*\(DOF map m\.toml\)"):
+            DofMap.from_file(p).matrix(["1+Z"], MODEL)
 
 
 class TestSelection:

@@ -51,6 +51,7 @@ when omitted; ``#`` starts a comment; an optional header row is skipped)::
 from __future__ import annotations
 
 import csv
+import difflib
 import itertools
 import logging
 import tomllib
@@ -123,6 +124,22 @@ def _parse_term_dict(test: Dof, spec: Mapping) -> tuple:
     return ("terms", tuple(terms))
 
 
+def _entry(k, spec) -> tuple:
+    """``(test DOF, entry)`` of one ``[dofs]`` item, the entry relative to the positive test direction."""
+    t = Dof.parse(k)
+    if t.axis == 0:
+        raise DofError(f"test DOF {k!r} has no direction; expected a label such as '101+Z'")
+    if isinstance(spec, (str, Dof, tuple)):
+        m = Dof.parse(spec)
+        entry = ("terms", ((m.positive, float(m.sign)),))
+    elif isinstance(spec, Mapping):
+        entry = _parse_term_dict(t, spec)
+    else:
+        raise ModalabValueError(f"DOF map entry for {t}: got {spec!r}; expected a model DOF label, a dict "
+                                "of model DOF coefficients or {'node': n, 'direction': [x, y, z]}")
+    return t, (_negate(entry) if t.sign < 0 else entry)
+
+
 class DofMap:
     """Mapping of test DOF labels to (combinations of) model DOFs.
 
@@ -142,24 +159,15 @@ class DofMap:
                  test_frames: Mapping | None = None, model_frames: Mapping | None = None, name: str = ""):
         self._entries: dict[tuple[int, int], tuple] = {}
         for k, spec in (dofs or {}).items():
-            t = Dof.parse(k)
-            if t.axis == 0:
-                raise DofError(f"test DOF {k!r} has no direction; expected a label such as '101+Z'")
+            try:
+                t, entry = _entry(k, spec)
+            except (DofError, ModalabValueError) as e:
+                # the key the message is about (a file's reader adds the file)
+                raise type(e)(f"[dofs] {str(k)!r}: {e}") from None
             key = (t.node, t.axis)
             if key in self._entries:
                 raise ModalabValueError(f"test DOF {t} appears twice in the DOF map; keep one entry per DOF "
                                         "(use a dict of coefficients for a linear combination)")
-            if isinstance(spec, (str, Dof, tuple)):
-                m = Dof.parse(spec)
-                entry = ("terms", ((m.positive, float(m.sign)),))
-            elif isinstance(spec, Mapping):
-                entry = _parse_term_dict(t, spec)
-            else:
-                raise ModalabValueError(f"DOF map entry for {t}: got {spec!r}; expected a model DOF label, a dict "
-                                        "of model DOF coefficients or {'node': n, 'direction': [x, y, z]}")
-            # store relative to the positive test direction
-            if t.sign < 0:
-                entry = _negate(entry)
             self._entries[key] = entry
         self.nodes = {int(a): int(b) for a, b in (nodes or {}).items()}
         self.same_nodes = bool(same_nodes)
@@ -178,9 +186,11 @@ class DofMap:
     def from_dict(cls, data: Mapping) -> "DofMap":
         """Build from the dict layout of the TOML file (keys ``dofs``, ``nodes``, ``same_nodes``, frames)."""
         known = {"dofs", "nodes", "same_nodes", "test_frames", "model_frames", "name"}
-        extra = set(data) - known
+        extra = sorted(set(data) - known)
         if extra:
-            raise ModalabValueError(f"DOF map: unknown keys {sorted(extra)}; expected some of {sorted(known)}")
+            close = difflib.get_close_matches(extra[0], sorted(known), n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise ModalabValueError(f"unknown key {extra[0]!r}{hint} (expected some of {sorted(known)})")
         return cls(dofs=data.get("dofs"), nodes=data.get("nodes"), same_nodes=data.get("same_nodes", True),
                    test_frames=data.get("test_frames"), model_frames=data.get("model_frames"),
                    name=data.get("name", ""))
@@ -197,7 +207,10 @@ class DofMap:
                     data = tomllib.load(fh)
             except tomllib.TOMLDecodeError as e:
                 raise ModalabValueError(f"DOF map file {str(p)!r} is not valid TOML ({e}); fix the syntax") from None
-            out = cls.from_dict(data)
+            try:
+                out = cls.from_dict(data)
+            except (DofError, ModalabValueError) as e:
+                raise type(e)(f"DOF map {str(p)!r}: {e}") from None
         else:
             out = cls._from_csv(p)
         out.name = out.name or p.name
@@ -288,7 +301,8 @@ class DofMap:
             avail = ", ".join(str(d) for d in ml[:10]) + (" ..." if len(ml) > 10 else "")
             raise DofError(f"{len(missing)} test DOF(s) have no model counterpart: {'; '.join(missing[:10])}"
                            f"{' ...' if len(missing) > 10 else ''}. The model has {len(ml)} DOFs ({avail}). "
-                           "Add the test DOFs to the DOF map (--map) or remove them from the test data")
+                           "Add the test DOFs to the DOF map (--map) or remove them from the test data"
+                           + (f" (DOF map {self.name})" if self.name else ""))
         C = sp.csr_matrix((vals, (rows, cols)), shape=(len(tl), len(ml)))
         C.sum_duplicates()
         C.eliminate_zeros()

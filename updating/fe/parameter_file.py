@@ -77,7 +77,8 @@ def read_parameter_file(path) -> tuple[list, list, list]:
         try:
             params.append(Parameter(str(it["name"]), str(it["field"]), mode=str(it.get("mode", "factor")), **kw))
         except Exception as e:  # noqa: BLE001 - Parameter's own message names the problem; re-raised with the file
-            raise PlanError(f"{p}: {label}: {e}") from None
+            msg = str(e).removeprefix(f"parameter {str(it['name'])!r}: ")     # the label names it already
+            raise PlanError(f"{p}: {label}: {msg}") from None
         bounds = []
         for b in ("lower", "upper"):
             v = it.get(b)
