@@ -150,13 +150,26 @@ BASELINE = {2202: (22.7, 174.0), 9000: (107.0, None), 30000: (None, None), 10000
 TABLE = (("--grids", 367), ("--dofs", 9000), ("--dofs", 30000), ("--dofs", 100000))
 
 
-def _n_el():
-    n_el = N_EL
-    if "--grids" in sys.argv:
-        n_el = int(sys.argv[sys.argv.index("--grids") + 1]) - 1
-    if "--dofs" in sys.argv:                                    # e.g. --dofs 100000: 16667 grids x 6 DOFs
-        n_el = int(np.ceil(int(sys.argv[sys.argv.index("--dofs") + 1]) / 6)) - 1
-    return n_el
+def _args(argv=None):
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    size = ap.add_mutually_exclusive_group()
+    size.add_argument("--grids", type=int, help=f"a deck of N grids (default {N_EL + 1})")
+    size.add_argument("--dofs", type=int, help="a deck of about N DOFs (N/6 grids), e.g. 100000")
+    ap.add_argument("--quick", action="store_true", help="the lumped-mass deck only (default: lumped and coupled)")
+    ap.add_argument("--parts", action="store_true", help="time the parts of a large diagnosis one by one")
+    ap.add_argument("--table", action="store_true", help="367 grids, 9000, 30000 and 100000 DOFs, each in a "
+                                                         "process of its own, as a table")
+    return ap.parse_args(argv)
+
+
+def _n_el(a) -> int:
+    if a.grids is not None:
+        return a.grids - 1
+    if a.dofs is not None:                                      # e.g. --dofs 100000: 16667 grids x 6 DOFs
+        return int(np.ceil(a.dofs / 6)) - 1
+    return N_EL
 
 
 def run_one(n_el: int, coupled=(False, True)):
@@ -218,13 +231,14 @@ def table(sizes=TABLE):
               f"{r['timings']['fits']:7.0f}  {r['finding']} ({r['truth_grid']})")
 
 
-def main():
-    if "--table" in sys.argv:
+def main(argv=None):
+    a = _args(argv)
+    if a.table:
         return table()
-    n_el = _n_el()
-    if "--parts" in sys.argv:
+    n_el = _n_el(a)
+    if a.parts:
         return parts(n_el)
-    run_one(n_el, (False,) if "--quick" in sys.argv else (False, True))
+    run_one(n_el, (False,) if a.quick else (False, True))
 
 
 def parts(n_el: int):
