@@ -63,3 +63,11 @@ def measure(src: Path, argv: list, cwd: Path, cap_gb: float = float("inf")) -> d
     return {"peak_gb": max(peak[0], ru.ru_maxrss) / 2 ** 20, "cpu_s": ru.ru_utime + ru.ru_stime,
             "sys_s": ru.ru_stime, "wall_s": time.perf_counter() - t0, "rc": p.returncode, "capped": capped[0],
             "err": err.strip().splitlines()[-1:] if p.returncode else []}
+
+
+def side_by_side(rev: str, tmp: Path, what: str) -> dict:
+    """``{'baseline': the code of revision rev (extracted into tmp/baseline), 'now': this checkout}`` for the
+    benchmarks that run one ``what`` on each, one after the other; prints which, with the BLAS threads."""
+    print(f"baseline {rev} against this checkout; MODALAB_BLAS_THREADS="
+          f"{os.environ.get('MODALAB_BLAS_THREADS', '1')}; one {what} at a time")
+    return {"baseline": checkout(rev, tmp / "baseline"), "now": ROOT}

@@ -21,14 +21,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks._baseline import checkout, measure, ROOT  # noqa: E402
+from benchmarks._baseline import measure, side_by_side  # noqa: E402
 
 #: the default baseline: main before the hammer points were computed in one pass (2026-12-07)
 BEFORE_REV = "0cc7802"
@@ -53,9 +52,7 @@ def main():
     a = ap.parse_args()
     with tempfile.TemporaryDirectory(prefix="demoacq_") as tmp:
         tmp = Path(tmp)
-        srcs = {"baseline": checkout(a.baseline, tmp / "baseline"), "now": ROOT}
-        print(f"baseline {a.baseline} against this checkout; MODALAB_BLAS_THREADS="
-              f"{os.environ.get('MODALAB_BLAS_THREADS', '1')}; one run at a time")
+        srcs = side_by_side(a.baseline, tmp, "run")
         res, hashes = {}, {}
         for code, src in srcs.items():
             res[code] = measure(src, ["-c", _DRIVER, str(tmp / code)], tmp)

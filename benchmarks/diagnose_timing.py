@@ -57,7 +57,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import os
 import sys
 import tempfile
 from pathlib import Path
@@ -66,7 +65,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks._baseline import ROOT, checkout, measure  # noqa: E402
+from benchmarks._baseline import measure, side_by_side  # noqa: E402
 from modalab.core.frf import FRF  # noqa: E402
 from updating.fe import Spring  # noqa: E402
 from updating.fe.models.garteur import garteur_model  # noqa: E402
@@ -128,9 +127,7 @@ def main():
     a = ap.parse_args()
     with tempfile.TemporaryDirectory(prefix="diagtime_") as tmp:
         tmp = Path(tmp)
-        srcs = {"baseline": checkout(a.baseline, tmp / "baseline"), "now": ROOT}
-        print(f"baseline {a.baseline} against this checkout; MODALAB_BLAS_THREADS="
-              f"{os.environ.get('MODALAB_BLAS_THREADS', '1')}; one diagnosis at a time")
+        srcs = side_by_side(a.baseline, tmp, "diagnosis")
         res, out = {}, {}
         for code, src in srcs.items():
             js = tmp / f"{code}.json"

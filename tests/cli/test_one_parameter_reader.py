@@ -27,27 +27,25 @@ def test_one_parameter_file_reader():
     assert set(calls) <= {"modalab/app/stages/_common.py", "updating/fe/parameter_file.py"}, calls
 
 
-def test_a_typo_is_one_line_with_the_file_the_key_and_the_closest_key(tmp_path):
+def _error(tmp_path, text: str) -> tuple:
+    """The parameter file ``text`` and the message :func:`load_parameters` refuses it with."""
     from modalab.app.stages import load_parameters
     from modalab.core.errors import PlanError
 
     f = tmp_path / "params.toml"
-    f.write_text('[[parameter]]\nname = "E_wing"\nfeild = "E"\nproperties = ["wing"]\n')
+    f.write_text(text)
     with pytest.raises(PlanError) as e:
         load_parameters(f)
-    msg = str(e.value)
+    return f, str(e.value)
+
+
+def test_a_typo_is_one_line_with_the_file_the_key_and_the_closest_key(tmp_path):
+    f, msg = _error(tmp_path, '[[parameter]]\nname = "E_wing"\nfeild = "E"\nproperties = ["wing"]\n')
     assert "\n" not in msg and str(f) in msg and "'feild'" in msg and "field" in msg
 
 
 def test_a_bad_value_names_the_parameter_once(tmp_path):
-    from modalab.app.stages import load_parameters
-    from modalab.core.errors import PlanError
-
-    f = tmp_path / "params.toml"
-    f.write_text('[[parameter]]\nname = "E_wing"\nfield = "E"\nmode = "factr"\nproperties = ["wing"]\n')
-    with pytest.raises(PlanError) as e:
-        load_parameters(f)
-    msg = str(e.value)
+    f, msg = _error(tmp_path, '[[parameter]]\nname = "E_wing"\nfield = "E"\nmode = "factr"\nproperties = ["wing"]\n')
     assert msg.startswith(f"{f}: parameter #1 ('E_wing'): ") and msg.count("E_wing") == 1 and "'factr'" in msg
 
 
