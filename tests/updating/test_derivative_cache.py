@@ -9,6 +9,7 @@ import scipy.sparse as sp
 from hypothesis import given, settings, strategies as st
 
 import updating.methods.mci_condensed as mc
+from updating.diagnosis.priors import _GroupLossFactorTotal
 from updating.fe import Beam3D, Parameter, ParametricFEModel, Timoshenko3D
 from updating.methods.mci_condensed import derivatives
 
@@ -138,3 +139,26 @@ def test_an_explicit_G_makes_a_shear_deformable_beams_mass_depend_on_E():
     d = pm.derivatives(pm.p0)[0]
     M = pm.model_at(pm.p0).assemble().M
     assert d.dM is not None and abs(d.dM).max() > 1e-6 * abs(M).max()
+
+
+@settings(max_examples=10, deadline=None)
+@given(st.floats(0.8, 1.25), st.floats(0.001, 0.3), st.sampled_from([0.0, 0.01, 0.05]))
+def test_a_sections_loss_factor_in_all_keeps_the_cached_form(factor, g, eta):
+    """A section's loss factor given in all beside PARAM G (the diagnosis' ``eta_<group>``: GE = η − G) makes
+    ∂D/∂E of that section η·K_e; at η = 0 it is zero in the affine form and round-off (G·K − G·K summed in
+    another order) in the assembly.  That round-off, compared on its own scale, refused the form, and every fit
+    of such a model assembled every derivative at every step (tuning case 2160: 184 of 578 calls).  D is
+    compared on K's scale."""
+    pars = [Parameter("E_1", "E", properties=[1]), Parameter("G", "global_ge", mode="value"),
+            _GroupLossFactorTotal("eta_1", "ge", properties=[1], mode="value")]
+    pm = ParametricFEModel(build(Beam3D), pars)
+    p = np.array([factor, g, eta])
+    got, want = derivatives(pm, p), pm.derivatives(p)
+    assert mc._DERIV_CACHE[pm].ok
+    for g_, w in zip(got, want):
+        k_scale = max(abs(d).max() for d in (g_.dK, w.dK, g_.dD, w.dD) if d is not None)
+        for k in ("dK", "dM", "dC", "dD"):
+            a, b = getattr(g_, k), getattr(w, k)
+            a = sp.csr_matrix(pm.structure(p).K.shape) if a is None else a
+            b = sp.csr_matrix(a.shape) if b is None else b
+            assert abs(a - b).max() <= 1e-9 * (k_scale if k in ("dK", "dD") else max(abs(a).max(), 1e-300)), k
