@@ -227,3 +227,28 @@ def test_a_model_between_100_and_200_dofs_is_fitted_in_a_basis_to_the_exact_fits
     assert auto.p[0] == pytest.approx(1.06, rel=2e-3)
     assert auto.p[0] == pytest.approx(exact.p[0], rel=1e-3)
     assert auto.error == pytest.approx(frf_error(model_frf(pm.structure(auto.p), data), data), rel=1e-12)
+
+
+def test_reduced_fit_stops_when_a_rebuilt_basis_leaves_the_exact_error_where_it_was(frame, monkeypatch, caplog):
+    """A basis whose reduced model keeps a bias (modes to 0.3x the band's top) never brings the reduced and exact
+    errors within ``tol``; rebuilding it at the new parameters moved the exact error by less than ``tol``, so
+    a third round would only repeat the second: the fit stops after two rounds (it ran all three before), and
+    its result is still the best round's."""
+    import logging
+    import updating.diagnosis.ritz as ritzmod
+
+    class PoorBasis(RitzBasis):
+        def __init__(self, structure, cols, f_max_hz, **kw):
+            super().__init__(structure, cols, f_max_hz, mode_factor=0.3, min_modes=2)
+
+    pm, data = _wing_modulus_case(frame)
+    monkeypatch.setattr(ritzmod, "RitzBasis", PoorBasis)
+    with caplog.at_level(logging.DEBUG, logger="updating.diagnosis.fit"):
+        res = fit_frf(pm, data, [1.0], lower=[0.5], upper=[2.0], reduced=True, rounds=3, tol=0.01)
+    rounds = [r.args for r in caplog.records if r.msg.startswith("Ritz fit round")]
+    assert len(rounds) == 2
+    (_, red0, ex0), (_, red1, ex1) = rounds
+    assert abs(ex0 - red0) > 0.01 * ex0 and abs(ex1 - red1) > 0.01 * ex1       # the bias stays
+    assert abs(ex1 - ex0) <= 0.01 * ex1                                        # the exact error does not move
+    assert res.error == pytest.approx(min(ex0, ex1, frf_error(model_frf(pm.structure([1.0]), data), data)),
+                                      rel=1e-9)
