@@ -83,3 +83,30 @@ def test_runners_up_are_the_first_ones_then_the_best_of_each_direction_they_leav
     assert [o.dofs[0] for o, _ in _Picks._with_each_direction(ranked[:7], _k("6+RY"), 7)] == got[:7]
     # a pick in Z: no Z runner-up beyond the first ones
     assert "11+Z" not in [o.dofs[0] for o, _ in _Picks._with_each_direction(ranked, _k("1+Z"), 7)]
+
+
+def test_an_ambiguous_finding_names_every_pick_fitted_better_than_an_alternative_it_names():
+    """``closed_under_error``: B is named an alternative of c (its rows no worse than chance allows); C, fitted to a
+    lower training error than B, is named too, whatever the row test said of it; D, fitted worse than every
+    named alternative, is not; nor a pick at c's own place (the same physics one element over: localisation
+    spread) or an excluded one.  Springs on the portal's chain of nodes 1-9 (BD 4029's shape: a choice at 21+Y,
+    7+Y named, the truth's 14+Y fitted better than 7+Y and left out)."""
+    import numpy as np
+    from tests.updating.test_diagnosis_release import _portal
+    from updating.diagnosis.picks import closed_under_error
+
+    def spring(node):
+        return SimpleNamespace(key=f"k@{node}", physics="ground_spring", nodes=(node,), elements=(), label=f"k@{node}")
+
+    def fitted(err, cand, value):
+        return (err, cand, None, SimpleNamespace(p=np.array([1.0, value])), 0, 1.0)
+
+    m = _portal()
+    c, b, cc, d, e, x = (spring(n) for n in (5, 2, 8, 3, 6, 9))
+    picks = [fitted(0.0612, b, 7.0), fitted(0.0606, cc, 8.0), fitted(0.0620, d, 3.0), fitted(0.0600, e, 6.0),
+             fitted(0.0601, x, 9.0)]
+    out = closed_under_error(c, [(b, 7.0)], picks, m, {x.key})
+    assert [(o.key, v) for o, v in out] == [("k@2", 7.0), ("k@8", 8.0)]
+    # nothing named that was fitted: nothing to close over
+    assert closed_under_error(c, [(d, 3.0)], picks[:2], m, set()) == [(d, 3.0)]
+    assert closed_under_error(c, [], picks, m, set()) == []

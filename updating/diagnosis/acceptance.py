@@ -13,7 +13,7 @@ import numpy as np
 
 from updating.diagnosis.mesh import mesh_error, shift_beyond_mesh
 from updating.diagnosis.screen import mci_update
-from updating.diagnosis.picks import _Picks, RUNNERS_UP, equal_fits
+from updating.diagnosis.picks import _Picks, RUNNERS_UP, closed_under_error, equal_fits
 from updating.diagnosis.crossval import _CrossValidation
 from updating.diagnosis.terms import _another_explanation, _is_support, MIN_FREQ_EFFECT, CLOSE_COMPETITORS, PICK_EXPLAINS, MIN_DAMPING_EFFECT, term_effect, PICK_MAX_REDUCED_CHI2, _chi2, _term_holds, _residual, inflation, significant_gain, rows_worse, held_out_worse, n_obs, _augmented
 
@@ -44,8 +44,7 @@ class _Acceptance(_Picks, _CrossValidation):
         error by ``min_extra_gain`` (model-form error — a finer truth mesh, per-element scatter — is what a
         small second term would otherwise absorb); (b) :func:`_term_holds`; (c) the effect on the frequencies
         or damping (:func:`term_effect`); (d) on the FRF criterion, the cross-validation over folds
-        (:meth:`_cross_validated`).  ``n_eq`` is the number of observations of the criterion (:func:`n_obs`
-        on the FRFs)."""
+        (:meth:`_cross_validated`).  ``n_eq``: the number of observations of the criterion (:func:`n_obs`)."""
         cfg, rss_cur = self.config, self.rss_cur
         if best is None:
             return False, "no candidate could be fitted"
@@ -457,7 +456,7 @@ class _Acceptance(_Picks, _CrossValidation):
         what merely screened alike (held-out 2633: a corner joint fitted to 0.0039, rotary inertias screened
         as well as it left 0.0093 fitted).  ``c`` is fitted at ``fr_c``.  Returns ``([(candidate, value)]: the
         alternatives ``alts`` not fitted significantly worse, then the others; competitors fitted)``, the
-        competitors as ``tried`` holds picks."""
+        competitors as ``tried`` holds picks; also every pick fitted better than one named (closed_under_error)."""
         cfg = self.config
         infl = max(margin.infl, 1.0)
         need = cfg.penalty * np.log(max(n_eq / infl, 2.0))
@@ -488,7 +487,8 @@ class _Acceptance(_Picks, _CrossValidation):
                 log.info("%s is no alternative to %s: fitted on the FRFs its error is %.4g, significantly worse",
                          o.label, c.label, err)
         first = [fitted.pop(o.key, (o, v)) for o, v in alts if o.key in kept]
-        return first + out + list(fitted.values()), comps
+        return closed_under_error(c, first + out + list(fitted.values()), list(tried) + list(comps), m_now,
+                                  own | {c.key} | {x.key for x in self.current}), comps
 
     def _fit_pick(self, c, v, p_scr):
         """The current terms plus ``c`` fitted with the parameters on the training FRFs, from the parameters
