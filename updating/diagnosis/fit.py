@@ -284,6 +284,17 @@ def quick_frf_error(structure, data: FRFData) -> float:
     return frf_error(H * ms[:, None, None] * rs[None, :, None], data)
 
 
+def _rounds_done(rnd: int, err: float, e_red: float, err_prev: float, tol: float) -> bool:
+    """Whether a fit in a Ritz basis (:func:`fit_frf`) stops after round ``rnd``: its reduced error ``e_red`` and
+    exact error ``err`` agree within ``tol`` (relative), or the round, made in a basis rebuilt at the previous
+    round's parameters, left the exact error within ``tol`` of that round's ``err_prev``: then the gap is the
+    basis's own bias, not parameters still far from the optimum, and a further round repeats this one (tuning space
+    frame 2188: 26 of 69 fits ran three rounds with the two errors 1-4 % apart in every round and the exact one
+    moving by at most 0.2 % after the first; 39 s of the diagnosis' 130 s of CPU)."""
+    scale = tol * max(err, 1e-12)
+    return abs(err - e_red) <= scale or (rnd > 0 and abs(err - err_prev) <= scale)
+
+
 def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None, max_nfev: int = 40,
             x_scale=None, reduced: bool | None = None, rounds: int = 3, tol: float = 0.01,
             prior: Prior | None = None) -> FitResult:
@@ -294,11 +305,7 @@ def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None
     in a Ritz basis built at the start (:class:`~updating.diagnosis.ritz.RitzBasis`: modes to 3× the band
     top plus static corrections at the measured and reference DOFs); the result is checked against the
     exact receptance, and the fit is repeated from there with a basis rebuilt at the new parameters (at most
-    ``rounds`` times) while the reduced and exact errors differ by more than ``tol`` (relative) and the last
-    round moved the exact error by more than ``tol``: a basis rebuilt at the new parameters that leaves the exact
-    error where it was shows that the gap is the basis's own bias, not parameters still far from the optimum
-    (tuning space frame 2188: 26 of 69 fits ran three rounds with the two errors 1-4 % apart in every round and
-    the exact one moving by at most 0.2 % after the first; 39 s of the diagnosis' 130 s of CPU).  The basis
+    ``rounds`` times) until :func:`_rounds_done` (the errors agree, or the exact one no longer moves).  The basis
     also carries the static correction at the DOFs of the free local parameters (:data:`LOCAL_DOFS`).  The
     result is the round with the lowest exact objective, and never worse than the start: when every round
     raised it (the reduced model led the steps astray), the start is returned, with its standard deviations,
@@ -316,7 +323,7 @@ def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None
     if reduced is None:
         reduced = st0.n_dof > RITZ_LIMIT
     history: list = []
-    p_cur = p_start
+    p_cur, err_prev = p_start, np.inf
     total_nfev = 0
     # a local parameter (a spring's stiffness, a released joint's) moves the response by the static correction at
     # its own DOFs: with those vectors in the basis, the basis built at the start stays accurate over decades of
@@ -349,10 +356,8 @@ def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None
         r = sol.fun[:2 * data.H.size]
         e_red = np.sqrt(float(r @ r) / max(float(np.sum(data.quality ** 2)), 1e-300))
         log.debug("Ritz fit round %d: reduced error %.5g, exact %.5g", rnd, e_red, err)
-        if abs(err - e_red) <= tol * max(err, 1e-12):
+        if _rounds_done(rnd, err, e_red, err_prev, tol):
             break
-        if rnd > 0 and abs(err - err_prev) <= tol * max(err, 1e-12):
-            break                                     # the exact error no longer moves: see the docstring
         p_cur, err_prev = p, err
     fun, jac, message = sol.fun, sol.jac, str(sol.message)
     if reduced and best[3] is None:
