@@ -94,18 +94,27 @@ class _Pattern:
             self._band = (perm, b, (2 * b + i - j) * self.n + j) if b <= BAND_LIMIT else False
         return self._band or None
 
+    def _band_storage(self, s):
+        """``(permutation, half band width, Z(s) in LAPACK band storage)`` for :meth:`factor` and :meth:`solve`,
+        or None when the band is too wide."""
+        band = self._banded()
+        if band is None:
+            return None
+        perm, b, pos = band
+        ab = np.zeros((3 * b + 1) * self.n, complex)
+        ab[pos] = self.values(s)
+        return perm, b, ab.reshape(3 * b + 1, self.n)
+
     def factor(self, s):
         """A factorisation of ``Z(s)`` with a ``solve(B)`` method: LAPACK's banded LU (zgbtrf) in the reverse
         Cuthill-McKee order when the band is narrow (a frame: half band width about 20), else SuperLU.  The
         same solution either way, to round-off; the banded one skips SuperLU's symbolic analysis and its
         Python overhead per line, which dominate on the few-hundred-DOF models diagnosis solves at every line.
         A line where the banded LU finds ``Z`` exactly singular is left to SuperLU, which says so as before."""
-        band = self._banded()
+        band = self._band_storage(s)
         if band is not None:
-            perm, b, pos = band
-            ab = np.zeros((3 * b + 1) * self.n, complex)
-            ab[pos] = self.values(s)
-            lu, piv, info = _zgbtrf(ab.reshape(3 * b + 1, self.n), b, b)
+            perm, b, ab = band
+            lu, piv, info = _zgbtrf(ab, b, b)
             if info == 0:
                 return _BandLU(lu, piv, b, perm)
         return spla.splu(self.Z(s))
@@ -114,16 +123,12 @@ class _Pattern:
         """``Z(s)⁻¹ B``: :meth:`factor` and its ``solve`` in one LAPACK call (zgbsv) where the band is narrow —
         the same arithmetic, one Python call less per line, which is what the dynamic expansion's per-line loop
         spends most of its overhead on; else SuperLU as :meth:`factor`."""
-        band = self._banded()
+        band = self._band_storage(s)
         if band is not None:
-            perm, b, pos = band
-            ab = np.zeros((3 * b + 1) * self.n, complex)
-            ab[pos] = self.values(s)
-            _, _, x, info = _zgbsv(b, b, ab.reshape(3 * b + 1, self.n), np.asarray(B, complex)[perm])
+            perm, b, ab = band
+            _, _, x, info = _zgbsv(b, b, ab, np.asarray(B, complex)[perm])
             if info == 0:
-                out = np.empty_like(x)
-                out[perm] = x
-                return out
+                return _unpermute(x, perm)
         return spla.splu(self.Z(s)).solve(np.asarray(B, complex))
 
 
@@ -136,9 +141,14 @@ class _BandLU:
     def solve(self, B):
         B = np.asarray(B, complex)
         x, info = _zgbtrs(self.lu, self.b, self.b, B[self.perm], self.piv)
-        out = np.empty_like(x)
-        out[self.perm] = x
-        return out
+        return _unpermute(x, self.perm)
+
+
+def _unpermute(x, perm):
+    """The solution in the original DOF order from one in the band's order (row ``k`` is DOF ``perm[k]``)."""
+    out = np.empty_like(x)
+    out[perm] = x
+    return out
 
 
 def _dense(A):
