@@ -252,3 +252,22 @@ def test_reduced_fit_stops_when_a_rebuilt_basis_leaves_the_exact_error_where_it_
     assert abs(ex1 - ex0) <= 0.01 * ex1                                        # the exact error does not move
     assert res.error == pytest.approx(min(ex0, ex1, frf_error(model_frf(pm.structure([1.0]), data), data)),
                                       rel=1e-9)
+
+
+def test_a_fit_continued_from_another_takes_its_exact_error_and_lands_where_it_would_have(frame, monkeypatch):
+    """``err_start`` (the error a continued fit's start already has, as ``_fit_converged`` passes it): the same
+    result bit for bit as computing it again, with one exact receptance fewer."""
+    import updating.diagnosis.fit as fitmod
+
+    pm, data = _wing_modulus_case(frame)
+    short = fit_frf(pm, data, [1.0], lower=[0.5], upper=[2.0], reduced=True, max_nfev=2)
+    calls = []
+    real = fitmod.model_frf
+    monkeypatch.setattr(fitmod, "model_frf", lambda *a, **k: calls.append(1) or real(*a, **k))
+    again = fit_frf(pm, data, short.p, lower=[0.5], upper=[2.0], reduced=True)
+    n_again = len(calls)
+    taken = fit_frf(pm, data, short.p, lower=[0.5], upper=[2.0], reduced=True, err_start=short.error)
+    assert len(calls) - n_again == n_again - 1
+    assert taken.p.tobytes() == again.p.tobytes() and taken.std.tobytes() == again.std.tobytes()
+    assert taken.error == again.error
+    assert short.error == frf_error(real(pm.structure(short.p), data), data)      # what err_start stands for

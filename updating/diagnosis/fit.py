@@ -297,7 +297,7 @@ def _rounds_done(rnd: int, err: float, e_red: float, err_prev: float, tol: float
 
 def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None, max_nfev: int = 40,
             x_scale=None, reduced: bool | None = None, rounds: int = 3, tol: float = 0.01,
-            prior: Prior | None = None) -> FitResult:
+            prior: Prior | None = None, err_start: float | None = None) -> FitResult:
     """Bounded non-linear least squares of the FRF residual over the free parameters (with a
     :class:`Prior`: the maximum a posteriori estimate; the returned error is that of the data alone).
 
@@ -309,7 +309,8 @@ def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None
     also carries the static correction at the DOFs of the free local parameters (:data:`LOCAL_DOFS`).  The
     result is the round with the lowest exact objective, and never worse than the start: when every round
     raised it (the reduced model led the steps astray), the start is returned, with its standard deviations,
-    and the message says so.  The returned error is always the exact one.
+    and the message says so.  The returned error is always the exact one.  ``err_start``: the exact error at
+    ``p_start`` when the caller has it (a fit continued from another's result: its ``error``), not computed again.
     """
     p_start = np.asarray(p_start, float)
     npar = p_start.size
@@ -332,7 +333,7 @@ def fit_frf(pmodel, data: FRFData, p_start, *, lower=None, upper=None, free=None
     best = None
     if reduced:
         # the exact objective at the start: a round whose reduced model misleads it must not leave it worse
-        err0 = frf_error(model_frf(st0, data), data)
+        err0 = frf_error(model_frf(st0, data), data) if err_start is None else float(err_start)
         best = (_objective(err0, p_start, data, prior, free), p_start, err0, None)
     for rnd in range(max(int(rounds), 1) if reduced else 1):
         basis = None

@@ -59,6 +59,7 @@ import numpy as np
 from modalab.core.errors import ModalabValueError
 from modalab.core.modes import ModeSet
 from modalab.core.frf import FRF
+from modalab.core.parallel import fork_map
 from updating.fe import FEModel, ParametricFEModel
 from updating.fe.damping import own_loss_exempt
 from updating.diagnosis.fit import Prior, fit_frf, fit_std, frf_data, frf_error, model_frf
@@ -213,7 +214,8 @@ class Diagnoser(_Acceptance, _Options, _Refine, _Proof, _Eliminate):
         cfg = self.config
         fr = self._fit(pm, self.train, start, lower=lower, upper=upper, max_nfev=max(8, cfg.max_nfev // 2))
         if not fr.success:
-            fr = self._fit(pm, self.train, fr.p, lower=lower, upper=upper, max_nfev=cfg.max_nfev)
+            fr = self._fit(pm, self.train, fr.p, lower=lower, upper=upper, max_nfev=cfg.max_nfev,
+                           err_start=fr.error)
             if not fr.success:
                 log.info("an FRF fit stopped at its evaluation budget short of its optimum (%s)", fr.message)
         return fr
@@ -463,11 +465,16 @@ class Diagnoser(_Acceptance, _Options, _Refine, _Proof, _Eliminate):
         self._say("step 5/6: modelling the selected physics and updating jointly on the FRFs")
         t1 = time.perf_counter()
         current, pm_cur, p_cur, n = self.current, self.pm_cur, self.p_cur, len(self.params)
+        # independent fits, side by side on the configured cores (bit for bit the serial ones): the augmented model
+        # from the MCI solution and from a second start (the nominal parameters with fitted damping and the MCI
+        # values of the new terms), and the parameter-only baseline from the MCI parameters
+        starts = [(pm_cur, p_cur, self.lo_cur, self.hi_cur),
+                  (pm_cur, np.concatenate([self.p_nomd, p_cur[n:]]), self.lo_cur, self.hi_cur)] if current else []
+        *joint, upd2 = fork_map(lambda pm_, p0, lo, hi: self._fit(pm_, self.train, p0, lower=lo, upper=hi,
+                                                                  max_nfev=cfg.max_nfev),
+                                starts + [(self.pm, self.p_mci, self.lo, self.hi)], cfg.jobs)
         if current:
-            polish = self._fit(pm_cur, self.train, p_cur, lower=self.lo_cur, upper=self.hi_cur, max_nfev=cfg.max_nfev)
-            # a second start: the nominal parameters (with fitted damping) and the MCI values of the new terms
-            alt = self._fit(pm_cur, self.train, np.concatenate([self.p_nomd, p_cur[n:]]), lower=self.lo_cur,
-                            upper=self.hi_cur, max_nfev=cfg.max_nfev)
+            polish, alt = joint
             if alt.error < polish.error:
                 polish = alt
             log.info("joint FRF fit from the MCI solution %s: error %.4g (%s)", np.round(p_cur, 4), polish.error,
@@ -480,7 +487,6 @@ class Diagnoser(_Acceptance, _Options, _Refine, _Proof, _Eliminate):
         else:
             self.best_fit, self.best_pm, self.best_scales = self.upd, self.pm, []
         # parameter-only baseline: the better of the FRF fit from nominal and from the MCI parameters
-        upd2 = self._fit(self.pm, self.train, self.p_mci, lower=self.lo, upper=self.hi, max_nfev=cfg.max_nfev)
         if upd2.error < self.upd.error:
             self.upd = upd2
         while len(self.current) > 1 and self._eliminate():
