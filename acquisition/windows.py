@@ -77,6 +77,7 @@ from dataclasses import asdict, dataclass
 from typing import NamedTuple
 
 import numpy as np
+from scipy.signal import lfilter
 
 from modalab.core.errors import ModalabValueError
 from modalab.core.frf import check_window_beta
@@ -233,8 +234,6 @@ def windowed_force(x, window, sample_rate_hz: float, highpass_hz: float = 0.0) -
         return x * w
     a = np.pi * fc / float(sample_rate_hz)           # ω_c h / 2
     hp_b, hp_a = np.array([1.0, -1.0]) / (1 + a), np.array([1.0, (a - 1) / (1 + a)])
-    from scipy.signal import lfilter
-
     force = lfilter(hp_a, hp_b, x, axis=-1)            # (1 + ω_c/s), bilinear: the coupling undone
     return lfilter(hp_b, hp_a, force * w, axis=-1)
 

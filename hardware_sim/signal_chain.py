@@ -22,6 +22,7 @@ synthesis_taper         the analog bandwidth of the simulation: a raised-cosine 
 from __future__ import annotations
 
 import numpy as np
+from scipy import signal
 
 from modalab.core.errors import ModalabValueError
 
@@ -104,8 +105,6 @@ def antialias_response(freq_hz, sample_rate_hz: float, kind: str = "delta-sigma"
     if int(order) < 1:
         raise ModalabValueError(f"Butterworth order {order!r} must be >= 1")
     wc = 2 * np.pi * cutoff * fs
-    from scipy import signal
-
     z, p, k = signal.butter(int(order), wc, analog=True, output="zpk")
     _, h = signal.freqs_zpk(z, p, k, worN=2 * np.pi * fa)
     return np.where(f < 0, np.conj(h), h)

@@ -33,6 +33,7 @@ identified (poles at the edges are dropped) nor modelled as a neighbour, and it 
 from __future__ import annotations
 
 import numpy as np
+from scipy.signal import find_peaks, peak_widths
 from .stabilisation import mac_vectors
 
 __all__ = ["mpc", "mcf", "mpd", "mov", "frf_correlation", "synthesis_error", "auto_mac", "edge_resonances"]
@@ -132,8 +133,6 @@ def edge_resonances(freq_hz, H, band_hz) -> list[dict]:
     ok = np.isfinite(power) & (power > 0)
     if not ok.all():
         power = np.where(ok, power, power[ok].min() if ok.any() else 1.0)
-    from scipy.signal import find_peaks, peak_widths
-
     peaks, _ = find_peaks(np.log(power), prominence=EDGE_PEAK_PROMINENCE)
     peaks = peaks[(peaks > 0) & (peaks < f.size - 1)]
     if not peaks.size:

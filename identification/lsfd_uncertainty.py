@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import numpy as np
+from scipy.stats import f as f_dist
 
 from acquisition.windows import correct_poles
 from modalab.core.errors import ModalabValueError, ShapeError, fmt_error
@@ -178,8 +179,6 @@ def _mode_std(out: dict, r: int, frf: FRF, loc: dict, Vall, source: str, n_avg: 
         F, d1, d2, frac = vp.rank_one_test(np.array([loc["wn"], loc["zr"]]))
         if d1 > 0 and d2 > 0 and np.isfinite(F):
             out["rank2_F"][r], out["rank2_fraction"][r] = F, frac
-            from scipy.stats import f as f_dist
-
             out["rank2_p"][r] = float(f_dist.sf(F, d1, d2))
     D, c = vp._derivatives(st)
     Dp = vp._project(st, D)                                                 # (rows, 4)

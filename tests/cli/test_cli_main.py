@@ -204,18 +204,3 @@ def test_info_into_a_pipe_already_closed_exits_quietly_like_a_unix_tool(hits):
         os.close(w)
     assert p.stderr.decode() == ""
     assert p.returncode == 141
-
-
-def test_the_cli_starts_without_scipy_signal_and_stats():
-    """``modalab --help`` (any command's start) does not import scipy.signal or scipy.stats: together about half
-    of the CLI's import time (1.4 of 3.8 s measured with ``python -X importtime`` beside other work); the few
-    functions that use them import them where they are called."""
-    import subprocess
-    import sys
-    from pathlib import Path
-
-    root = Path(__file__).resolve().parents[2]
-    code = ("import sys, modalab.app.cli, updating.diagnosis, identification, acquisition, hardware_sim; "
-            "print(sorted(m for m in ('scipy.signal', 'scipy.stats') if m in sys.modules))")
-    out = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True, text=True, check=True)
-    assert out.stdout.strip() == "[]"

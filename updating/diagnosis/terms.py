@@ -7,6 +7,7 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+from scipy.stats import binom
 
 from modalab.core.errors import ModalabValueError
 from modalab.core.frf import FRF
@@ -215,8 +216,6 @@ def rows_worse(r_o: np.ndarray, r_c: np.ndarray) -> bool | None:
     difference sits at a few resonances (Vuong's z over the values had none there: tuning 3288's local damping,
     χ²/N 0.04, got rotary inertias at 7.5 as alternatives, yet they are worse on 60 of 60 rows) and its size
     where the lines of a row are correlated: the rows' noise is independent."""
-    from scipy.stats import binom
-
     d = (np.abs(r_o) ** 2 - np.abs(r_c) ** 2).reshape(-1, np.shape(r_c)[-1]).sum(axis=1)
     tol = 1e-9 * float(np.max(np.abs(d), initial=0.0))
     k, m = int(np.sum(d > tol)), int(np.sum(np.abs(d) > tol))

@@ -7,6 +7,7 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+from scipy.signal import find_peaks
 
 from modalab.core.errors import ModalabValueError
 from modalab.core.modes import ModeSet
@@ -37,8 +38,6 @@ def peak_modes(measured: FRF, *, band_hz=None, max_modes: int = 12, prominence: 
         rec = rec.lines(ok)
     P = np.sum(np.abs(rec.H) ** 2, axis=(0, 1))
     lg = np.log10(P + 1e-300)
-    from scipy.signal import find_peaks
-
     pk, props = find_peaks(lg, prominence=prominence * max(float(np.ptp(lg)), 1e-12))
     if pk.size == 0:
         raise ModalabValueError("no resonance peaks in the measured FRFs; give identified test modes instead")
@@ -200,8 +199,6 @@ def _power_peaks(H: np.ndarray, first: bool = False) -> np.ndarray:
     prominence of at least 5 % of its range and a factor of 2.  ``first``: the first line counts as a peak when
     it stands that far above the lines after it (an accelerance, flat on a free article's mass line, is highest
     at the first line when a suspension mode lies just above it)."""
-    from scipy.signal import find_peaks
-
     lg = np.log10(np.sum(np.abs(H) ** 2, axis=(0, 1)) + 1e-300)
     prom = max(0.05 * float(np.ptp(lg)), 0.3)
     if not first:

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import minimize_scalar
+from scipy.signal import find_peaks
 
 from modalab.core.frf import FRF
 from updating.diagnosis.testmodes import refine_pole
@@ -99,8 +100,6 @@ def _peaks(frf: FRF, quantity: str) -> list:
         rec = rec.lines(ok)
     P = np.sum(np.abs(rec.H) ** 2, axis=(0, 1))
     lg = np.log10(P + 1e-300)
-    from scipy.signal import find_peaks
-
     pk, _ = find_peaks(lg, prominence=0.05 * max(float(np.ptp(lg)), 1e-12))
     out = []
     for k, i in enumerate(pk):

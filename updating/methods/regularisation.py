@@ -8,6 +8,7 @@ the solution with the stated σ checked against the residuals (χ² per residual
 from __future__ import annotations
 
 import numpy as np
+from scipy.stats import chi2 as _chi2
 
 from modalab.core.errors import ModalabValueError
 
@@ -116,8 +117,6 @@ def posterior(S: np.ndarray, r: np.ndarray, rows: list, alpha: float = 0.0) -> d
         dof = float(sel.sum() - h[sel].sum())
         # rows the fit absorbs (dof near 0) leave no residual at a least-squares solution: a χ² there is judged
         # against one degree of freedom, not waved through (a χ² of 8e10 on dof 2e-9 kept σ 1e-6, issue 14)
-        from scipy.stats import chi2 as _chi2
-
         q95 = float(_chi2.ppf(0.95, max(dof, 1.0)))
         factor = c2 / max(dof, 1.0) if c2 > q95 else 1.0
         groups[g] = {"name": g, "n": int(sel.sum()), "chi2": c2, "dof": dof, "chi2_95": q95, "factor": factor}
