@@ -97,18 +97,20 @@ class _Picks:
         """``[method(*x) for x in items]`` on the configured cores (:func:`~modalab.core.parallel.fork_map`): the
         fits of a batch of candidates are independent.  What a call adds to ``not_evaluated`` (a candidate
         that could not be solved) is handed back with its result and kept in the order of ``items``, in a
-        worker process as in this one.  The candidates in ``items``, the current terms and ``refs`` come back
-        as themselves (a candidate holds the function that adds it to a model, which does not pickle)."""
+        worker process as in this one, and so are the fits it adds to ``_fits_done`` (a later batch may need one
+        of them again).  The candidates in ``items``, the current terms and ``refs`` come back as themselves (a
+        candidate holds the function that adds it to a model, which does not pickle)."""
         def call(*x):
-            k = len(self.not_evaluated)
+            k, n_fits = len(self.not_evaluated), len(self._fits_done)
             r = method(*x)
             new = self.not_evaluated[k:]
             del self.not_evaluated[k:]
-            return r, new
+            return r, new, list(self._fits_done.items())[n_fits:]
         out = []
         cands = [x for item in items for x in item if isinstance(x, Candidate)] + list(self.current) + list(refs)
-        for r, new in fork_map(call, items, self.config.jobs, by_reference=cands):   # candidates hold functions
+        for r, new, fits in fork_map(call, items, self.config.jobs, by_reference=cands):   # candidates hold functions
             self.not_evaluated.extend(new)
+            self._fits_done.update(fits)
             out.append(r)
         return out
 

@@ -423,15 +423,24 @@ def _augment(model: FEModel, cands: list) -> tuple[FEModel, list, list]:
     return m, params, scales
 
 
+class AugmentedModel(ParametricFEModel):
+    """A :class:`ParametricFEModel` of a model with candidate terms added (:func:`_augmented`); ``terms`` holds
+    the terms' keys in their order, which with the nominal model and its parameters define it."""
+
+    def __init__(self, model: FEModel, parameters, terms: tuple):
+        super().__init__(model, parameters)
+        self.terms = tuple(terms)
+
+
 def _augmented(model: FEModel, params: list, lower: np.ndarray, upper: np.ndarray, terms: list):
     """The model with the candidate ``terms`` added (:func:`_augment`), parametrised by ``params`` and the
-    terms' values: ``(ParametricFEModel, lower, upper, scales)``, the bounds ``lower``, ``upper`` of ``params``
+    terms' values: ``(AugmentedModel, lower, upper, scales)``, the bounds ``lower``, ``upper`` of ``params``
     followed by zero and each term's plausible value (:func:`_upper`), ``scales`` the factors from the terms'
     fitted parameters to their physical values."""
     m_aug, cpar, scales = _augment(model, terms)
     lo = np.concatenate([lower, np.zeros(len(cpar))])
     hi = np.concatenate([upper, _upper(terms, scales)])
-    return ParametricFEModel(m_aug, list(params) + cpar), lo, hi, scales
+    return AugmentedModel(m_aug, list(params) + cpar, [c.key for c in terms]), lo, hi, scales
 
 
 def _evidence(c: Candidate, gain: float | None, rank_same_place: list, band, use_mci: bool = True) -> str:

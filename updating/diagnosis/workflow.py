@@ -49,6 +49,7 @@ FRF fits and exact FRF screenings of models above :data:`~updating.diagnosis.fit
 """
 from __future__ import annotations
 
+import copy
 import dataclasses
 import logging
 import time
@@ -67,7 +68,7 @@ from updating.diagnosis.library import build_library, spring_loss_candidates, va
 from updating.diagnosis.release import release_visibility
 from updating.diagnosis.screen import mci_update
 from updating.diagnosis.priors import default_parameters, PRIOR_BOUND, parameter_priors, _with_damping, _split, _bounds, _fit_continued, nonnegative_loss_factors
-from updating.diagnosis.terms import _another_explanation, cv_folds, n_obs, promote_measured, _on_model_dofs, _upper, _augment
+from updating.diagnosis.terms import AugmentedModel, _another_explanation, cv_folds, n_obs, promote_measured, _on_model_dofs, _upper, _augment
 from updating.diagnosis.testmodes import suspension_band
 from updating.diagnosis.mesh import mesh_discrepancy
 from updating.diagnosis.findings import Finding, Diagnosis, or_labels
@@ -212,12 +213,18 @@ class Diagnoser(_Acceptance, _Options, _Refine, _Proof, _Eliminate):
         joint started at the screening's 5.5e6 N·m/rad stopped at 1.6e6 after 15 evaluations, training
         χ²/N 11.9; continued, at 8.3e5 and 4.8 after 25).  A fit still short of its optimum is logged."""
         cfg = self.config
+        key = (pm.terms, *(np.asarray(a, float).tobytes() for a in (start, lower, upper))) \
+            if isinstance(pm, AugmentedModel) else None
+        if key in self._fits_done:             # the same fit again (a screening pick an option was): its result
+            return copy.deepcopy(self._fits_done[key])
         fr = self._fit(pm, self.train, start, lower=lower, upper=upper, max_nfev=max(8, cfg.max_nfev // 2))
         if not fr.success:
             fr = self._fit(pm, self.train, fr.p, lower=lower, upper=upper, max_nfev=cfg.max_nfev,
                            err_start=fr.error)
             if not fr.success:
                 log.info("an FRF fit stopped at its evaluation budget short of its optimum (%s)", fr.message)
+        if key is not None:
+            self._fits_done[key] = fr
         return fr
 
     # ------------------------------------------------------------------ steps 1-2
@@ -293,6 +300,7 @@ class Diagnoser(_Acceptance, _Options, _Refine, _Proof, _Eliminate):
         n_eff = max(self.train.H.size / 10.0, 1.0)
         self.prior = Prior(self.pmean, self.psig,
                            float(self.nom.error * np.sqrt(np.sum(self.train.quality ** 2) / n_eff)))
+        self._fits_done = {}                           # _fit_converged's results on these data with this prior
         self.timings["1 nominal"] = time.perf_counter() - self._t0
         # 2. parameter-only updating
         if say:
