@@ -134,8 +134,14 @@ class _Picks:
         return scr
 
     def _fitted_each(self, jobs: list) -> list:
-        """:meth:`_fitted` of each ``(candidate, value, screening parameters, screening index, what)`` in ``jobs``."""
-        return self._each(self._fitted, jobs)
+        """:meth:`_fitted` of each ``(candidate, value, screening parameters, screening index, what)`` in ``jobs``;
+        the best fit of each candidate this round is kept as ``_round_fits`` (key -> ``(pm, p, error)``) for
+        :meth:`~updating.diagnosis.refine._Refine._prune_alternatives`."""
+        out = self._each(self._fitted, jobs)
+        for t in out:
+            if t[1].key not in self._round_fits or t[0] < self._round_fits[t[1].key][2]:
+                self._round_fits[t[1].key] = (t[2], t[3].p, t[0])
+        return out
 
     def _fitted(self, o, v, p_scr, k: int, what: str) -> tuple:
         """Candidate ``o`` fitted on the training FRFs from value ``v`` and the screening's parameters ``p_scr``

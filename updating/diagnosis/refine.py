@@ -60,6 +60,32 @@ class _Refine:
             self._frf_cur = (pm_aug, fr)
             self._route[o.key] = (None, False, [])
             self._decide("found", o, f"as a part of {c.label}: training FRF error down to {fr.error:.3g}")
+            self._prune_alternatives(c, o, pm_aug, fr)
+
+    def _prune_alternatives(self, c, o, pm_aug, fr) -> None:
+        """The alternatives of ``c`` that ``c`` released with the rest ``o`` of its support (fitted: ``pm_aug`` at
+        ``fr.p``) fits significantly better — by the test that named them (:meth:`_margin`), on their own fits
+        of this round (``_round_fits``, :meth:`~updating.diagnosis.picks._Picks._fitted_each`) — are no longer
+        alternatives: the data tell them apart now.  An alternative that is a support release itself stays (it
+        could be completed too), as does one whose fit is not at hand.  Held-out BF 4147 (looked at after its score): a post's clamp named at 1+Z "or" six
+        inertias and dampers fitted to 0.35-0.36, equal to the one component's 0.26 where the residual left was
+        χ²/N 105; released with its rotations the clamp left 0.156."""
+        alts = self.alternatives.get(c.key)
+        if not alts:
+            return
+        worse, fits, kept = self._margin(pm_aug, fr), self._round_fits, []
+        for a in alts:
+            f = fits.get(a[0].key)
+            if f is not None and not _is_support(a[0]) and worse(f[0], f[1]):
+                self._decide("rejected", a[0], f"as an alternative to {c.label}: released with {o.label}, "
+                                               f"{c.label} fits the training FRFs significantly better (error "
+                                               f"{fr.error:.4g} against {f[2]:.4g})")
+            else:
+                kept.append(a)
+        if kept:
+            self.alternatives[c.key] = kept
+        else:
+            del self.alternatives[c.key]
 
     def _completed_pick(self, c, fr_c):
         """A support release ``c`` that the FRFs reject after it passed the information criterion,

@@ -382,7 +382,7 @@ class Diagnoser(_Acceptance, _Options, _Refine, _Proof, _Eliminate):
         a free frame), which the exact screening sees.  A first term that passes, on either criterion, competes
         with those picks on the training FRFs (``rival``; AH 2717: a mass named a rotary inertia elsewhere)."""
         cfg = self.config
-        self._rival_fit, self._option_fits, self._rival_alts = None, {}, []
+        self._rival_fit, self._option_fits, self._rival_alts, self._round_fits = None, {}, [], {}
         options = self._options(it)
         best, evaluated = None, []
         best = self._run_options(options, it, best, evaluated)
