@@ -338,7 +338,7 @@ class Diagnoser(_Acceptance, _Options, _Refine, _Proof, _Eliminate):
         self.pm_cur, self.lo_cur, self.hi_cur = self.pm, self.lo, self.hi
         self._frf_cur = (self.pm, self.upd)             # the current model fitted on the FRFs
         self._screens, self._route, self.not_evaluated, self._tension_keys, self._tension_notes = [], {}, [], set(), {}
-        self._rival_fit, self._refined = None, set()
+        self._rival_fit, self._refined, self._round_fits = None, set(), {}
         self._displaced = None                          # the MCI's accepted choice a screening pick replaced
         self._observability()
         self.ranking, self.hot_nodes, self.n_lib = None, [], 0
