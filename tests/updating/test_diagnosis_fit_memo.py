@@ -58,6 +58,10 @@ def test_the_same_fit_asked_again_is_the_first_result_not_a_new_fit():
         again.p[:] = 0.0                                            # a copy: the kept result is untouched
         third = d._fit_converged(pm, s0, lo, hi)
         assert third.p.tobytes() == first.p.tobytes() and third.error == first.error
+        p_first = first.p.copy()
+        first.p[:] = 0.0                                            # nor does a change to the first result
+        assert d._fit_converged(pm, s0, lo, hi).p.tobytes() == p_first.tobytes()
+        first.p[:] = p_first
         other = d._fit_converged(pm, s0 * 1.001, lo, hi)            # another start is another fit
         assert len(calls) > n_first and other is not None
     finally:

@@ -67,9 +67,10 @@ class _Refine:
         ``fr.p``) fits significantly better — by the test that named them (:meth:`_margin`), on their own fits
         of this round (``_round_fits``, :meth:`~updating.diagnosis.picks._Picks._fitted_each`) — are no longer
         alternatives: the data tell them apart now.  An alternative that is a support release itself stays (it
-        could be completed too), as does one whose fit is not at hand.  Held-out BF 4147 (looked at after its score): a post's clamp named at 1+Z "or" six
-        inertias and dampers fitted to 0.35-0.36, equal to the one component's 0.26 where the residual left was
-        χ²/N 105; released with its rotations the clamp left 0.156."""
+        could be completed too), as does one whose fit is not at hand.  Held-out BF 4147 (looked at after its
+        score): a post's clamp named at 1+Z "or" six inertias, masses and dampers fitted to 0.32-0.36, equal to
+        the one component's 0.26 where the residual left was χ²/N 105; released with its rotations the clamp
+        left 0.156."""
         alts = self.alternatives.get(c.key)
         if not alts:
             return

@@ -224,7 +224,7 @@ class Diagnoser(_Acceptance, _Options, _Refine, _Proof, _Eliminate):
             if not fr.success:
                 log.info("an FRF fit stopped at its evaluation budget short of its optimum (%s)", fr.message)
         if key is not None:
-            self._fits_done[key] = fr
+            self._fits_done[key] = copy.deepcopy(fr)   # kept apart from what the caller may change
         return fr
 
     # ------------------------------------------------------------------ steps 1-2
