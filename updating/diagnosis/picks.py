@@ -305,11 +305,12 @@ class _Picks:
         return [x for picks in per_kind.values() for x in picks]
 
     def _support_siblings(self, tried: list, have: set) -> list:
-        """For each support release among the fitted picks, the other group of the same support's components
-        (its translations for a release of its rotations, and the reverse), fitted on the training FRFs from
-        the value of the screening that gains most with it: ``tried``-style tuples.  The two groups of an
-        elastic clamp are one physics at one place, but the moduli absorb them differently: even case 1442's
-        clamp (elastic in all six components) screened best as its rotations around the nominal parameters,
+        """For each support release among the fitted picks, the groups of the same support's components not yet
+        fitted — for a group, the other one (its translations for a release of its rotations, and the reverse);
+        for a single component, both — fitted on the training FRFs from the value of the screening that gains
+        most with each: ``tried``-style tuples.  The two groups of an elastic clamp are one physics at one
+        place, but the moduli absorb them differently: even case 1442's clamp (elastic in all six components)
+        screened best as its rotations around the nominal parameters,
         which fitted with the parameters left the error where it was (2.64 % against 2.69 %), while its
         translations, never picked, fit to 0.83 % (a rotational spring two nodes up took 1.46 %)."""
         def group(o):                        # a support release of two or more components
@@ -321,9 +322,8 @@ class _Picks:
             c = t[1]
             if not _is_support(c):
                 continue
-            # a group: the other group; one component: both groups of its support (held-out BH 4263, seen
-            # after its score: a portal's clamp, picked as 1+X alone (0.128), lost to a mass (0.105) while its
-            # rotations fitted alone leave 0.060)
+            # one component: both groups (held-out BH 4263, seen after its score: a portal's clamp, picked as
+            # 1+X alone (0.128), lost to a mass (0.105) while its rotations fitted alone leave 0.060)
             sibs = {o.key: o for scr, _ in self._screens for o, _, _ in scr if o.key not in done and group(o)
                     and o.release[1] == c.release[1]
                     and (not group(c) or not set(o.release[2]) & set(c.release[2]))}

@@ -305,8 +305,9 @@ def release_screen(structure, model, candidates, data: FRFData, *, loss_factor: 
     1.58e3 and 0.22-0.29 a 26 % step either side, so the former 57-value grid saw 0.170 at 3.2e3 and the fit
     from there ran to a stiff joint), refined by Brent's method; ``n_values_multi`` for higher ranks.
     Returns ``[(candidate, k, gain)]`` best first, ``gain`` the relative drop of
-    :func:`~updating.diagnosis.fit.frf_error` (only candidates that lower it).  With a :class:`~updating.diagnosis.frfscreen.ParameterRefit` the parameters of the fit
-    ``structure`` are re-fitted to first order alongside each value, as in the FRF screening.  Raises
+    :func:`~updating.diagnosis.fit.frf_error` (only candidates that lower it).  With a
+    :class:`~updating.diagnosis.frfscreen.ParameterRefit` the parameters of the fit ``structure`` are
+    re-fitted to first order alongside each value, as in the FRF screening.  Raises
     :class:`~modalab.core.errors.ModalabValueError` when the model and the structure have different DOFs."""
     work, B = _releases(model, structure, data, candidates, "release screening")
     if not work:
