@@ -394,11 +394,11 @@ class Diagnoser(_Acceptance, _Options, _Refine, _Proof, _Eliminate):
         failed = set()
         if not ok and best is not None and not self.use_mci and not self.current and why != IC_FAILED:
             ok, best, why, failed = self._judge_other_kinds(best, why, evaluated, n_eq)
-        picked = None
-        if ok and not self.current:
-            # the first term: the criterion's choice and the exact FRF screening's picks compete on one likelihood,
-            # the training FRFs' (the criterion fits only the options it ranked best)
-            picked = self._judge_picks(it, n_eq, rival=best)
+        # the first term: the criterion's choice and the exact FRF screening's picks compete on one likelihood, the
+        # training FRFs' (the criterion fits only the options it ranked best); the MCI's choice must show there
+        picked = self._judge_picks(it, n_eq, rival=best) if ok and not self.current else None
+        if ok and picked is None and self.use_mci and not self.current:
+            ok, why = self._rival_shown(best, why)
         if picked is not None:
             on = "MCI" if self.use_mci else "FRFs"
             self._decide("rejected", best[0], f"passed on the {on}, but {picked[0].label} fits the training FRFs "
