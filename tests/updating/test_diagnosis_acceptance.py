@@ -338,10 +338,11 @@ def test_a_point_mass_competes_with_the_rotary_inertia_accepted_in_its_place():
 
 
 def test_the_mcis_choice_must_show_on_the_frfs_above_the_noise():
-    """The MCI's accepted choice stands against the screening picks only when, fitted on the training FRFs, it
-    lowers their χ² significantly against the noise, the test every pick passes (:meth:`_rival_shown`; held-out
-    control BI 4367: a dashpot passed the MCI's own tests, which compare two MCI solutions, and fitted on the
-    FRFs took χ²/N from 0.042 to 0.036 — local damping named on a model that missed nothing).  On data from the
+    """The MCI's accepted choice stands against the screening picks only when the model with it (at the MCI's
+    solution or fitted on the training FRFs) leaves a χ² significantly below the parameters' best against the
+    noise, the test every pick passes (:meth:`_rival_shown`; held-out control BI 4367: a dashpot passed the
+    MCI's own tests, which compare two MCI solutions, and took the FRFs' χ²/N from 0.042 to 0.036 — local
+    damping named on a model that missed nothing).  On data from the
     nominal (an exact model) a 50 g mass as the MCI's choice stands against the picks (there are none) and
     shows nothing; the spring of the spring case as its choice shows far above the noise."""
     d = _diagnoser(False)
