@@ -754,7 +754,7 @@ def test_a_clamp_picked_as_one_component_is_fitted_as_its_groups_too(tmp_path):
 
 
 @pytest.mark.slow
-def test_a_control_gets_no_damping_the_frfs_do_not_show_above_their_noise(tmp_path):
+def test_held_out_4367_gets_no_damping_its_frfs_do_not_show_above_their_noise(tmp_path):
     """Held-out control 4367 (set BI, looked at after its score): a free-free T of two sections with material
     errors only (loss factors 0.0023 and 0.0036).  The MCI accepted a dashpot to ground at 6+RX (damping 32 % of
     the background): its tests compare two MCI solutions on the FRFs (training χ²/N 85.2 -> 4.27), and the
